@@ -1,0 +1,1 @@
+//! ALACS unit: red line laser on a 20 cm linear slide plus an RGB camera.

@@ -1,0 +1,8 @@
+//! Hardware layer: one trait per device class, the shared error kinds, and the implementations
+//! (simulated devices reached over iceoryx2 hardware channels, and real drivers).
+
+pub mod alacs;
+pub mod error_kind;
+pub mod valve_board;
+
+pub use error_kind::{DeviceError, ErrorKind};

@@ -1,0 +1,242 @@
+//! The channel catalogue: every channel of the stack, declared once with its topic, payload type
+//! and QoS. No other code names a service.
+//!
+//! QoS policy: every channel uses iceoryx2's safe overflow (a full subscriber buffer drops its
+//! oldest sample), so no subscriber, the recorder included, can ever block a publisher; drops
+//! are seen as `msg_seq` gaps and counted by [`crate::Subscriber`]. Buffers are sized per
+//! channel for the subscribers that must not lose messages (the recorder asks for the maximum).
+
+use crate::payload::Payload;
+use crate::payloads::*;
+use std::marker::PhantomData;
+
+/// Quality of service of one channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Qos {
+    /// Samples a late-joining subscriber receives on connect.
+    pub history_size: usize,
+    /// Largest buffer a subscriber may ask for.
+    pub subscriber_max_buffer_size: usize,
+    /// Buffer used when a subscriber does not ask for a specific one.
+    pub default_buffer_size: usize,
+    /// Drop the oldest sample when a subscriber's buffer is full (never block the publisher).
+    pub safe_overflow: bool,
+    pub max_publishers: usize,
+    pub max_subscribers: usize,
+    pub max_nodes: usize,
+    /// Samples one publisher may hold loaned at once.
+    pub max_loans: usize,
+}
+
+impl Qos {
+    /// Small messages: generous buffers, many participants.
+    pub const SMALL: Self = Self {
+        history_size: 0,
+        subscriber_max_buffer_size: 256,
+        default_buffer_size: 64,
+        safe_overflow: true,
+        max_publishers: 4,
+        max_subscribers: 8,
+        max_nodes: 16,
+        max_loans: 2,
+    };
+    /// Latched state (late joiners get the last value).
+    pub const STATE: Self = Self { history_size: 1, ..Self::SMALL };
+    /// Multi-megabyte frames: every buffer slot is a frame in shared memory (see FIELD-NOTES).
+    pub const FRAMES: Self = Self {
+        history_size: 0,
+        subscriber_max_buffer_size: 8,
+        default_buffer_size: 2,
+        safe_overflow: true,
+        max_publishers: 2,
+        max_subscribers: 4,
+        max_nodes: 8,
+        max_loans: 2,
+    };
+}
+
+/// A channel's static description (type-erased).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChannelSpec {
+    /// Topic name, also the MCAP topic: `camera/rgbd`, `arm1/state`.
+    pub topic: &'static str,
+    pub type_name: &'static str,
+    pub version: u32,
+    pub qos: Qos,
+    pub description: &'static str,
+}
+
+impl ChannelSpec {
+    /// The iceoryx2 service name of this channel (the domain lives in the file prefix).
+    pub fn service_name(&self) -> String {
+        format!("harvest/{}", self.topic)
+    }
+}
+
+/// A typed channel of the catalogue.
+pub struct Channel<T: Payload> {
+    pub spec: ChannelSpec,
+    payload: PhantomData<fn() -> T>,
+}
+
+impl<T: Payload> Clone for Channel<T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<T: Payload> Copy for Channel<T> {}
+
+impl<T: Payload> std::fmt::Debug for Channel<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.spec.fmt(f)
+    }
+}
+
+impl<T: Payload> Channel<T> {
+    const fn new(topic: &'static str, qos: Qos, description: &'static str) -> Self {
+        Self {
+            spec: ChannelSpec { topic, type_name: T::TYPE_NAME, version: T::VERSION, qos, description },
+            payload: PhantomData,
+        }
+    }
+}
+
+/// Arm identifiers: arm 1 and arm 2.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ArmId {
+    One,
+    Two,
+}
+
+impl ArmId {
+    pub const ALL: [ArmId; 2] = [ArmId::One, ArmId::Two];
+
+    pub fn from_number(number: u8) -> Option<Self> {
+        match number {
+            1 => Some(Self::One),
+            2 => Some(Self::Two),
+            _ => None,
+        }
+    }
+
+    pub fn number(self) -> u8 {
+        match self {
+            Self::One => 1,
+            Self::Two => 2,
+        }
+    }
+
+    pub fn index(self) -> usize {
+        self.number() as usize - 1
+    }
+
+    pub fn other(self) -> Self {
+        match self {
+            Self::One => Self::Two,
+            Self::Two => Self::One,
+        }
+    }
+}
+
+pub const CAMERA_RGBD: Channel<RgbdFrame> = Channel::new(
+    "camera/rgbd",
+    Qos::FRAMES,
+    "registered RGB-D frames of the ToF camera (1920x1080 RGB8 + 640x480 depth mm), 30 Hz",
+);
+pub const PERCEPTION_APPLES: Channel<AppleDetections> = Channel::new(
+    "perception/apples",
+    Qos::SMALL,
+    "apples detected and localized in one camera frame",
+);
+pub const LASER_SCAN_REQUEST: Channel<LaserScanRequest> =
+    Channel::new("laser/scan_request", Qos::SMALL, "ask the ALACS unit to scan one apple");
+pub const LASER_SCAN_RESULT: Channel<LaserScanResult> = Channel::new(
+    "laser/scan_result",
+    Qos::SMALL,
+    "ALACS scan result with all per-image candidates and timing",
+);
+pub const ARM_TARGET: [Channel<ArmTarget>; 2] = [
+    Channel::new("arm1/target", Qos::STATE, "apple assigned to arm 1"),
+    Channel::new("arm2/target", Qos::STATE, "apple assigned to arm 2"),
+];
+pub const ARM_COMMAND: [Channel<ArmCommand>; 2] = [
+    Channel::new("arm1/command", Qos::SMALL, "joint set-points for arm 1's servos, 200 Hz"),
+    Channel::new("arm2/command", Qos::SMALL, "joint set-points for arm 2's servos, 200 Hz"),
+];
+pub const ARM_STATE: [Channel<ArmState>; 2] = [
+    Channel::new("arm1/state", Qos::STATE, "arm 1 phase, joints and end-effector, 200 Hz"),
+    Channel::new("arm2/state", Qos::STATE, "arm 2 phase, joints and end-effector, 200 Hz"),
+];
+pub const VALVE_REQUEST: Channel<ValveRequest> =
+    Channel::new("vacuum/valve_request", Qos::SMALL, "arms ask to open or close their valves");
+pub const VALVE_GRANT: Channel<ValveGrant> = Channel::new(
+    "vacuum/valve_grant",
+    Qos::SMALL,
+    "vacuum supervisor's answer to each valve request",
+);
+pub const VACUUM_STATE: Channel<VacuumState> = Channel::new(
+    "vacuum/state",
+    Qos::STATE,
+    "valves, 3 pressures and inferred attachment per arm",
+);
+pub const EMERGENCY_STOP: Channel<EmergencyStop> =
+    Channel::new("safety/emergency_stop", Qos::STATE, "engaged: all arms stop, all valves close");
+pub const PROCESS_HEALTH: Channel<ProcessHealth> = Channel::new(
+    "system/health",
+    Qos { max_publishers: 24, max_nodes: 32, ..Qos::SMALL },
+    "heartbeat of every process, 2 Hz",
+);
+
+/// Called once per catalogue channel with its payload type.
+pub trait ChannelVisitor {
+    fn visit<T: Payload>(&mut self, channel: Channel<T>);
+}
+
+/// Visits every channel of the catalogue (recorder, replay, `rec` tools, docs).
+pub fn visit_all(visitor: &mut impl ChannelVisitor) {
+    visitor.visit(CAMERA_RGBD);
+    visitor.visit(PERCEPTION_APPLES);
+    visitor.visit(LASER_SCAN_REQUEST);
+    visitor.visit(LASER_SCAN_RESULT);
+    for arm in ArmId::ALL {
+        visitor.visit(ARM_TARGET[arm.index()]);
+        visitor.visit(ARM_COMMAND[arm.index()]);
+        visitor.visit(ARM_STATE[arm.index()]);
+    }
+    visitor.visit(VALVE_REQUEST);
+    visitor.visit(VALVE_GRANT);
+    visitor.visit(VACUUM_STATE);
+    visitor.visit(EMERGENCY_STOP);
+    visitor.visit(PROCESS_HEALTH);
+}
+
+/// Every channel's spec, in catalogue order.
+pub fn all_specs() -> Vec<ChannelSpec> {
+    struct Collect(Vec<ChannelSpec>);
+    impl ChannelVisitor for Collect {
+        fn visit<T: Payload>(&mut self, channel: Channel<T>) {
+            self.0.push(channel.spec);
+        }
+    }
+    let mut collect = Collect(Vec::new());
+    visit_all(&mut collect);
+    collect.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn topics_are_unique_and_well_formed() {
+        let specs = all_specs();
+        let mut topics: Vec<_> = specs.iter().map(|s| s.topic).collect();
+        topics.sort_unstable();
+        topics.dedup();
+        assert_eq!(topics.len(), specs.len());
+        for spec in &specs {
+            assert!(spec.topic.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'/' || b == b'_'));
+            assert!(spec.qos.default_buffer_size <= spec.qos.subscriber_max_buffer_size);
+        }
+    }
+}

@@ -1,0 +1,71 @@
+//! A fixed-capacity UTF-8 string for payloads (process names, reasons).
+
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+/// Up to `N` bytes of UTF-8, zero padded. Longer input is truncated at a character boundary.
+#[repr(C)]
+#[derive(Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+pub struct FixedString<const N: usize> {
+    bytes: [u8; N],
+}
+
+impl<const N: usize> FixedString<N> {
+    pub fn new(text: &str) -> Self {
+        let mut bytes = [0u8; N];
+        let mut end = text.len().min(N);
+        while !text.is_char_boundary(end) {
+            end -= 1;
+        }
+        bytes[..end].copy_from_slice(&text.as_bytes()[..end]);
+        Self { bytes }
+    }
+
+    pub fn as_str(&self) -> &str {
+        let end = self.bytes.iter().position(|&b| b == 0).unwrap_or(N);
+        std::str::from_utf8(&self.bytes[..end]).unwrap_or("<invalid utf-8>")
+    }
+}
+
+impl<const N: usize> Default for FixedString<N> {
+    fn default() -> Self {
+        Self { bytes: [0u8; N] }
+    }
+}
+
+impl<const N: usize> std::fmt::Debug for FixedString<N> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:?}", self.as_str())
+    }
+}
+
+impl<const N: usize> std::fmt::Display for FixedString<N> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl<const N: usize> Serialize for FixedString<N> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.as_str())
+    }
+}
+
+impl<'de, const N: usize> Deserialize<'de> for FixedString<N> {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let text = String::deserialize(deserializer)?;
+        Ok(Self::new(&text))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn truncates_at_char_boundary() {
+        let name = FixedString::<4>::new("aéé");
+        assert_eq!(name.as_str(), "aé");
+        assert_eq!(FixedString::<8>::new("camera").as_str(), "camera");
+    }
+}

@@ -1,0 +1,53 @@
+//! Heartbeats every process sends on the health channel (supervisor's hung-process detection).
+
+use crate::catalogue::PROCESS_HEALTH;
+use crate::clock::MonotonicClock;
+use crate::context::Context;
+use crate::error::{OpenChannelError, SendError};
+use crate::fixed_string::FixedString;
+use crate::payloads::{ProcessHealth, ProcessRunState};
+use crate::publisher::Publisher;
+use std::time::Duration;
+
+/// How often a process reports. The supervisor's hang timeout is a multiple of this.
+pub const HEARTBEAT_PERIOD: Duration = Duration::from_millis(500);
+
+/// Publishes this process's heartbeat.
+pub struct HealthReporter {
+    publisher: Publisher<ProcessHealth>,
+    process_name: FixedString<32>,
+    pid: u32,
+}
+
+impl HealthReporter {
+    pub fn new(context: &Context) -> Result<Self, OpenChannelError> {
+        Ok(Self {
+            publisher: context.publisher(PROCESS_HEALTH)?,
+            process_name: FixedString::new(context.process_name()),
+            pid: std::process::id(),
+        })
+    }
+
+    /// Sends one heartbeat. `main_channel_count` counts messages on the process's main channel
+    /// since start; `detail`/`detail_value` carry one figure worth showing (e.g. a latency).
+    pub fn report(
+        &mut self,
+        run_state: ProcessRunState,
+        main_channel_count: u64,
+        detail: &str,
+        detail_value: u64,
+    ) -> Result<(), SendError> {
+        let process_name = self.process_name;
+        let pid = self.pid;
+        self.publisher.publish_with(MonotonicClock::read_ns(), |health| {
+            health.process_name = process_name;
+            health.pid = pid;
+            health.run_state = run_state as u8;
+            health._reserved = [0; 3];
+            health.main_channel_count = main_channel_count;
+            health.detail = FixedString::new(detail);
+            health.detail_value = detail_value;
+        })?;
+        Ok(())
+    }
+}

@@ -1,0 +1,77 @@
+//! Perception's output: the apples seen in one camera frame, localized in 3D.
+
+use crate::bounded_vec::BoundedVec;
+use crate::header::Header;
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Serialize};
+
+/// At most this many apples are reported per frame.
+pub const MAX_APPLES_PER_FRAME: usize = 64;
+
+/// Which 3D localization estimator produced a position (code in [`AppleDetection::method`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum LocalizationMethod {
+    /// The paper's DBSCAN largest-cluster centroid depth along the box-centre ray.
+    ClusterCentroid = 1,
+    /// Robust sphere fit with an apple-radius prior.
+    SphereFit = 2,
+    /// Refined by an ALACS laser scan.
+    LaserScan = 3,
+    /// LiDAR-camera fused points.
+    LidarFusion = 4,
+}
+
+impl LocalizationMethod {
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            1 => Some(Self::ClusterCentroid),
+            2 => Some(Self::SphereFit),
+            3 => Some(Self::LaserScan),
+            4 => Some(Self::LidarFusion),
+            _ => None,
+        }
+    }
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+pub struct AppleDetection {
+    /// Stable within a track of frames when perception can associate, else per frame.
+    pub apple_id: u32,
+    /// [`LocalizationMethod`] code.
+    pub method: u8,
+    pub _reserved: [u8; 3],
+    pub position_in_camera_m: [f64; 3],
+    pub position_in_robot_m: [f64; 3],
+    pub radius_m: f64,
+    /// 0..1.
+    pub confidence: f32,
+    /// Colour-image box: x, y, width, height in pixels.
+    pub box_px: [u32; 4],
+    pub visible_px: u32,
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.AppleDetections.v1")]
+pub struct AppleDetections {
+    pub header: Header,
+    /// `msg_seq` and `capture_ns` of the camera frame these come from.
+    pub source_frame_seq: u64,
+    pub source_capture_ns: u64,
+    /// Time perception spent on the frame.
+    pub processing_ns: u64,
+    pub apples: BoundedVec<AppleDetection, MAX_APPLES_PER_FRAME>,
+}
+
+crate::serde_payload!(
+    AppleDetections,
+    "harvest.AppleDetections",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+source_frame_seq: u64; source_capture_ns: u64; processing_ns: u64; apples: u64 count then \
+count x {apple_id:u32, method:u8 (1 centroid, 2 sphere fit, 3 laser, 4 lidar), _reserved:[u8;3], \
+position_in_camera_m:[f64;3], position_in_robot_m:[f64;3], radius_m:f64, confidence:f32, \
+box_px:[u32;4] (x,y,w,h), visible_px:u32}"
+);

@@ -1,0 +1,116 @@
+//! Per-arm channels: the target assigned to an arm, the joint commands sent to its servos, and
+//! the state it reports.
+
+use crate::header::Header;
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Serialize};
+
+/// Prismatic D (m), revolute theta (rad), revolute phi (rad), end-effector rotation (rad).
+pub const JOINT_COUNT: usize = 4;
+
+/// The four-phase picking cycle, plus idle and stopped (code in [`ArmState::phase`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ArmPhase {
+    Idle = 0,
+    Approach = 1,
+    AttachDetach = 2,
+    Retract = 3,
+    Release = 4,
+    Stopped = 5,
+}
+
+impl ArmPhase {
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            0 => Some(Self::Idle),
+            1 => Some(Self::Approach),
+            2 => Some(Self::AttachDetach),
+            3 => Some(Self::Retract),
+            4 => Some(Self::Release),
+            5 => Some(Self::Stopped),
+            _ => None,
+        }
+    }
+}
+
+/// An apple assigned to an arm (from assignment).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.ArmTarget.v1")]
+pub struct ArmTarget {
+    pub header: Header,
+    pub arm_id: u8,
+    pub _reserved: [u8; 3],
+    pub apple_id: u32,
+    pub position_in_robot_m: [f64; 3],
+    pub radius_m: f64,
+    /// `capture_ns` of the frame the position was measured in (staleness check).
+    pub source_capture_ns: u64,
+}
+
+crate::serde_payload!(
+    ArmTarget,
+    "harvest.ArmTarget",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+arm_id:u8; _reserved:[u8;3]; apple_id:u32; position_in_robot_m:[f64;3]; radius_m:f64; \
+source_capture_ns:u64"
+);
+
+/// Joint set-points for one arm's servos (controller -> arm driver), sent every control period.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.ArmCommand.v1")]
+pub struct ArmCommand {
+    pub header: Header,
+    pub arm_id: u8,
+    /// 1: hold (ignore set-points, brake), 0: track set-points.
+    pub hold: u8,
+    pub _reserved: [u8; 6],
+    /// D in m, theta/phi/twist in rad.
+    pub joint_position: [f64; JOINT_COUNT],
+    /// m/s and rad/s feed-forward velocities.
+    pub joint_velocity: [f64; JOINT_COUNT],
+}
+
+crate::serde_payload!(
+    ArmCommand,
+    "harvest.ArmCommand",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+arm_id:u8; hold:u8; _reserved:[u8;6]; joint_position:[f64;4] (D m, theta rad, phi rad, twist \
+rad); joint_velocity:[f64;4]"
+);
+
+/// What an arm reports at its control rate.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.ArmState.v1")]
+pub struct ArmState {
+    pub header: Header,
+    pub arm_id: u8,
+    /// [`ArmPhase`] code.
+    pub phase: u8,
+    /// 1 when the arm believes it holds an apple (vacuum sealed).
+    pub holding: u8,
+    pub _reserved: [u8; 5],
+    pub apple_id: u32,
+    pub harvested_count: u32,
+    /// Encoder feedback.
+    pub joint_position: [f64; JOINT_COUNT],
+    pub joint_velocity: [f64; JOINT_COUNT],
+    pub end_effector_in_robot_m: [f64; 3],
+    /// Period of the last control cycle.
+    pub control_period_ns: u64,
+}
+
+crate::serde_payload!(
+    ArmState,
+    "harvest.ArmState",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+arm_id:u8; phase:u8 (0 idle,1 approach,2 attach/detach,3 retract,4 release,5 stopped); \
+holding:u8; _reserved:[u8;5]; apple_id:u32; harvested_count:u32; joint_position:[f64;4]; \
+joint_velocity:[f64;4]; end_effector_in_robot_m:[f64;3]; control_period_ns:u64"
+);

@@ -1,0 +1,25 @@
+//! Emergency stop: every arm stops and every valve closes while engaged.
+
+use crate::fixed_string::FixedString;
+use crate::header::Header;
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Serialize};
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.EmergencyStop.v1")]
+pub struct EmergencyStop {
+    pub header: Header,
+    /// 1 engaged, 0 released.
+    pub engaged: u8,
+    pub _reserved: [u8; 7],
+    pub reason: FixedString<64>,
+}
+
+crate::serde_payload!(
+    EmergencyStop,
+    "harvest.EmergencyStop",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+engaged:u8; _reserved:[u8;7]; reason: u64 length + UTF-8"
+);

@@ -1,0 +1,17 @@
+//! The message types of the stack, one concept per file.
+
+pub mod apple_detections;
+pub mod arm;
+pub mod emergency_stop;
+pub mod laser_scan;
+pub mod process_health;
+pub mod rgbd_frame;
+pub mod vacuum;
+
+pub use apple_detections::{AppleDetection, AppleDetections, LocalizationMethod};
+pub use arm::{ArmCommand, ArmPhase, ArmState, ArmTarget, JOINT_COUNT};
+pub use emergency_stop::EmergencyStop;
+pub use laser_scan::{LaserScanRequest, LaserScanResult};
+pub use process_health::{ProcessHealth, ProcessRunState};
+pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
+pub use vacuum::{ValveGrant, ValveRequest, ValveRequestKind, VacuumState};

@@ -1,0 +1,56 @@
+//! Heartbeats: every process reports twice a second; the supervisor restarts a silent one.
+
+use crate::fixed_string::FixedString;
+use crate::header::Header;
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Serialize};
+
+/// Run state of a process (code in [`ProcessHealth::run_state`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ProcessRunState {
+    Starting = 0,
+    Running = 1,
+    Degraded = 2,
+    Stopping = 3,
+}
+
+impl ProcessRunState {
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            0 => Some(Self::Starting),
+            1 => Some(Self::Running),
+            2 => Some(Self::Degraded),
+            3 => Some(Self::Stopping),
+            _ => None,
+        }
+    }
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.ProcessHealth.v1")]
+pub struct ProcessHealth {
+    pub header: Header,
+    /// The name the process was launched under (launch-file name).
+    pub process_name: FixedString<32>,
+    pub pid: u32,
+    /// [`ProcessRunState`] code.
+    pub run_state: u8,
+    pub _reserved: [u8; 3],
+    /// Messages the process has handled on its main channel since start (published for
+    /// producers, received for consumers): the supervisor derives a rate from it.
+    pub main_channel_count: u64,
+    /// A free-form figure the process cares about (perception: last receive latency in ns).
+    pub detail_value: u64,
+    pub detail: FixedString<32>,
+}
+
+crate::serde_payload!(
+    ProcessHealth,
+    "harvest.ProcessHealth",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+process_name: u64 length + UTF-8; pid:u32; run_state:u8 (0 starting,1 running,2 degraded,3 \
+stopping); _reserved:[u8;3]; main_channel_count:u64; detail_value:u64; detail: u64 length + UTF-8"
+);

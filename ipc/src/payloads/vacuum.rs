@@ -1,0 +1,99 @@
+//! The shared vacuum: arms request valve changes, the vacuum supervisor grants or refuses them
+//! and reports the valves and pressures. Valves 1-2 serve arm 1, valves 3-4 serve arm 2; pressure
+//! sensors: inside arm 1, inside arm 2, at the source.
+
+use crate::header::Header;
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Serialize};
+
+pub const VALVE_COUNT: usize = 4;
+pub const PRESSURE_SENSOR_COUNT: usize = 3;
+
+/// What an arm asks of its valves (code in [`ValveRequest::kind`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ValveRequestKind {
+    /// Open to attempt attachment.
+    OpenForAttach = 1,
+    /// Close (release at the drop-off, or abort).
+    Close = 2,
+}
+
+impl ValveRequestKind {
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            1 => Some(Self::OpenForAttach),
+            2 => Some(Self::Close),
+            _ => None,
+        }
+    }
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.ValveRequest.v1")]
+pub struct ValveRequest {
+    pub header: Header,
+    pub arm_id: u8,
+    /// [`ValveRequestKind`] code.
+    pub kind: u8,
+    pub _reserved: [u8; 2],
+    pub request_seq: u32,
+}
+
+crate::serde_payload!(
+    ValveRequest,
+    "harvest.ValveRequest",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+arm_id:u8; kind:u8 (1 open for attach, 2 close); _reserved:[u8;2]; request_seq:u32"
+);
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.ValveGrant.v1")]
+pub struct ValveGrant {
+    pub header: Header,
+    pub arm_id: u8,
+    /// 1 granted, 0 refused.
+    pub granted: u8,
+    /// Policy-specific reason code when refused (0 = none).
+    pub reason: u8,
+    pub _reserved: u8,
+    pub request_seq: u32,
+}
+
+crate::serde_payload!(
+    ValveGrant,
+    "harvest.ValveGrant",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+arm_id:u8; granted:u8; reason:u8; _reserved:u8; request_seq:u32"
+);
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.VacuumState.v1")]
+pub struct VacuumState {
+    pub header: Header,
+    /// 1 open, 0 closed, per valve 1..4.
+    pub valve_open: [u8; VALVE_COUNT],
+    /// 1 while a valve is moving (butterfly valves take up to 1 s).
+    pub valve_in_transit: [u8; VALVE_COUNT],
+    /// Vacuum in mmH2O (positive = below atmosphere): arm 1, arm 2, source.
+    pub pressure_mmh2o: [f32; PRESSURE_SENSOR_COUNT],
+    /// Inferred per arm: 0 closed, 1 open to atmosphere, 2 sealed (apple attached).
+    pub arm_attachment: [u8; 2],
+    /// Active policy: 0 baseline, 1 policy-2023, 2 policy-2024.
+    pub policy: u8,
+    pub _reserved: u8,
+}
+
+crate::serde_payload!(
+    VacuumState,
+    "harvest.VacuumState",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+valve_open:[u8;4]; valve_in_transit:[u8;4]; pressure_mmh2o:[f32;3] (arm1, arm2, source); \
+arm_attachment:[u8;2] (0 closed,1 open,2 sealed); policy:u8; _reserved:u8"
+);
