@@ -3,6 +3,7 @@
 
 pub mod alacs;
 pub mod error_kind;
+pub mod rgbd_camera;
 pub mod valve_board;
 
 pub use error_kind::{DeviceError, ErrorKind};

@@ -55,11 +55,23 @@ impl Qos {
     };
 }
 
+/// Which layer a channel belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layer {
+    /// Between the stack's processes.
+    Stack,
+    /// Between a device driver and its device (here: the simulator standing in for hardware).
+    Hardware,
+    /// Ground truth for evaluation only; no stack process may subscribe.
+    Evaluation,
+}
+
 /// A channel's static description (type-erased).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ChannelSpec {
     /// Topic name, also the MCAP topic: `camera/rgbd`, `arm1/state`.
     pub topic: &'static str,
+    pub layer: Layer,
     pub type_name: &'static str,
     pub version: u32,
     pub qos: Qos,
@@ -94,8 +106,19 @@ impl<T: Payload> std::fmt::Debug for Channel<T> {
 
 impl<T: Payload> Channel<T> {
     const fn new(topic: &'static str, qos: Qos, description: &'static str) -> Self {
+        Self::in_layer(Layer::Stack, topic, qos, description)
+    }
+
+    const fn in_layer(layer: Layer, topic: &'static str, qos: Qos, description: &'static str) -> Self {
         Self {
-            spec: ChannelSpec { topic, type_name: T::TYPE_NAME, version: T::VERSION, qos, description },
+            spec: ChannelSpec {
+                topic,
+                layer,
+                type_name: T::TYPE_NAME,
+                version: T::VERSION,
+                qos,
+                description,
+            },
             payload: PhantomData,
         }
     }
@@ -187,6 +210,14 @@ pub const PROCESS_HEALTH: Channel<ProcessHealth> = Channel::new(
     "heartbeat of every process, 2 Hz",
 );
 
+/// The simulated (or real) camera device's frame output, read by the camera driver.
+pub const HW_CAMERA_RGBD: Channel<RgbdFrame> = Channel::in_layer(
+    Layer::Hardware,
+    "hw/camera/rgbd",
+    Qos { max_subscribers: 2, ..Qos::FRAMES },
+    "frames as the ToF camera device delivers them to its driver",
+);
+
 /// Called once per catalogue channel with its payload type.
 pub trait ChannelVisitor {
     fn visit<T: Payload>(&mut self, channel: Channel<T>);
@@ -208,6 +239,7 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(VACUUM_STATE);
     visitor.visit(EMERGENCY_STOP);
     visitor.visit(PROCESS_HEALTH);
+    visitor.visit(HW_CAMERA_RGBD);
 }
 
 /// Every channel's spec, in catalogue order.

@@ -53,6 +53,10 @@ pub fn remove_dead_nodes(domain: &Domain) -> Result<CleanupReport, CleanupError>
 
 /// Files of `domain` that still exist in /dev/shm and under the iceoryx2 root directory (for
 /// tests and `harvest clean --check`: after a clean shutdown this is empty).
+///
+/// Not counted: iceoryx2's per-prefix global management segment (`*.global_mgmt`, a few KiB),
+/// which iceoryx2 keeps on purpose as the registry every node of the prefix attaches to; it
+/// holds no channel data and is reused by the next run of the domain.
 pub fn leftover_files(domain: &Domain) -> Vec<PathBuf> {
     let prefix = domain.file_prefix();
     let config = domain.iceoryx2_config();
@@ -65,7 +69,9 @@ pub fn leftover_files(domain: &Domain) -> Vec<PathBuf> {
             let path = entry.path();
             if path.is_dir() && !path.starts_with("/dev/shm") {
                 stack.push(path);
-            } else if entry.file_name().to_string_lossy().starts_with(&prefix) {
+            } else if entry.file_name().to_string_lossy().starts_with(&prefix)
+                && !entry.file_name().to_string_lossy().ends_with(".global_mgmt")
+            {
                 found.push(path);
             }
         }

@@ -16,6 +16,9 @@ use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFac
 /// The iceoryx2 service flavour of the stack: inter-process, single-threaded ports.
 pub type Ipc = ipc::Service;
 
+/// A channel's publish-subscribe service and its companion event service.
+type ServicePair<T> = (PubSubFactory<Ipc, T, ()>, EventFactory<Ipc>);
+
 /// One process's node in one domain.
 pub struct Context {
     node: Node<Ipc>,
@@ -96,10 +99,7 @@ impl Context {
         Ok(Subscriber::new(channel, subscriber, listener))
     }
 
-    fn open<T: Payload>(
-        &self,
-        channel: Channel<T>,
-    ) -> Result<(PubSubFactory<Ipc, T, ()>, EventFactory<Ipc>), OpenChannelError> {
+    fn open<T: Payload>(&self, channel: Channel<T>) -> Result<ServicePair<T>, OpenChannelError> {
         let spec = channel.spec;
         let name = ServiceName::new(&spec.service_name()).map_err(|error| OpenChannelError::Service {
             topic: spec.topic,

@@ -22,6 +22,7 @@ pub mod payload;
 pub mod payloads;
 pub mod publisher;
 pub mod subscriber;
+pub mod termination;
 pub mod waiter;
 
 pub use bounded_vec::BoundedVec;

@@ -25,8 +25,8 @@ pub mod types;
 pub use dyn_board::{BoxedBoardError, DynValveBoard, ErasedValveBoard};
 pub use serial::{SerialBoardConfig, SerialBoardError, SerialValveBoard};
 pub use types::{
-    Arm, BoardFault, Heartbeat, PressureReadings, PressureSensor, VALVE_COUNT, ValveId,
-    ValveState, ValveStates,
+    Arm, BoardFault, Heartbeat, PressureReadings, PressureSensor, VALVE_COUNT, ValveId, ValveState,
+    ValveStates,
 };
 
 use crate::error_kind::DeviceError;

@@ -300,11 +300,7 @@ fn tokens(body: &str) -> impl Iterator<Item = &str> {
     body.split(' ')
 }
 
-fn expect_args(
-    verb: &'static str,
-    args: &[&str],
-    expected: usize,
-) -> Result<(), MessageError> {
+fn expect_args(verb: &'static str, args: &[&str], expected: usize) -> Result<(), MessageError> {
     if args.len() == expected {
         Ok(())
     } else {
@@ -731,6 +727,33 @@ mod tests {
     }
 
     #[test]
+    fn documented_example_frames() {
+        // The example exchange in hw/VALVE_PROTOCOL.md.
+        let mut out = Vec::new();
+        encode_request(
+            17,
+            &Request::Set {
+                valve: ValveId(3),
+                open: true,
+            },
+            &mut out,
+        );
+        encode_reply(
+            17,
+            &Reply::SetAck {
+                valve: ValveId(3),
+                open: true,
+            },
+            &mut out,
+        );
+        encode_fault(&BoardFault::ValveStuck(ValveId(3)), &mut out);
+        assert_eq!(
+            String::from_utf8(out).expect("ascii"),
+            "$SET 3 1*17*42\n$OK SET 3 1*17*2D\n$FAULT STUCK 3*U*5A\n"
+        );
+    }
+
+    #[test]
     fn requests_round_trip() {
         let mut requests = vec![
             Request::Ping,
@@ -812,7 +835,11 @@ mod tests {
         let p = PressureReadings::from_array([1200.4, 0.6, -3.5]);
         encode_reply(1, &Reply::Pressures(p), &mut out);
         let frame = decode_frame(content(&out)).expect("valid frame");
-        assert!(frame.body.starts_with("OK PRES 1200 1 -4"), "{}", frame.body);
+        assert!(
+            frame.body.starts_with("OK PRES 1200 1 -4"),
+            "{}",
+            frame.body
+        );
     }
 
     #[test]
@@ -830,13 +857,19 @@ mod tests {
         // Replace the checksum itself.
         let mut wrong = line.clone();
         let n = wrong.len();
-        wrong[n - 2..].copy_from_slice(if &line[n - 2..] == b"00" { b"01" } else { b"00" });
+        wrong[n - 2..].copy_from_slice(if &line[n - 2..] == b"00" {
+            b"01"
+        } else {
+            b"00"
+        });
         assert!(matches!(
             decode_frame(&wrong),
             Err(FrameError::ChecksumMismatch { .. })
         ));
         // Lower-case hex is accepted.
-        let lower = String::from_utf8(line.clone()).expect("ascii").to_ascii_lowercase();
+        let lower = String::from_utf8(line.clone())
+            .expect("ascii")
+            .to_ascii_lowercase();
         let (body_tag, crc) = lower.rsplit_once('*').expect("trailer");
         let relowered = format!("{}*{crc}", body_tag.to_ascii_uppercase());
         assert!(decode_frame(relowered.as_bytes()).is_ok());
@@ -853,7 +886,10 @@ mod tests {
         }
         assert_eq!(decode_frame(b"PING"), Err(FrameError::MissingTrailer));
         assert_eq!(decode_frame(b"PING*1"), Err(FrameError::MissingTrailer));
-        assert_eq!(decode_frame(b"PING*1*G0"), Err(FrameError::BadChecksumField));
+        assert_eq!(
+            decode_frame(b"PING*1*G0"),
+            Err(FrameError::BadChecksumField)
+        );
         assert_eq!(decode_frame(b"PING*1*0"), Err(FrameError::BadChecksumField));
         let bad_tag = format!("PING*256*{:02X}", crc8(b"PING*256"));
         assert_eq!(decode_frame(bad_tag.as_bytes()), Err(FrameError::BadTag));
@@ -893,7 +929,7 @@ mod tests {
         ));
         assert!(matches!(
             decode_request("SET  3 1"),
-            Err(MessageError::BadArgument { .. })
+            Err(MessageError::WrongArgumentCount { got: 3, .. })
         ));
         assert!(decode_request("SET 1 1 1 1 1 1").is_err());
         assert!(decode_request("").is_err());

@@ -1,1 +1,11 @@
-//! harvest-arm
+//! harvest-arm: kinematics, trajectories, tracking control and the picking cycle of one 4-DOF
+//! tube arm of the dual-arm apple harvester (paper 003, sections 2.2 and 3.2). Pure logic: no
+//! IPC and no clock reads; time is passed in by the caller.
+
+pub mod joint;
+pub mod kinematics;
+pub mod params;
+pub mod trajectory;
+pub mod controller;
+pub mod servo_model;
+pub mod clearance;

@@ -1,1 +1,26 @@
-//! harvest-perception
+//! harvest-perception: apple detection in the RGB image and 3D localization from the registered
+//! ToF depth image (Zhu et al., "Advancement and field evaluation of a dual-arm apple harvesting
+//! robot", sections 2.1 and 3.1.3).
+//!
+//! Data flow for one frame ([`pipeline::Perception::process`]):
+//! 1. [`detector`]: 2D apple detections (box, mask, visible pixel count, confidence) from the colour
+//!    image; the default is the classical [`detector::color_segmentation::ColorSegmentation`].
+//! 2. [`registration`]: every valid depth pixel is unprojected, moved into the colour camera frame
+//!    and projected into the colour image, so each detection mask collects its 3D points.
+//! 3. [`estimator`]: one 3D position per detection, either the paper's DBSCAN cluster-depth method
+//!    or the bias-free robust sphere fit, selected by [`estimator::EstimatorKind`].
+//! 4. Positions are reported in the colour camera frame and in the robot frame.
+//!
+//! "Camera frame" in this crate always means the colour (RGB) camera frame: x right, y down,
+//! z forward, metres.
+
+pub mod camera_setup;
+pub mod dbscan;
+pub mod detector;
+pub mod estimator;
+pub mod frame;
+pub mod noise_model;
+pub mod registration;
+
+pub use camera_setup::CameraSetup;
+pub use frame::{DepthView, FrameError, RgbView};

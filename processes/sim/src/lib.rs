@@ -1,1 +1,19 @@
-//! harvest-sim
+//! harvest-sim: the simulated orchard world of the dual-arm vacuum harvester.
+//!
+//! Pure, seeded logic without IPC: scenario files ([`scenario`]), generation of the canopy, apples
+//! and occluders ([`orchard`]), rendering of the ToF camera's RGB and depth frames
+//! ([`render_rgbd`]), the vacuum and contact physics plus joint servo dynamics ([`physics`]) and
+//! the evaluation-only ground truth ([`ground_truth`]).
+
+pub mod ground_truth;
+pub mod orchard;
+pub mod physics;
+pub mod render_rate;
+pub mod render_rgbd;
+pub mod scenario;
+
+pub use ground_truth::{AppleTruth, GroundTruth};
+pub use orchard::{Apple, AppleId, AppleState, OrchardError, World};
+pub use physics::{Arm, DropCause, ReleaseOutcome, StepError, StepInputs, WorldEvent};
+pub use render_rgbd::{RenderError, RgbdRenderer};
+pub use scenario::{Scenario, ScenarioError};

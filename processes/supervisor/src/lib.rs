@@ -1,1 +1,10 @@
-//! harvest-supervisor
+//! The process supervisor behind `harvest up`.
+
+pub mod child;
+pub mod launch;
+pub mod restart_tracker;
+pub mod status;
+pub mod supervisor;
+
+pub use launch::{Launch, LaunchError};
+pub use supervisor::{Summary, SupervisorError, UpOptions, run};

@@ -1,0 +1,71 @@
+//! The simulated ToF camera as a device: the simulator renders frames and delivers them on the
+//! `hw/camera/rgbd` hardware channel, the way a real camera delivers them over USB/Ethernet;
+//! this driver waits for each (event-driven) and transfers it into the caller's buffer (the
+//! one copy a real driver makes from its DMA buffer).
+
+use super::RgbdCamera;
+use crate::error_kind::{DeviceError, ErrorKind};
+use harvest_ipc::catalogue::HW_CAMERA_RGBD;
+use harvest_ipc::payloads::RgbdFrame;
+use harvest_ipc::{Context, Subscriber};
+use std::time::Duration;
+
+/// Errors of the simulated camera link.
+#[derive(Debug, thiserror::Error)]
+pub enum SimCameraError {
+    #[error("simulated camera link: {0}")]
+    Link(String),
+}
+
+impl DeviceError for SimCameraError {
+    fn kind(&self) -> ErrorKind {
+        match self {
+            Self::Link(_) => ErrorKind::Disconnected,
+        }
+    }
+}
+
+pub struct SimRgbdCamera {
+    frames: Subscriber<RgbdFrame>,
+}
+
+impl SimRgbdCamera {
+    pub fn connect(context: &Context) -> Result<Self, SimCameraError> {
+        let frames = context
+            .subscriber_with_buffer(HW_CAMERA_RGBD, 2)
+            .map_err(|error| SimCameraError::Link(error.to_string()))?;
+        Ok(Self { frames })
+    }
+}
+
+impl RgbdCamera for SimRgbdCamera {
+    type Error = SimCameraError;
+
+    fn capture_into(
+        &mut self,
+        frame: &mut RgbdFrame,
+        timeout: Duration,
+    ) -> Result<bool, Self::Error> {
+        let receive = |frames: &Subscriber<RgbdFrame>| {
+            frames
+                .receive_latest()
+                .map_err(|error| SimCameraError::Link(error.to_string()))
+        };
+        let mut latest = receive(&self.frames)?;
+        if latest.is_none() {
+            self.frames
+                .listener()
+                .timed_wait(|_| {}, timeout)
+                .map_err(|error| SimCameraError::Link(format!("{error:?}")))?;
+            latest = receive(&self.frames)?;
+        }
+        let Some(device_frame) = latest else {
+            return Ok(false);
+        };
+        frame.header.capture_ns = device_frame.header.capture_ns;
+        frame.meta = device_frame.meta;
+        frame.rgb.copy_from_slice(&device_frame.rgb);
+        frame.depth_mm.copy_from_slice(&device_frame.depth_mm);
+        Ok(true)
+    }
+}

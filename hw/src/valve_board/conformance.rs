@@ -1,0 +1,484 @@
+//! Behaviour every [`ValveBoard`] implementation must show, written once and generic over the
+//! trait: run it from a test with a factory of fresh boards, e.g.
+//!
+//! ```ignore
+//! #[test]
+//! fn my_board_conforms() -> Result<(), ConformanceError> {
+//!     let _watchdog = TestWatchdog::arm("my_board_conforms", Duration::from_secs(30));
+//!     conformance_suite(|| MyBoard::new()).map(|_| ())
+//! }
+//! ```
+//!
+//! Each check gets its own board from the factory. Waits are bounded by
+//! [`ConformanceConfig::settle_timeout`] (a liveness bound well above the 1 s actuation time,
+//! not a timing assertion); a check failure is returned as [`ConformanceError`] naming the check
+//! and what was observed.
+
+use super::types::{PressureReadings, ValveId, ValveState, ValveStates};
+use super::{VALVE_COUNT, ValveBoard};
+use crate::error_kind::{DeviceError, ErrorKind};
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// Bounds of the conformance run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ConformanceConfig {
+    /// Longest wait for valves to reach their end stops after a command.
+    pub settle_timeout: Duration,
+    /// Pause between two state polls while waiting.
+    pub poll_interval: Duration,
+    /// Pressure samples read in the pressure check.
+    pub pressure_samples: usize,
+}
+
+impl Default for ConformanceConfig {
+    fn default() -> Self {
+        ConformanceConfig {
+            settle_timeout: Duration::from_secs(5),
+            poll_interval: Duration::from_millis(10),
+            pressure_samples: 20,
+        }
+    }
+}
+
+/// What a passing run checked.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ConformanceReport {
+    /// Names of the checks that passed, in order.
+    pub checks_passed: Vec<&'static str>,
+}
+
+/// A conformance check that failed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ConformanceError {
+    /// A call that must succeed returned an error.
+    #[error("check `{check}`: {call} failed with kind {kind:?}: {message}")]
+    CallFailed {
+        /// The check.
+        check: &'static str,
+        /// The call, e.g. `set_valve(3, open)`.
+        call: String,
+        /// The error's kind.
+        kind: ErrorKind,
+        /// The error's message.
+        message: String,
+    },
+    /// A call that must fail succeeded, or failed with the wrong kind.
+    #[error("check `{check}`: {call} should fail with kind {expected:?}, got {got}")]
+    WrongOutcome {
+        /// The check.
+        check: &'static str,
+        /// The call.
+        call: String,
+        /// The kind required.
+        expected: ErrorKind,
+        /// What happened instead.
+        got: String,
+    },
+    /// The board's observable state broke a rule.
+    #[error("check `{check}`: {detail}")]
+    Violated {
+        /// The check.
+        check: &'static str,
+        /// What was observed.
+        detail: String,
+    },
+}
+
+fn call<T, E: DeviceError>(
+    check: &'static str,
+    call: impl FnOnce() -> String,
+    result: Result<T, E>,
+) -> Result<T, ConformanceError> {
+    result.map_err(|e| ConformanceError::CallFailed {
+        check,
+        call: call(),
+        kind: e.kind(),
+        message: e.to_string(),
+    })
+}
+
+fn violated(check: &'static str, detail: String) -> ConformanceError {
+    ConformanceError::Violated { check, detail }
+}
+
+/// Run every check with the default bounds.
+pub fn conformance_suite<B: ValveBoard>(
+    make: impl FnMut() -> B,
+) -> Result<ConformanceReport, ConformanceError> {
+    conformance_suite_with(ConformanceConfig::default(), make)
+}
+
+/// Run every check, each on a fresh board from `make`.
+pub fn conformance_suite_with<B: ValveBoard>(
+    config: ConformanceConfig,
+    mut make: impl FnMut() -> B,
+) -> Result<ConformanceReport, ConformanceError> {
+    type Check<B> = fn(&ConformanceConfig, &mut B) -> Result<(), ConformanceError>;
+    let checks: [(&'static str, Check<B>); 7] = [
+        ("heartbeat", check_heartbeat),
+        ("close_all_settles_closed", check_close_all_settles),
+        ("each_valve_opens_and_closes_alone", check_each_valve),
+        ("set_is_idempotent", check_set_idempotent),
+        ("invalid_valve_rejected", check_invalid_valve),
+        ("pressures_plausible", check_pressures),
+        ("close_all_from_mixed_states", check_close_all_mixed),
+    ];
+    let mut report = ConformanceReport {
+        checks_passed: Vec::with_capacity(checks.len()),
+    };
+    for (name, check) in checks {
+        let mut board = make();
+        check(&config, &mut board)?;
+        let faults = board.take_faults();
+        if !faults.is_empty() {
+            return Err(violated(
+                name,
+                format!("healthy board reported faults {faults:?}"),
+            ));
+        }
+        tracing::debug!(check = name, "valve board conformance check passed");
+        report.checks_passed.push(name);
+    }
+    Ok(report)
+}
+
+/// Poll valve states until `done` holds, every intermediate state satisfying `allowed`.
+fn wait_for<B: ValveBoard>(
+    check: &'static str,
+    config: &ConformanceConfig,
+    board: &mut B,
+    what: &str,
+    allowed: impl Fn(ValveId, ValveState) -> bool,
+    done: impl Fn(&ValveStates) -> bool,
+) -> Result<ValveStates, ConformanceError> {
+    let deadline = Instant::now() + config.settle_timeout;
+    loop {
+        let states = call(check, || "valve_states()".to_owned(), board.valve_states())?;
+        if let Some((valve, state)) = states.iter().find(|&(v, s)| !allowed(v, s)) {
+            return Err(violated(
+                check,
+                format!("while waiting for {what}, {valve} was {state:?} (all: {states:?})"),
+            ));
+        }
+        if done(&states) {
+            return Ok(states);
+        }
+        if Instant::now() >= deadline {
+            return Err(violated(
+                check,
+                format!(
+                    "{what} not reached within {} ms; last states {states:?}",
+                    config.settle_timeout.as_millis()
+                ),
+            ));
+        }
+        std::thread::sleep(config.poll_interval);
+    }
+}
+
+fn all_closed(states: &ValveStates) -> bool {
+    states.0.iter().all(|s| s.is_closed())
+}
+
+/// Close everything and wait; any intermediate state except `Stuck` is allowed since the
+/// board's initial state is unknown.
+fn close_all_and_settle<B: ValveBoard>(
+    check: &'static str,
+    config: &ConformanceConfig,
+    board: &mut B,
+) -> Result<(), ConformanceError> {
+    call(check, || "close_all()".to_owned(), board.close_all())?;
+    wait_for(
+        check,
+        config,
+        board,
+        "all valves closed",
+        |_, s| s != ValveState::Stuck,
+        all_closed,
+    )
+    .map(|_| ())
+}
+
+/// Two heartbeats succeed and the board clock does not run backwards.
+fn check_heartbeat<B: ValveBoard>(
+    _config: &ConformanceConfig,
+    board: &mut B,
+) -> Result<(), ConformanceError> {
+    const CHECK: &str = "heartbeat";
+    let first = call(CHECK, || "ping()".to_owned(), board.ping())?;
+    let second = call(CHECK, || "ping()".to_owned(), board.ping())?;
+    if second.board_uptime_ms < first.board_uptime_ms {
+        return Err(violated(
+            CHECK,
+            format!(
+                "board uptime went back from {} ms to {} ms",
+                first.board_uptime_ms, second.board_uptime_ms
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// After `close_all` every valve reaches `Closed`, passing only through `Closing`.
+fn check_close_all_settles<B: ValveBoard>(
+    config: &ConformanceConfig,
+    board: &mut B,
+) -> Result<(), ConformanceError> {
+    close_all_and_settle("close_all_settles_closed", config, board)
+}
+
+/// Each valve, commanded alone, goes Closed -> (Opening) -> Open -> (Closing) -> Closed while
+/// the other three stay closed.
+fn check_each_valve<B: ValveBoard>(
+    config: &ConformanceConfig,
+    board: &mut B,
+) -> Result<(), ConformanceError> {
+    const CHECK: &str = "each_valve_opens_and_closes_alone";
+    close_all_and_settle(CHECK, config, board)?;
+    for valve in ValveId::ALL {
+        call(
+            CHECK,
+            || format!("set_valve({}, open)", valve.0),
+            board.set_valve(valve, true),
+        )?;
+        wait_for(
+            CHECK,
+            config,
+            board,
+            &format!("{valve} open"),
+            |v, s| {
+                if v == valve {
+                    matches!(s, ValveState::Opening | ValveState::Open)
+                } else {
+                    s.is_closed()
+                }
+            },
+            |states| states.get(valve) == Some(ValveState::Open),
+        )?;
+        call(
+            CHECK,
+            || format!("set_valve({}, closed)", valve.0),
+            board.set_valve(valve, false),
+        )?;
+        wait_for(
+            CHECK,
+            config,
+            board,
+            &format!("{valve} closed"),
+            |v, s| {
+                if v == valve {
+                    matches!(s, ValveState::Closing | ValveState::Closed)
+                } else {
+                    s.is_closed()
+                }
+            },
+            all_closed,
+        )?;
+    }
+    Ok(())
+}
+
+/// Commanding an open valve open again leaves it open (never `Closing`/`Closed`), and
+/// commanding a closed valve closed leaves it closed.
+fn check_set_idempotent<B: ValveBoard>(
+    config: &ConformanceConfig,
+    board: &mut B,
+) -> Result<(), ConformanceError> {
+    const CHECK: &str = "set_is_idempotent";
+    close_all_and_settle(CHECK, config, board)?;
+    let valve = ValveId(2);
+    call(
+        CHECK,
+        || "set_valve(2, open)".to_owned(),
+        board.set_valve(valve, true),
+    )?;
+    wait_for(
+        CHECK,
+        config,
+        board,
+        "valve 2 open",
+        |_, s| s != ValveState::Stuck,
+        |states| states.get(valve) == Some(ValveState::Open),
+    )?;
+    for _ in 0..3 {
+        call(
+            CHECK,
+            || "set_valve(2, open)".to_owned(),
+            board.set_valve(valve, true),
+        )?;
+        call(
+            CHECK,
+            || "set_valve(1, closed)".to_owned(),
+            board.set_valve(ValveId(1), false),
+        )?;
+        let states = call(CHECK, || "valve_states()".to_owned(), board.valve_states())?;
+        let expected = ValveStates([
+            ValveState::Closed,
+            ValveState::Open,
+            ValveState::Closed,
+            ValveState::Closed,
+        ]);
+        if states != expected {
+            return Err(violated(
+                CHECK,
+                format!("repeating commands changed states to {states:?}, expected {expected:?}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Ids 0 and 5.. are refused with `InvalidRequest` and change nothing; the board keeps
+/// answering.
+fn check_invalid_valve<B: ValveBoard>(
+    config: &ConformanceConfig,
+    board: &mut B,
+) -> Result<(), ConformanceError> {
+    const CHECK: &str = "invalid_valve_rejected";
+    close_all_and_settle(CHECK, config, board)?;
+    for bad in [0u8, VALVE_COUNT as u8 + 1, u8::MAX] {
+        for open in [true, false] {
+            match board.set_valve(ValveId(bad), open) {
+                Err(e) if e.kind() == ErrorKind::InvalidRequest => {}
+                other => {
+                    return Err(ConformanceError::WrongOutcome {
+                        check: CHECK,
+                        call: format!("set_valve({bad}, {open})"),
+                        expected: ErrorKind::InvalidRequest,
+                        got: match other {
+                            Ok(()) => "Ok".to_owned(),
+                            Err(e) => format!("{:?}: {e}", e.kind()),
+                        },
+                    });
+                }
+            }
+        }
+    }
+    let states = call(CHECK, || "valve_states()".to_owned(), board.valve_states())?;
+    if !all_closed(&states) {
+        return Err(violated(
+            CHECK,
+            format!("refused requests changed valve states to {states:?}"),
+        ));
+    }
+    call(CHECK, || "ping()".to_owned(), board.ping())?;
+    Ok(())
+}
+
+/// Pressure samples are finite and physically plausible, with the arms vented or closed and
+/// with arm 1 open to the source.
+fn check_pressures<B: ValveBoard>(
+    config: &ConformanceConfig,
+    board: &mut B,
+) -> Result<(), ConformanceError> {
+    const CHECK: &str = "pressures_plausible";
+    let sample = |board: &mut B| -> Result<(), ConformanceError> {
+        for _ in 0..config.pressure_samples.max(1) {
+            let p: PressureReadings = call(CHECK, || "pressures()".to_owned(), board.pressures())?;
+            if !p.is_plausible() {
+                return Err(violated(CHECK, format!("implausible reading {p:?}")));
+            }
+        }
+        Ok(())
+    };
+    close_all_and_settle(CHECK, config, board)?;
+    sample(board)?;
+    call(
+        CHECK,
+        || "set_valve(1, open)".to_owned(),
+        board.set_valve(ValveId(1), true),
+    )?;
+    sample(board)?;
+    wait_for(
+        CHECK,
+        config,
+        board,
+        "valve 1 open",
+        |_, s| s != ValveState::Stuck,
+        |states| states.get(ValveId(1)) == Some(ValveState::Open),
+    )?;
+    sample(board)
+}
+
+/// `close_all` issued while valves are open or still moving closes all of them; repeating
+/// it is harmless.
+fn check_close_all_mixed<B: ValveBoard>(
+    config: &ConformanceConfig,
+    board: &mut B,
+) -> Result<(), ConformanceError> {
+    const CHECK: &str = "close_all_from_mixed_states";
+    close_all_and_settle(CHECK, config, board)?;
+    call(
+        CHECK,
+        || "set_valve(1, open)".to_owned(),
+        board.set_valve(ValveId(1), true),
+    )?;
+    wait_for(
+        CHECK,
+        config,
+        board,
+        "valve 1 open",
+        |_, s| s != ValveState::Stuck,
+        |states| states.get(ValveId(1)) == Some(ValveState::Open),
+    )?;
+    call(
+        CHECK,
+        || "set_valve(4, open)".to_owned(),
+        board.set_valve(ValveId(4), true),
+    )?;
+    call(CHECK, || "close_all()".to_owned(), board.close_all())?;
+    call(CHECK, || "close_all()".to_owned(), board.close_all())?;
+    wait_for(
+        CHECK,
+        config,
+        board,
+        "all valves closed",
+        |_, s| s != ValveState::Stuck,
+        all_closed,
+    )?;
+    Ok(())
+}
+
+/// Aborts the whole test process if a test runs longer than its limit, so a hung device
+/// exchange fails CI instead of stalling it. Test support; dropping the guard disarms it.
+#[derive(Debug)]
+pub struct TestWatchdog {
+    disarm: Option<mpsc::Sender<()>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl TestWatchdog {
+    /// Arm a watchdog named `test` that aborts the process after `limit`.
+    pub fn arm(test: &str, limit: Duration) -> TestWatchdog {
+        let (disarm, disarmed) = mpsc::channel::<()>();
+        let name = test.to_owned();
+        let thread = std::thread::Builder::new()
+            .name(format!("watchdog-{name}"))
+            .spawn(move || {
+                if let Err(mpsc::RecvTimeoutError::Timeout) = disarmed.recv_timeout(limit) {
+                    tracing::error!(test = %name, limit_s = limit.as_secs_f64(), "test watchdog fired");
+                    eprintln!(
+                        "watchdog: test `{name}` still running after {:.1} s; aborting",
+                        limit.as_secs_f64()
+                    );
+                    std::process::abort();
+                }
+            })
+            .ok();
+        TestWatchdog {
+            disarm: Some(disarm),
+            thread,
+        }
+    }
+}
+
+impl Drop for TestWatchdog {
+    fn drop(&mut self) {
+        drop(self.disarm.take());
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}

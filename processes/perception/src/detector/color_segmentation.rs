@@ -1,0 +1,512 @@
+//! Classical apple detector: chromaticity segmentation on a downscaled image, morphological
+//! clean-up, connected components and splitting of touching apples.
+//!
+//! The paper's detector is learned (Zhu et al., section 3.1.1); this is the fallback that needs no
+//! model. Pipeline, on cells of `downscale x downscale` colour pixels:
+//! 1. Mean colour of each cell, and whether most of its pixels are clipped (over-exposed).
+//! 2. Classification in normalized chromaticity `r = R/(R+G+B)`, `g = G/(R+G+B)`, which does not
+//!    change when the illumination scales all channels: a cell is apple when the red excess
+//!    `r - g` exceeds a threshold. Near clipping the colour washes out towards white, so the
+//!    threshold falls linearly from `min_red_excess` at `bright_knee` to `bright_red_excess` at
+//!    255 (the adaptive brightness term). Cells darker than a floor proportional to the frame's
+//!    mean brightness carry no reliable colour and count as background.
+//! 3. Over-exposed cells without usable colour (specular highlights) are unknown; they join an
+//!    apple region when it reaches them within `highlight_fill_iterations` cells.
+//! 4. Opening then closing with a 3x3 square removes specks and bridges one-cell gaps.
+//! 5. 8-connected components; each is split into apples by [`super::touching_split`].
+//! 6. Per apple: box, mask, visible pixels and a confidence combining colour margin, roundness,
+//!    size and exposure.
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+use tracing::trace;
+
+use super::components::Components;
+use super::distance_transform::chamfer_distance;
+use super::morphology;
+use super::touching_split::{Seed, SplitParams, find_seeds, nearest_seed};
+use super::{Detection, DetectionMask, Detector, DetectorFrameInfo, PixelBox};
+use crate::frame::{FrameError, RgbView};
+
+/// Parameters of [`ColorSegmentation`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ColorSegmentationConfig {
+    /// Side of one analysis cell in colour pixels (4: 1920x1080 -> 480x270 cells).
+    pub downscale: u32,
+    /// Minimum red excess `r - g` in normalized chromaticity for an apple cell.
+    pub min_red_excess: f32,
+    /// Minimum red excess for a cell whose brightest channel is at 255.
+    pub bright_red_excess: f32,
+    /// Brightest-channel value (0-255) above which the red-excess threshold starts to fall.
+    pub bright_knee: f32,
+    /// Maximum blue chromaticity `b = B/(R+G+B)` of an apple cell (rejects purple and sky).
+    pub max_blue_chromaticity: f32,
+    /// Dark floor as a fraction of the frame's mean brightest-channel value.
+    pub dark_floor_fraction: f32,
+    /// Lower clamp of the dark floor (0-255).
+    pub dark_floor_min: f32,
+    /// Upper clamp of the dark floor (0-255).
+    pub dark_floor_max: f32,
+    /// A pixel whose brightest channel reaches this value is clipped (over-exposed).
+    pub clip_level: u8,
+    /// How many cells an apple region may grow into over-exposed cells of unknown colour.
+    pub highlight_fill_iterations: u32,
+    /// Minimum apple area in cells.
+    pub min_area_cells: u32,
+    /// Minimum inscribed radius of an apple (cells); thinner regions are not apples.
+    pub min_seed_radius_cells: f32,
+    /// A further apple seed in a region must reach this fraction of the region's largest radius.
+    pub seed_relative_radius: f32,
+    /// Seeds closer than this factor times the larger inscribed radius belong to one apple.
+    pub seed_separation_factor: f32,
+    /// Seeds are split only when the neck between them is below this fraction of the smaller
+    /// inscribed radius.
+    pub saddle_ratio: f32,
+    /// Maximum apples per connected region.
+    pub max_seeds_per_region: u32,
+}
+
+impl Default for ColorSegmentationConfig {
+    fn default() -> Self {
+        Self {
+            downscale: 4,
+            min_red_excess: 0.20,
+            bright_red_excess: 0.08,
+            bright_knee: 210.0,
+            max_blue_chromaticity: 0.40,
+            dark_floor_fraction: 0.25,
+            dark_floor_min: 20.0,
+            dark_floor_max: 50.0,
+            clip_level: 250,
+            highlight_fill_iterations: 4,
+            min_area_cells: 10,
+            min_seed_radius_cells: 2.0,
+            seed_relative_radius: 0.35,
+            seed_separation_factor: 0.9,
+            saddle_ratio: 0.8,
+            max_seeds_per_region: 12,
+        }
+    }
+}
+
+/// A [`ColorSegmentationConfig`] value that cannot be used.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ColorSegmentationConfigError {
+    /// `downscale` must be 1..=32.
+    #[error("colour segmentation: downscale = {value} is outside 1..=32")]
+    Downscale { value: u32 },
+    /// `max_seeds_per_region` must be 1..=255.
+    #[error("colour segmentation: max_seeds_per_region = {value} is outside 1..=255")]
+    MaxSeeds { value: u32 },
+    /// A real-valued parameter is not finite or outside its range.
+    #[error("colour segmentation: {key} = {value} is not finite or outside {min}..={max}")]
+    OutOfRange {
+        key: &'static str,
+        value: f32,
+        min: f32,
+        max: f32,
+    },
+}
+
+impl ColorSegmentationConfig {
+    /// Checks every parameter against its physical range.
+    pub fn validate(&self) -> Result<(), ColorSegmentationConfigError> {
+        if !(1..=32).contains(&self.downscale) {
+            return Err(ColorSegmentationConfigError::Downscale {
+                value: self.downscale,
+            });
+        }
+        if !(1..=255).contains(&self.max_seeds_per_region) {
+            return Err(ColorSegmentationConfigError::MaxSeeds {
+                value: self.max_seeds_per_region,
+            });
+        }
+        let checks: [(&'static str, f32, f32, f32); 11] = [
+            ("min_red_excess", self.min_red_excess, -1.0, 1.0),
+            ("bright_red_excess", self.bright_red_excess, -1.0, 1.0),
+            ("bright_knee", self.bright_knee, 0.0, 254.0),
+            ("max_blue_chromaticity", self.max_blue_chromaticity, 0.0, 1.0),
+            ("dark_floor_fraction", self.dark_floor_fraction, 0.0, 1.0),
+            ("dark_floor_min", self.dark_floor_min, 0.0, 255.0),
+            ("dark_floor_max", self.dark_floor_max, self.dark_floor_min, 255.0),
+            ("min_seed_radius_cells", self.min_seed_radius_cells, 0.5, 1000.0),
+            ("seed_relative_radius", self.seed_relative_radius, 0.0, 1.0),
+            ("seed_separation_factor", self.seed_separation_factor, 0.0, 2.0),
+            ("saddle_ratio", self.saddle_ratio, 0.0, 1.0),
+        ];
+        for (key, value, min, max) in checks {
+            if !value.is_finite() || value < min || value > max {
+                return Err(ColorSegmentationConfigError::OutOfRange {
+                    key,
+                    value,
+                    min,
+                    max,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+const BACKGROUND: u8 = 0;
+const APPLE: u8 = 1;
+/// Over-exposed without usable colour.
+const UNKNOWN: u8 = 2;
+
+/// The classical colour-segmentation detector. Holds its scratch buffers between frames.
+#[derive(Debug)]
+pub struct ColorSegmentation {
+    config: ColorSegmentationConfig,
+    row_sums: Vec<[u32; 4]>,
+    mean_rgb: Vec<[f32; 3]>,
+    overexposed: Vec<u8>,
+    class: Vec<u8>,
+    margin: Vec<f32>,
+    mask: Vec<u8>,
+    scratch_a: Vec<u8>,
+    scratch_b: Vec<u8>,
+    distance: Vec<u16>,
+    components: Components,
+    candidates: Vec<(u16, u32)>,
+    seeds: Vec<Seed>,
+    assignment: Vec<u8>,
+    regions: Vec<RegionSums>,
+}
+
+/// Running sums of one apple region.
+#[derive(Debug, Clone, Copy)]
+struct RegionSums {
+    x_min: usize,
+    x_max: usize,
+    y_min: usize,
+    y_max: usize,
+    area_cells: u32,
+    margin_sum: f32,
+    overexposed_cells: u32,
+}
+
+impl RegionSums {
+    const EMPTY: Self = Self {
+        x_min: usize::MAX,
+        x_max: 0,
+        y_min: usize::MAX,
+        y_max: 0,
+        area_cells: 0,
+        margin_sum: 0.0,
+        overexposed_cells: 0,
+    };
+}
+
+impl ColorSegmentation {
+    /// A detector with validated parameters.
+    pub fn new(config: ColorSegmentationConfig) -> Result<Self, ColorSegmentationConfigError> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            row_sums: Vec::new(),
+            mean_rgb: Vec::new(),
+            overexposed: Vec::new(),
+            class: Vec::new(),
+            margin: Vec::new(),
+            mask: Vec::new(),
+            scratch_a: Vec::new(),
+            scratch_b: Vec::new(),
+            distance: Vec::new(),
+            components: Components::default(),
+            candidates: Vec::new(),
+            seeds: Vec::new(),
+            assignment: Vec::new(),
+            regions: Vec::new(),
+        })
+    }
+
+    pub fn config(&self) -> &ColorSegmentationConfig {
+        &self.config
+    }
+
+    /// Step 1: mean colour and clipped-majority flag of every cell.
+    fn downsample(&mut self, rgb: &RgbView<'_>, grid_w: usize, grid_h: usize) {
+        let s = self.config.downscale as usize;
+        let width = rgb.width_px as usize;
+        let cells = grid_w * grid_h;
+        self.mean_rgb.clear();
+        self.mean_rgb.resize(cells, [0.0; 3]);
+        self.overexposed.clear();
+        self.overexposed.resize(cells, 0);
+        self.row_sums.clear();
+        self.row_sums.resize(grid_w, [0; 4]);
+        let clip = self.config.clip_level;
+        let pixels_per_cell = (s * s) as u32;
+        let inverse = 1.0 / pixels_per_cell as f32;
+        for gy in 0..grid_h {
+            self.row_sums.fill([0; 4]);
+            for row in gy * s..(gy + 1) * s {
+                let start = row * width * 3;
+                let Some(line) = rgb.data.get(start..start + grid_w * s * 3) else {
+                    continue;
+                };
+                for (sums, block) in self.row_sums.iter_mut().zip(line.chunks_exact(3 * s)) {
+                    for px in block.chunks_exact(3) {
+                        sums[0] += u32::from(px[0]);
+                        sums[1] += u32::from(px[1]);
+                        sums[2] += u32::from(px[2]);
+                        sums[3] += u32::from(px[0].max(px[1]).max(px[2]) >= clip);
+                    }
+                }
+            }
+            let base = gy * grid_w;
+            for (gx, sums) in self.row_sums.iter().enumerate() {
+                self.mean_rgb[base + gx] = [
+                    sums[0] as f32 * inverse,
+                    sums[1] as f32 * inverse,
+                    sums[2] as f32 * inverse,
+                ];
+                self.overexposed[base + gx] = u8::from(2 * sums[3] >= pixels_per_cell);
+            }
+        }
+    }
+
+    /// Step 2: apple / background / unknown per cell, red-excess margin, and the initial mask.
+    /// Returns the number of over-exposed cells.
+    fn classify(&mut self) -> usize {
+        let c = &self.config;
+        let cells = self.mean_rgb.len();
+        self.class.clear();
+        self.class.resize(cells, BACKGROUND);
+        self.margin.clear();
+        self.margin.resize(cells, 0.0);
+        self.mask.clear();
+        self.mask.resize(cells, 0);
+        if cells == 0 {
+            return 0;
+        }
+        let mean_brightness =
+            self.mean_rgb.iter().map(|p| p[0].max(p[1]).max(p[2])).sum::<f32>() / cells as f32;
+        let dark_floor = (c.dark_floor_fraction * mean_brightness).clamp(c.dark_floor_min, c.dark_floor_max);
+        let knee_span = (255.0 - c.bright_knee).max(1.0);
+        let mut overexposed_cells = 0;
+        for i in 0..cells {
+            let [r, g, b] = self.mean_rgb[i];
+            let brightness = r.max(g).max(b);
+            let clipped = self.overexposed[i] != 0;
+            overexposed_cells += usize::from(clipped);
+            if brightness < dark_floor && !clipped {
+                continue;
+            }
+            let sum = r + g + b;
+            let red_excess = (r - g) / sum;
+            let blue = b / sum;
+            let brightness_t = ((brightness - c.bright_knee) / knee_span).clamp(0.0, 1.0);
+            let threshold = c.min_red_excess + (c.bright_red_excess - c.min_red_excess) * brightness_t;
+            if r >= b && red_excess >= threshold && blue <= c.max_blue_chromaticity {
+                self.class[i] = APPLE;
+                self.margin[i] = red_excess - threshold;
+                self.mask[i] = 1;
+            } else if clipped {
+                self.class[i] = UNKNOWN;
+            }
+        }
+        overexposed_cells
+    }
+
+    /// Step 3: grow apple regions into adjacent over-exposed cells of unknown colour.
+    fn absorb_highlights(&mut self, grid_w: usize, grid_h: usize) {
+        if !self.class.contains(&UNKNOWN) {
+            return;
+        }
+        for _ in 0..self.config.highlight_fill_iterations {
+            self.scratch_a.clear();
+            self.scratch_a.extend_from_slice(&self.mask);
+            let mut changed = false;
+            for y in 0..grid_h {
+                for x in 0..grid_w {
+                    let i = y * grid_w + x;
+                    if self.class[i] != UNKNOWN || self.mask[i] != 0 {
+                        continue;
+                    }
+                    let touches = (y.saturating_sub(1)..=(y + 1).min(grid_h - 1)).any(|ny| {
+                        (x.saturating_sub(1)..=(x + 1).min(grid_w - 1))
+                            .any(|nx| self.mask[ny * grid_w + nx] != 0)
+                    });
+                    if touches {
+                        self.scratch_a[i] = 1;
+                        changed = true;
+                    }
+                }
+            }
+            std::mem::swap(&mut self.mask, &mut self.scratch_a);
+            if !changed {
+                break;
+            }
+        }
+    }
+
+    /// Steps 5-6 for one connected component: seeds, assignment, one detection per seed.
+    fn extract_component(
+        &mut self,
+        component: usize,
+        grid_w: usize,
+        grid_h: usize,
+        image: (u32, u32),
+        detections: &mut Vec<Detection>,
+    ) -> bool {
+        let params = SplitParams {
+            min_seed_radius_cells: self.config.min_seed_radius_cells,
+            seed_relative_radius: self.config.seed_relative_radius,
+            seed_separation_factor: self.config.seed_separation_factor,
+            saddle_ratio: self.config.saddle_ratio,
+            max_seeds: self.config.max_seeds_per_region as usize,
+        };
+        let cells = self.components.cells(component);
+        if cells.len() < self.config.min_area_cells as usize {
+            return false;
+        }
+        find_seeds(
+            cells,
+            &self.distance,
+            grid_w,
+            grid_h,
+            &params,
+            &mut self.candidates,
+            &mut self.seeds,
+        );
+        if self.seeds.is_empty() {
+            return false;
+        }
+        self.assignment.clear();
+        self.regions.clear();
+        self.regions.resize(self.seeds.len(), RegionSums::EMPTY);
+        for &index in cells {
+            let index = index as usize;
+            let (x, y) = (index % grid_w, index / grid_w);
+            let k = if self.seeds.len() == 1 {
+                0
+            } else {
+                nearest_seed(x as f32, y as f32, &self.seeds)
+            };
+            self.assignment.push(k as u8);
+            let region = &mut self.regions[k];
+            region.x_min = region.x_min.min(x);
+            region.x_max = region.x_max.max(x);
+            region.y_min = region.y_min.min(y);
+            region.y_max = region.y_max.max(y);
+            region.area_cells += 1;
+            region.margin_sum += self.margin[index];
+            region.overexposed_cells += u32::from(self.overexposed[index]);
+        }
+        let s = self.config.downscale;
+        let (image_w, image_h) = image;
+        for (k, (region, seed)) in self.regions.iter().zip(self.seeds.iter()).enumerate() {
+            if region.area_cells < self.config.min_area_cells {
+                continue;
+            }
+            let width_cells = (region.x_max - region.x_min + 1) as u32;
+            let height_cells = (region.y_max - region.y_min + 1) as u32;
+            let mut mask = DetectionMask::new(
+                region.x_min as u32 * s,
+                region.y_min as u32 * s,
+                s,
+                width_cells,
+                height_cells,
+            );
+            for (&index, &owner) in cells.iter().zip(self.assignment.iter()) {
+                if owner as usize == k {
+                    let index = index as usize;
+                    mask.set_cell(
+                        (index % grid_w - region.x_min) as u32,
+                        (index / grid_w - region.y_min) as u32,
+                        true,
+                    );
+                }
+            }
+            let area = region.area_cells as f32;
+            let saturated_fraction = region.overexposed_cells as f32 / area;
+            let confidence = region_confidence(
+                region.margin_sum / area,
+                area,
+                seed.radius_cells,
+                saturated_fraction,
+            );
+            detections.push(Detection {
+                pixel_box: PixelBox {
+                    u_min_px: region.x_min as u32 * s,
+                    v_min_px: region.y_min as u32 * s,
+                    u_max_px: ((region.x_max as u32 + 1) * s).min(image_w),
+                    v_max_px: ((region.y_max as u32 + 1) * s).min(image_h),
+                },
+                mask,
+                visible_px: region.area_cells * s * s,
+                confidence,
+                saturated_fraction,
+            });
+        }
+        self.seeds.len() > 1
+    }
+}
+
+/// Mask-derived confidence in [0, 1]: colour margin (0.4 at the threshold, 1 at 0.3 above it),
+/// roundness (area over the inscribed-circle area; elongated regions lose), size (full from an
+/// inscribed radius of 3 cells) and exposure (clipped cells halve their share).
+fn region_confidence(mean_margin: f32, area_cells: f32, radius_cells: f32, saturated: f32) -> f32 {
+    let colour = (0.4 + 2.0 * mean_margin).clamp(0.0, 1.0);
+    let disc_area = std::f32::consts::PI * radius_cells * radius_cells;
+    let fill = area_cells / disc_area.max(1.0);
+    let shape = (1.3 / fill.max(1e-3)).min(1.0);
+    let size = (radius_cells / 3.0).min(1.0);
+    let exposure = 1.0 - 0.5 * saturated.clamp(0.0, 1.0);
+    (colour * shape * size * exposure).clamp(0.0, 1.0)
+}
+
+impl Detector for ColorSegmentation {
+    fn name(&self) -> &'static str {
+        "color_segmentation"
+    }
+
+    fn detect(
+        &mut self,
+        rgb: &RgbView<'_>,
+        detections: &mut Vec<Detection>,
+    ) -> Result<DetectorFrameInfo, FrameError> {
+        detections.clear();
+        rgb.validate()?;
+        let s = self.config.downscale as usize;
+        let grid_w = rgb.width_px as usize / s;
+        let grid_h = rgb.height_px as usize / s;
+        if grid_w == 0 || grid_h == 0 {
+            return Ok(DetectorFrameInfo::default());
+        }
+        self.downsample(rgb, grid_w, grid_h);
+        let overexposed_cells = self.classify();
+        self.absorb_highlights(grid_w, grid_h);
+        morphology::open(&mut self.mask, grid_w, grid_h, &mut self.scratch_a, &mut self.scratch_b);
+        morphology::close(&mut self.mask, grid_w, grid_h, &mut self.scratch_a, &mut self.scratch_b);
+        chamfer_distance(&self.mask, grid_w, grid_h, &mut self.distance);
+        self.components.label(&self.mask, grid_w, grid_h);
+        let candidate_regions = self.components.count() as u32;
+        let mut split_regions = 0;
+        for component in 0..self.components.count() {
+            let split = self.extract_component(
+                component,
+                grid_w,
+                grid_h,
+                (rgb.width_px, rgb.height_px),
+                detections,
+            );
+            split_regions += u32::from(split);
+        }
+        let saturated_fraction = overexposed_cells as f32 / (grid_w * grid_h) as f32;
+        trace!(
+            candidate_regions,
+            split_regions,
+            detections = detections.len(),
+            saturated_fraction,
+            "colour segmentation"
+        );
+        Ok(DetectorFrameInfo {
+            saturated_fraction,
+            candidate_regions,
+            split_regions,
+        })
+    }
+}

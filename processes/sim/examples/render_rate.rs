@@ -1,0 +1,18 @@
+//! Prints the single-thread render rate of a scenario preset.
+//! Usage: `cargo run --release -p harvest-sim --example render_rate -- [preset] [frames]`
+
+use harvest_sim::render_rate::measure_render_rate;
+use harvest_sim::scenario::Scenario;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut args = std::env::args().skip(1);
+    let preset = args.next().unwrap_or_else(|| "default".to_owned());
+    let frames: u32 = args.next().map_or(Ok(60), |f| f.parse())?;
+    let scenario = Scenario::preset(&preset)?;
+    let rate = measure_render_rate(&scenario, 1, frames)?;
+    println!(
+        "{preset}: {} frames, rgb 1920x1080 {:.1} fps, depth 640x480 {:.1} fps, rgb+depth {:.1} fps (one thread)",
+        rate.frames, rate.color_fps, rate.depth_fps, rate.rgbd_fps
+    );
+    Ok(())
+}

@@ -1,0 +1,1061 @@
+//! Rendering of the ToF camera's frames (Percipio TL460-S1-E1, paper 003 section 2.1) from the
+//! simulated world: RGB 1920x1080 RGB8 and depth 640x480 u16 millimetres (0 = no return).
+//!
+//! Method: per-object rasterisation with a per-pixel z-buffer. Every object's silhouette is
+//! bounded in undistorted normalised image coordinates, the bound is pushed through the lens
+//! distortion to a pixel box, and only the pixels in that box are intersected with the object.
+//! Each pixel's viewing ray `(x_n, y_n, 1)` is precomputed once per camera by undistorting the
+//! pixel centre with [`CameraIntrinsics::normalize`], so distortion costs nothing per frame. With
+//! rays of unit z, the ray parameter of a hit is the hit's depth `z` directly.
+//!
+//! Shading: Lambert diffuse plus a Blinn-Phong highlight on apples under the scenario's sun, an
+//! ambient sky term, two-sided translucent leaves. The next tree row and the ground are planes
+//! behind the canopy; above the next row is sky (no depth return).
+//!
+//! Depth error: the TL460 specifies +/-(4 mm + 0.25 % of depth). It is taken here as one standard
+//! deviation of zero-mean Gaussian noise, `sigma = 4 mm + 0.0025 z`, independent per pixel and per
+//! frame (seeded by world seed and frame number), outside 0.3-9.5 m the pixel reads 0.
+//!
+//! Over-exposure (Table 3, "Exposure"): around each apple flagged over-exposed, a disc of
+//! `overexposed_patch_scale` apple radii saturates towards white in RGB; in depth the noise grows
+//! up to `overexposed_depth_noise_gain` and pixels drop out with up to
+//! `overexposed_dropout_probability`, both tapering to the disc's edge.
+
+use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use rand_distr::StandardNormal;
+
+use crate::orchard::{AppleId, AppleState, World};
+use crate::scenario::{CameraConfig, CameraPoseError};
+
+/// Per-pixel labels written by [`RgbdRenderer::render_labels`].
+pub mod label {
+    /// Sky: no surface within range.
+    pub const SKY: u32 = 0;
+    /// The next tree row behind the canopy.
+    pub const NEXT_ROW: u32 = 1;
+    pub const GROUND: u32 = 2;
+    pub const LEAF: u32 = 3;
+    /// Trunks, branches, uprights, cordons.
+    pub const WOOD: u32 = 4;
+    /// Apple `id` is labelled `APPLE_BASE + id`.
+    pub const APPLE_BASE: u32 = 16;
+}
+
+/// The apple a label belongs to, if it is an apple label.
+pub fn apple_from_label(label: u32) -> Option<AppleId> {
+    label.checked_sub(label::APPLE_BASE).map(AppleId)
+}
+
+/// Why a frame could not be rendered.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// The caller's buffer does not have the frame's size.
+    #[error(
+        "{buffer} buffer holds {actual} elements; a {width}x{height} frame needs {expected}"
+    )]
+    BufferSize {
+        buffer: &'static str,
+        expected: usize,
+        actual: usize,
+        width: u32,
+        height: u32,
+    },
+    /// The camera pose in the scenario is degenerate.
+    #[error("camera pose: {0}")]
+    CameraPose(#[from] CameraPoseError),
+}
+
+type V3 = [f32; 3];
+
+/// Objects closer to the camera than this (z, metres) are not drawn.
+const NEAR_M: f64 = 0.05;
+/// Decorrelates the depth-noise stream from the world's other random streams.
+const DEPTH_NOISE_STREAM: u64 = 0xd1b5_4a32_d192_ed03;
+
+#[inline(always)]
+fn dot(a: V3, b: V3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn to_f32(v: [f64; 3]) -> V3 {
+    [v[0] as f32, v[1] as f32, v[2] as f32]
+}
+
+/// Inclusive pixel rectangle.
+#[derive(Debug, Clone, Copy)]
+struct PixelBox {
+    u0: usize,
+    u1: usize,
+    v0: usize,
+    v1: usize,
+}
+
+/// One sensor: intrinsics, pose, per-pixel rays and z-buffer.
+#[derive(Debug)]
+struct RasterCamera {
+    intrinsics: CameraIntrinsics,
+    camera_from_robot: RigidTransform,
+    robot_from_camera: RigidTransform,
+    width: usize,
+    height: usize,
+    /// Undistorted normalised coordinates `(x/z, y/z)` of every pixel centre, row-major.
+    rays: Vec<[f32; 2]>,
+    /// Depth (z, metres) of the nearest surface so far; infinity = nothing.
+    z_m: Vec<f32>,
+}
+
+impl RasterCamera {
+    fn new(intrinsics: CameraIntrinsics, robot_from_camera: RigidTransform) -> Self {
+        let width = intrinsics.width_px as usize;
+        let height = intrinsics.height_px as usize;
+        let mut rays = Vec::with_capacity(width * height);
+        for v in 0..height {
+            for u in 0..width {
+                let (x, y) = intrinsics.normalize(u as f64, v as f64);
+                rays.push([x as f32, y as f32]);
+            }
+        }
+        Self {
+            intrinsics,
+            camera_from_robot: robot_from_camera.inverse(),
+            robot_from_camera,
+            width,
+            height,
+            rays,
+            z_m: vec![f32::INFINITY; width * height],
+        }
+    }
+
+    /// Pixel box covering the normalised rectangle `[x0, x1] x [y0, y1]` after distortion
+    /// (edges sampled, one pixel of margin), clipped to the image; `None` if outside.
+    fn pixel_box(&self, x0: f64, x1: f64, y0: f64, y1: f64) -> Option<PixelBox> {
+        const SAMPLES: usize = 4;
+        let (mut u_min, mut u_max, mut v_min, mut v_max) =
+            (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        for k in 0..=SAMPLES {
+            let f = k as f64 / SAMPLES as f64;
+            let x = x0 + (x1 - x0) * f;
+            let y = y0 + (y1 - y0) * f;
+            for (xn, yn) in [(x, y0), (x, y1), (x0, y), (x1, y)] {
+                let (u, v) = self.intrinsics.denormalize(xn, yn);
+                u_min = u_min.min(u);
+                u_max = u_max.max(u);
+                v_min = v_min.min(v);
+                v_max = v_max.max(v);
+            }
+        }
+        let last_u = (self.width - 1) as f64;
+        let last_v = (self.height - 1) as f64;
+        if !(u_max >= 0.0 && v_max >= 0.0 && u_min <= last_u && v_min <= last_v) {
+            return None;
+        }
+        Some(PixelBox {
+            u0: (u_min - 1.0).floor().max(0.0) as usize,
+            u1: (u_max + 1.0).ceil().min(last_u) as usize,
+            v0: (v_min - 1.0).floor().max(0.0) as usize,
+            v1: (v_max + 1.0).ceil().min(last_v) as usize,
+        })
+    }
+
+    /// Pixel box of the projection of a convex hull given by its corner points (camera frame);
+    /// `None` if any corner is behind the near plane or the box is off-image.
+    fn hull_box(&self, corners: &[[f64; 3]]) -> Option<PixelBox> {
+        let (mut x0, mut x1, mut y0, mut y1) =
+            (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        for corner in corners {
+            if corner[2] <= NEAR_M {
+                return None;
+            }
+            let (x, y) = (corner[0] / corner[2], corner[1] / corner[2]);
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+        }
+        self.pixel_box(x0, x1, y0, y1)
+    }
+}
+
+/// An apple, in the camera frame.
+#[derive(Debug, Clone, Copy)]
+struct SpherePrim {
+    center: V3,
+    inv_radius: f32,
+    /// `|c|^2 - r^2`.
+    c_sq_minus_r_sq: f32,
+    label: u32,
+    blush: V3,
+    ground: V3,
+    blush_axis: V3,
+    /// Blush where `n . axis > 1 - 2 f` (a cap of area fraction `f`).
+    blush_cos: f32,
+    area: PixelBox,
+}
+
+/// A leaf, in the camera frame.
+#[derive(Debug, Clone, Copy)]
+struct DiscPrim {
+    center: V3,
+    normal: V3,
+    n_dot_c: f32,
+    /// Major axis over the half length.
+    axis_u: V3,
+    /// Minor axis over the half width.
+    axis_v: V3,
+    rgb: V3,
+    area: PixelBox,
+    depth_key: f32,
+}
+
+/// A branch, in the camera frame.
+#[derive(Debug, Clone, Copy)]
+struct CylinderPrim {
+    start: V3,
+    axis: V3,
+    length: f32,
+    inv_radius: f32,
+    /// Component of `-start` perpendicular to the axis.
+    w_perp: V3,
+    /// `|w_perp|^2 - r^2`.
+    w_perp_sq_minus_r_sq: f32,
+    start_dot_axis: f32,
+    rgb: V3,
+    area: PixelBox,
+}
+
+/// An over-exposed disc in normalised image coordinates.
+#[derive(Debug, Clone, Copy)]
+struct GlarePrim {
+    center: [f32; 2],
+    inv_radius_sq: f32,
+    area: PixelBox,
+}
+
+/// The world's objects in one camera's frame, rebuilt each frame into reused vectors.
+#[derive(Debug, Default)]
+struct Scene {
+    spheres: Vec<SpherePrim>,
+    discs: Vec<DiscPrim>,
+    cylinders: Vec<CylinderPrim>,
+    glare: Vec<GlarePrim>,
+}
+
+impl Scene {
+    fn prepare(&mut self, world: &World, camera: &RasterCamera, patch_scale: f64) {
+        self.spheres.clear();
+        self.discs.clear();
+        self.cylinders.clear();
+        self.glare.clear();
+        let pose = &camera.camera_from_robot;
+        for apple in world.apples() {
+            if !matches!(apple.state, AppleState::OnTree | AppleState::Attached { .. }) {
+                continue;
+            }
+            let c = pose.apply(apple.center_in_robot_m);
+            let r = apple.radius_m;
+            if c[2] - r <= NEAR_M {
+                continue;
+            }
+            // Exact tangent bounds of the sphere's silhouette in x/z and y/z.
+            let extent = |lateral: f64| {
+                let denominator = c[2] * c[2] - r * r;
+                let root = r * (lateral * lateral + denominator).sqrt();
+                (
+                    (lateral * c[2] - root) / denominator,
+                    (lateral * c[2] + root) / denominator,
+                )
+            };
+            let (x0, x1) = extent(c[0]);
+            let (y0, y1) = extent(c[1]);
+            let Some(area) = camera.pixel_box(x0, x1, y0, y1) else {
+                continue;
+            };
+            let center = to_f32(c);
+            self.spheres.push(SpherePrim {
+                center,
+                inv_radius: (1.0 / r) as f32,
+                c_sq_minus_r_sq: (c[0] * c[0] + c[1] * c[1] + c[2] * c[2] - r * r) as f32,
+                label: label::APPLE_BASE + apple.id.0,
+                blush: apple.blush_rgb,
+                ground: apple.ground_rgb,
+                blush_axis: to_f32(pose.rotate(apple.blush_axis_in_robot)),
+                blush_cos: (1.0 - 2.0 * apple.blush_fraction) as f32,
+                area,
+            });
+            if apple.overexposed {
+                let radius = patch_scale * r / c[2];
+                let (cx, cy) = (c[0] / c[2], c[1] / c[2]);
+                if let Some(area) =
+                    camera.pixel_box(cx - radius, cx + radius, cy - radius, cy + radius)
+                {
+                    self.glare.push(GlarePrim {
+                        center: [cx as f32, cy as f32],
+                        inv_radius_sq: (1.0 / (radius * radius)) as f32,
+                        area,
+                    });
+                }
+            }
+        }
+        for leaf in world.leaves() {
+            let c = pose.apply(leaf.center_in_robot_m);
+            let n = pose.rotate(leaf.normal_in_robot);
+            let major = pose.rotate(leaf.major_axis_in_robot);
+            let minor = [
+                n[1] * major[2] - n[2] * major[1],
+                n[2] * major[0] - n[0] * major[2],
+                n[0] * major[1] - n[1] * major[0],
+            ];
+            let (a, b) = (leaf.half_length_m, leaf.half_width_m);
+            let corners: [[f64; 3]; 4] = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
+                .map(|(su, sv)| std::array::from_fn(|k| c[k] + su * a * major[k] + sv * b * minor[k]));
+            let Some(area) = camera.hull_box(&corners) else {
+                continue;
+            };
+            self.discs.push(DiscPrim {
+                center: to_f32(c),
+                normal: to_f32(n),
+                n_dot_c: (n[0] * c[0] + n[1] * c[1] + n[2] * c[2]) as f32,
+                axis_u: to_f32(major.map(|m| m / a)),
+                axis_v: to_f32(minor.map(|m| m / b)),
+                rgb: leaf.rgb,
+                area,
+                depth_key: c[2] as f32,
+            });
+        }
+        // Front to back: nearer leaves claim their pixels first, so fewer get shaded twice.
+        self.discs
+            .sort_unstable_by(|a, b| a.depth_key.total_cmp(&b.depth_key));
+        for branch in world.branches() {
+            let p0 = pose.apply(branch.start_in_robot_m);
+            let p1 = pose.apply(branch.end_in_robot_m);
+            let delta = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
+            let length = (delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2]).sqrt();
+            if length < 1e-9 {
+                continue;
+            }
+            let axis = delta.map(|d| d / length);
+            let helper = if axis[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+            let e1 = crate::scenario::normalized(crate::scenario::cross(axis, helper))
+                .unwrap_or([0.0, 0.0, 1.0]);
+            let e2 = crate::scenario::cross(axis, e1);
+            let r = branch.radius_m;
+            let mut corners = [[0.0; 3]; 8];
+            for (index, corner) in corners.iter_mut().enumerate() {
+                let end = if index & 1 == 0 { p0 } else { p1 };
+                let s1 = if index & 2 == 0 { r } else { -r };
+                let s2 = if index & 4 == 0 { r } else { -r };
+                *corner = std::array::from_fn(|k| end[k] + s1 * e1[k] + s2 * e2[k]);
+            }
+            let Some(area) = camera.hull_box(&corners) else {
+                continue;
+            };
+            let w = p0.map(|p| -p);
+            let w_dot_a = w[0] * axis[0] + w[1] * axis[1] + w[2] * axis[2];
+            let w_perp: [f64; 3] = std::array::from_fn(|k| w[k] - w_dot_a * axis[k]);
+            let w_perp_sq = w_perp[0] * w_perp[0] + w_perp[1] * w_perp[1] + w_perp[2] * w_perp[2];
+            self.cylinders.push(CylinderPrim {
+                start: to_f32(p0),
+                axis: to_f32(axis),
+                length: length as f32,
+                inv_radius: (1.0 / r) as f32,
+                w_perp: to_f32(w_perp),
+                w_perp_sq_minus_r_sq: (w_perp_sq - r * r) as f32,
+                start_dot_axis: -w_dot_a as f32,
+                rgb: branch.rgb,
+                area,
+            });
+        }
+    }
+}
+
+/// Background planes expressed for rays in one camera's frame.
+#[derive(Debug, Clone, Copy)]
+struct Backdrop {
+    /// Rows of `robot_from_camera`'s rotation: robot x, y, z of a camera-frame direction.
+    robot_x: V3,
+    robot_y: V3,
+    robot_z: V3,
+    camera_in_robot: V3,
+    next_row_x: f32,
+    next_row_top_z: f32,
+    ground_z: f32,
+}
+
+/// What the background ray hit.
+#[derive(Debug, Clone, Copy)]
+enum BackdropHit {
+    Sky,
+    /// Next tree row at depth `z`, robot `(y, z)` of the hit.
+    NextRow { z: f32, y: f32, height: f32 },
+    /// Ground at depth `z`, robot `(x, y)` of the hit.
+    Ground { z: f32, x: f32, y: f32 },
+}
+
+impl Backdrop {
+    fn new(world: &World, camera: &RasterCamera) -> Self {
+        let r = camera.robot_from_camera.rotation;
+        let b = &world.scenario().background;
+        Self {
+            robot_x: to_f32(r[0]),
+            robot_y: to_f32(r[1]),
+            robot_z: to_f32(r[2]),
+            camera_in_robot: to_f32(camera.robot_from_camera.translation_m),
+            next_row_x: b.next_row_x_m as f32,
+            next_row_top_z: b.next_row_top_z_m as f32,
+            ground_z: b.ground_z_m as f32,
+        }
+    }
+
+    #[inline(always)]
+    fn hit(&self, ray: [f32; 2]) -> BackdropHit {
+        let d = [ray[0], ray[1], 1.0];
+        let dx = dot(self.robot_x, d);
+        let dz = dot(self.robot_z, d);
+        let [tx, ty, tz] = self.camera_in_robot;
+        if dx > 1e-6 {
+            let t = (self.next_row_x - tx) / dx;
+            let height = tz + dz * t;
+            if height >= self.ground_z && height <= self.next_row_top_z {
+                return BackdropHit::NextRow {
+                    z: t,
+                    y: ty + dot(self.robot_y, d) * t,
+                    height,
+                };
+            }
+        }
+        if dz < -1e-6 {
+            let t = (self.ground_z - tz) / dz;
+            let x = tx + dx * t;
+            if x <= self.next_row_x {
+                return BackdropHit::Ground {
+                    z: t,
+                    x,
+                    y: ty + dot(self.robot_y, d) * t,
+                };
+            }
+        }
+        BackdropHit::Sky
+    }
+}
+
+/// Integer hash to `[0, 1)` for cheap procedural texture.
+#[inline(always)]
+fn hash01(a: f32, b: f32) -> f32 {
+    let h = ((a.floor() as i32 as u32).wrapping_mul(0x8da6_b343))
+        ^ ((b.floor() as i32 as u32).wrapping_mul(0xd816_3841));
+    let h = (h ^ (h >> 13)).wrapping_mul(0x9e37_79b1);
+    (h >> 8) as f32 / (1u32 << 24) as f32
+}
+
+/// What is done with a pixel once a surface wins its depth test.
+trait Shader {
+    fn sphere(&mut self, pixel: usize, prim: &SpherePrim, hit: V3);
+    fn disc(&mut self, pixel: usize, prim: &DiscPrim, across: f32, facing_camera: bool);
+    fn cylinder(&mut self, pixel: usize, prim: &CylinderPrim, hit: V3, along: f32);
+    fn backdrop(&mut self, pixel: usize, hit: BackdropHit);
+}
+
+/// Depth only: nothing but the z-buffer.
+struct DepthOnly;
+
+impl Shader for DepthOnly {
+    #[inline(always)]
+    fn sphere(&mut self, _: usize, _: &SpherePrim, _: V3) {}
+    #[inline(always)]
+    fn disc(&mut self, _: usize, _: &DiscPrim, _: f32, _: bool) {}
+    #[inline(always)]
+    fn cylinder(&mut self, _: usize, _: &CylinderPrim, _: V3, _: f32) {}
+    #[inline(always)]
+    fn backdrop(&mut self, _: usize, _: BackdropHit) {}
+}
+
+/// Semantic labels (see [`label`]).
+struct Labels<'a> {
+    out: &'a mut [u32],
+}
+
+impl Shader for Labels<'_> {
+    #[inline(always)]
+    fn sphere(&mut self, pixel: usize, prim: &SpherePrim, _: V3) {
+        self.out[pixel] = prim.label;
+    }
+    #[inline(always)]
+    fn disc(&mut self, pixel: usize, _: &DiscPrim, _: f32, _: bool) {
+        self.out[pixel] = label::LEAF;
+    }
+    #[inline(always)]
+    fn cylinder(&mut self, pixel: usize, _: &CylinderPrim, _: V3, _: f32) {
+        self.out[pixel] = label::WOOD;
+    }
+    #[inline(always)]
+    fn backdrop(&mut self, pixel: usize, hit: BackdropHit) {
+        self.out[pixel] = match hit {
+            BackdropHit::Sky => label::SKY,
+            BackdropHit::NextRow { .. } => label::NEXT_ROW,
+            BackdropHit::Ground { .. } => label::GROUND,
+        };
+    }
+}
+
+/// Lit RGB8.
+struct Colors<'a> {
+    out: &'a mut [u8],
+    /// Unit vector towards the sun, camera frame.
+    sun: V3,
+    /// Blinn half vector between the sun and the viewing direction (-z).
+    half: V3,
+    sun_intensity: f32,
+    ambient: f32,
+    specular: f32,
+    next_row: V3,
+    ground: V3,
+    sky: V3,
+}
+
+impl Colors<'_> {
+    #[inline(always)]
+    fn put(&mut self, pixel: usize, rgb: V3) {
+        let base = 3 * pixel;
+        // Rounded; float-to-int `as` saturates, so values above 255 clip (over-exposure).
+        self.out[base] = (rgb[0] + 0.5) as u8;
+        self.out[base + 1] = (rgb[1] + 0.5) as u8;
+        self.out[base + 2] = (rgb[2] + 0.5) as u8;
+    }
+}
+
+impl Shader for Colors<'_> {
+    #[inline(always)]
+    fn sphere(&mut self, pixel: usize, prim: &SpherePrim, hit: V3) {
+        let n = [
+            (hit[0] - prim.center[0]) * prim.inv_radius,
+            (hit[1] - prim.center[1]) * prim.inv_radius,
+            (hit[2] - prim.center[2]) * prim.inv_radius,
+        ];
+        let diffuse = dot(n, self.sun).max(0.0);
+        let mut highlight = dot(n, self.half).max(0.0);
+        for _ in 0..4 {
+            highlight *= highlight;
+        }
+        let blush = ((dot(n, prim.blush_axis) - prim.blush_cos) * 2.5 + 0.5).clamp(0.0, 1.0);
+        let light = self.ambient + self.sun_intensity * diffuse;
+        let shine = self.specular * self.sun_intensity * highlight * 255.0;
+        let rgb = std::array::from_fn(|k| {
+            let albedo = prim.ground[k] + (prim.blush[k] - prim.ground[k]) * blush;
+            albedo * light * 255.0 + shine
+        });
+        self.put(pixel, rgb);
+    }
+
+    #[inline(always)]
+    fn disc(&mut self, pixel: usize, prim: &DiscPrim, across: f32, facing_camera: bool) {
+        let lit = dot(prim.normal, self.sun);
+        let lit = if facing_camera { -lit } else { lit };
+        // Front-lit blades reflect; back-lit ones glow through (translucency).
+        let diffuse = if lit > 0.0 { lit } else { -0.35 * lit };
+        let vein = 0.8 + 0.2 * across.abs().min(1.0);
+        let light = (self.ambient + self.sun_intensity * diffuse) * vein * 255.0;
+        self.put(pixel, prim.rgb.map(|c| c * light));
+    }
+
+    #[inline(always)]
+    fn cylinder(&mut self, pixel: usize, prim: &CylinderPrim, hit: V3, along: f32) {
+        let n = std::array::from_fn(|k| {
+            (hit[k] - prim.start[k] - along * prim.axis[k]) * prim.inv_radius
+        });
+        let diffuse = dot(n, self.sun).max(0.0);
+        let bark = 0.85 + 0.3 * hash01(along * 60.0, 0.0);
+        let light = (self.ambient + self.sun_intensity * diffuse) * bark * 255.0;
+        self.put(pixel, prim.rgb.map(|c| c * light));
+    }
+
+    #[inline(always)]
+    fn backdrop(&mut self, pixel: usize, hit: BackdropHit) {
+        let rgb = match hit {
+            BackdropHit::Sky => self.sky.map(|c| c * 255.0),
+            BackdropHit::NextRow { y, height, .. } => {
+                let texture = 0.55 + 0.6 * hash01(y * 22.0, height * 22.0);
+                let light = (self.ambient + 0.5 * self.sun_intensity) * texture * 255.0;
+                self.next_row.map(|c| c * light)
+            }
+            BackdropHit::Ground { x, y, .. } => {
+                let texture = 0.8 + 0.35 * hash01(x * 18.0, y * 18.0);
+                let light = (self.ambient + self.sun_intensity * self.sun[1].abs().max(0.3))
+                    * texture
+                    * 255.0;
+                self.ground.map(|c| c * light)
+            }
+        };
+        self.put(pixel, rgb);
+    }
+}
+
+/// Draws every object of `scene` into the camera's z-buffer, then the backdrop into the pixels
+/// nothing covered (the backdrop lies behind the canopy by construction).
+fn rasterize<S: Shader>(camera: &mut RasterCamera, scene: &Scene, backdrop: &Backdrop, shader: &mut S) {
+    let width = camera.width;
+    let rays = &camera.rays;
+    let z_m = &mut camera.z_m;
+    z_m.fill(f32::INFINITY);
+    for prim in &scene.discs {
+        let a = prim.area;
+        for v in a.v0..=a.v1 {
+            let row = v * width;
+            for u in a.u0..=a.u1 {
+                let pixel = row + u;
+                let [x, y] = rays[pixel];
+                let facing = prim.normal[0] * x + prim.normal[1] * y + prim.normal[2];
+                if facing.abs() < 1e-6 {
+                    continue;
+                }
+                let t = prim.n_dot_c / facing;
+                if t <= 0.0 || t >= z_m[pixel] {
+                    continue;
+                }
+                let q = [x * t - prim.center[0], y * t - prim.center[1], t - prim.center[2]];
+                let along = dot(q, prim.axis_u);
+                let across = dot(q, prim.axis_v);
+                if along * along + across * across > 1.0 {
+                    continue;
+                }
+                z_m[pixel] = t;
+                shader.disc(pixel, prim, across, facing < 0.0);
+            }
+        }
+    }
+    for prim in &scene.spheres {
+        let a = prim.area;
+        let [cx, cy, cz] = prim.center;
+        for v in a.v0..=a.v1 {
+            let row = v * width;
+            for u in a.u0..=a.u1 {
+                let pixel = row + u;
+                let [x, y] = rays[pixel];
+                let b = x * cx + y * cy + cz;
+                let dd = x * x + y * y + 1.0;
+                let disc = b * b - dd * prim.c_sq_minus_r_sq;
+                if disc < 0.0 {
+                    continue;
+                }
+                let t = (b - disc.sqrt()) / dd;
+                if t <= 0.0 || t >= z_m[pixel] {
+                    continue;
+                }
+                z_m[pixel] = t;
+                shader.sphere(pixel, prim, [x * t, y * t, t]);
+            }
+        }
+    }
+    for prim in &scene.cylinders {
+        let a = prim.area;
+        for v in a.v0..=a.v1 {
+            let row = v * width;
+            for u in a.u0..=a.u1 {
+                let pixel = row + u;
+                let [x, y] = rays[pixel];
+                let d = [x, y, 1.0];
+                let d_dot_a = dot(d, prim.axis);
+                let quad = dot(d, d) - d_dot_a * d_dot_a;
+                let half_b = dot(d, prim.w_perp);
+                let disc = half_b * half_b - quad * prim.w_perp_sq_minus_r_sq;
+                if disc < 0.0 || quad <= 0.0 {
+                    continue;
+                }
+                let t = (-half_b - disc.sqrt()) / quad;
+                if t <= 0.0 || t >= z_m[pixel] {
+                    continue;
+                }
+                let along = t * d_dot_a - prim.start_dot_axis;
+                if !(0.0..=prim.length).contains(&along) {
+                    continue;
+                }
+                z_m[pixel] = t;
+                shader.cylinder(pixel, prim, [x * t, y * t, t], along);
+            }
+        }
+    }
+    for (pixel, (z, ray)) in z_m.iter_mut().zip(rays.iter()).enumerate() {
+        if z.is_finite() {
+            continue;
+        }
+        let hit = backdrop.hit(*ray);
+        match hit {
+            BackdropHit::NextRow { z: depth, .. } | BackdropHit::Ground { z: depth, .. } => {
+                *z = depth;
+            }
+            BackdropHit::Sky => {}
+        }
+        shader.backdrop(pixel, hit);
+    }
+}
+
+/// Renders the ToF camera's RGB, depth and label frames of a [`World`] into caller buffers.
+///
+/// Owns per-camera ray tables and z-buffers (allocated once); a frame allocates nothing beyond
+/// the per-object lists, which are reused.
+#[derive(Debug)]
+pub struct RgbdRenderer {
+    color: RasterCamera,
+    depth: RasterCamera,
+    camera: CameraConfig,
+    scene: Scene,
+}
+
+impl RgbdRenderer {
+    /// Builds the RGB and depth sensors of `camera` (TL460 intrinsics; the depth sensor at
+    /// `robot_from_camera`, the RGB sensor offset by `color_from_depth`).
+    pub fn new(camera: &CameraConfig) -> Result<Self, RenderError> {
+        let robot_from_depth = camera.robot_from_camera()?;
+        let robot_from_color = robot_from_depth.compose(&camera.color_from_depth().inverse());
+        Ok(Self {
+            color: RasterCamera::new(camera.color_intrinsics(), robot_from_color),
+            depth: RasterCamera::new(camera.depth_intrinsics(), robot_from_depth),
+            camera: camera.clone(),
+            scene: Scene::default(),
+        })
+    }
+
+    pub fn color_intrinsics(&self) -> &CameraIntrinsics {
+        &self.color.intrinsics
+    }
+
+    pub fn depth_intrinsics(&self) -> &CameraIntrinsics {
+        &self.depth.intrinsics
+    }
+
+    /// Pose of the RGB sensor's optical frame.
+    pub fn robot_from_color(&self) -> RigidTransform {
+        self.color.robot_from_camera
+    }
+
+    /// Pose of the depth sensor's optical frame (the scenario's `robot_from_camera`).
+    pub fn robot_from_depth(&self) -> RigidTransform {
+        self.depth.robot_from_camera
+    }
+
+    fn check_len(
+        buffer: &'static str,
+        camera: &RasterCamera,
+        channels: usize,
+        actual: usize,
+    ) -> Result<(), RenderError> {
+        let expected = camera.width * camera.height * channels;
+        if actual == expected {
+            Ok(())
+        } else {
+            Err(RenderError::BufferSize {
+                buffer,
+                expected,
+                actual,
+                width: camera.intrinsics.width_px,
+                height: camera.intrinsics.height_px,
+            })
+        }
+    }
+
+    /// Renders the RGB8 frame (row-major, 3 bytes per pixel) into `rgb_out`.
+    pub fn render_color(&mut self, world: &World, rgb_out: &mut [u8]) -> Result<(), RenderError> {
+        Self::check_len("rgb", &self.color, 3, rgb_out.len())?;
+        let scenario = world.scenario();
+        let lighting = &scenario.lighting;
+        let pose = self.color.camera_from_robot;
+        let sun = to_f32(pose.rotate(lighting.sun_direction_in_robot));
+        let half = crate::scenario::normalized([f64::from(sun[0]), f64::from(sun[1]), f64::from(sun[2]) - 1.0])
+            .map_or([0.0, 0.0, -1.0], to_f32);
+        let background = &scenario.background;
+        let linear = |rgb: [u8; 3]| rgb.map(|c| f32::from(c) / 255.0);
+        let mut shader = Colors {
+            out: rgb_out,
+            sun,
+            half,
+            sun_intensity: lighting.sun_intensity as f32,
+            ambient: lighting.ambient as f32,
+            specular: lighting.specular as f32,
+            next_row: linear(background.next_row_rgb),
+            ground: linear(background.ground_rgb),
+            sky: linear(background.sky_rgb),
+        };
+        self.scene
+            .prepare(world, &self.color, self.camera.overexposed_patch_scale);
+        let backdrop = Backdrop::new(world, &self.color);
+        rasterize(&mut self.color, &self.scene, &backdrop, &mut shader);
+        // Sunlight saturates the over-exposed discs towards white.
+        let rgb_out = shader.out;
+        let width = self.color.width;
+        for glare in &self.scene.glare {
+            let a = glare.area;
+            for v in a.v0..=a.v1 {
+                for u in a.u0..=a.u1 {
+                    let pixel = v * width + u;
+                    let weight = glare_weight(glare, self.color.rays[pixel]);
+                    if weight <= 0.0 {
+                        continue;
+                    }
+                    let saturation = (1.6 * weight).min(1.0);
+                    for channel in &mut rgb_out[3 * pixel..3 * pixel + 3] {
+                        let c = f32::from(*channel);
+                        *channel = (c + (255.0 - c) * saturation) as u8;
+                    }
+                }
+            }
+        }
+        tracing::trace!(
+            apples = self.scene.spheres.len(),
+            leaves = self.scene.discs.len(),
+            "rendered rgb frame"
+        );
+        Ok(())
+    }
+
+    /// Renders the depth frame (row-major, millimetres, 0 = no return) into `depth_out_mm`.
+    /// The noise is a function of the world seed and `frame_seq`, so a frame can be reproduced.
+    pub fn render_depth(
+        &mut self,
+        world: &World,
+        frame_seq: u64,
+        depth_out_mm: &mut [u16],
+    ) -> Result<(), RenderError> {
+        Self::check_len("depth", &self.depth, 1, depth_out_mm.len())?;
+        self.scene
+            .prepare(world, &self.depth, self.camera.overexposed_patch_scale);
+        let backdrop = Backdrop::new(world, &self.depth);
+        rasterize(&mut self.depth, &self.scene, &backdrop, &mut DepthOnly);
+        let mut rng = SmallRng::seed_from_u64(
+            world.seed() ^ DEPTH_NOISE_STREAM ^ frame_seq.wrapping_mul(0xa24b_aed4_963e_e407),
+        );
+        let camera = &self.camera;
+        let sigma_const_m = (camera.depth_noise_mm / 1000.0) as f32;
+        let sigma_fraction = camera.depth_noise_fraction as f32;
+        // Over-exposed discs: extra noise and dropouts, tapering to the disc edge.
+        let width = self.depth.width;
+        let gain = camera.overexposed_depth_noise_gain as f32;
+        let dropout = camera.overexposed_dropout_probability as f32;
+        for glare in &self.scene.glare {
+            let a = glare.area;
+            for v in a.v0..=a.v1 {
+                for u in a.u0..=a.u1 {
+                    let pixel = v * width + u;
+                    let weight = glare_weight(glare, self.depth.rays[pixel]);
+                    let z = self.depth.z_m[pixel];
+                    if weight <= 0.0 || !z.is_finite() {
+                        continue;
+                    }
+                    if rng.random::<f32>() < dropout * weight {
+                        self.depth.z_m[pixel] = f32::INFINITY;
+                        continue;
+                    }
+                    let extra_gain = 1.0 + (gain - 1.0) * weight;
+                    let extra_sigma = (sigma_const_m + sigma_fraction * z)
+                        * (extra_gain * extra_gain - 1.0).sqrt();
+                    let noise: f32 = rng.sample(StandardNormal);
+                    self.depth.z_m[pixel] = z + extra_sigma * noise;
+                }
+            }
+        }
+        let [min_m, max_m] = camera.range_m.map(|r| r as f32);
+        for (out, z) in depth_out_mm.iter_mut().zip(&self.depth.z_m) {
+            let z = *z;
+            *out = if z >= min_m && z <= max_m {
+                let noise: f32 = rng.sample(StandardNormal);
+                let z_mm = 1000.0 * (z + (sigma_const_m + sigma_fraction * z) * noise);
+                // 0 is reserved for "no return".
+                z_mm.round().clamp(1.0, f32::from(u16::MAX)) as u16
+            } else {
+                0
+            };
+        }
+        tracing::trace!(frame_seq, "rendered depth frame");
+        Ok(())
+    }
+
+    /// Renders per-pixel labels at RGB resolution (see [`label`]): ground truth for evaluating
+    /// segmentation.
+    pub fn render_labels(&mut self, world: &World, labels_out: &mut [u32]) -> Result<(), RenderError> {
+        Self::check_len("labels", &self.color, 1, labels_out.len())?;
+        self.scene
+            .prepare(world, &self.color, self.camera.overexposed_patch_scale);
+        let backdrop = Backdrop::new(world, &self.color);
+        rasterize(&mut self.color, &self.scene, &backdrop, &mut Labels { out: labels_out });
+        Ok(())
+    }
+}
+
+/// Glare weight at a ray: `1 - (d / R)^2` inside the disc, else <= 0.
+#[inline(always)]
+fn glare_weight(glare: &GlarePrim, ray: [f32; 2]) -> f32 {
+    let dx = ray[0] - glare.center[0];
+    let dy = ray[1] - glare.center[1];
+    1.0 - (dx * dx + dy * dy) * glare.inv_radius_sq
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::Scenario;
+
+    struct Frames {
+        rgb: Vec<u8>,
+        depth_mm: Vec<u16>,
+        labels: Vec<u32>,
+    }
+
+    fn render(world: &World, frame_seq: u64) -> (RgbdRenderer, Frames) {
+        let mut renderer = RgbdRenderer::new(&world.scenario().camera).expect("renderer");
+        let color = *renderer.color_intrinsics();
+        let depth = *renderer.depth_intrinsics();
+        let color_px = (color.width_px * color.height_px) as usize;
+        let mut frames = Frames {
+            rgb: vec![0; 3 * color_px],
+            depth_mm: vec![0; (depth.width_px * depth.height_px) as usize],
+            labels: vec![0; color_px],
+        };
+        renderer.render_color(world, &mut frames.rgb).expect("rgb");
+        renderer
+            .render_depth(world, frame_seq, &mut frames.depth_mm)
+            .expect("depth");
+        renderer.render_labels(world, &mut frames.labels).expect("labels");
+        (renderer, frames)
+    }
+
+    fn ideal_world() -> World {
+        World::generate(&Scenario::preset("ideal").expect("ideal"), 4).expect("world")
+    }
+
+    fn pixel_index(intrinsics: &CameraIntrinsics, u: f64, v: f64) -> usize {
+        v.round() as usize * intrinsics.width_px as usize + u.round() as usize
+    }
+
+    #[test]
+    fn projected_apple_centres_land_on_their_rendered_pixels() {
+        let world = ideal_world();
+        let (renderer, frames) = render(&world, 0);
+        let color = renderer.color_intrinsics();
+        let depth = renderer.depth_intrinsics();
+        let color_from_robot = renderer.robot_from_color().inverse();
+        let depth_from_robot = renderer.robot_from_depth().inverse();
+        for apple in world.apples() {
+            let in_color = color_from_robot.apply(apple.center_in_robot_m);
+            let (u, v) = color.project(in_color).expect("in front");
+            assert!(color.contains(u, v), "apple {:?} off-image", apple.id);
+            let pixel = pixel_index(color, u, v);
+            assert_eq!(apple_from_label(frames.labels[pixel]), Some(apple.id));
+            let [r, g, b] = [0, 1, 2].map(|k| frames.rgb[3 * pixel + k]);
+            assert!(r > g && r > b, "apple {:?} pixel is not red: {r} {g} {b}", apple.id);
+            // Depth at the projected centre is the near surface: z_centre - r (to first order).
+            let in_depth = depth_from_robot.apply(apple.center_in_robot_m);
+            let (u, v) = depth.project(in_depth).expect("in front");
+            let measured_mm = f64::from(frames.depth_mm[pixel_index(depth, u, v)]);
+            let surface_mm = 1000.0 * (in_depth[2] - apple.radius_m);
+            let sigma_mm = world.scenario().camera.depth_sigma_mm(surface_mm);
+            assert!(
+                (measured_mm - surface_mm).abs() < 5.0 * sigma_mm + 3.0,
+                "apple {:?}: depth {measured_mm} mm, expected {surface_mm:.1} mm",
+                apple.id
+            );
+        }
+    }
+
+    #[test]
+    fn depth_noise_matches_the_spec_on_a_flat_patch() {
+        // The next tree row is a plane of constant robot x; with a camera looking straight along
+        // robot x it is a plane of constant depth.
+        let mut scenario = Scenario::preset("ideal").expect("ideal");
+        scenario.apples.count = 0;
+        scenario.camera.position_in_robot_m = [0.0, 0.0, 0.5];
+        scenario.camera.look_at_in_robot_m = [3.0, 0.0, 0.5];
+        let world = World::generate(&scenario, 9).expect("world");
+        let mut renderer = RgbdRenderer::new(&scenario.camera).expect("renderer");
+        let depth = *renderer.depth_intrinsics();
+        let mut frame = vec![0u16; (depth.width_px * depth.height_px) as usize];
+        let truth_mm = 1000.0 * scenario.background.next_row_x_m;
+        let expected_sigma_mm = scenario.camera.depth_sigma_mm(truth_mm);
+        let (mut sum, mut sum_sq, mut count) = (0.0f64, 0.0f64, 0usize);
+        for frame_seq in 0..4 {
+            renderer.render_depth(&world, frame_seq, &mut frame).expect("depth");
+            // A 200x100 patch around the centre, all on the next row.
+            for v in 190..290 {
+                for u in 220..420 {
+                    let error = f64::from(frame[v * depth.width_px as usize + u]) - truth_mm;
+                    sum += error;
+                    sum_sq += error * error;
+                    count += 1;
+                }
+            }
+        }
+        let mean = sum / count as f64;
+        let std = (sum_sq / count as f64 - mean * mean).sqrt();
+        // Standard error of the mean is sigma / sqrt(80000), about 0.04 mm.
+        assert!(mean.abs() < 0.3, "mean error {mean} mm");
+        // Rounding to whole millimetres adds 1/12 mm^2 of variance.
+        let expected_std = (expected_sigma_mm.powi(2) + 1.0 / 12.0).sqrt();
+        assert!(
+            (std / expected_std - 1.0).abs() < 0.02,
+            "std {std} mm, expected {expected_std} mm"
+        );
+    }
+
+    #[test]
+    fn out_of_range_reads_zero_and_sky_has_no_return() {
+        let mut scenario = Scenario::preset("ideal").expect("ideal");
+        scenario.camera.look_at_in_robot_m = [2.0, 0.0, 2.5];
+        let world = World::generate(&scenario, 1).expect("world");
+        let (renderer, frames) = render(&world, 0);
+        // Looking up: the top rows see sky.
+        let width = renderer.depth_intrinsics().width_px as usize;
+        assert!(frames.depth_mm[..width].iter().all(|&d| d == 0));
+        assert!(frames.labels[..100].iter().all(|&l| l == label::SKY));
+        let sky = scenario.background.sky_rgb;
+        assert_eq!(&frames.rgb[..3], &sky);
+    }
+
+    #[test]
+    fn occluding_leaves_hide_apple_pixels() {
+        let mut scenario = Scenario::preset("ideal").expect("ideal");
+        scenario.failures.heavy_occlusion = 1.0;
+        let world = World::generate(&scenario, 2).expect("world");
+        let (_, occluded) = render(&world, 0);
+        let (_, clear) = render(&ideal_world(), 0);
+        let apple_pixels = |labels: &[u32]| labels.iter().filter(|&&l| l >= label::APPLE_BASE).count();
+        let (hidden, visible) = (apple_pixels(&occluded.labels), apple_pixels(&clear.labels));
+        assert!(hidden * 2 < visible, "occluded {hidden} vs clear {visible} apple pixels");
+    }
+
+    #[test]
+    fn overexposure_saturates_the_apple_and_corrupts_its_depth() {
+        let mut scenario = Scenario::preset("ideal").expect("ideal");
+        scenario.failures.camera_overexposure = 1.0;
+        let world = World::generate(&scenario, 4).expect("world");
+        let (renderer, frames) = render(&world, 0);
+        let (_, clean) = render(&ideal_world(), 0);
+        let color = renderer.color_intrinsics();
+        let color_from_robot = renderer.robot_from_color().inverse();
+        for apple in world.apples() {
+            let (u, v) = color.project(color_from_robot.apply(apple.center_in_robot_m)).expect("front");
+            let pixel = pixel_index(color, u, v);
+            assert!(frames.rgb[3 * pixel..3 * pixel + 3].iter().all(|&c| c == 255));
+        }
+        let dropouts = |d: &[u16]| d.iter().filter(|&&z| z == 0).count();
+        assert!(dropouts(&frames.depth_mm) > dropouts(&clean.depth_mm) + 100);
+    }
+
+    #[test]
+    fn same_seed_and_frame_give_identical_frames() {
+        let world = World::generate(&Scenario::preset("default").expect("default"), 21).expect("world");
+        let (_, a) = render(&world, 5);
+        let (_, b) = render(&world, 5);
+        let (_, c) = render(&world, 6);
+        assert!(a.rgb == b.rgb && a.depth_mm == b.depth_mm && a.labels == b.labels);
+        assert!(a.depth_mm != c.depth_mm, "noise differs between frames");
+        assert!(a.rgb == c.rgb);
+    }
+
+    #[test]
+    fn wrong_buffer_sizes_are_refused() {
+        let world = ideal_world();
+        let mut renderer = RgbdRenderer::new(&world.scenario().camera).expect("renderer");
+        let error = renderer.render_color(&world, &mut [0u8; 10]).expect_err("size");
+        assert!(matches!(error, RenderError::BufferSize { buffer: "rgb", actual: 10, .. }));
+        assert!(renderer.render_depth(&world, 0, &mut [0u16; 10]).is_err());
+    }
+}

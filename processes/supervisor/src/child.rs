@@ -1,0 +1,41 @@
+//! Starting and signalling one child process.
+
+use crate::launch::ProcessSpec;
+use harvest_ipc::Domain;
+use nix::sys::signal::{Signal, killpg};
+use nix::unistd::Pid;
+use std::os::unix::process::CommandExt;
+use std::path::Path;
+use std::process::{Child, Command};
+
+/// Environment variable carrying a child's launch name (its node name and log prefix).
+pub const PROCESS_NAME_ENV: &str = "HARVEST_PROCESS_NAME";
+
+/// Starts `spec` as `executable <command> <args>` in its own process group (so a terminal's
+/// Ctrl-C reaches only the supervisor, which then stops children in order), with the parent-death
+/// signal set so children never outlive a killed supervisor.
+pub fn spawn(executable: &Path, spec: &ProcessSpec, domain: &Domain) -> std::io::Result<Child> {
+    let mut command = Command::new(executable);
+    command
+        .arg(&spec.command)
+        .args(&spec.args)
+        .env(harvest_ipc::domain::DOMAIN_ENV, domain.name())
+        .env(PROCESS_NAME_ENV, &spec.name)
+        .process_group(0);
+    // SAFETY: the closure runs in the forked child before exec and only calls prctl, which is
+    // async-signal-safe.
+    unsafe {
+        command.pre_exec(|| {
+            nix::sys::prctl::set_pdeathsig(Some(Signal::SIGTERM)).map_err(std::io::Error::from)
+        });
+    }
+    command.spawn()
+}
+
+/// Sends `signal` to the child's whole process group.
+pub fn signal_group(child: &Child, signal: Signal) {
+    let pid = Pid::from_raw(child.id() as i32);
+    if let Err(error) = killpg(pid, signal) {
+        tracing::debug!(pid = child.id(), ?signal, %error, "signal failed (already gone?)");
+    }
+}

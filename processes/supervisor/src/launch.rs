@@ -1,0 +1,273 @@
+//! The launch file: which processes `harvest up` runs, with their restart policies.
+//!
+//! ```toml
+//! [stack]
+//! hang_timeout_ms = 3000        # no heartbeat for this long: the process is hung, restart it
+//! shutdown_grace_ms = 3000      # SIGTERM, then SIGKILL after this long
+//!
+//! [[process]]
+//! name = "camera"               # unique; also the iceoryx2 node name
+//! command = "camera"            # a `harvest` subcommand
+//! args = ["--rate-hz", "30"]
+//! restart = "on-failure"        # never | on-failure | always
+//! max_restarts = 5              # within restart_window_s, else the process failed for good
+//! restart_window_s = 60
+//! backoff_initial_ms = 200      # doubles per consecutive restart up to backoff_max_ms
+//! backoff_max_ms = 5000
+//! ```
+
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// The launch file used when none is given: the whole stack against simulated hardware.
+pub const DEFAULT_LAUNCH: &str = include_str!("../launch/default.toml");
+/// Name shown for the embedded default launch file in errors.
+pub const DEFAULT_LAUNCH_NAME: &str = "<embedded launch/default.toml>";
+
+/// `harvest` subcommands a launch file may start.
+pub const KNOWN_COMMANDS: &[&str] =
+    &["sim", "camera", "perception", "arm", "vacuum", "laser", "recorder", "fixture"];
+
+/// When a process that exited is started again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RestartPolicy {
+    Never,
+    OnFailure,
+    Always,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLaunch {
+    #[serde(default)]
+    stack: StackSettings,
+    #[serde(default, rename = "process")]
+    processes: Vec<toml::Spanned<RawProcess>>,
+}
+
+/// Stack-wide settings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StackSettings {
+    pub hang_timeout_ms: u64,
+    pub shutdown_grace_ms: u64,
+    /// A process is not judged hung before this long after its start.
+    pub startup_grace_ms: u64,
+}
+
+impl Default for StackSettings {
+    fn default() -> Self {
+        Self { hang_timeout_ms: 3000, shutdown_grace_ms: 3000, startup_grace_ms: 5000 }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawProcess {
+    name: toml::Spanned<String>,
+    command: toml::Spanned<String>,
+    #[serde(default)]
+    args: Vec<String>,
+    #[serde(default = "default_restart")]
+    restart: RestartPolicy,
+    #[serde(default = "default_max_restarts")]
+    max_restarts: u32,
+    #[serde(default = "default_restart_window_s")]
+    restart_window_s: u64,
+    #[serde(default = "default_backoff_initial_ms")]
+    backoff_initial_ms: u64,
+    #[serde(default = "default_backoff_max_ms")]
+    backoff_max_ms: u64,
+}
+
+fn default_restart() -> RestartPolicy {
+    RestartPolicy::OnFailure
+}
+fn default_max_restarts() -> u32 {
+    5
+}
+fn default_restart_window_s() -> u64 {
+    60
+}
+fn default_backoff_initial_ms() -> u64 {
+    200
+}
+fn default_backoff_max_ms() -> u64 {
+    5000
+}
+
+/// One process of the launch file, validated.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ProcessSpec {
+    pub name: String,
+    pub command: String,
+    pub args: Vec<String>,
+    pub restart: RestartPolicy,
+    pub max_restarts: u32,
+    pub restart_window: Duration,
+    pub backoff_initial: Duration,
+    pub backoff_max: Duration,
+}
+
+/// A validated launch file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Launch {
+    /// Where it came from (a path, or [`DEFAULT_LAUNCH_NAME`]).
+    pub source: String,
+    pub text: String,
+    pub stack: StackSettings,
+    pub processes: Vec<ProcessSpec>,
+}
+
+/// A launch file that cannot be used. Every variant names the file and the line.
+#[derive(Debug, thiserror::Error)]
+pub enum LaunchError {
+    #[error("cannot read launch file {path}: {source}")]
+    Read { path: PathBuf, source: std::io::Error },
+    /// Syntax errors, unknown keys, bad values (toml reports line, column and key).
+    #[error("launch file {file}: {message}")]
+    Parse { file: String, message: String },
+    #[error("launch file {file}, line {line}: process {name:?}: unknown command {command:?} (known: {known})")]
+    UnknownCommand { file: String, line: usize, name: String, command: String, known: String },
+    #[error("launch file {file}, line {line}: duplicate process name {name:?} (first at line {first_line})")]
+    DuplicateName { file: String, line: usize, first_line: usize, name: String },
+    #[error("launch file {file}, line {line}: process name {name:?} must be 1-30 characters of [a-z0-9_-]")]
+    BadName { file: String, line: usize, name: String },
+    #[error("launch file {file}, line {line}: process {name:?}: {message}")]
+    BadValue { file: String, line: usize, name: String, message: String },
+    #[error("launch file {file}: no [[process]] entries")]
+    Empty { file: String },
+}
+
+impl Launch {
+    /// Reads and validates a launch file.
+    pub fn from_path(path: &Path) -> Result<Self, LaunchError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| LaunchError::Read { path: path.to_owned(), source })?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// The embedded default launch file.
+    pub fn default_stack() -> Result<Self, LaunchError> {
+        Self::parse(DEFAULT_LAUNCH, DEFAULT_LAUNCH_NAME)
+    }
+
+    /// Parses and validates launch-file text; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Self, LaunchError> {
+        let raw: RawLaunch = toml::from_str(text)
+            .map_err(|error| LaunchError::Parse { file: file.to_owned(), message: error.to_string() })?;
+        let line_of = |offset: usize| text[..offset.min(text.len())].matches('\n').count() + 1;
+        let mut processes: Vec<ProcessSpec> = Vec::new();
+        let mut first_lines: Vec<usize> = Vec::new();
+        for spanned in raw.processes {
+            let process = spanned.into_inner();
+            let name_line = line_of(process.name.span().start);
+            let name = process.name.into_inner();
+            let valid_name = !name.is_empty()
+                && name.len() <= 30
+                && name.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-');
+            if !valid_name {
+                return Err(LaunchError::BadName { file: file.to_owned(), line: name_line, name });
+            }
+            if let Some(index) = processes.iter().position(|p| p.name == name) {
+                return Err(LaunchError::DuplicateName {
+                    file: file.to_owned(),
+                    line: name_line,
+                    first_line: first_lines[index],
+                    name,
+                });
+            }
+            let command_line = line_of(process.command.span().start);
+            let command = process.command.into_inner();
+            if !KNOWN_COMMANDS.contains(&command.as_str()) {
+                return Err(LaunchError::UnknownCommand {
+                    file: file.to_owned(),
+                    line: command_line,
+                    name,
+                    command,
+                    known: KNOWN_COMMANDS.join(", "),
+                });
+            }
+            if process.backoff_initial_ms > process.backoff_max_ms || process.restart_window_s == 0 {
+                return Err(LaunchError::BadValue {
+                    file: file.to_owned(),
+                    line: name_line,
+                    name,
+                    message: "need backoff_initial_ms <= backoff_max_ms and restart_window_s > 0"
+                        .to_owned(),
+                });
+            }
+            first_lines.push(name_line);
+            processes.push(ProcessSpec {
+                name,
+                command,
+                args: process.args,
+                restart: process.restart,
+                max_restarts: process.max_restarts,
+                restart_window: Duration::from_secs(process.restart_window_s),
+                backoff_initial: Duration::from_millis(process.backoff_initial_ms),
+                backoff_max: Duration::from_millis(process.backoff_max_ms),
+            });
+        }
+        if processes.is_empty() {
+            return Err(LaunchError::Empty { file: file.to_owned() });
+        }
+        Ok(Self { source: file.to_owned(), text: text.to_owned(), stack: raw.stack, processes })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = "[stack]\nhang_timeout_ms = 2000\n\n[[process]]\nname = \"cam\"\ncommand = \"camera\"\n\n[[process]]\nname = \"perc\"\ncommand = \"perception\"\nrestart = \"always\"\n";
+
+    #[test]
+    fn default_launch_is_valid() {
+        let launch = Launch::default_stack().expect("default launch parses");
+        assert!(launch.processes.iter().any(|p| p.command == "camera"));
+    }
+
+    #[test]
+    fn parses_good_file() {
+        let launch = Launch::parse(GOOD, "good.toml").expect("parses");
+        assert_eq!(launch.stack.hang_timeout_ms, 2000);
+        assert_eq!(launch.processes[1].restart, RestartPolicy::Always);
+        assert_eq!(launch.processes[0].restart, RestartPolicy::OnFailure);
+    }
+
+    #[test]
+    fn unknown_key_names_file_line_and_key() {
+        let text = GOOD.replace("restart = \"always\"", "restrat = \"always\"");
+        let message = Launch::parse(&text, "bad.toml").expect_err("unknown key").to_string();
+        assert!(message.contains("bad.toml"), "{message}");
+        assert!(message.contains("restrat"), "{message}");
+        assert!(message.contains("line 11"), "{message}");
+    }
+
+    #[test]
+    fn bad_restart_policy_is_named() {
+        let text = GOOD.replace("restart = \"always\"", "restart = \"sometimes\"");
+        let message = Launch::parse(&text, "bad.toml").expect_err("bad policy").to_string();
+        assert!(message.contains("sometimes") && message.contains("line 11"), "{message}");
+    }
+
+    #[test]
+    fn unknown_command_names_line() {
+        let text = GOOD.replace("command = \"perception\"", "command = \"percepshun\"");
+        let error = Launch::parse(&text, "bad.toml").expect_err("unknown command");
+        assert!(matches!(error, LaunchError::UnknownCommand { line: 10, .. }), "{error}");
+    }
+
+    #[test]
+    fn duplicate_name_names_both_lines() {
+        let text = GOOD.replace("name = \"perc\"", "name = \"cam\"");
+        let error = Launch::parse(&text, "bad.toml").expect_err("duplicate");
+        assert!(
+            matches!(error, LaunchError::DuplicateName { line: 9, first_line: 5, .. }),
+            "{error}"
+        );
+    }
+}

@@ -1,0 +1,63 @@
+//! The supervisor's view of each process, its live status lines and the final summary.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+/// Where one process stands.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ProcessPhase {
+    Running { pid: u32 },
+    WaitingToRestart { until: Instant },
+    Finished,
+    FailedForGood { reason: String },
+    Stopped,
+}
+
+/// Everything the supervisor tracks about one process.
+#[derive(Debug, Clone)]
+pub struct ProcessStatus {
+    pub name: String,
+    pub phase: ProcessPhase,
+    pub restarts: u32,
+    pub last_exit: Option<String>,
+    pub main_channel_count: u64,
+    pub main_channel_rate_hz: f64,
+    pub detail: String,
+    pub detail_value: u64,
+}
+
+impl ProcessStatus {
+    pub fn state_label(&self) -> String {
+        match &self.phase {
+            ProcessPhase::Running { pid } => format!("running pid {pid}"),
+            ProcessPhase::WaitingToRestart { until } => {
+                let wait = until.saturating_duration_since(Instant::now());
+                format!("restart in {:.1}s", wait.as_secs_f64())
+            }
+            ProcessPhase::Finished => "finished".to_owned(),
+            ProcessPhase::FailedForGood { .. } => "FAILED".to_owned(),
+            ProcessPhase::Stopped => "stopped".to_owned(),
+        }
+    }
+}
+
+/// One line per process: name, state, restarts, main-channel rate, detail.
+pub fn render(statuses: &[ProcessStatus], elapsed_s: f64) -> String {
+    let mut out = format!("harvest up: {elapsed_s:.0}s\n");
+    for status in statuses {
+        let _ = writeln!(
+            out,
+            "  {:<12} {:<18} restarts {:<2} {:>7.1} msg/s  {}",
+            status.name,
+            status.state_label(),
+            status.restarts,
+            status.main_channel_rate_hz,
+            if status.detail.is_empty() {
+                String::new()
+            } else {
+                format!("{} {}", status.detail, status.detail_value)
+            }
+        );
+    }
+    out
+}

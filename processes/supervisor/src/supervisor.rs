@@ -1,0 +1,361 @@
+//! `harvest up`: run the launch file's processes, keep them alive, stop them in order.
+//!
+//! The loop is one iceoryx2 wait set: heartbeats on the health channel wake it, and a 100 ms
+//! housekeeping interval reaps children (`waitpid` without blocking), starts processes whose
+//! backoff has elapsed, kills hung ones, and refreshes the status. Housekeeping is not a hot
+//! path; the processes' own loops are event-driven.
+
+use crate::child;
+use crate::launch::{Launch, ProcessSpec};
+use crate::restart_tracker::{RestartDecision, RestartTracker};
+use crate::status::{self, ProcessPhase, ProcessStatus};
+use harvest_ipc::catalogue::PROCESS_HEALTH;
+use harvest_ipc::{Context, Domain, Flow, RunEnd, Waiter};
+use nix::sys::signal::Signal;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::{Child, ExitStatus};
+use std::time::{Duration, Instant};
+
+const HOUSEKEEPING_PERIOD: Duration = Duration::from_millis(100);
+const STATUS_PERIOD_TTY: Duration = Duration::from_secs(1);
+const STATUS_PERIOD_LOG: Duration = Duration::from_secs(5);
+/// A process that ran this long without failing starts its backoff from the beginning again.
+const STABLE_AFTER: Duration = Duration::from_secs(10);
+
+/// How `harvest up` was asked to run.
+#[derive(Debug, Clone)]
+pub struct UpOptions {
+    pub launch: Launch,
+    pub domain: Domain,
+    /// Stop by itself after this long.
+    pub duration: Option<Duration>,
+    /// The `harvest` executable children are started from.
+    pub executable: PathBuf,
+}
+
+/// How the run ended.
+#[derive(Debug, Clone)]
+pub struct Summary {
+    pub processes: Vec<ProcessStatus>,
+    /// Set when a process failed for good (the stack was stopped because of it).
+    pub failure: Option<String>,
+    pub ended_by: String,
+    pub leftover_files: Vec<PathBuf>,
+}
+
+impl Summary {
+    pub fn render(&self) -> String {
+        let mut out = format!("harvest up ended: {}\n", self.ended_by);
+        for process in &self.processes {
+            out.push_str(&format!(
+                "  {:<12} {:<10} restarts {:<2} messages {:<8} last exit: {}\n",
+                process.name,
+                match &process.phase {
+                    ProcessPhase::FailedForGood { .. } => "FAILED",
+                    ProcessPhase::Finished => "finished",
+                    _ => "stopped",
+                },
+                process.restarts,
+                process.main_channel_count,
+                process.last_exit.as_deref().unwrap_or("-"),
+            ));
+        }
+        if let Some(failure) = &self.failure {
+            out.push_str(&format!("failure: {failure}\n"));
+        }
+        if !self.leftover_files.is_empty() {
+            out.push_str(&format!(
+                "warning: {} iceoryx2 files of this domain remain\n",
+                self.leftover_files.len()
+            ));
+        }
+        out
+    }
+}
+
+/// Why the supervisor could not run at all.
+#[derive(Debug, thiserror::Error)]
+pub enum SupervisorError {
+    #[error("supervisor node: {0}")]
+    Node(#[from] harvest_ipc::error::NodeError),
+    #[error("supervisor health channel: {0}")]
+    Channel(#[from] harvest_ipc::error::OpenChannelError),
+    #[error("supervisor event loop: {0}")]
+    Wait(#[from] harvest_ipc::error::WaitError),
+    #[error("cleaning stale resources: {0}")]
+    Cleanup(#[from] harvest_ipc::cleanup::CleanupError),
+}
+
+struct Managed {
+    spec: ProcessSpec,
+    child: Option<Child>,
+    started_at: Instant,
+    last_heartbeat: Option<Instant>,
+    tracker: RestartTracker,
+    status: ProcessStatus,
+    count_at_last_status: u64,
+}
+
+/// Runs the stack until a signal, `--duration`, or a process failing for good.
+pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
+    let domain = &options.domain;
+    clean_dead_nodes(domain)?;
+    let context = Context::new(domain, "supervisor")?;
+    let health = context.subscriber_with_buffer(PROCESS_HEALTH, 256)?;
+    let waiter = Waiter::new()?;
+    let health_guard = waiter.waitset().attach_notification(health.listener()).map_err(|error| {
+        harvest_ipc::error::WaitError { reason: format!("attach health listener: {error:?}") }
+    })?;
+    let tick_guard = waiter.waitset().attach_interval(HOUSEKEEPING_PERIOD).map_err(|error| {
+        harvest_ipc::error::WaitError { reason: format!("attach interval: {error:?}") }
+    })?;
+
+    let stack = options.launch.stack;
+    let started = Instant::now();
+    let mut processes: Vec<Managed> = options
+        .launch
+        .processes
+        .iter()
+        .map(|spec| Managed {
+            spec: spec.clone(),
+            child: None,
+            started_at: started,
+            last_heartbeat: None,
+            tracker: RestartTracker::new(spec),
+            status: ProcessStatus {
+                name: spec.name.clone(),
+                phase: ProcessPhase::WaitingToRestart { until: started },
+                restarts: 0,
+                last_exit: None,
+                main_channel_count: 0,
+                main_channel_rate_hz: 0.0,
+                detail: String::new(),
+                detail_value: 0,
+            },
+            count_at_last_status: 0,
+        })
+        .collect();
+    tracing::info!(
+        domain = %domain,
+        launch = %options.launch.source,
+        processes = processes.len(),
+        "starting the stack"
+    );
+
+    let tty = std::io::stderr().is_terminal();
+    let status_period = if tty { STATUS_PERIOD_TTY } else { STATUS_PERIOD_LOG };
+    let mut last_status = started;
+    let mut status_lines = 0usize;
+    let mut failure: Option<String> = None;
+    let mut ended_by = String::from("signal");
+    let hang_timeout = Duration::from_millis(stack.hang_timeout_ms);
+    let startup_grace = Duration::from_millis(stack.startup_grace_ms);
+
+    let run_end = waiter.run(|attachment| -> Result<Flow, SupervisorError> {
+        let now = Instant::now();
+        if attachment.has_event_from(&health_guard) {
+            while let Ok(Some(beat)) = health.receive() {
+                let name = beat.process_name.as_str();
+                if let Some(process) = processes.iter_mut().find(|p| p.spec.name == name) {
+                    if process.child.as_ref().map(|c| c.id()) == Some(beat.pid) {
+                        process.last_heartbeat = Some(now);
+                        process.status.main_channel_count = beat.main_channel_count;
+                        process.status.detail = beat.detail.as_str().to_owned();
+                        process.status.detail_value = beat.detail_value;
+                    }
+                }
+            }
+        }
+        if !attachment.has_event_from(&tick_guard) {
+            return Ok(Flow::Continue);
+        }
+        for index in 0..processes.len() {
+            let process = &mut processes[index];
+            match process.status.phase.clone() {
+                ProcessPhase::WaitingToRestart { until } if now >= until => {
+                    start(process, &options, now);
+                }
+                ProcessPhase::Running { .. } => {
+                    let exited = process.child.as_mut().and_then(|child| child.try_wait().ok().flatten());
+                    if let Some(exit_status) = exited {
+                        process.child = None;
+                        on_exit(process, describe_exit(exit_status), !exit_status.success(), now, domain);
+                    } else if is_hung(process, now, hang_timeout, startup_grace) {
+                        tracing::warn!(process = %process.spec.name, timeout_ms = stack.hang_timeout_ms, "no heartbeat: killing hung process");
+                        if let Some(mut child) = process.child.take() {
+                            child::signal_group(&child, Signal::SIGKILL);
+                            let _ = child.wait();
+                        }
+                        on_exit(process, format!("hung (no heartbeat for {} ms), killed", stack.hang_timeout_ms), true, now, domain);
+                    } else if now.duration_since(process.started_at) > STABLE_AFTER {
+                        process.tracker.mark_stable();
+                    }
+                }
+                _ => {}
+            }
+            if let ProcessPhase::FailedForGood { reason } = &processes[index].status.phase {
+                failure = Some(format!("process {:?} failed for good: {reason}", processes[index].spec.name));
+                ended_by = "a process failed for good".to_owned();
+                return Ok(Flow::Stop);
+            }
+        }
+        if processes.iter().all(|p| p.status.phase == ProcessPhase::Finished) {
+            ended_by = "all processes finished".to_owned();
+            return Ok(Flow::Stop);
+        }
+        if now.duration_since(last_status) >= status_period {
+            let interval_s = now.duration_since(last_status).as_secs_f64();
+            for process in processes.iter_mut() {
+                let count = process.status.main_channel_count;
+                process.status.main_channel_rate_hz =
+                    count.saturating_sub(process.count_at_last_status) as f64 / interval_s;
+                process.count_at_last_status = count;
+            }
+            last_status = now;
+            let statuses: Vec<ProcessStatus> = processes.iter().map(|p| p.status.clone()).collect();
+            let text = status::render(&statuses, now.duration_since(started).as_secs_f64());
+            if tty {
+                if status_lines > 0 {
+                    // Move up over the previous block and clear it: a live, in-place status.
+                    eprint!("\x1b[{status_lines}A\x1b[J");
+                }
+                status_lines = text.lines().count();
+                eprint!("{text}");
+            } else {
+                eprint!("{text}");
+            }
+        }
+        if let Some(duration) = options.duration {
+            if now.duration_since(started) >= duration {
+                ended_by = format!("--duration {}s elapsed", duration.as_secs_f64());
+                return Ok(Flow::Stop);
+            }
+        }
+        Ok(Flow::Continue)
+    });
+    let run_error = match run_end {
+        Ok(RunEnd::Signal) => {
+            ended_by = "SIGINT/SIGTERM".to_owned();
+            None
+        }
+        Ok(RunEnd::Stopped) => None,
+        Err(harvest_ipc::RunError::Callback(error)) => Some(error),
+        Err(harvest_ipc::RunError::Wait(error)) => Some(SupervisorError::Wait(error)),
+    };
+    drop(health_guard);
+    drop(tick_guard);
+    shutdown(&mut processes, Duration::from_millis(stack.shutdown_grace_ms));
+    drop(health);
+    drop(context);
+    clean_dead_nodes(domain)?;
+    if let Some(error) = run_error {
+        return Err(error);
+    }
+    Ok(Summary {
+        processes: processes.into_iter().map(|p| p.status).collect(),
+        failure,
+        ended_by,
+        leftover_files: harvest_ipc::cleanup::leftover_files(domain),
+    })
+}
+
+fn start(process: &mut Managed, options: &UpOptions, now: Instant) {
+    match child::spawn(&options.executable, &process.spec, &options.domain) {
+        Ok(child) => {
+            tracing::info!(process = %process.spec.name, pid = child.id(), "started");
+            process.status.phase = ProcessPhase::Running { pid: child.id() };
+            process.child = Some(child);
+            process.started_at = now;
+            process.last_heartbeat = None;
+        }
+        Err(error) => {
+            let reason = format!("cannot start {:?}: {error}", options.executable);
+            on_exit(process, reason, true, now, &options.domain);
+        }
+    }
+}
+
+fn on_exit(process: &mut Managed, reason: String, failed: bool, now: Instant, domain: &Domain) {
+    if failed {
+        tracing::warn!(process = %process.spec.name, %reason, "process exited");
+        // A crashed process leaves its iceoryx2 node behind: remove it before the restart.
+        if let Err(error) = clean_dead_nodes(domain) {
+            tracing::warn!(%error, "stale resource cleanup failed");
+        }
+    } else {
+        tracing::info!(process = %process.spec.name, %reason, "process exited");
+    }
+    process.status.last_exit = Some(reason.clone());
+    process.status.phase = match process.tracker.on_exit(now, failed) {
+        RestartDecision::RestartAt(until) => {
+            tracing::info!(process = %process.spec.name, backoff_ms = until.duration_since(now).as_millis() as u64, "restarting");
+            ProcessPhase::WaitingToRestart { until }
+        }
+        RestartDecision::Finished => ProcessPhase::Finished,
+        RestartDecision::FailedForGood => ProcessPhase::FailedForGood { reason },
+    };
+    process.status.restarts = process.tracker.restarts();
+}
+
+fn is_hung(process: &Managed, now: Instant, hang_timeout: Duration, startup_grace: Duration) -> bool {
+    match process.last_heartbeat {
+        Some(beat) => now.duration_since(beat) > hang_timeout,
+        None => now.duration_since(process.started_at) > startup_grace.max(hang_timeout),
+    }
+}
+
+fn describe_exit(status: ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    match (status.code(), status.signal()) {
+        (Some(code), _) => format!("exit code {code}"),
+        (None, Some(signal)) => {
+            let name = Signal::try_from(signal).map(|s| s.as_str()).unwrap_or("unknown signal");
+            format!("killed by {name}")
+        }
+        _ => "unknown exit".to_owned(),
+    }
+}
+
+/// SIGTERM to each process in reverse start order, waiting up to `grace` for each, then SIGKILL.
+fn shutdown(processes: &mut [Managed], grace: Duration) {
+    for process in processes.iter_mut().rev() {
+        let Some(mut child) = process.child.take() else { continue };
+        tracing::info!(process = %process.spec.name, pid = child.id(), "stopping");
+        child::signal_group(&child, Signal::SIGTERM);
+        let deadline = Instant::now() + grace;
+        let exit = loop {
+            match child.try_wait() {
+                Ok(Some(status)) => break Some(status),
+                Ok(None) if Instant::now() < deadline => {
+                    // Shutdown only: a short bounded wait between checks of one exiting child.
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+                _ => break None,
+            }
+        };
+        let exit = match exit {
+            Some(status) => describe_exit(status),
+            None => {
+                tracing::warn!(process = %process.spec.name, grace_ms = grace.as_millis() as u64, "did not stop in time: SIGKILL");
+                child::signal_group(&child, Signal::SIGKILL);
+                child.wait().map(describe_exit).unwrap_or_else(|error| format!("wait failed: {error}"))
+            }
+        };
+        process.status.last_exit = Some(exit);
+        if !matches!(process.status.phase, ProcessPhase::FailedForGood { .. }) {
+            process.status.phase = ProcessPhase::Stopped;
+        }
+    }
+}
+
+fn clean_dead_nodes(domain: &Domain) -> Result<(), SupervisorError> {
+    let report = harvest_ipc::cleanup::remove_dead_nodes(domain)?;
+    if !report.removed_nodes.is_empty() {
+        tracing::info!(nodes = ?report.removed_nodes, "removed stale iceoryx2 resources of dead nodes");
+    }
+    for (node, reason) in &report.failed_nodes {
+        tracing::warn!(%node, %reason, "could not remove stale resources");
+    }
+    Ok(())
+}

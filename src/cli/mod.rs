@@ -1,0 +1,137 @@
+//! The `harvest` command line.
+
+mod duration;
+mod fixture;
+pub mod logging;
+
+use anyhow::{Context as _, Result};
+use clap::{Parser, Subcommand};
+use harvest_ipc::Domain;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+#[derive(Debug, Parser)]
+#[command(name = "harvest", version, about = "Dual-arm apple-harvesting robot stack")]
+pub struct Cli {
+    /// Domain namespacing every channel (default: $HARVEST_DOMAIN, else "default").
+    #[arg(long, global = true)]
+    domain: Option<String>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the whole stack under the process supervisor (default: simulated robot).
+    Up {
+        /// Launch file (TOML); the embedded default runs the whole stack in simulation.
+        #[arg(long)]
+        launch: Option<PathBuf>,
+        /// Stop by itself after this long (e.g. 10s, 2m).
+        #[arg(long, value_parser = duration::parse_duration)]
+        duration: Option<Duration>,
+    },
+    /// Camera process: device frames -> camera/rgbd.
+    Camera(harvest_camera::CameraArgs),
+    /// Remove stale iceoryx2 resources of dead processes in the domain.
+    Clean {
+        /// Only list this domain's files still present; exit 1 if any.
+        #[arg(long)]
+        check: bool,
+    },
+    /// List the channel catalogue.
+    Channels,
+    /// Fault-injection fixtures for supervisor tests.
+    #[command(hide = true)]
+    Fixture {
+        #[arg(value_enum)]
+        behaviour: fixture::Behaviour,
+    },
+}
+
+impl Cli {
+    /// The name this process runs under: given by the supervisor, else the subcommand's name.
+    pub fn process_name(&self) -> String {
+        if let Ok(name) = std::env::var(harvest_supervisor::child::PROCESS_NAME_ENV) {
+            if !name.is_empty() {
+                return name;
+            }
+        }
+        match &self.command {
+            Command::Up { .. } => "supervisor",
+            Command::Camera(_) => "camera",
+            Command::Clean { .. } => "clean",
+            Command::Channels => "channels",
+            Command::Fixture { .. } => "fixture",
+        }
+        .to_owned()
+    }
+
+    pub fn run(self, process_name: &str) -> Result<ExitCode> {
+        let domain = Domain::from_flag_or_env(self.domain.as_deref())?;
+        match self.command {
+            Command::Up { launch, duration } => up(launch, duration, domain),
+            Command::Camera(args) => {
+                harvest_camera::run(&args, &domain, process_name).context("camera process")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Clean { check } => clean(&domain, check),
+            Command::Channels => {
+                for spec in harvest_ipc::catalogue::all_specs() {
+                    println!(
+                        "{:<24} {:<26} v{} {:?} buffer<= {:<3} {}",
+                        spec.topic,
+                        spec.type_name,
+                        spec.version,
+                        spec.layer,
+                        spec.qos.subscriber_max_buffer_size,
+                        spec.description
+                    );
+                }
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Fixture { behaviour } => {
+                fixture::run(behaviour, &domain, process_name)?;
+                Ok(ExitCode::SUCCESS)
+            }
+        }
+    }
+}
+
+fn up(launch: Option<PathBuf>, duration: Option<Duration>, domain: Domain) -> Result<ExitCode> {
+    let launch = match &launch {
+        Some(path) => harvest_supervisor::Launch::from_path(path)?,
+        None => harvest_supervisor::Launch::default_stack()?,
+    };
+    let executable = std::env::current_exe().context("locating the harvest executable")?;
+    let summary = harvest_supervisor::run(harvest_supervisor::UpOptions {
+        launch,
+        domain,
+        duration,
+        executable,
+    })?;
+    eprint!("{}", summary.render());
+    Ok(if summary.failure.is_some() { ExitCode::FAILURE } else { ExitCode::SUCCESS })
+}
+
+fn clean(domain: &Domain, check: bool) -> Result<ExitCode> {
+    if check {
+        let files = harvest_ipc::cleanup::leftover_files(domain);
+        for file in &files {
+            println!("{}", file.display());
+        }
+        return Ok(if files.is_empty() { ExitCode::SUCCESS } else { ExitCode::FAILURE });
+    }
+    let report = harvest_ipc::cleanup::remove_dead_nodes(domain)?;
+    println!(
+        "domain {domain}: removed {} dead node(s), {} alive, {} failed",
+        report.removed_nodes.len(),
+        report.alive_nodes,
+        report.failed_nodes.len()
+    );
+    for (node, reason) in &report.failed_nodes {
+        println!("  {node}: {reason}");
+    }
+    Ok(ExitCode::SUCCESS)
+}

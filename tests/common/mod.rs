@@ -1,0 +1,129 @@
+//! Helpers for the multi-process tests: unique domains, launch files, a watchdog on every child.
+
+#![allow(dead_code)]
+
+use std::io::Read;
+use std::path::PathBuf;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+pub const HARVEST: &str = env!("CARGO_BIN_EXE_harvest");
+
+/// A domain no other test (or concurrent CI run) uses.
+pub fn unique_domain(tag: &str) -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    format!("t{}-{}-{:x}", tag, std::process::id() % 100_000, nanos % 0xffff)
+}
+
+/// A scratch directory removed on drop.
+pub struct TempDir(pub PathBuf);
+
+impl TempDir {
+    pub fn new(tag: &str) -> Self {
+        let path = std::env::temp_dir().join(format!("harvest-test-{}-{}", tag, unique_domain("d")));
+        std::fs::create_dir_all(&path).expect("create temp dir");
+        Self(path)
+    }
+
+    pub fn write(&self, name: &str, text: &str) -> PathBuf {
+        let path = self.0.join(name);
+        std::fs::write(&path, text).expect("write file");
+        path
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Starts `harvest <args>` in `domain` with stderr captured.
+pub fn spawn_harvest(domain: &str, args: &[&str]) -> Child {
+    Command::new(HARVEST)
+        .args(args)
+        .env("HARVEST_DOMAIN", domain)
+        .env("RUST_LOG", "info")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn harvest")
+}
+
+/// Waits for `child` with a watchdog: after `limit` it is killed and the test fails.
+pub fn wait_with_watchdog(mut child: Child, limit: Duration) -> (ExitStatus, String, String) {
+    let deadline = Instant::now() + limit;
+    let mut stderr_pipe = child.stderr.take().expect("stderr piped");
+    let mut stdout_pipe = child.stdout.take().expect("stdout piped");
+    let stderr_reader = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stderr_pipe.read_to_string(&mut text);
+        text
+    });
+    let stdout_reader = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stdout_pipe.read_to_string(&mut text);
+        text
+    });
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("try_wait") {
+            break status;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            let stderr = stderr_reader.join().unwrap_or_default();
+            panic!("watchdog: harvest did not finish within {limit:?}; stderr:\n{stderr}");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let stderr = stderr_reader.join().unwrap_or_default();
+    let stdout = stdout_reader.join().unwrap_or_default();
+    (status, stdout, stderr)
+}
+
+/// Runs `harvest <args>` to completion under a watchdog.
+pub fn run_harvest(domain: &str, args: &[&str], limit: Duration) -> (ExitStatus, String, String) {
+    wait_with_watchdog(spawn_harvest(domain, args), limit)
+}
+
+/// The domain's iceoryx2 files still present (must be none after a clean exit).
+pub fn leftover_files(domain: &str) -> String {
+    let output = Command::new(HARVEST)
+        .args(["clean", "--check"])
+        .env("HARVEST_DOMAIN", domain)
+        .output()
+        .expect("run harvest clean --check");
+    String::from_utf8_lossy(&output.stdout).into_owned()
+}
+
+/// Parses the `messages N` column of a process's line in `harvest up`'s final summary.
+pub fn summary_messages(stderr: &str, process: &str) -> Option<u64> {
+    let start = stderr.find("harvest up ended")?;
+    stderr[start..].lines().find_map(|line| {
+        let mut words = line.split_whitespace();
+        if words.next()? != process {
+            return None;
+        }
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let index = words.iter().position(|w| *w == "messages")?;
+        words.get(index + 1)?.parse().ok()
+    })
+}
+
+/// Parses the `restarts N` column of a process's line in the final summary.
+pub fn summary_restarts(stderr: &str, process: &str) -> Option<u32> {
+    let start = stderr.find("harvest up ended")?;
+    stderr[start..].lines().find_map(|line| {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        if words.first()? != &process {
+            return None;
+        }
+        let index = words.iter().position(|w| *w == "restarts")?;
+        words.get(index + 1)?.parse().ok()
+    })
+}
