@@ -8,8 +8,6 @@ fn main() -> std::process::ExitCode {
     let cli = cli::Cli::parse();
     let process_name = cli.process_name();
     cli::logging::init(&process_name);
-    let span = tracing::info_span!("proc", name = %process_name);
-    let _entered = span.enter();
     match cli.run(&process_name) {
         Ok(code) => code,
         Err(error) => {

@@ -16,11 +16,20 @@ fn crash_at_start_exhausts_restart_budget_and_exits_nonzero() {
     let domain = unique_domain("crash");
     let (status, _, stderr) = run_harvest(
         &domain,
-        &["up", "--launch", launch.to_str().expect("utf-8 path"), "--duration", "20s"],
+        &[
+            "up",
+            "--launch",
+            launch.to_str().expect("utf-8 path"),
+            "--duration",
+            "20s",
+        ],
         Duration::from_secs(60),
     );
     assert!(!status.success(), "must fail; stderr:\n{stderr}");
-    assert!(stderr.contains("process \"crasher\" failed for good: exit code 3"), "{stderr}");
+    assert!(
+        stderr.contains("process \"crasher\" failed for good: exit code 3"),
+        "{stderr}"
+    );
     assert_eq!(summary_restarts(&stderr, "crasher"), Some(2), "{stderr}");
     assert_eq!(leftover_files(&domain), "");
 }
@@ -37,11 +46,20 @@ fn hung_process_is_killed_and_restarted() {
     let domain = unique_domain("hang");
     let (status, _, stderr) = run_harvest(
         &domain,
-        &["up", "--launch", launch.to_str().expect("utf-8 path"), "--duration", "7s"],
+        &[
+            "up",
+            "--launch",
+            launch.to_str().expect("utf-8 path"),
+            "--duration",
+            "7s",
+        ],
         Duration::from_secs(60),
     );
     assert!(status.success(), "{stderr}");
-    assert!(stderr.contains("no heartbeat: killing hung process"), "{stderr}");
+    assert!(
+        stderr.contains("no heartbeat: killing hung process"),
+        "{stderr}"
+    );
     let restarts = summary_restarts(&stderr, "hanger").expect("summary line");
     assert!(restarts >= 1, "{stderr}");
     assert_eq!(leftover_files(&domain), "");
@@ -58,7 +76,13 @@ fn sigterm_ignoring_process_is_killed_after_grace() {
     let domain = unique_domain("ign");
     let (status, _, stderr) = run_harvest(
         &domain,
-        &["up", "--launch", launch.to_str().expect("utf-8 path"), "--duration", "2s"],
+        &[
+            "up",
+            "--launch",
+            launch.to_str().expect("utf-8 path"),
+            "--duration",
+            "2s",
+        ],
         Duration::from_secs(60),
     );
     assert!(status.success(), "{stderr}");
@@ -72,9 +96,21 @@ fn sigterm_ignoring_process_is_killed_after_grace() {
 fn malformed_launch_files_name_file_line_and_key() {
     let dir = TempDir::new("badlaunch");
     let cases = [
-        ("unknown_key.toml", "[[process]]\nname = \"a\"\ncommand = \"camera\"\nrestrat = \"never\"\n", "restrat"),
-        ("bad_policy.toml", "[[process]]\nname = \"a\"\ncommand = \"camera\"\nrestart = \"sometimes\"\n", "sometimes"),
-        ("unknown_process.toml", "[[process]]\nname = \"a\"\ncommand = \"cammera\"\n", "unknown command \"cammera\""),
+        (
+            "unknown_key.toml",
+            "[[process]]\nname = \"a\"\ncommand = \"camera\"\nrestrat = \"never\"\n",
+            "restrat",
+        ),
+        (
+            "bad_policy.toml",
+            "[[process]]\nname = \"a\"\ncommand = \"camera\"\nrestart = \"sometimes\"\n",
+            "sometimes",
+        ),
+        (
+            "unknown_process.toml",
+            "[[process]]\nname = \"a\"\ncommand = \"cammera\"\n",
+            "unknown command \"cammera\"",
+        ),
         (
             "duplicate.toml",
             "[[process]]\nname = \"a\"\ncommand = \"camera\"\n\n[[process]]\nname = \"a\"\ncommand = \"camera\"\n",
@@ -91,13 +127,20 @@ fn malformed_launch_files_name_file_line_and_key() {
         assert!(!status.success(), "{file}: {stderr}");
         assert!(stderr.contains(file), "{file} not named: {stderr}");
         assert!(stderr.contains("line "), "{file}: no line: {stderr}");
-        assert!(stderr.contains(expected), "{file}: {expected:?} missing: {stderr}");
+        assert!(
+            stderr.contains(expected),
+            "{file}: {expected:?} missing: {stderr}"
+        );
     }
 }
 
 #[test]
 fn unknown_subcommand_prints_help() {
-    let (status, _, stderr) = run_harvest(&unique_domain("help"), &["fly"], Duration::from_secs(30));
+    let (status, _, stderr) =
+        run_harvest(&unique_domain("help"), &["fly"], Duration::from_secs(30));
     assert!(!status.success());
-    assert!(stderr.contains("unrecognized subcommand") && stderr.contains("Usage"), "{stderr}");
+    assert!(
+        stderr.contains("unrecognized subcommand") && stderr.contains("Usage"),
+        "{stderr}"
+    );
 }

@@ -18,7 +18,10 @@ impl<T: Copy + Default + ZeroCopySend, const N: usize> BoundedVec<T, N> {
     pub const CAPACITY: usize = N;
 
     pub fn new() -> Self {
-        Self { len: 0, items: [T::default(); N] }
+        Self {
+            len: 0,
+            items: [T::default(); N],
+        }
     }
 
     /// The meaningful items; a corrupt `len` larger than `N` is clamped.
@@ -101,9 +104,8 @@ where
             fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
                 let mut out = BoundedVec::new();
                 while let Some(item) = seq.next_element()? {
-                    out.push(item).map_err(|_| {
-                        serde::de::Error::custom(format!("more than {N} items"))
-                    })?;
+                    out.push(item)
+                        .map_err(|_| serde::de::Error::custom(format!("more than {N} items")))?;
                 }
                 Ok(out)
             }

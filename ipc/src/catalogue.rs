@@ -41,7 +41,10 @@ impl Qos {
         max_loans: 2,
     };
     /// Latched state (late joiners get the last value).
-    pub const STATE: Self = Self { history_size: 1, ..Self::SMALL };
+    pub const STATE: Self = Self {
+        history_size: 1,
+        ..Self::SMALL
+    };
     /// Multi-megabyte frames: every buffer slot is a frame in shared memory (see FIELD-NOTES).
     pub const FRAMES: Self = Self {
         history_size: 0,
@@ -109,7 +112,12 @@ impl<T: Payload> Channel<T> {
         Self::in_layer(Layer::Stack, topic, qos, description)
     }
 
-    const fn in_layer(layer: Layer, topic: &'static str, qos: Qos, description: &'static str) -> Self {
+    const fn in_layer(
+        layer: Layer,
+        topic: &'static str,
+        qos: Qos,
+        description: &'static str,
+    ) -> Self {
         Self {
             spec: ChannelSpec {
                 topic,
@@ -171,8 +179,11 @@ pub const PERCEPTION_APPLES: Channel<AppleDetections> = Channel::new(
     Qos::SMALL,
     "apples detected and localized in one camera frame",
 );
-pub const LASER_SCAN_REQUEST: Channel<LaserScanRequest> =
-    Channel::new("laser/scan_request", Qos::SMALL, "ask the ALACS unit to scan one apple");
+pub const LASER_SCAN_REQUEST: Channel<LaserScanRequest> = Channel::new(
+    "laser/scan_request",
+    Qos::SMALL,
+    "ask the ALACS unit to scan one apple",
+);
 pub const LASER_SCAN_RESULT: Channel<LaserScanResult> = Channel::new(
     "laser/scan_result",
     Qos::SMALL,
@@ -183,15 +194,34 @@ pub const ARM_TARGET: [Channel<ArmTarget>; 2] = [
     Channel::new("arm2/target", Qos::STATE, "apple assigned to arm 2"),
 ];
 pub const ARM_COMMAND: [Channel<ArmCommand>; 2] = [
-    Channel::new("arm1/command", Qos::SMALL, "joint set-points for arm 1's servos, 200 Hz"),
-    Channel::new("arm2/command", Qos::SMALL, "joint set-points for arm 2's servos, 200 Hz"),
+    Channel::new(
+        "arm1/command",
+        Qos::SMALL,
+        "joint set-points for arm 1's servos, 200 Hz",
+    ),
+    Channel::new(
+        "arm2/command",
+        Qos::SMALL,
+        "joint set-points for arm 2's servos, 200 Hz",
+    ),
 ];
 pub const ARM_STATE: [Channel<ArmState>; 2] = [
-    Channel::new("arm1/state", Qos::STATE, "arm 1 phase, joints and end-effector, 200 Hz"),
-    Channel::new("arm2/state", Qos::STATE, "arm 2 phase, joints and end-effector, 200 Hz"),
+    Channel::new(
+        "arm1/state",
+        Qos::STATE,
+        "arm 1 phase, joints and end-effector, 200 Hz",
+    ),
+    Channel::new(
+        "arm2/state",
+        Qos::STATE,
+        "arm 2 phase, joints and end-effector, 200 Hz",
+    ),
 ];
-pub const VALVE_REQUEST: Channel<ValveRequest> =
-    Channel::new("vacuum/valve_request", Qos::SMALL, "arms ask to open or close their valves");
+pub const VALVE_REQUEST: Channel<ValveRequest> = Channel::new(
+    "vacuum/valve_request",
+    Qos::SMALL,
+    "arms ask to open or close their valves",
+);
 pub const VALVE_GRANT: Channel<ValveGrant> = Channel::new(
     "vacuum/valve_grant",
     Qos::SMALL,
@@ -202,11 +232,18 @@ pub const VACUUM_STATE: Channel<VacuumState> = Channel::new(
     Qos::STATE,
     "valves, 3 pressures and inferred attachment per arm",
 );
-pub const EMERGENCY_STOP: Channel<EmergencyStop> =
-    Channel::new("safety/emergency_stop", Qos::STATE, "engaged: all arms stop, all valves close");
+pub const EMERGENCY_STOP: Channel<EmergencyStop> = Channel::new(
+    "safety/emergency_stop",
+    Qos::STATE,
+    "engaged: all arms stop, all valves close",
+);
 pub const PROCESS_HEALTH: Channel<ProcessHealth> = Channel::new(
     "system/health",
-    Qos { max_publishers: 24, max_nodes: 32, ..Qos::SMALL },
+    Qos {
+        max_publishers: 24,
+        max_nodes: 32,
+        ..Qos::SMALL
+    },
     "heartbeat of every process, 2 Hz",
 );
 
@@ -214,7 +251,10 @@ pub const PROCESS_HEALTH: Channel<ProcessHealth> = Channel::new(
 pub const HW_CAMERA_RGBD: Channel<RgbdFrame> = Channel::in_layer(
     Layer::Hardware,
     "hw/camera/rgbd",
-    Qos { max_subscribers: 2, ..Qos::FRAMES },
+    Qos {
+        max_subscribers: 2,
+        ..Qos::FRAMES
+    },
     "frames as the ToF camera device delivers them to its driver",
 );
 
@@ -267,7 +307,12 @@ mod tests {
         topics.dedup();
         assert_eq!(topics.len(), specs.len());
         for spec in &specs {
-            assert!(spec.topic.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'/' || b == b'_'));
+            assert!(
+                spec.topic.bytes().all(|b| b.is_ascii_lowercase()
+                    || b.is_ascii_digit()
+                    || b == b'/'
+                    || b == b'_')
+            );
             assert!(spec.qos.default_buffer_size <= spec.qos.subscriber_max_buffer_size);
         }
     }

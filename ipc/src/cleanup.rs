@@ -47,7 +47,10 @@ pub fn remove_dead_nodes(domain: &Domain) -> Result<CleanupReport, CleanupError>
         }
         CallbackProgression::Continue
     })
-    .map_err(|error| CleanupError { domain: domain.name().to_owned(), reason: format!("{error:?}") })?;
+    .map_err(|error| CleanupError {
+        domain: domain.name().to_owned(),
+        reason: format!("{error:?}"),
+    })?;
     Ok(report)
 }
 
@@ -64,13 +67,18 @@ pub fn leftover_files(domain: &Domain) -> Vec<PathBuf> {
     let mut found = Vec::new();
     let mut stack = vec![PathBuf::from("/dev/shm"), root];
     while let Some(dir) = stack.pop() {
-        let Ok(entries) = std::fs::read_dir(&dir) else { continue };
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
         for entry in entries.flatten() {
             let path = entry.path();
             if path.is_dir() && !path.starts_with("/dev/shm") {
                 stack.push(path);
             } else if entry.file_name().to_string_lossy().starts_with(&prefix)
-                && !entry.file_name().to_string_lossy().ends_with(".global_mgmt")
+                && !entry
+                    .file_name()
+                    .to_string_lossy()
+                    .ends_with(".global_mgmt")
             {
                 found.push(path);
             }

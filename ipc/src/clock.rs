@@ -24,7 +24,10 @@ pub struct MonotonicClock;
 impl MonotonicClock {
     /// Reads `CLOCK_MONOTONIC` directly.
     pub fn read_ns() -> u64 {
-        let mut spec = libc_timespec { tv_sec: 0, tv_nsec: 0 };
+        let mut spec = libc_timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
         // SAFETY: clock_gettime writes one timespec into the pointer we pass; CLOCK_MONOTONIC
         // always exists on Linux.
         unsafe { clock_gettime(CLOCK_MONOTONIC, &mut spec) };
@@ -59,7 +62,9 @@ pub struct ManualClock {
 
 impl ManualClock {
     pub fn starting_at(now_ns: u64) -> Self {
-        Self { now_ns: Arc::new(AtomicU64::new(now_ns)) }
+        Self {
+            now_ns: Arc::new(AtomicU64::new(now_ns)),
+        }
     }
 
     pub fn advance_ns(&self, delta_ns: u64) {

@@ -48,7 +48,10 @@ pub fn decode_prefix<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, usize), Co
 pub fn decode_exact<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, CodecError> {
     let (value, used) = decode_prefix(bytes)?;
     if used != bytes.len() {
-        return Err(CodecError::Length { expected: used, actual: bytes.len() });
+        return Err(CodecError::Length {
+            expected: used,
+            actual: bytes.len(),
+        });
     }
     Ok(value)
 }
@@ -66,7 +69,11 @@ mod tests {
 
     #[test]
     fn fixed_int_layout_and_round_trip() {
-        let sample = Sample { a: 0x0102, b: 1.5, c: [7, 8, 9] };
+        let sample = Sample {
+            a: 0x0102,
+            b: 1.5,
+            c: [7, 8, 9],
+        };
         let mut bytes = Vec::new();
         encode_into(&sample, &mut bytes).expect("encode");
         assert_eq!(bytes.len(), 2 + 8 + 3);

@@ -44,7 +44,11 @@ impl Context {
                 domain: domain.name().to_owned(),
                 reason: format!("{error:?}"),
             })?;
-        Ok(Self { node, domain: domain.clone(), process_name: process_name.to_owned() })
+        Ok(Self {
+            node,
+            domain: domain.clone(),
+            process_name: process_name.to_owned(),
+        })
     }
 
     pub fn node(&self) -> &Node<Ipc> {
@@ -60,7 +64,10 @@ impl Context {
     }
 
     /// A publisher on a catalogue channel.
-    pub fn publisher<T: Payload>(&self, channel: Channel<T>) -> Result<Publisher<T>, OpenChannelError> {
+    pub fn publisher<T: Payload>(
+        &self,
+        channel: Channel<T>,
+    ) -> Result<Publisher<T>, OpenChannelError> {
         let (service, events) = self.open(channel)?;
         let publisher = service
             .publisher_builder()
@@ -75,7 +82,10 @@ impl Context {
     }
 
     /// A subscriber with the channel's default buffer.
-    pub fn subscriber<T: Payload>(&self, channel: Channel<T>) -> Result<Subscriber<T>, OpenChannelError> {
+    pub fn subscriber<T: Payload>(
+        &self,
+        channel: Channel<T>,
+    ) -> Result<Subscriber<T>, OpenChannelError> {
         self.subscriber_with_buffer(channel, channel.spec.qos.default_buffer_size)
     }
 
@@ -101,10 +111,11 @@ impl Context {
 
     fn open<T: Payload>(&self, channel: Channel<T>) -> Result<ServicePair<T>, OpenChannelError> {
         let spec = channel.spec;
-        let name = ServiceName::new(&spec.service_name()).map_err(|error| OpenChannelError::Service {
-            topic: spec.topic,
-            reason: format!("invalid service name: {error:?}"),
-        })?;
+        let name =
+            ServiceName::new(&spec.service_name()).map_err(|error| OpenChannelError::Service {
+                topic: spec.topic,
+                reason: format!("invalid service name: {error:?}"),
+            })?;
         let qos = spec.qos;
         let service = self
             .node
@@ -128,7 +139,10 @@ impl Context {
                         reason,
                     }
                 } else {
-                    OpenChannelError::Service { topic: spec.topic, reason }
+                    OpenChannelError::Service {
+                        topic: spec.topic,
+                        reason,
+                    }
                 }
             })?;
         let events = self
@@ -147,10 +161,22 @@ impl Context {
     }
 }
 
-fn port_error<T: Payload>(channel: Channel<T>, port: &'static str, reason: String) -> OpenChannelError {
+fn port_error<T: Payload>(
+    channel: Channel<T>,
+    port: &'static str,
+    reason: String,
+) -> OpenChannelError {
     if reason.contains("Exceeds") {
-        OpenChannelError::Exhausted { topic: channel.spec.topic, port, reason }
+        OpenChannelError::Exhausted {
+            topic: channel.spec.topic,
+            port,
+            reason,
+        }
     } else {
-        OpenChannelError::Port { topic: channel.spec.topic, port, reason }
+        OpenChannelError::Port {
+            topic: channel.spec.topic,
+            port,
+            reason,
+        }
     }
 }

@@ -31,8 +31,16 @@ impl Domain {
     pub fn new(name: &str) -> Result<Self, InvalidDomain> {
         let valid = !name.is_empty()
             && name.len() <= MAX_DOMAIN_LEN
-            && name.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-');
-        if valid { Ok(Self(name.to_owned())) } else { Err(InvalidDomain { name: name.to_owned() }) }
+            && name
+                .bytes()
+                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-');
+        if valid {
+            Ok(Self(name.to_owned()))
+        } else {
+            Err(InvalidDomain {
+                name: name.to_owned(),
+            })
+        }
     }
 
     /// The flag's value, else `$HARVEST_DOMAIN`, else `default`.
@@ -85,6 +93,9 @@ mod tests {
         assert!(Domain::new("a/b").is_err());
         assert!(Domain::new(&"x".repeat(25)).is_err());
         let domain = Domain::new("abc").expect("valid");
-        assert_eq!(domain.iceoryx2_config().global.prefix.as_bytes(), b"hv_abc_");
+        assert_eq!(
+            domain.iceoryx2_config().global.prefix.as_bytes(),
+            b"hv_abc_"
+        );
     }
 }

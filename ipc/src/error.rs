@@ -9,7 +9,11 @@ pub enum NodeError {
         "cannot create the iceoryx2 node {name:?} in domain {domain:?}: {reason} \
 (is /dev/shm full or not writable? `df -h /dev/shm`)"
     )]
-    Create { name: String, domain: String, reason: String },
+    Create {
+        name: String,
+        domain: String,
+        reason: String,
+    },
 }
 
 /// Opening a channel (service + its event companion) failed.
@@ -20,14 +24,30 @@ pub enum OpenChannelError {
 (expected {type_name} v{version}): {reason}. A process of another version or a crashed stack \
 left it behind: stop the other stack, or run `harvest clean --domain {domain}`"
     )]
-    Incompatible { topic: &'static str, type_name: &'static str, version: u32, domain: String, reason: String },
+    Incompatible {
+        topic: &'static str,
+        type_name: &'static str,
+        version: u32,
+        domain: String,
+        reason: String,
+    },
     #[error(
         "channel {topic:?} has no room for another {port}: {reason}. The catalogue's QoS \
 (max publishers/subscribers/nodes) is exceeded; a stale process may still hold ports"
     )]
-    Exhausted { topic: &'static str, port: &'static str, reason: String },
-    #[error("channel {topic:?}: cannot create {port}: {reason}. Shared memory may be exhausted (`df -h /dev/shm`)")]
-    Port { topic: &'static str, port: &'static str, reason: String },
+    Exhausted {
+        topic: &'static str,
+        port: &'static str,
+        reason: String,
+    },
+    #[error(
+        "channel {topic:?}: cannot create {port}: {reason}. Shared memory may be exhausted (`df -h /dev/shm`)"
+    )]
+    Port {
+        topic: &'static str,
+        port: &'static str,
+        reason: String,
+    },
     #[error("channel {topic:?}: {reason}")]
     Service { topic: &'static str, reason: String },
 }
@@ -35,7 +55,9 @@ left it behind: stop the other stack, or run `harvest clean --domain {domain}`"
 /// Sending failed.
 #[derive(Debug, thiserror::Error)]
 pub enum SendError {
-    #[error("channel {topic:?}: cannot loan a sample: {reason} (all loans in use, or shared memory exhausted)")]
+    #[error(
+        "channel {topic:?}: cannot loan a sample: {reason} (all loans in use, or shared memory exhausted)"
+    )]
     Loan { topic: &'static str, reason: String },
     #[error("channel {topic:?}: send failed: {reason}")]
     Send { topic: &'static str, reason: String },

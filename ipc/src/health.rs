@@ -39,15 +39,16 @@ impl HealthReporter {
     ) -> Result<(), SendError> {
         let process_name = self.process_name;
         let pid = self.pid;
-        self.publisher.publish_with(MonotonicClock::read_ns(), |health| {
-            health.process_name = process_name;
-            health.pid = pid;
-            health.run_state = run_state as u8;
-            health._reserved = [0; 3];
-            health.main_channel_count = main_channel_count;
-            health.detail = FixedString::new(detail);
-            health.detail_value = detail_value;
-        })?;
+        self.publisher
+            .publish_with(MonotonicClock::read_ns(), |health| {
+                health.process_name = process_name;
+                health.pid = pid;
+                health.run_state = run_state as u8;
+                health._reserved = [0; 3];
+                health.main_channel_count = main_channel_count;
+                health.detail = FixedString::new(detail);
+                health.detail_value = detail_value;
+            })?;
         Ok(())
     }
 }

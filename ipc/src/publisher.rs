@@ -42,7 +42,12 @@ impl<T: Payload> Publisher<T> {
         port: iceoryx2::port::publisher::Publisher<Ipc, T, ()>,
         notifier: Notifier<Ipc>,
     ) -> Self {
-        Self { channel, port, notifier, last_seq: 0 }
+        Self {
+            channel,
+            port,
+            notifier,
+            last_seq: 0,
+        }
     }
 
     pub fn channel(&self) -> Channel<T> {

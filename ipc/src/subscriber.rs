@@ -66,7 +66,11 @@ impl<T: Payload> Subscriber<T> {
         if self.batch_done.replace(false) {
             // Events only mean "look at the queue": drain them so the wait set sleeps again.
             if let Err(error) = self.listener.try_wait(|_| {}) {
-                tracing::debug!(topic = self.channel.spec.topic, ?error, "draining events failed");
+                tracing::debug!(
+                    topic = self.channel.spec.topic,
+                    ?error,
+                    "draining events failed"
+                );
             }
         }
         let sample = self.port.receive().map_err(|error| ReceiveError {

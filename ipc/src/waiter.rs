@@ -32,7 +32,9 @@ impl Waiter {
         let waitset = WaitSetBuilder::new()
             .signal_handling_mode(SignalHandlingMode::HandleTerminationRequests)
             .create::<Ipc>()
-            .map_err(|error| WaitError { reason: format!("cannot create wait set: {error:?}") })?;
+            .map_err(|error| WaitError {
+                reason: format!("cannot create wait set: {error:?}"),
+            })?;
         Ok(Self { waitset })
     }
 
@@ -42,20 +44,46 @@ impl Waiter {
         &self.waitset
     }
 
+    /// Wakes the loop every `period` (a device's clock, housekeeping, heartbeats).
+    pub fn attach_interval(
+        &self,
+        period: std::time::Duration,
+    ) -> Result<WaitSetGuard<'_, 'static, Ipc>, WaitError> {
+        self.waitset
+            .attach_interval(period)
+            .map_err(|error| WaitError {
+                reason: format!("attach interval {period:?}: {error:?}"),
+            })
+    }
+
+    /// Wakes the loop when `listener` (a subscriber's) receives an event.
+    pub fn attach_listener<'waitset, 'listener>(
+        &'waitset self,
+        listener: &'listener iceoryx2::port::listener::Listener<Ipc>,
+    ) -> Result<WaitSetGuard<'waitset, 'listener, Ipc>, WaitError> {
+        self.waitset
+            .attach_notification(listener)
+            .map_err(|error| WaitError {
+                reason: format!("attach listener: {error:?}"),
+            })
+    }
+
     /// Runs until a signal, or until `on_wake` returns `Stop` or an error (which is returned).
     pub fn run<E>(
         &self,
         mut on_wake: impl FnMut(WaitSetAttachmentId<Ipc>) -> Result<Flow, E>,
     ) -> Result<RunEnd, RunError<E>> {
         let mut failure = None;
-        let result = self.waitset.wait_and_process(|attachment| match on_wake(attachment) {
-            Ok(Flow::Continue) => CallbackProgression::Continue,
-            Ok(Flow::Stop) => CallbackProgression::Stop,
-            Err(error) => {
-                failure = Some(error);
-                CallbackProgression::Stop
-            }
-        });
+        let result = self
+            .waitset
+            .wait_and_process(|attachment| match on_wake(attachment) {
+                Ok(Flow::Continue) => CallbackProgression::Continue,
+                Ok(Flow::Stop) => CallbackProgression::Stop,
+                Err(error) => {
+                    failure = Some(error);
+                    CallbackProgression::Stop
+                }
+            });
         if let Some(error) = failure {
             return Err(RunError::Callback(error));
         }
@@ -66,7 +94,9 @@ impl Waiter {
             Ok(WaitSetRunResult::StopRequest | WaitSetRunResult::AllEventsHandled) => {
                 Ok(RunEnd::Stopped)
             }
-            Err(error) => Err(RunError::Wait(WaitError { reason: format!("{error:?}") })),
+            Err(error) => Err(RunError::Wait(WaitError {
+                reason: format!("{error:?}"),
+            })),
         }
     }
 }
@@ -78,4 +108,14 @@ pub enum RunError<E> {
     Wait(WaitError),
     #[error(transparent)]
     Callback(E),
+}
+
+impl<E: From<WaitError>> RunError<E> {
+    /// One error type for callers whose error already covers wait-set failures.
+    pub fn flatten(self) -> E {
+        match self {
+            Self::Wait(error) => E::from(error),
+            Self::Callback(error) => error,
+        }
+    }
 }

@@ -35,16 +35,16 @@ pub fn run(behaviour: Behaviour, domain: &Domain, process_name: &str) -> Result<
         Behaviour::IgnoreSigterm => {
             // SAFETY: setting a signal to SIG_IGN has no handler code to be unsafe about.
             unsafe {
-                nix::sys::signal::signal(nix::sys::signal::Signal::SIGTERM, nix::sys::signal::SigHandler::SigIgn)
+                nix::sys::signal::signal(
+                    nix::sys::signal::Signal::SIGTERM,
+                    nix::sys::signal::SigHandler::SigIgn,
+                )
             }
             .context("ignoring SIGTERM")?;
             let context = Context::new(domain, process_name)?;
             let mut health = HealthReporter::new(&context)?;
             let waiter = Waiter::new()?;
-            let _tick = waiter
-                .waitset()
-                .attach_interval(HEARTBEAT_PERIOD)
-                .map_err(|error| anyhow::anyhow!("attach interval: {error:?}"))?;
+            let _tick = waiter.attach_interval(HEARTBEAT_PERIOD)?;
             let _ = waiter.run(|_| -> Result<Flow> {
                 health.report(ProcessRunState::Running, 0, "", 0)?;
                 Ok(Flow::Continue)

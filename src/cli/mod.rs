@@ -12,7 +12,11 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 #[derive(Debug, Parser)]
-#[command(name = "harvest", version, about = "Dual-arm apple-harvesting robot stack")]
+#[command(
+    name = "harvest",
+    version,
+    about = "Dual-arm apple-harvesting robot stack"
+)]
 pub struct Cli {
     /// Domain namespacing every channel (default: $HARVEST_DOMAIN, else "default").
     #[arg(long, global = true)]
@@ -32,8 +36,12 @@ enum Command {
         #[arg(long, value_parser = duration::parse_duration)]
         duration: Option<Duration>,
     },
+    /// Simulated robot: the orchard world serving the hardware channels.
+    Sim(harvest_sim::process::SimArgs),
     /// Camera process: device frames -> camera/rgbd.
     Camera(harvest_camera::CameraArgs),
+    /// Perception process: camera/rgbd -> perception/apples.
+    Perception(harvest_perception::process::PerceptionArgs),
     /// Remove stale iceoryx2 resources of dead processes in the domain.
     Clean {
         /// Only list this domain's files still present; exit 1 if any.
@@ -60,7 +68,9 @@ impl Cli {
         }
         match &self.command {
             Command::Up { .. } => "supervisor",
+            Command::Sim(_) => "sim",
             Command::Camera(_) => "camera",
+            Command::Perception(_) => "perception",
             Command::Clean { .. } => "clean",
             Command::Channels => "channels",
             Command::Fixture { .. } => "fixture",
@@ -72,6 +82,15 @@ impl Cli {
         let domain = Domain::from_flag_or_env(self.domain.as_deref())?;
         match self.command {
             Command::Up { launch, duration } => up(launch, duration, domain),
+            Command::Sim(args) => {
+                harvest_sim::process::run(&args, &domain, process_name).context("sim process")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Perception(args) => {
+                harvest_perception::process::run(&args, &domain, process_name)
+                    .context("perception process")?;
+                Ok(ExitCode::SUCCESS)
+            }
             Command::Camera(args) => {
                 harvest_camera::run(&args, &domain, process_name).context("camera process")?;
                 Ok(ExitCode::SUCCESS)
@@ -112,7 +131,11 @@ fn up(launch: Option<PathBuf>, duration: Option<Duration>, domain: Domain) -> Re
         executable,
     })?;
     eprint!("{}", summary.render());
-    Ok(if summary.failure.is_some() { ExitCode::FAILURE } else { ExitCode::SUCCESS })
+    Ok(if summary.failure.is_some() {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    })
 }
 
 fn clean(domain: &Domain, check: bool) -> Result<ExitCode> {
@@ -121,7 +144,11 @@ fn clean(domain: &Domain, check: bool) -> Result<ExitCode> {
         for file in &files {
             println!("{}", file.display());
         }
-        return Ok(if files.is_empty() { ExitCode::SUCCESS } else { ExitCode::FAILURE });
+        return Ok(if files.is_empty() {
+            ExitCode::SUCCESS
+        } else {
+            ExitCode::FAILURE
+        });
     }
     let report = harvest_ipc::cleanup::remove_dead_nodes(domain)?;
     println!(

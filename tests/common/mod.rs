@@ -15,7 +15,12 @@ pub fn unique_domain(tag: &str) -> String {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.subsec_nanos())
         .unwrap_or(0);
-    format!("t{}-{}-{:x}", tag, std::process::id() % 100_000, nanos % 0xffff)
+    format!(
+        "t{}-{}-{:x}",
+        tag,
+        std::process::id() % 100_000,
+        nanos % 0xffff
+    )
 }
 
 /// A scratch directory removed on drop.
@@ -23,7 +28,8 @@ pub struct TempDir(pub PathBuf);
 
 impl TempDir {
     pub fn new(tag: &str) -> Self {
-        let path = std::env::temp_dir().join(format!("harvest-test-{}-{}", tag, unique_domain("d")));
+        let path =
+            std::env::temp_dir().join(format!("harvest-test-{}-{}", tag, unique_domain("d")));
         std::fs::create_dir_all(&path).expect("create temp dir");
         Self(path)
     }

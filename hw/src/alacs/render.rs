@@ -226,12 +226,16 @@ impl AlacsRenderer {
                 .zip(row_rgb.chunks_exact_mut(3))
             {
                 let laser = weight.min(1.0) * sample.laser_reflectance;
-                for channel in 0..3 {
-                    let mut value = sample.base_dn[channel] + laser * params.laser_gain_dn[channel];
+                for ((out, base_dn), gain_dn) in pixel
+                    .iter_mut()
+                    .zip(sample.base_dn)
+                    .zip(params.laser_gain_dn)
+                {
+                    let mut value = base_dn + laser * gain_dn;
                     if let Some(noise) = &noise {
                         value += noise.sample(&mut rng);
                     }
-                    pixel[channel] = value.round().clamp(0.0, 255.0) as u8;
+                    *out = value.round().clamp(0.0, 255.0) as u8;
                 }
             }
         }
@@ -404,15 +408,15 @@ mod tests {
             apples: vec![apple],
             ..AlacsScene::default()
         };
-        // A leaf on the laser's path, half way between emitter and apple, outside the camera's
-        // view of the stripe: it blocks the laser, not the camera.
+        // A leaf on the laser's path, a quarter of the way from emitter to apple, outside the
+        // camera's field of view: it blocks the laser, not the camera.
         let laser_origin = extrinsics.camera_from_laser(0.0).translation_m;
-        let midway = lerp(laser_origin, apple.centre_in_camera_m, 0.5);
+        let midway = lerp(laser_origin, apple.centre_in_camera_m, 0.25);
         let shadowed = AlacsScene {
             leaves: vec![LeafDisc {
                 centre_in_camera_m: midway,
                 normal: [1.0, 0.0, 0.0],
-                radius_m: 0.2,
+                radius_m: 0.1,
                 rgb: [50, 110, 40],
             }],
             ..clear.clone()

@@ -53,10 +53,11 @@ impl RgbdCamera for SimRgbdCamera {
         };
         let mut latest = receive(&self.frames)?;
         if latest.is_none() {
-            self.frames
-                .listener()
-                .timed_wait(|_| {}, timeout)
-                .map_err(|error| SimCameraError::Link(format!("{error:?}")))?;
+            // An interrupted wait (a signal arrived) is a timeout: the caller checks for shutdown.
+            if let Err(error) = self.frames.listener().timed_wait(|_| {}, timeout) {
+                tracing::debug!(?error, "wait for device frame interrupted");
+                return Ok(false);
+            }
             latest = receive(&self.frames)?;
         }
         let Some(device_frame) = latest else {

@@ -20,6 +20,8 @@ pub enum LocalizationMethod {
     LaserScan = 3,
     /// LiDAR-camera fused points.
     LidarFusion = 4,
+    /// Centroid of the mask points after Z-score outlier rejection.
+    ZScoreCentroid = 5,
 }
 
 impl LocalizationMethod {
@@ -29,6 +31,7 @@ impl LocalizationMethod {
             2 => Some(Self::SphereFit),
             3 => Some(Self::LaserScan),
             4 => Some(Self::LidarFusion),
+            5 => Some(Self::ZScoreCentroid),
             _ => None,
         }
     }
@@ -71,7 +74,7 @@ crate::serde_payload!(
     1,
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
 source_frame_seq: u64; source_capture_ns: u64; processing_ns: u64; apples: u64 count then \
-count x {apple_id:u32, method:u8 (1 centroid, 2 sphere fit, 3 laser, 4 lidar), _reserved:[u8;3], \
+count x {apple_id:u32, method:u8 (1 cluster centroid, 2 sphere fit, 3 laser, 4 lidar, 5 z-score centroid), _reserved:[u8;3], \
 position_in_camera_m:[f64;3], position_in_robot_m:[f64;3], radius_m:f64, confidence:f32, \
 box_px:[u32;4] (x,y,w,h), visible_px:u32}"
 );

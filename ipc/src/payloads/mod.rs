@@ -14,4 +14,4 @@ pub use emergency_stop::EmergencyStop;
 pub use laser_scan::{LaserScanRequest, LaserScanResult};
 pub use process_health::{ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
-pub use vacuum::{ValveGrant, ValveRequest, ValveRequestKind, VacuumState};
+pub use vacuum::{VacuumState, ValveGrant, ValveRequest, ValveRequestKind};

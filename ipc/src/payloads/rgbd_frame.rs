@@ -96,16 +96,22 @@ cy_px:f64, distortion:[f64;5] (k1,k2,p1,p2,k3)}"
     }
 
     fn decode_into(bytes: &[u8], dst: &mut Self) -> Result<(), CodecError> {
-        let ((header, meta), used): ((Header, RgbdFrameMeta), usize) =
-            codec::decode_prefix(bytes)?;
+        let ((header, meta), used): ((Header, RgbdFrameMeta), usize) = codec::decode_prefix(bytes)?;
         let expected = used + RGB_BYTES + DEPTH_PIXELS * 2;
         if bytes.len() != expected {
-            return Err(CodecError::Length { expected, actual: bytes.len() });
+            return Err(CodecError::Length {
+                expected,
+                actual: bytes.len(),
+            });
         }
         dst.header = header;
         dst.meta = meta;
         dst.rgb.copy_from_slice(&bytes[used..used + RGB_BYTES]);
-        for (depth, pair) in dst.depth_mm.iter_mut().zip(bytes[used + RGB_BYTES..].chunks_exact(2)) {
+        for (depth, pair) in dst
+            .depth_mm
+            .iter_mut()
+            .zip(bytes[used + RGB_BYTES..].chunks_exact(2))
+        {
             *depth = u16::from_le_bytes([pair[0], pair[1]]);
         }
         Ok(())
@@ -165,7 +171,10 @@ mod tests {
         assert_eq!(back.header.msg_seq, 42);
         assert_eq!(back.meta, frame.meta);
         assert_eq!(back.rgb[7], 200);
-        assert_eq!(back.depth_at_mm(DEPTH_WIDTH_PX - 1, DEPTH_HEIGHT_PX - 1), Some(1234));
+        assert_eq!(
+            back.depth_at_mm(DEPTH_WIDTH_PX - 1, DEPTH_HEIGHT_PX - 1),
+            Some(1234)
+        );
         assert!(RgbdFrame::decode_into(&bytes[..bytes.len() - 1], &mut back).is_err());
     }
 }

@@ -100,7 +100,10 @@ impl TrackingGains {
             ("integral_per_s2", self.integral_per_s2),
             ("robust_m_per_s2", self.robust_m_per_s2),
             ("robust_term_limit_m_per_s", self.robust_term_limit_m_per_s),
-            ("twist_proportional_per_s", [self.twist_proportional_per_s; 3]),
+            (
+                "twist_proportional_per_s",
+                [self.twist_proportional_per_s; 3],
+            ),
         ];
         for (field, values) in arrays {
             for (axis, &value) in values.iter().enumerate() {
@@ -270,8 +273,14 @@ impl TrackingController {
         measured: &JointPosition,
         dt_s: f64,
     ) -> JointCommand {
-        if !(dt_s.is_finite() && dt_s > 0.0) || !measured.is_finite() || !reference.is_finite() {
-            warn!(dt_s, ?measured, ?reference, "tracking controller stopped: invalid input");
+        let valid = dt_s.is_finite() && dt_s > 0.0 && measured.is_finite() && reference.is_finite();
+        if !valid {
+            warn!(
+                dt_s,
+                ?measured,
+                ?reference,
+                "tracking controller stopped: invalid input"
+            );
             return JointCommand::STOP;
         }
         let links = &self.params.links;
@@ -279,12 +288,13 @@ impl TrackingController {
         let g = &self.gains;
         let error: [f64; 3] = std::array::from_fn(|i| p[i] - reference.position_m[i]);
         let u: [f64; 3] = std::array::from_fn(|i| {
-            reference.velocity_m_per_s[i]
-                - g.proportional_per_s[i] * error[i]
-                - self.eta_m_per_s[i]
+            reference.velocity_m_per_s[i] - g.proportional_per_s[i] * error[i] - self.eta_m_per_s[i]
         });
         let Some([d_dot, theta_dot, phi_dot]) = solve_task_velocity(links, measured, u) else {
-            warn!(?measured, "tracking controller stopped: degenerate Jacobian");
+            warn!(
+                ?measured,
+                "tracking controller stopped: degenerate Jacobian"
+            );
             return JointCommand::STOP;
         };
         let twist_dot = reference.twist_rad_per_s
@@ -298,10 +308,10 @@ impl TrackingController {
         let (velocity, clamped) = clamp_rates(&self.params, measured, &raw, dt_s);
         if !clamped {
             let h = dt_s.min(MAX_INTEGRATION_STEP_S);
-            for i in 0..3 {
-                let rate = g.integral_per_s2[i] * error[i] + g.robust_m_per_s2[i] * sgn(error[i]);
+            for (i, (eta, e)) in self.eta_m_per_s.iter_mut().zip(error).enumerate() {
+                let rate = g.integral_per_s2[i] * e + g.robust_m_per_s2[i] * sgn(e);
                 let limit = g.robust_term_limit_m_per_s[i];
-                self.eta_m_per_s[i] = (self.eta_m_per_s[i] + h * rate).clamp(-limit, limit);
+                *eta = (*eta + h * rate).clamp(-limit, limit);
             }
         }
         self.last_error_m = error;
@@ -432,10 +442,19 @@ mod tests {
         assert_eq!(c.step(&r, &bad, CONTROL_DT_S), JointCommand::STOP);
         let mut bad_ref = r;
         bad_ref.velocity_m_per_s[1] = f64::INFINITY;
-        assert_eq!(c.step(&bad_ref, &params.home, CONTROL_DT_S), JointCommand::STOP);
+        assert_eq!(
+            c.step(&bad_ref, &params.home, CONTROL_DT_S),
+            JointCommand::STOP
+        );
         // At the reference at rest the command is (almost) zero.
         let cmd = c.step(&r, &params.home, CONTROL_DT_S);
-        assert!(norm([cmd.velocity.d_m_per_s, cmd.velocity.theta_rad_per_s, cmd.velocity.phi_rad_per_s]) < 1e-9);
+        assert!(
+            norm([
+                cmd.velocity.d_m_per_s,
+                cmd.velocity.theta_rad_per_s,
+                cmd.velocity.phi_rad_per_s
+            ]) < 1e-9
+        );
     }
 
     #[test]
@@ -453,7 +472,10 @@ mod tests {
         ));
         let mut g = TrackingGains::default();
         g.proportional_per_s[0] = 0.0;
-        assert!(matches!(g.validate(), Err(GainsError::ZeroProportional { axis: 0, .. })));
+        assert!(matches!(
+            g.validate(),
+            Err(GainsError::ZeroProportional { axis: 0, .. })
+        ));
         assert!(TrackingController::new(ArmParams::arm1(), g).is_err());
     }
 
@@ -476,10 +498,11 @@ mod tests {
         let waypoints = vec![
             params.home,
             inverse(&params, [1.30, 0.0, 0.35]).unwrap(),
-            inverse(&params, [1.45, 0.15, 0.45]).unwrap().with_twist(0.5),
+            inverse(&params, [1.45, 0.15, 0.45])
+                .unwrap()
+                .with_twist(0.5),
         ];
-        let traj =
-            JointTrajectory::plan(&params, &waypoints, &JointVelocity::ZERO, 1.0).unwrap();
+        let traj = JointTrajectory::plan(&params, &waypoints, &JointVelocity::ZERO, 1.0).unwrap();
         let mut servo = FirstOrderServo::new(params.position_limits, 0.03, params.home);
         let mut c = TrackingController::new(params, gains).unwrap();
         let end_s = traj.duration_s() + 3.0;
@@ -539,10 +562,22 @@ mod tests {
             },
             constant_disturbance,
         );
-        assert!(rise.final_error_m < 3e-4, "RISE final error {}", rise.final_error_m);
+        assert!(
+            rise.final_error_m < 3e-4,
+            "RISE final error {}",
+            rise.final_error_m
+        );
         // P-only settles at |J d| / K, several millimetres.
-        assert!(p_only.final_error_m > 2e-3, "P final error {}", p_only.final_error_m);
-        assert!(rise.max_error_m < MAX_ERROR_BOUND_M, "RISE max error {}", rise.max_error_m);
+        assert!(
+            p_only.final_error_m > 2e-3,
+            "P final error {}",
+            p_only.final_error_m
+        );
+        assert!(
+            rise.max_error_m < MAX_ERROR_BOUND_M,
+            "RISE max error {}",
+            rise.max_error_m
+        );
         assert!(!rise.any_clamped);
     }
 
@@ -557,8 +592,16 @@ mod tests {
             },
             varying_disturbance,
         );
-        assert!(rise.max_error_m < MAX_ERROR_BOUND_M, "max error {}", rise.max_error_m);
-        assert!(rise.final_error_m < 2e-3, "final error {}", rise.final_error_m);
+        assert!(
+            rise.max_error_m < MAX_ERROR_BOUND_M,
+            "max error {}",
+            rise.max_error_m
+        );
+        assert!(
+            rise.final_error_m < 2e-3,
+            "final error {}",
+            rise.final_error_m
+        );
         assert!(
             rise.hold_rms_error_m < 0.5 * p_only.hold_rms_error_m,
             "RISE hold rms {} vs P hold rms {}",
@@ -570,7 +613,15 @@ mod tests {
     #[test]
     fn undisturbed_tracking_is_tight() {
         let run = closed_loop(TrackingGains::default(), |_| JointVelocity::ZERO);
-        assert!(run.max_error_m < MAX_ERROR_BOUND_M, "max error {}", run.max_error_m);
-        assert!(run.final_error_m < 3e-4, "final error {}", run.final_error_m);
+        assert!(
+            run.max_error_m < MAX_ERROR_BOUND_M,
+            "max error {}",
+            run.max_error_m
+        );
+        assert!(
+            run.final_error_m < 3e-4,
+            "final error {}",
+            run.final_error_m
+        );
     }
 }

@@ -172,8 +172,10 @@ mod tests {
     #[test]
     fn finiteness_checks_every_component() {
         assert!(JointPosition::default().is_finite());
-        let mut q = JointPosition::default();
-        q.twist_rad = f64::NAN;
+        let q = JointPosition {
+            twist_rad: f64::NAN,
+            ..JointPosition::default()
+        };
         assert!(!q.is_finite());
         let mut v = JointVelocity::ZERO;
         v.phi_rad_per_s = f64::INFINITY;

@@ -37,7 +37,9 @@ pub enum IkError {
         reach_m: f64,
     },
     /// The target is higher or lower than the tube can pitch to.
-    #[error("target z = {z_m:.4} m is {offset_m:.4} m from the pitch axis, beyond reach {reach_m:.4} m")]
+    #[error(
+        "target z = {z_m:.4} m is {offset_m:.4} m from the pitch axis, beyond reach {reach_m:.4} m"
+    )]
     VerticalOutOfReach {
         /// Target z, m.
         z_m: f64,
@@ -148,10 +150,7 @@ pub fn solve_task_velocity(
 /// Closed-form inverse of eq. 1 without checking joint limits: `phi` from the y row, `theta`
 /// from the z row, then `D` from the x row. Of the two pitch solutions it returns the one in
 /// `(-pi/2, pi/2)` (the other points the tube backwards). The twist is returned as 0.
-pub fn inverse_unchecked(
-    links: &LinkParams,
-    target_m: [f64; 3],
-) -> Result<JointPosition, IkError> {
+pub fn inverse_unchecked(links: &LinkParams, target_m: [f64; 3]) -> Result<JointPosition, IkError> {
     if target_m.iter().any(|v| !v.is_finite()) {
         return Err(IkError::NonFinite { target_m });
     }
@@ -216,6 +215,7 @@ pub fn is_reachable(params: &ArmParams, target_m: [f64; 3]) -> bool {
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)] // axis-indexed loops over small fixed arrays
 mod tests {
     use super::*;
     use rand::rngs::SmallRng;
@@ -278,7 +278,10 @@ mod tests {
                 let dq = back.to_array();
                 let q_arr = q.to_array();
                 for i in 0..3 {
-                    assert!((dq[i] - q_arr[i]).abs() < 1e-9, "IK not unique: {q:?} {back:?}");
+                    assert!(
+                        (dq[i] - q_arr[i]).abs() < 1e-9,
+                        "IK not unique: {q:?} {back:?}"
+                    );
                 }
                 assert!(is_reachable(&params, p) || !params.position_limits.contains(&back));
             }
@@ -363,7 +366,8 @@ mod tests {
         let mut rng = SmallRng::seed_from_u64(3);
         for _ in 0..200 {
             let q = random_q(&params, &mut rng);
-            let qd = JointVelocity::from_array(std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
+            let qd =
+                JointVelocity::from_array(std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
             let (th, ph) = (q.theta_rad, q.phi_rad);
             let (d, t, f) = (qd.d_m_per_s, qd.theta_rad_per_s, qd.phi_rad_per_s);
             let eq2 = [
@@ -411,7 +415,10 @@ mod tests {
         let q = JointPosition::from_array([0.2, 0.3, -0.2, 0.0]);
         let tip = forward(&params.links, &q);
         let pivot = yaw_pivot(&params.links, &q);
-        let len = (0..3).map(|i| (tip[i] - pivot[i]).powi(2)).sum::<f64>().sqrt();
+        let len = (0..3)
+            .map(|i| (tip[i] - pivot[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
         assert!((len - params.links.x2_m).abs() < 1e-12);
     }
 }

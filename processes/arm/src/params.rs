@@ -287,9 +287,15 @@ impl ArmParams {
                 self.max_end_effector_speed_m_per_s,
             ),
             ("rate_limits.d_m_per_s", self.rate_limits.d_m_per_s),
-            ("rate_limits.theta_rad_per_s", self.rate_limits.theta_rad_per_s),
+            (
+                "rate_limits.theta_rad_per_s",
+                self.rate_limits.theta_rad_per_s,
+            ),
             ("rate_limits.phi_rad_per_s", self.rate_limits.phi_rad_per_s),
-            ("rate_limits.twist_rad_per_s", self.rate_limits.twist_rad_per_s),
+            (
+                "rate_limits.twist_rad_per_s",
+                self.rate_limits.twist_rad_per_s,
+            ),
         ];
         for (field, value) in positives {
             if !(value.is_finite() && value > 0.0) {

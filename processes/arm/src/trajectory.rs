@@ -115,8 +115,7 @@ fn quintic_coefficients(start: Knot, end: Knot, t: f64) -> [f64; 6] {
         start.p,
         start.v,
         0.5 * start.a,
-        (20.0 * h - (8.0 * end.v + 12.0 * start.v) * t - (3.0 * start.a - end.a) * t2)
-            / (2.0 * t3),
+        (20.0 * h - (8.0 * end.v + 12.0 * start.v) * t - (3.0 * start.a - end.a) * t2) / (2.0 * t3),
         (-30.0 * h + (14.0 * end.v + 16.0 * start.v) * t + (3.0 * start.a - 2.0 * end.a) * t2)
             / (2.0 * t4),
         (12.0 * h - 6.0 * (end.v + start.v) * t + (end.a - start.a) * t2) / (2.0 * t5),
@@ -182,7 +181,8 @@ impl<const N: usize> QuinticSpline<N> {
             } else if i == n - 1 {
                 0.0
             } else {
-                (positions[i + 1][axis] - positions[i - 1][axis]) / (times_s[i + 1] - times_s[i - 1])
+                (positions[i + 1][axis] - positions[i - 1][axis])
+                    / (times_s[i + 1] - times_s[i - 1])
             }
         };
         let acceleration_at = |i: usize, axis: usize| -> f64 {
@@ -362,10 +362,7 @@ impl JointTrajectory {
                 });
             }
         }
-        let rate_max: [f64; 4] = params
-            .rate_limits
-            .to_array()
-            .map(|v| v * speed_fraction);
+        let rate_max: [f64; 4] = params.rate_limits.to_array().map(|v| v * speed_fraction);
         let speed_max = params.max_end_effector_speed_m_per_s * speed_fraction;
         let v0 = start_velocity.to_array();
         let start = std::array::from_fn(|i| v0[i].clamp(-rate_max[i], rate_max[i]));
@@ -426,7 +423,8 @@ impl JointTrajectory {
     /// [`MIN_SEGMENT_S`]).
     pub fn hold(position: &JointPosition, duration_s: f64) -> Result<Self, TrajectoryError> {
         let p = position.to_array();
-        let spline = QuinticSpline::through(&[0.0, duration_s.max(MIN_SEGMENT_S)], &[p, p], [0.0; 4])?;
+        let spline =
+            QuinticSpline::through(&[0.0, duration_s.max(MIN_SEGMENT_S)], &[p, p], [0.0; 4])?;
         Ok(Self {
             spline,
             peak_ratio: 0.0,
@@ -496,6 +494,7 @@ fn peak_ratio(
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)] // axis-indexed loops over small fixed arrays
 mod tests {
     use super::*;
     use crate::kinematics::inverse;
@@ -571,7 +570,11 @@ mod tests {
                 for axis in 0..3 {
                     assert!(close(left.position[axis], right.position[axis], 1e-9));
                     assert!(close(left.velocity[axis], right.velocity[axis], 1e-9));
-                    assert!(close(left.acceleration[axis], right.acceleration[axis], 1e-8));
+                    assert!(close(
+                        left.acceleration[axis],
+                        right.acceleration[axis],
+                        1e-8
+                    ));
                     let central = (positions[i + 1][axis] - positions[i - 1][axis])
                         / (times[i + 1] - times[i - 1]);
                     assert!(close(right.velocity[axis], central, 1e-9));
@@ -683,13 +686,14 @@ mod tests {
         // Pure D motion of 0.5 m at fraction 0.6: peak speed 0.6 * 0.7748, duration
         // 1.875 * 0.5 / (0.6 * 0.7748) / 0.995.
         let p = ArmParams::arm1();
-        let goal = JointPosition {
-            d_m: 0.5,
-            ..p.home
-        };
+        let goal = JointPosition { d_m: 0.5, ..p.home };
         let traj = JointTrajectory::plan(&p, &[p.home, goal], &JointVelocity::ZERO, 0.6).unwrap();
         let expected = 1.875 * 0.5 / (0.6 * 0.7748) / TARGET_PEAK_RATIO;
-        assert!(close(traj.duration_s(), expected, 0.01 * expected), "{}", traj.duration_s());
+        assert!(
+            close(traj.duration_s(), expected, 0.01 * expected),
+            "{}",
+            traj.duration_s()
+        );
         let mid = traj.sample(traj.duration_s() / 2.0);
         assert!(close(mid.position.d_m, 0.25, 1e-9));
     }
@@ -756,7 +760,10 @@ mod tests {
         let mut acc = 0.0;
         let samples = 100_000;
         for k in 0..samples {
-            acc += traj.sample(traj.duration_s() * k as f64 / samples as f64).position.d_m;
+            acc += traj
+                .sample(traj.duration_s() * k as f64 / samples as f64)
+                .position
+                .d_m;
         }
         std::hint::black_box(acc);
         let sample_ns = t0.elapsed().as_secs_f64() * 1e9 / samples as f64;

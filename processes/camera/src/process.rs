@@ -7,7 +7,7 @@ use harvest_hw::rgbd_camera::RgbdCamera;
 use harvest_hw::rgbd_camera::sim::SimRgbdCamera;
 use harvest_ipc::catalogue::CAMERA_RGBD;
 use harvest_ipc::payloads::ProcessRunState;
-use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock};
+use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD, HealthReporter};
 use std::time::Instant;
 
 /// Which camera device to drive (the one place the implementation is chosen).
@@ -45,14 +45,17 @@ pub fn run(args: &CameraArgs, domain: &Domain, process_name: &str) -> Result<(),
     harvest_ipc::termination::install_handler()?;
     let context = Context::new(domain, process_name)?;
     let camera = match args.device {
-        CameraDevice::Sim => {
-            SimRgbdCamera::connect(&context).map_err(|error| CameraError::Device(error.to_string()))?
-        }
+        CameraDevice::Sim => SimRgbdCamera::connect(&context)
+            .map_err(|error| CameraError::Device(error.to_string()))?,
     };
     stream(&context, camera, args)
 }
 
-fn stream<C: RgbdCamera>(context: &Context, mut camera: C, args: &CameraArgs) -> Result<(), CameraError> {
+fn stream<C: RgbdCamera>(
+    context: &Context,
+    mut camera: C,
+    args: &CameraArgs,
+) -> Result<(), CameraError> {
     let mut frames = context.publisher(CAMERA_RGBD)?;
     let mut health = HealthReporter::new(context)?;
     let timeout = HEARTBEAT_PERIOD / 2;
@@ -83,8 +86,17 @@ fn stream<C: RgbdCamera>(context: &Context, mut camera: C, args: &CameraArgs) ->
         }
         if Instant::now() >= next_heartbeat {
             next_heartbeat += HEARTBEAT_PERIOD;
-            let state = if frames.last_seq() == 0 { ProcessRunState::Starting } else { ProcessRunState::Running };
-            health.report(state, frames.last_seq(), "capture_ns", MonotonicClock::read_ns())?;
+            let state = if frames.last_seq() == 0 {
+                ProcessRunState::Starting
+            } else {
+                ProcessRunState::Running
+            };
+            health.report(
+                state,
+                frames.last_seq(),
+                "device_errors",
+                u64::from(consecutive_errors),
+            )?;
         }
     }
     tracing::info!(frames = frames.last_seq(), "camera stopped");

@@ -148,8 +148,8 @@ pub struct CandidateFitter {
     config: CandidateConfig,
     gated: Vec<usize>,
     coordinates: Vec<[f64; 2]>,
+    scratch: Vec<usize>,
     inliers: Vec<usize>,
-    best_inliers: Vec<usize>,
 }
 
 impl CandidateFitter {
@@ -158,8 +158,8 @@ impl CandidateFitter {
             config,
             gated: Vec::new(),
             coordinates: Vec::new(),
+            scratch: Vec::new(),
             inliers: Vec::new(),
-            best_inliers: Vec::new(),
         }
     }
 
@@ -169,7 +169,7 @@ impl CandidateFitter {
 
     /// Indices (into the last `points` argument) of the points the last successful fit used.
     pub fn inliers(&self) -> &[usize] {
-        &self.best_inliers
+        &self.inliers
     }
 
     /// The candidate supported by `points` (triangulated on `plane` at `slide_position_m`).
@@ -181,7 +181,7 @@ impl CandidateFitter {
         hint: &TargetHint,
         focal_px: f64,
     ) -> Result<PositionCandidate, CandidateError> {
-        self.best_inliers.clear();
+        self.inliers.clear();
         let rough = hint.rough_centre_in_camera_m;
         let radius_px = hint.radius_px();
         if !rough.iter().all(|c| c.is_finite()) || rough[2] <= 0.0 {
@@ -200,10 +200,11 @@ impl CandidateFitter {
 
         // 1. Gate around the rough centre.
         self.gated.clear();
-        self.gated.extend(points.iter().enumerate().filter_map(|(index, point)| {
-            (norm(sub(point.point_in_camera_m, rough)) <= rough_radius_m + config.gate_margin_m)
-                .then_some(index)
-        }));
+        self.gated
+            .extend(points.iter().enumerate().filter_map(|(index, point)| {
+                (norm(sub(point.point_in_camera_m, rough)) <= rough_radius_m + config.gate_margin_m)
+                    .then_some(index)
+            }));
         if self.gated.len() < config.min_points {
             return Err(CandidateError::TooFewPoints {
                 found: self.gated.len(),
@@ -245,13 +246,13 @@ impl CandidateFitter {
             if radius > max_radius_m {
                 continue;
             }
-            self.inliers.clear();
-            self.inliers.extend((0..count).filter(|&k| {
+            self.scratch.clear();
+            self.scratch.extend((0..count).filter(|&k| {
                 (dist2(self.coordinates[k], centre) - radius).abs() <= config.circle_inlier_m
             }));
-            if self.inliers.len() > best_count {
-                best_count = self.inliers.len();
-                std::mem::swap(&mut chosen, &mut self.inliers);
+            if self.scratch.len() > best_count {
+                best_count = self.scratch.len();
+                std::mem::swap(&mut chosen, &mut self.scratch);
             }
         }
         if best_count < config.min_points {
@@ -266,12 +267,12 @@ impl CandidateFitter {
         let mut fit = fit_circle(&self.coordinates, &chosen).ok_or(CandidateError::NoCircle {
             detail: "collinear points",
         })?;
-        self.inliers.clear();
-        self.inliers.extend((0..count).filter(|&k| {
+        self.scratch.clear();
+        self.scratch.extend((0..count).filter(|&k| {
             (dist2(self.coordinates[k], fit.centre) - fit.radius_m).abs() <= config.circle_inlier_m
         }));
-        if self.inliers.len() >= config.min_points {
-            std::mem::swap(&mut chosen, &mut self.inliers);
+        if self.scratch.len() >= config.min_points {
+            std::mem::swap(&mut chosen, &mut self.scratch);
             fit = fit_circle(&self.coordinates, &chosen).ok_or(CandidateError::NoCircle {
                 detail: "collinear points",
             })?;
@@ -280,7 +281,10 @@ impl CandidateFitter {
         // 3. Sphere centre from the circle, the apparent radius and the side of the plane.
         let circle_centre = add(
             mean,
-            add(scale(vertical, fit.centre[0]), scale(horizontal, fit.centre[1])),
+            add(
+                scale(vertical, fit.centre[0]),
+                scale(horizontal, fit.centre[1]),
+            ),
         );
         let rough_side_m = plane.signed_distance_m(rough);
         let side = if rough_side_m < 0.0 { -1.0 } else { 1.0 };
@@ -305,8 +309,8 @@ impl CandidateFitter {
         }
         let predicted_sigma_m = (fit.centre_variance + offset_variance).sqrt();
 
-        self.best_inliers.clear();
-        self.best_inliers.extend(chosen.iter().map(|&k| self.gated[k]));
+        self.inliers.clear();
+        self.inliers.extend(chosen.iter().map(|&k| self.gated[k]));
         let candidate = PositionCandidate {
             slide_position_m,
             centre_in_camera_m: centre,
@@ -367,11 +371,8 @@ fn fit_circle(coordinates: &[[f64; 2]], subset: &[usize]) -> Option<CircleFit> {
             let [a, b] = coordinates[k];
             let distance = dist2([a, b], centre).max(1e-12);
             let residual = distance - radius_m;
-            let jacobian = Vector3::new(
-                (centre[0] - a) / distance,
-                (centre[1] - b) / distance,
-                -1.0,
-            );
+            let jacobian =
+                Vector3::new((centre[0] - a) / distance, (centre[1] - b) / distance, -1.0);
             jtj += jacobian * jacobian.transpose();
             jtr += jacobian * residual;
             sum_squares += residual * residual;
@@ -466,7 +467,7 @@ mod tests {
         let vertical = normalize(sub([0.0, 1.0, 0.0], scale(normal, normal[1])));
         let horizontal = cross(normal, vertical);
         (0..count)
-            .filter_map(|k| {
+            .map(|k| {
                 let angle = std::f64::consts::PI * (k as f64 + 0.5) / count as f64;
                 let candidates = [1.0, -1.0].map(|sign| {
                     add(
@@ -478,8 +479,16 @@ mod tests {
                     )
                 });
                 // The camera sees the half nearer to it.
-                let point = if candidates[0][2] < candidates[1][2] { candidates[0] } else { candidates[1] };
-                Some(CandidatePoint { u_px: 0.0, v_px: k as f64, point_in_camera_m: point })
+                let point = if candidates[0][2] < candidates[1][2] {
+                    candidates[0]
+                } else {
+                    candidates[1]
+                };
+                CandidatePoint {
+                    u_px: 0.0,
+                    v_px: k as f64,
+                    point_in_camera_m: point,
+                }
             })
             .collect()
     }
@@ -489,7 +498,12 @@ mod tests {
         let radius_px = focal_px * (radius_m / distance).asin().tan();
         let side = (2.0 * radius_px).round() as usize;
         TargetHint {
-            bbox_px: PixelRoi { u_min_px: 100, v_min_px: 100, u_max_px: 100 + side, v_max_px: 100 + side },
+            bbox_px: PixelRoi {
+                u_min_px: 100,
+                v_min_px: 100,
+                u_max_px: 100 + side,
+                v_max_px: 100 + side,
+            },
             rough_centre_in_camera_m: add(centre, [0.003, -0.002, 0.015]),
         }
     }
@@ -501,14 +515,20 @@ mod tests {
         let normal = plane.unit_normal();
         // A point on the plane at 0.9 m depth, apple centre 2 cm to the plane's +normal side.
         let (sin_a, cos_a) = extrinsics.alpha_rad.sin_cos();
-        let on_plane = [(0.9 * sin_a - extrinsics.baseline_m(0.05)) / cos_a, 0.05, 0.9];
+        let on_plane = [
+            (0.9 * sin_a - extrinsics.baseline_m(0.05)) / cos_a,
+            0.05,
+            0.9,
+        ];
         let on_plane = sub(on_plane, scale(normal, plane.signed_distance_m(on_plane)));
         let centre = add(on_plane, scale(normal, 0.02));
         let points = stripe_on_sphere(&plane, centre, 0.04, 80);
         let focal_px = 1739.0;
         let hint = hint_for(centre, 0.04, focal_px);
         let mut fitter = CandidateFitter::new(CandidateConfig::default());
-        let candidate = fitter.fit(&points, &plane, 0.05, &hint, focal_px).expect("candidate");
+        let candidate = fitter
+            .fit(&points, &plane, 0.05, &hint, focal_px)
+            .expect("candidate");
         let error = norm(sub(candidate.centre_in_camera_m, centre));
         // The only error source is the pixel-rounded apparent radius.
         assert!(error < 1.5e-3, "{error} m, {candidate:?}");
@@ -538,7 +558,9 @@ mod tests {
         }
         let hint = hint_for(centre, 0.04, 1739.0);
         let mut fitter = CandidateFitter::new(CandidateConfig::default());
-        let candidate = fitter.fit(&points, &plane, 0.0, &hint, 1739.0).expect("candidate");
+        let candidate = fitter
+            .fit(&points, &plane, 0.0, &hint, 1739.0)
+            .expect("candidate");
         assert_eq!(candidate.points_used, 45, "{candidate:?}");
         assert!(fitter.inliers().iter().all(|&k| k >= 15));
         assert!(norm(sub(candidate.centre_in_camera_m, centre)) < 2e-3);
@@ -553,7 +575,10 @@ mod tests {
             fitter.fit(&[], &plane, 0.0, &hint, 1739.0),
             Err(CandidateError::TooFewPoints { found: 0, .. })
         ));
-        let bad_hint = TargetHint { rough_centre_in_camera_m: [f64::NAN, 0.0, 1.0], ..hint };
+        let bad_hint = TargetHint {
+            rough_centre_in_camera_m: [f64::NAN, 0.0, 1.0],
+            ..hint
+        };
         assert!(matches!(
             fitter.fit(&[], &plane, 0.0, &bad_hint, 1739.0),
             Err(CandidateError::InvalidHint { .. })

@@ -104,7 +104,7 @@ pub struct ExtractionStats {
 }
 
 /// Why an image could not be processed at all.
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum ExtractionError {
     /// The buffer is not `width x height x 3` bytes.
     #[error("RGB buffer holds {got_bytes} bytes, {width_px}x{height_px} RGB needs {needed_bytes}")]
@@ -152,15 +152,31 @@ struct Peak {
 impl LaserLineExtractor {
     pub fn new(config: ExtractionConfig) -> Result<Self, ExtractionError> {
         let checks = [
-            ("opening_window_px", config.opening_window_px as f64, config.opening_window_px >= 3),
-            ("min_peak_contrast_dn", config.min_peak_contrast_dn, config.min_peak_contrast_dn > 0.0),
-            ("min_peak_red_dn", config.min_peak_red_dn, config.min_peak_red_dn.is_finite()),
+            (
+                "opening_window_px",
+                config.opening_window_px as f64,
+                config.opening_window_px >= 3,
+            ),
+            (
+                "min_peak_contrast_dn",
+                config.min_peak_contrast_dn,
+                config.min_peak_contrast_dn > 0.0,
+            ),
+            (
+                "min_peak_red_dn",
+                config.min_peak_red_dn,
+                config.min_peak_red_dn.is_finite(),
+            ),
             (
                 "ambiguity_ratio",
                 config.ambiguity_ratio,
                 config.ambiguity_ratio > 0.0 && config.ambiguity_ratio <= 1.0,
             ),
-            ("leaf_green_ratio", config.leaf_green_ratio, config.leaf_green_ratio >= 1.0),
+            (
+                "leaf_green_ratio",
+                config.leaf_green_ratio,
+                config.leaf_green_ratio >= 1.0,
+            ),
         ];
         for (name, value, valid) in checks {
             if !valid || !value.is_finite() {
@@ -330,10 +346,7 @@ fn sliding_extreme(input: &[f64], half: usize, extreme: fn(f64, f64) -> f64, out
     for (k, out) in output.iter_mut().enumerate() {
         let first = k.saturating_sub(half);
         let last = (k + half).min(input.len() - 1);
-        *out = input[first..=last]
-            .iter()
-            .copied()
-            .fold(input[k], extreme);
+        *out = input[first..=last].iter().copied().fold(input[k], extreme);
     }
 }
 
@@ -356,14 +369,22 @@ mod tests {
     use super::*;
 
     /// A synthetic image: red apple disc-free rows, background, a Gaussian stripe at `centre`.
-    fn image_with_stripe(width: usize, height: usize, centre_of_row: impl Fn(usize) -> f64) -> Vec<u8> {
+    fn image_with_stripe(
+        width: usize,
+        height: usize,
+        centre_of_row: impl Fn(usize) -> f64,
+    ) -> Vec<u8> {
         let mut rgb = vec![0; width * height * 3];
         for v in 0..height {
             let centre = centre_of_row(v);
             for u in 0..width {
                 let offset = u as f64 - centre;
                 let laser = (-offset * offset / (2.0 * 1.5 * 1.5)).exp();
-                let base = if u < width / 2 { [140.0, 30.0, 25.0] } else { [70.0, 75.0, 60.0] };
+                let base = if u < width / 2 {
+                    [140.0, 30.0, 25.0]
+                } else {
+                    [70.0, 75.0, 60.0]
+                };
                 let pixel = &mut rgb[(v * width + u) * 3..(v * width + u) * 3 + 3];
                 for channel in 0..3 {
                     let gain = [200.0, 60.0, 45.0][channel];
@@ -425,16 +446,32 @@ mod tests {
         let (width, height) = (50, 4);
         let rgb = vec![120; width * height * 3];
         let mut extractor = LaserLineExtractor::new(ExtractionConfig::default()).expect("config");
-        assert!(extractor.extract(&rgb, width, height, PixelRoi::full(width, height)).expect("ok").is_empty());
+        assert!(
+            extractor
+                .extract(&rgb, width, height, PixelRoi::full(width, height))
+                .expect("ok")
+                .is_empty()
+        );
         assert!(matches!(
             extractor.extract(&rgb[1..], width, height, PixelRoi::full(width, height)),
             Err(ExtractionError::BufferSize { .. })
         ));
-        let outside = PixelRoi { u_min_px: 60, v_min_px: 0, u_max_px: 70, v_max_px: 4 };
+        let outside = PixelRoi {
+            u_min_px: 60,
+            v_min_px: 0,
+            u_max_px: 70,
+            v_max_px: 4,
+        };
         assert!(matches!(
             extractor.extract(&rgb, width, height, outside),
             Err(ExtractionError::EmptyRoi { .. })
         ));
-        assert!(LaserLineExtractor::new(ExtractionConfig { ambiguity_ratio: f64::NAN, ..ExtractionConfig::default() }).is_err());
+        assert!(
+            LaserLineExtractor::new(ExtractionConfig {
+                ambiguity_ratio: f64::NAN,
+                ..ExtractionConfig::default()
+            })
+            .is_err()
+        );
     }
 }

@@ -3,14 +3,13 @@
 //! turns each image into a candidate and picks the final position, and [`run_scan`] drives any
 //! [`AlacsUnit`] through one scan.
 
-use harvest_hw::alacs::{AlacsExtrinsics, AlacsUnit, SLIDE_STROKE_M, check_slide_position};
 use harvest_hw::DeviceError;
+use harvest_hw::alacs::{AlacsExtrinsics, AlacsUnit, SLIDE_STROKE_M, check_slide_position};
 use harvest_ipc::camera_model::CameraIntrinsics;
 use serde::{Deserialize, Serialize};
 
 use crate::candidate::{
-    CandidateConfig, CandidateError, CandidateFitter, CandidatePoint, PositionCandidate,
-    TargetHint,
+    CandidateConfig, CandidateError, CandidateFitter, CandidatePoint, PositionCandidate, TargetHint,
 };
 use crate::extraction::{ExtractionConfig, ExtractionError, LaserLineExtractor};
 use crate::selection::select_candidate;
@@ -130,7 +129,11 @@ impl ScanPlanner {
             .collect();
         let plane_to_centre_m = slide_positions_m
             .iter()
-            .map(|&d| self.extrinsics.laser_plane_in_camera(d).signed_distance_m(centre))
+            .map(|&d| {
+                self.extrinsics
+                    .laser_plane_in_camera(d)
+                    .signed_distance_m(centre)
+            })
             .collect();
         Ok(ScanPlan {
             slide_positions_m,
@@ -382,8 +385,13 @@ mod tests {
             config: ScanConfig::default(),
         };
         // Far right at 1.2 m needs d beyond the stroke end.
-        let shifted = planner.plan([0.26, 0.0, 1.2]).expect("shifted");
-        assert!(shifted.slide_positions_m.iter().all(|d| (0.0..=SLIDE_STROKE_M).contains(d)));
+        let shifted = planner.plan([0.222, 0.0, 1.2]).expect("shifted");
+        assert!(
+            shifted
+                .slide_positions_m
+                .iter()
+                .all(|d| (0.0..=SLIDE_STROKE_M).contains(d))
+        );
         assert!(matches!(
             planner.plan([0.6, 0.0, 1.2]),
             Err(ScanPlanError::OutOfReach { .. })

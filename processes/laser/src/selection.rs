@@ -66,7 +66,10 @@ mod tests {
     fn smallest_predicted_error_wins_and_failures_are_skipped() {
         let candidates = vec![
             Ok(candidate(3e-3)),
-            Err(CandidateError::TooFewPoints { found: 2, needed: 12 }),
+            Err(CandidateError::TooFewPoints {
+                found: 2,
+                needed: 12,
+            }),
             Ok(candidate(1e-3)),
             Ok(candidate(1e-3)),
             Ok(candidate(f64::NAN)),

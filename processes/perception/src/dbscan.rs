@@ -280,7 +280,10 @@ mod tests {
         let sizes_sum: u32 = dbscan.cluster_sizes().iter().sum();
         let labelled = labels.iter().filter(|&&l| l != NOISE).count() as u32;
         assert_eq!(sizes_sum, labelled);
-        assert!(labelled >= 850, "most blob points clustered, got {labelled}");
+        assert!(
+            labelled >= 850,
+            "most blob points clustered, got {labelled}"
+        );
 
         // Core points agree with the brute-force definition, and every core point is labelled.
         let core = brute_force_core(&points, params);
@@ -312,14 +315,35 @@ mod tests {
         let mut dbscan = Dbscan::new();
         let points = [[0.0_f32; 3]];
         assert!(matches!(
-            dbscan.run(&points, DbscanParams { eps_m: f32::NAN, min_points: 3 }),
+            dbscan.run(
+                &points,
+                DbscanParams {
+                    eps_m: f32::NAN,
+                    min_points: 3
+                }
+            ),
             Err(DbscanError::InvalidEps { .. })
         ));
         assert!(matches!(
-            dbscan.run(&points, DbscanParams { eps_m: 0.01, min_points: 0 }),
+            dbscan.run(
+                &points,
+                DbscanParams {
+                    eps_m: 0.01,
+                    min_points: 0
+                }
+            ),
             Err(DbscanError::InvalidMinPoints { .. })
         ));
-        assert_eq!(dbscan.run(&[], DbscanParams { eps_m: 0.01, min_points: 1 }), Ok(0));
+        assert_eq!(
+            dbscan.run(
+                &[],
+                DbscanParams {
+                    eps_m: 0.01,
+                    min_points: 1
+                }
+            ),
+            Ok(0)
+        );
         assert_eq!(dbscan.largest_cluster(), None);
     }
 }

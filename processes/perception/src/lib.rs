@@ -14,13 +14,22 @@
 //! "Camera frame" in this crate always means the colour (RGB) camera frame: x right, y down,
 //! z forward, metres.
 
+pub mod calibration;
 pub mod camera_setup;
 pub mod dbscan;
 pub mod detector;
 pub mod estimator;
 pub mod frame;
+pub mod node;
 pub mod noise_model;
+pub mod pipeline;
+pub mod process;
 pub mod registration;
+pub mod stats;
+pub mod synthetic;
+pub mod timing;
 
 pub use camera_setup::CameraSetup;
 pub use frame::{DepthView, FrameError, RgbView};
+pub use pipeline::{AppleEstimate, Perception, PerceptionConfig};
+pub use stats::{FrameStats, PerceptionStats};

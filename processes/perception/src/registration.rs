@@ -99,7 +99,8 @@ impl DepthRegistration {
         color_from_depth: RigidTransform,
         range: DepthRange,
     ) -> Self {
-        let mut rotated_rays = Vec::with_capacity(depth.width_px as usize * depth.height_px as usize);
+        let mut rotated_rays =
+            Vec::with_capacity(depth.width_px as usize * depth.height_px as usize);
         for v in 0..depth.height_px {
             for u in 0..depth.width_px {
                 let (x_n, y_n) = depth.normalize(u as f64, v as f64);
@@ -133,7 +134,12 @@ impl DepthRegistration {
         self.project_ray(depth_index, ray, depth_mm)
     }
 
-    fn project_ray(&self, depth_index: usize, ray: &[f32; 3], depth_mm: u16) -> Option<RegisteredPoint> {
+    fn project_ray(
+        &self,
+        depth_index: usize,
+        ray: &[f32; 3],
+        depth_mm: u16,
+    ) -> Option<RegisteredPoint> {
         let z_m = f64::from(depth_mm) * 1e-3;
         let t = &self.color_from_depth.translation_m;
         let point = [
@@ -162,7 +168,8 @@ impl DepthRegistration {
     ) -> Result<RegistrationCounts, FrameError> {
         depth.validate_size(self.depth.width_px, self.depth.height_px)?;
         let mut counts = RegistrationCounts::default();
-        for (index, (&depth_mm, ray)) in depth.data.iter().zip(self.rotated_rays.iter()).enumerate() {
+        for (index, (&depth_mm, ray)) in depth.data.iter().zip(self.rotated_rays.iter()).enumerate()
+        {
             if depth_mm == 0 {
                 counts.zero += 1;
                 continue;
@@ -206,7 +213,9 @@ mod tests {
         let index = v_i * setup.depth.width_px as usize + u_i;
         // Depth of the pixel-centre ray at the same z.
         let depth_mm = (in_depth[2] * 1000.0).round() as u16;
-        let point = registration.register_sample(index, depth_mm).expect("registered");
+        let point = registration
+            .register_sample(index, depth_mm)
+            .expect("registered");
         // The pixel centre differs from the true sub-pixel position by < 0.5 depth px, i.e.
         // < 0.5 * z / fx metres laterally; depth rounding adds < 0.5 mm.
         let lateral_tolerance_m = 0.5 * in_depth[2] / setup.depth.fx_px * 1.5 + 0.001;
@@ -216,7 +225,10 @@ mod tests {
                 "{point:?} vs {true_in_color:?}"
             );
         }
-        let (u_c, v_c) = setup.color.project(point.point_in_camera_m).expect("in front");
+        let (u_c, v_c) = setup
+            .color
+            .project(point.point_in_camera_m)
+            .expect("in front");
         assert!((u_c - point.u_px).abs() < 1e-9 && (v_c - point.v_px).abs() < 1e-9);
         let (u_true, v_true) = setup.color.project(true_in_color).expect("in front");
         let colour_px_per_depth_px = setup.color.fx_px / setup.depth.fx_px;
@@ -237,7 +249,8 @@ mod tests {
         let mut data = vec![0_u16; n];
         data[0] = 100; // too close
         data[1] = 9_999; // too far
-        let centre = (setup.depth.height_px / 2 * setup.depth.width_px + setup.depth.width_px / 2) as usize;
+        let centre =
+            (setup.depth.height_px / 2 * setup.depth.width_px + setup.depth.width_px / 2) as usize;
         data[centre] = 1500;
         let view = DepthView {
             width_px: setup.depth.width_px,
@@ -245,7 +258,9 @@ mod tests {
             data: &data,
         };
         let mut visited = Vec::new();
-        let counts = registration.register(&view, |p| visited.push(*p)).expect("valid frame");
+        let counts = registration
+            .register(&view, |p| visited.push(*p))
+            .expect("valid frame");
         assert_eq!(counts.zero as usize, n - 3);
         assert_eq!(counts.out_of_range, 2);
         assert_eq!(counts.registered, 1);

@@ -2,9 +2,9 @@
 //! PNGs, for looking at the simulated camera.
 //! Usage: `cargo run -p harvest-sim --example render_png -- [preset] [seed] [out_dir]`
 
+use harvest_sim::World;
 use harvest_sim::render_rgbd::{RgbdRenderer, apple_from_label, label};
 use harvest_sim::scenario::Scenario;
-use harvest_sim::World;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
@@ -32,7 +32,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // 0.5-4 m mapped to 255-0; no return black.
     let depth8: Vec<u8> = depth_mm
         .iter()
-        .map(|&d| if d == 0 { 0 } else { (255.0 * (1.0 - (f64::from(d) - 500.0) / 3500.0)).clamp(1.0, 255.0) as u8 })
+        .map(|&d| {
+            if d == 0 {
+                0
+            } else {
+                (255.0 * (1.0 - (f64::from(d) - 500.0) / 3500.0)).clamp(1.0, 255.0) as u8
+            }
+        })
         .collect();
     image::save_buffer(
         out_dir.join(format!("{preset}_depth.png")),
@@ -57,6 +63,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         color.height_px,
         image::ColorType::L8,
     )?;
-    println!("wrote {preset}_{{rgb,depth,labels}}.png to {}", out_dir.display());
+    println!(
+        "wrote {preset}_{{rgb,depth,labels}}.png to {}",
+        out_dir.display()
+    );
     Ok(())
 }

@@ -28,7 +28,10 @@ pub struct GroundTruth {
 impl GroundTruth {
     /// How many apples are in `state`.
     pub fn count(&self, state: AppleState) -> usize {
-        self.apples.iter().filter(|apple| apple.state == state).count()
+        self.apples
+            .iter()
+            .filter(|apple| apple.state == state)
+            .count()
     }
 }
 
@@ -62,7 +65,8 @@ mod tests {
 
     #[test]
     fn ground_truth_mirrors_the_world() {
-        let world = World::generate(&Scenario::preset("default").expect("default"), 2).expect("world");
+        let world =
+            World::generate(&Scenario::preset("default").expect("default"), 2).expect("world");
         let truth = world.ground_truth();
         assert_eq!(truth.apples.len(), world.apples().len());
         assert_eq!(truth.count(AppleState::OnTree), world.apples().len());

@@ -8,6 +8,7 @@
 pub mod ground_truth;
 pub mod orchard;
 pub mod physics;
+pub mod process;
 pub mod render_rate;
 pub mod render_rgbd;
 pub mod scenario;

@@ -300,8 +300,16 @@ fn place_apples_on_grid(scenario: &Scenario) -> Result<Vec<Apple>, OrchardError>
     let height = a.z_range_m[1] - a.z_range_m[0];
     let columns = ((count as f64 * width / height).sqrt().ceil() as usize).clamp(1, count);
     let rows = count.div_ceil(columns);
-    let step_y = if columns > 1 { width / (columns - 1) as f64 } else { f64::INFINITY };
-    let step_z = if rows > 1 { height / (rows - 1) as f64 } else { f64::INFINITY };
+    let step_y = if columns > 1 {
+        width / (columns - 1) as f64
+    } else {
+        f64::INFINITY
+    };
+    let step_z = if rows > 1 {
+        height / (rows - 1) as f64
+    } else {
+        f64::INFINITY
+    };
     let spacing_m = step_y.min(step_z);
     if spacing_m < a.min_spacing_m || spacing_m < 2.0 * a.radius_m.max {
         return Err(OrchardError::GridTooDense {
@@ -350,7 +358,10 @@ fn place_apples_randomly(
     while apples.len() < requested {
         let radius = sample_truncated(rng, a.radius_m);
         let center = [
-            uniform(rng, [c.front_x_m + radius, c.front_x_m + c.depth_m - radius]),
+            uniform(
+                rng,
+                [c.front_x_m + radius, c.front_x_m + c.depth_m - radius],
+            ),
             uniform(rng, a.y_range_m),
             uniform(rng, a.z_range_m),
         ];
@@ -445,10 +456,9 @@ fn decorate_apples(scenario: &Scenario, apples: &mut [Apple], rng: &mut SmallRng
         apple.blush_rgb = jittered_rgb(rng, a.blush_rgb, a.colour_jitter);
         apple.ground_rgb = jittered_rgb(rng, a.ground_rgb, a.colour_jitter);
         let bias = random_unit(rng);
-        apple.blush_axis_in_robot = normalized(std::array::from_fn(|k| {
-            [-1.0, 0.0, 0.4][k] + 0.7 * bias[k]
-        }))
-        .unwrap_or([-1.0, 0.0, 0.0]);
+        apple.blush_axis_in_robot =
+            normalized(std::array::from_fn(|k| [-1.0, 0.0, 0.4][k] + 0.7 * bias[k]))
+                .unwrap_or([-1.0, 0.0, 0.0]);
         apple.blush_fraction = uniform(rng, a.blush_fraction);
         apple.stem_strength_n = if rng.random_bool(failures.insufficient_detachment_force) {
             uniform(rng, scenario.stems.unripe_strength_n)
@@ -491,8 +501,7 @@ fn place_canopy_leaves(scenario: &Scenario, apples: &[Apple], rng: &mut SmallRng
     }
     let canopy_area = (c.y_range_m[1] - c.y_range_m[0]) * (c.z_range_m[1] - c.z_range_m[0]);
     let mean_half_length = (f.leaf_length_m[0] + f.leaf_length_m[1]) / 4.0;
-    let leaf_area =
-        std::f64::consts::PI * mean_half_length * mean_half_length * f.leaf_width_ratio;
+    let leaf_area = std::f64::consts::PI * mean_half_length * mean_half_length * f.leaf_width_ratio;
     let count = (-(1.0 - f.occlusion_fraction).ln() * canopy_area / (leaf_area * MEAN_LEAF_FACING))
         .ceil() as usize;
     let mut leaves = Vec::with_capacity(count + apples.len() * HEAVY_OCCLUSION_LEAVES);
@@ -503,9 +512,9 @@ fn place_canopy_leaves(scenario: &Scenario, apples: &[Apple], rng: &mut SmallRng
                 uniform(rng, c.y_range_m),
                 uniform(rng, c.z_range_m),
             ];
-            let inside_apple = apples
-                .iter()
-                .any(|apple| distance(apple.rest_center_in_robot_m, center) < apple.radius_m + 0.005);
+            let inside_apple = apples.iter().any(|apple| {
+                distance(apple.rest_center_in_robot_m, center) < apple.radius_m + 0.005
+            });
             if !inside_apple {
                 leaves.push(random_leaf(
                     scenario,
@@ -543,8 +552,9 @@ fn place_occluding_leaves(
                 uniform(rng, [-0.5, 0.5]) * apple.radius_m,
                 uniform(rng, [-0.5, 0.5]) * apple.radius_m,
             );
-            let leaf_center =
-                std::array::from_fn(|k| center[k] + towards_camera[k] * ahead + e1[k] * s1 + e2[k] * s2);
+            let leaf_center = std::array::from_fn(|k| {
+                center[k] + towards_camera[k] * ahead + e1[k] * s1 + e2[k] * s2
+            });
             let half_length = apple.radius_m * uniform(rng, [1.0, 1.4]);
             leaves.push(random_leaf(
                 scenario,
@@ -558,12 +568,22 @@ fn place_occluding_leaves(
     }
 }
 
-fn wood(rng: &mut SmallRng, scenario: &Scenario, start: [f64; 3], end: [f64; 3], radius_m: f64) -> Branch {
+fn wood(
+    rng: &mut SmallRng,
+    scenario: &Scenario,
+    start: [f64; 3],
+    end: [f64; 3],
+    radius_m: f64,
+) -> Branch {
     Branch {
         start_in_robot_m: start,
         end_in_robot_m: end,
         radius_m,
-        rgb: jittered_rgb(rng, scenario.foliage.wood_rgb, scenario.foliage.colour_jitter * 0.5),
+        rgb: jittered_rgb(
+            rng,
+            scenario.foliage.wood_rgb,
+            scenario.foliage.colour_jitter * 0.5,
+        ),
     }
 }
 
@@ -629,7 +649,8 @@ fn place_branches(scenario: &Scenario, rng: &mut SmallRng) -> Vec<Branch> {
             let count = f.branch_count.max(1) as f64;
             let step = (c.y_range_m[1] - c.y_range_m[0]) / count;
             for k in 0..f.branch_count {
-                let y = c.y_range_m[0] + step * (f64::from(k) + 0.5) + uniform(rng, [-0.2, 0.2]) * step;
+                let y =
+                    c.y_range_m[0] + step * (f64::from(k) + 0.5) + uniform(rng, [-0.2, 0.2]) * step;
                 let x = c.front_x_m + c.depth_m * uniform(rng, [0.35, 0.65]);
                 let height = c.z_range_m[1] - cordon_z;
                 let top = [
@@ -673,9 +694,15 @@ mod tests {
             assert_eq!(w.apples().len(), s.apples.count as usize, "{name}");
             for apple in w.apples() {
                 let [x, _, _] = apple.center_in_robot_m;
-                assert!(x - apple.radius_m >= s.canopy.front_x_m - 1e-9, "{name}: {apple:?}");
+                assert!(
+                    x - apple.radius_m >= s.canopy.front_x_m - 1e-9,
+                    "{name}: {apple:?}"
+                );
                 assert!(x + apple.radius_m <= s.canopy.front_x_m + s.canopy.depth_m + 1e-9);
-                assert!(apple.radius_m >= s.apples.radius_m.min && apple.radius_m <= s.apples.radius_m.max);
+                assert!(
+                    apple.radius_m >= s.apples.radius_m.min
+                        && apple.radius_m <= s.apples.radius_m.max
+                );
             }
         }
     }
@@ -687,19 +714,25 @@ mod tests {
         let mut touching_pairs = 0;
         for (i, a) in apples.iter().enumerate() {
             for b in &apples[i + 1..] {
-                let gap = distance(a.center_in_robot_m, b.center_in_robot_m) - a.radius_m - b.radius_m;
+                let gap =
+                    distance(a.center_in_robot_m, b.center_in_robot_m) - a.radius_m - b.radius_m;
                 assert!(gap >= 0.0, "{a:?} overlaps {b:?}");
                 if a.cluster.is_some() && a.cluster == b.cluster && gap < 0.002 {
                     touching_pairs += 1;
                 }
                 if a.cluster.is_none() || a.cluster != b.cluster {
-                    assert!(gap + a.radius_m + b.radius_m >= w.scenario().apples.min_spacing_m - 1e-9);
+                    assert!(
+                        gap + a.radius_m + b.radius_m >= w.scenario().apples.min_spacing_m - 1e-9
+                    );
                 }
             }
         }
         let clustered = apples.iter().filter(|a| a.cluster.is_some()).count();
         assert!(clustered >= 2, "expected clusters, got {clustered}");
-        assert!(touching_pairs >= clustered / 2, "{touching_pairs} touching pairs");
+        assert!(
+            touching_pairs >= clustered / 2,
+            "{touching_pairs} touching pairs"
+        );
     }
 
     #[test]
@@ -726,7 +759,11 @@ mod tests {
         assert!(w.branches().is_empty());
         let xs: Vec<f64> = w.apples().iter().map(|a| a.center_in_robot_m[0]).collect();
         assert!(xs.iter().all(|x| (x - xs[0]).abs() < 1e-12));
-        assert!(w.apples().iter().all(|a| !a.heavily_occluded && !a.overexposed && a.cluster.is_none()));
+        assert!(
+            w.apples()
+                .iter()
+                .all(|a| !a.heavily_occluded && !a.overexposed && a.cluster.is_none())
+        );
     }
 
     #[test]
@@ -740,7 +777,9 @@ mod tests {
         let area = (c.y_range_m[1] - c.y_range_m[0]) * (c.z_range_m[1] - c.z_range_m[0]);
         let projected: f64 = w.leaves()[..canopy_leaves]
             .iter()
-            .map(|l| std::f64::consts::PI * l.half_length_m * l.half_width_m * l.normal_in_robot[0].abs())
+            .map(|l| {
+                std::f64::consts::PI * l.half_length_m * l.half_width_m * l.normal_in_robot[0].abs()
+            })
             .sum();
         let coverage = 1.0 - (-projected / area).exp();
         assert!(

@@ -278,7 +278,16 @@ impl World {
             self.physics.arms[a].attempt = None;
         }
         if let Some(held) = self.physics.arms[a].held {
-            self.step_held(config, arm, held, cup, twist, inlet_commanded_open, force, events);
+            self.step_held(
+                config,
+                arm,
+                held,
+                cup,
+                twist,
+                inlet_commanded_open,
+                force,
+                events,
+            );
             return;
         }
         if !inlet_commanded_open {
@@ -522,7 +531,13 @@ mod tests {
         let cup = in_front_of(&world, 0, 0.012);
         let events = run(&mut world, 1.5, &inputs(cup, true));
         let id = world.apples()[0].id;
-        assert_eq!(events, vec![WorldEvent::Attached { arm: Arm::One, apple: id }]);
+        assert_eq!(
+            events,
+            vec![WorldEvent::Attached {
+                arm: Arm::One,
+                apple: id
+            }]
+        );
         assert_eq!(world.held_apple(Arm::One), Some(id));
         // Sealed: the arm line climbs close to the source.
         let vacuum = world.vacuum();
@@ -554,7 +569,13 @@ mod tests {
             position[0] -= 0.01;
             events.extend(world.step(DT, &inputs(position, true)).expect("step"));
         }
-        assert_eq!(events, vec![WorldEvent::Detached { arm: Arm::One, apple: id }]);
+        assert_eq!(
+            events,
+            vec![WorldEvent::Detached {
+                arm: Arm::One,
+                apple: id
+            }]
+        );
         let events = run(&mut world, 1.5, &inputs(position, false));
         assert_eq!(
             events,
@@ -603,7 +624,10 @@ mod tests {
             "{events:?}"
         );
         assert_eq!(world.apples()[0].state, AppleState::OnTree);
-        assert_eq!(world.apples()[0].center_in_robot_m, world.apples()[0].rest_center_in_robot_m);
+        assert_eq!(
+            world.apples()[0].center_in_robot_m,
+            world.apples()[0].rest_center_in_robot_m
+        );
     }
 
     #[test]
@@ -619,7 +643,10 @@ mod tests {
                 let mut input = inputs(position, true);
                 input.end_effector_twist_rad[0] = twist;
                 let events = world.step(DT, &input).expect("step");
-                if events.iter().any(|e| matches!(e, WorldEvent::Detached { .. })) {
+                if events
+                    .iter()
+                    .any(|e| matches!(e, WorldEvent::Detached { .. }))
+                {
                     return step;
                 }
             }
@@ -641,10 +668,19 @@ mod tests {
             position[0] -= 0.01;
             events.extend(world.step(DT, &inputs(position, true)).expect("step"));
         }
-        assert!(matches!(
-            events.as_slice(),
-            [WorldEvent::Detached { .. }, WorldEvent::Dropped { cause: DropCause::HoldingInterference, .. }]
-        ), "{events:?}");
+        assert!(
+            matches!(
+                events.as_slice(),
+                [
+                    WorldEvent::Detached { .. },
+                    WorldEvent::Dropped {
+                        cause: DropCause::HoldingInterference,
+                        ..
+                    }
+                ]
+            ),
+            "{events:?}"
+        );
         assert_eq!(world.apples()[0].state, AppleState::Dropped);
     }
 
@@ -670,6 +706,10 @@ mod tests {
     fn bad_inputs_are_refused() {
         let mut world = ideal_world();
         assert!(world.step(0.0, &inputs(HOME, false)).is_err());
-        assert!(world.step(DT, &inputs([f64::NAN, 0.0, 0.0], false)).is_err());
+        assert!(
+            world
+                .step(DT, &inputs([f64::NAN, 0.0, 0.0], false))
+                .is_err()
+        );
     }
 }

@@ -2,23 +2,36 @@
 //!
 //! A measurement, never an assertion: run it in a release build, e.g.
 //! `cargo run --release -p harvest-sim --example render_rate -- default 60`.
+//! Two figures per frame kind: frames per wall-clock second (what this machine gave, other load
+//! included) and frames per second of this thread's CPU time (what one dedicated core gives).
 
 use std::time::Instant;
+
+use nix::time::{ClockId, clock_gettime};
 
 use crate::orchard::{OrchardError, World};
 use crate::render_rgbd::{RenderError, RgbdRenderer};
 use crate::scenario::Scenario;
 
-/// Frames per second of each kind of frame, single thread.
+/// Frames per second of one kind of frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rate {
+    /// Frames per wall-clock second.
+    pub wall_fps: f64,
+    /// Frames per second of the rendering thread's CPU time (one dedicated core).
+    pub cpu_fps: f64,
+}
+
+/// Rates of each kind of frame, single thread.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderRate {
     pub frames: u32,
     /// RGB 1920x1080 alone.
-    pub color_fps: f64,
+    pub color: Rate,
     /// Depth 640x480 (with noise) alone.
-    pub depth_fps: f64,
+    pub depth: Rate,
     /// One RGB plus one depth frame.
-    pub rgbd_fps: f64,
+    pub rgbd: Rate,
 }
 
 /// Why a measurement could not run.
@@ -28,6 +41,33 @@ pub enum RenderRateError {
     Orchard(#[from] OrchardError),
     #[error("rendering: {0}")]
     Render(#[from] RenderError),
+    /// The thread CPU clock could not be read.
+    #[error("reading CLOCK_THREAD_CPUTIME_ID: {0}")]
+    CpuClock(#[from] nix::Error),
+}
+
+fn thread_cpu_s() -> Result<f64, nix::Error> {
+    let now = clock_gettime(ClockId::CLOCK_THREAD_CPUTIME_ID)?;
+    Ok(now.tv_sec() as f64 + now.tv_nsec() as f64 * 1e-9)
+}
+
+/// Runs `render` `frames` times (with the frame number) and times it.
+fn time_frames(
+    frames: u32,
+    mut render: impl FnMut(u64) -> Result<(), RenderError>,
+) -> Result<Rate, RenderRateError> {
+    let wall = Instant::now();
+    let cpu = thread_cpu_s()?;
+    for frame_seq in 0..u64::from(frames) {
+        render(frame_seq)?;
+    }
+    let cpu_s = thread_cpu_s()? - cpu;
+    let wall_s = wall.elapsed().as_secs_f64();
+    let per_second = |seconds: f64| f64::from(frames) / seconds.max(f64::MIN_POSITIVE);
+    Ok(Rate {
+        wall_fps: per_second(wall_s),
+        cpu_fps: per_second(cpu_s),
+    })
 }
 
 /// Renders `frames` frames of each kind of the world of `scenario` and `seed` and times them.
@@ -46,27 +86,18 @@ pub fn measure_render_rate(
     // One warm-up frame of each so page faults are not timed.
     renderer.render_color(&world, &mut rgb)?;
     renderer.render_depth(&world, 0, &mut depth_mm)?;
-    let start = Instant::now();
-    for _ in 0..frames {
+    let color_rate = time_frames(frames, |_| renderer.render_color(&world, &mut rgb))?;
+    let depth_rate = time_frames(frames, |frame_seq| {
+        renderer.render_depth(&world, frame_seq, &mut depth_mm)
+    })?;
+    let rgbd_rate = time_frames(frames, |frame_seq| {
         renderer.render_color(&world, &mut rgb)?;
-    }
-    let color_s = start.elapsed().as_secs_f64();
-    let start = Instant::now();
-    for frame_seq in 0..u64::from(frames) {
-        renderer.render_depth(&world, frame_seq, &mut depth_mm)?;
-    }
-    let depth_s = start.elapsed().as_secs_f64();
-    let start = Instant::now();
-    for frame_seq in 0..u64::from(frames) {
-        renderer.render_color(&world, &mut rgb)?;
-        renderer.render_depth(&world, frame_seq, &mut depth_mm)?;
-    }
-    let rgbd_s = start.elapsed().as_secs_f64();
-    let per_second = |seconds: f64| f64::from(frames) / seconds.max(f64::MIN_POSITIVE);
+        renderer.render_depth(&world, frame_seq, &mut depth_mm)
+    })?;
     Ok(RenderRate {
         frames,
-        color_fps: per_second(color_s),
-        depth_fps: per_second(depth_s),
-        rgbd_fps: per_second(rgbd_s),
+        color: color_rate,
+        depth: depth_rate,
+        rgbd: rgbd_rate,
     })
 }

@@ -8,9 +8,14 @@
 //! pixel centre with [`CameraIntrinsics::normalize`], so distortion costs nothing per frame. With
 //! rays of unit z, the ray parameter of a hit is the hit's depth `z` directly.
 //!
+//! Objects are drawn band by band (16 image rows at a time, each object clipped to the band) so
+//! the band's rays, depths and colours stay in cache while the two to three layers of leaves,
+//! apples and branches covering it are drawn. The backdrop (next tree row and ground as planes,
+//! sky above with no depth return) never moves: it is rendered once per camera and copied in at
+//! the start of each frame. `measure_render_rate` in [`crate::render_rate`] reports the speed.
+//!
 //! Shading: Lambert diffuse plus a Blinn-Phong highlight on apples under the scenario's sun, an
-//! ambient sky term, two-sided translucent leaves. The next tree row and the ground are planes
-//! behind the canopy; above the next row is sky (no depth return).
+//! ambient sky term, two-sided translucent leaves.
 //!
 //! Depth error: the TL460 specifies +/-(4 mm + 0.25 % of depth). It is taken here as one standard
 //! deviation of zero-mean Gaussian noise, `sigma = 4 mm + 0.0025 z`, independent per pixel and per
@@ -27,7 +32,7 @@ use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 
 use crate::orchard::{AppleId, AppleState, World};
-use crate::scenario::{CameraConfig, CameraPoseError};
+use crate::scenario::{BackgroundConfig, CameraConfig, CameraPoseError, LightingConfig};
 
 /// Per-pixel labels written by [`RgbdRenderer::render_labels`].
 pub mod label {
@@ -52,9 +57,7 @@ pub fn apple_from_label(label: u32) -> Option<AppleId> {
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     /// The caller's buffer does not have the frame's size.
-    #[error(
-        "{buffer} buffer holds {actual} elements; a {width}x{height} frame needs {expected}"
-    )]
+    #[error("{buffer} buffer holds {actual} elements; a {width}x{height} frame needs {expected}")]
     BufferSize {
         buffer: &'static str,
         expected: usize,
@@ -71,6 +74,13 @@ type V3 = [f32; 3];
 
 /// Objects closer to the camera than this (z, metres) are not drawn.
 const NEAR_M: f64 = 0.05;
+/// Branches are drawn in pieces of at most this length, so a long diagonal branch gets several
+/// small pixel boxes instead of one large one (metres).
+const CYLINDER_SEGMENT_M: f64 = 0.1;
+/// Corners of the polygon bounding a leaf's ellipse.
+const LEAF_HULL_CORNERS: usize = 12;
+/// Vertex radius of a regular 12-gon circumscribing the unit circle: `1 / cos(pi / 12)`.
+const LEAF_HULL_SCALE: f64 = 1.035_276_180_410_083;
 /// Decorrelates the depth-noise stream from the world's other random streams.
 const DEPTH_NOISE_STREAM: u64 = 0xd1b5_4a32_d192_ed03;
 
@@ -104,6 +114,34 @@ struct RasterCamera {
     rays: Vec<[f32; 2]>,
     /// Depth (z, metres) of the nearest surface so far; infinity = nothing.
     z_m: Vec<f32>,
+    /// The static backdrop as this camera sees it.
+    backdrop: BackdropCache,
+}
+
+/// What the backdrop's appearance depends on besides the (fixed) camera pose.
+#[derive(Debug, Clone, PartialEq)]
+struct BackdropKey {
+    background: BackgroundConfig,
+    lighting: LightingConfig,
+}
+
+impl BackdropKey {
+    fn of(world: &World) -> Self {
+        Self {
+            background: world.scenario().background.clone(),
+            lighting: world.scenario().lighting.clone(),
+        }
+    }
+}
+
+/// The backdrop (next row, ground, sky) does not move: it is rendered once per camera and
+/// copied in at the start of every frame.
+#[derive(Debug, Default)]
+struct BackdropCache {
+    key: Option<BackdropKey>,
+    z_m: Vec<f32>,
+    /// RGB8 (colour camera only).
+    rgb: Vec<u8>,
 }
 
 impl RasterCamera {
@@ -125,6 +163,7 @@ impl RasterCamera {
             height,
             rays,
             z_m: vec![f32::INFINITY; width * height],
+            backdrop: BackdropCache::default(),
         }
     }
 
@@ -132,8 +171,12 @@ impl RasterCamera {
     /// (edges sampled, one pixel of margin), clipped to the image; `None` if outside.
     fn pixel_box(&self, x0: f64, x1: f64, y0: f64, y1: f64) -> Option<PixelBox> {
         const SAMPLES: usize = 4;
-        let (mut u_min, mut u_max, mut v_min, mut v_max) =
-            (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        let (mut u_min, mut u_max, mut v_min, mut v_max) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
         for k in 0..=SAMPLES {
             let f = k as f64 / SAMPLES as f64;
             let x = x0 + (x1 - x0) * f;
@@ -162,8 +205,12 @@ impl RasterCamera {
     /// Pixel box of the projection of a convex hull given by its corner points (camera frame);
     /// `None` if any corner is behind the near plane or the box is off-image.
     fn hull_box(&self, corners: &[[f64; 3]]) -> Option<PixelBox> {
-        let (mut x0, mut x1, mut y0, mut y1) =
-            (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        let (mut x0, mut x1, mut y0, mut y1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
         for corner in corners {
             if corner[2] <= NEAR_M {
                 return None;
@@ -195,15 +242,23 @@ struct SpherePrim {
 }
 
 /// A leaf, in the camera frame.
+///
+/// For a ray `d = (x, y, 1)` the plane hit is at `t = (n . c) / (n . d)`, and the hit's in-plane
+/// coordinates (over the half axes) are `along = A(d) / D(d)`, `across = B(d) / D(d)` with
+/// `D = n . d`, `A = (n . c)(u . d) - (c . u) D`, `B = (n . c)(v . d) - (c . v) D`: all three are
+/// linear in `d`, so the inside test `A^2 + B^2 <= D^2` needs no division. The normal is
+/// oriented so that `n . c > 0` (pointing away from the camera); then a hit lies in front of the
+/// camera iff `D > 0` and is nearer than `z` iff `n . c < z D`: the division `t = n . c / D` is
+/// only done for pixels the leaf wins.
 #[derive(Debug, Clone, Copy)]
 struct DiscPrim {
-    center: V3,
+    /// Unit normal pointing away from the camera.
     normal: V3,
     n_dot_c: f32,
-    /// Major axis over the half length.
-    axis_u: V3,
-    /// Minor axis over the half width.
-    axis_v: V3,
+    /// Coefficients of `A`.
+    along: V3,
+    /// Coefficients of `B`.
+    across: V3,
     rgb: V3,
     area: PixelBox,
     depth_key: f32,
@@ -250,7 +305,10 @@ impl Scene {
         self.glare.clear();
         let pose = &camera.camera_from_robot;
         for apple in world.apples() {
-            if !matches!(apple.state, AppleState::OnTree | AppleState::Attached { .. }) {
+            if !matches!(
+                apple.state,
+                AppleState::OnTree | AppleState::Attached { .. }
+            ) {
                 continue;
             }
             let c = pose.apply(apple.center_in_robot_m);
@@ -301,6 +359,11 @@ impl Scene {
         for leaf in world.leaves() {
             let c = pose.apply(leaf.center_in_robot_m);
             let n = pose.rotate(leaf.normal_in_robot);
+            let n = if n[0] * c[0] + n[1] * c[1] + n[2] * c[2] < 0.0 {
+                n.map(|k| -k)
+            } else {
+                n
+            };
             let major = pose.rotate(leaf.major_axis_in_robot);
             let minor = [
                 n[1] * major[2] - n[2] * major[1],
@@ -308,17 +371,29 @@ impl Scene {
                 n[0] * major[1] - n[1] * major[0],
             ];
             let (a, b) = (leaf.half_length_m, leaf.half_width_m);
-            let corners: [[f64; 3]; 4] = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
-                .map(|(su, sv)| std::array::from_fn(|k| c[k] + su * a * major[k] + sv * b * minor[k]));
+            // The leaf's image of a regular polygon circumscribing the unit circle contains the
+            // ellipse, and is much tighter than its bounding rectangle when the leaf is rotated.
+            let corners: [[f64; 3]; LEAF_HULL_CORNERS] = std::array::from_fn(|i| {
+                let (sin, cos) =
+                    (std::f64::consts::TAU * i as f64 / LEAF_HULL_CORNERS as f64).sin_cos();
+                let (su, sv) = (cos * LEAF_HULL_SCALE, sin * LEAF_HULL_SCALE);
+                std::array::from_fn(|k| c[k] + su * a * major[k] + sv * b * minor[k])
+            });
             let Some(area) = camera.hull_box(&corners) else {
                 continue;
             };
+            let n_dot_c = n[0] * c[0] + n[1] * c[1] + n[2] * c[2];
+            let linear = |axis: [f64; 3], half: f64| {
+                let c_dot_axis = (c[0] * axis[0] + c[1] * axis[1] + c[2] * axis[2]) / half;
+                to_f32(std::array::from_fn(|k| {
+                    n_dot_c * axis[k] / half - c_dot_axis * n[k]
+                }))
+            };
             self.discs.push(DiscPrim {
-                center: to_f32(c),
                 normal: to_f32(n),
-                n_dot_c: (n[0] * c[0] + n[1] * c[1] + n[2] * c[2]) as f32,
-                axis_u: to_f32(major.map(|m| m / a)),
-                axis_v: to_f32(minor.map(|m| m / b)),
+                n_dot_c: n_dot_c as f32,
+                along: linear(major, a),
+                across: linear(minor, b),
                 rgb: leaf.rgb,
                 area,
                 depth_key: c[2] as f32,
@@ -336,11 +411,43 @@ impl Scene {
                 continue;
             }
             let axis = delta.map(|d| d / length);
-            let helper = if axis[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+            let segments = (length / CYLINDER_SEGMENT_M).ceil().max(1.0);
+            let segment_length = length / segments;
+            for segment in 0..segments as usize {
+                let p0: [f64; 3] =
+                    std::array::from_fn(|k| p0[k] + axis[k] * segment_length * segment as f64);
+                self.push_cylinder(
+                    camera,
+                    p0,
+                    axis,
+                    segment_length,
+                    branch.radius_m,
+                    branch.rgb,
+                );
+            }
+        }
+    }
+
+    /// Adds one straight cylinder piece (camera frame) if it is in view.
+    fn push_cylinder(
+        &mut self,
+        camera: &RasterCamera,
+        p0: [f64; 3],
+        axis: [f64; 3],
+        length: f64,
+        r: f64,
+        rgb: V3,
+    ) {
+        let p1: [f64; 3] = std::array::from_fn(|k| p0[k] + axis[k] * length);
+        {
+            let helper = if axis[0].abs() < 0.9 {
+                [1.0, 0.0, 0.0]
+            } else {
+                [0.0, 1.0, 0.0]
+            };
             let e1 = crate::scenario::normalized(crate::scenario::cross(axis, helper))
                 .unwrap_or([0.0, 0.0, 1.0]);
             let e2 = crate::scenario::cross(axis, e1);
-            let r = branch.radius_m;
             let mut corners = [[0.0; 3]; 8];
             for (index, corner) in corners.iter_mut().enumerate() {
                 let end = if index & 1 == 0 { p0 } else { p1 };
@@ -349,7 +456,7 @@ impl Scene {
                 *corner = std::array::from_fn(|k| end[k] + s1 * e1[k] + s2 * e2[k]);
             }
             let Some(area) = camera.hull_box(&corners) else {
-                continue;
+                return;
             };
             let w = p0.map(|p| -p);
             let w_dot_a = w[0] * axis[0] + w[1] * axis[1] + w[2] * axis[2];
@@ -363,7 +470,7 @@ impl Scene {
                 w_perp: to_f32(w_perp),
                 w_perp_sq_minus_r_sq: (w_perp_sq - r * r) as f32,
                 start_dot_axis: -w_dot_a as f32,
-                rgb: branch.rgb,
+                rgb,
                 area,
             });
         }
@@ -388,9 +495,17 @@ struct Backdrop {
 enum BackdropHit {
     Sky,
     /// Next tree row at depth `z`, robot `(y, z)` of the hit.
-    NextRow { z: f32, y: f32, height: f32 },
+    NextRow {
+        z: f32,
+        y: f32,
+        height: f32,
+    },
     /// Ground at depth `z`, robot `(x, y)` of the hit.
-    Ground { z: f32, x: f32, y: f32 },
+    Ground {
+        z: f32,
+        x: f32,
+        y: f32,
+    },
 }
 
 impl Backdrop {
@@ -440,11 +555,13 @@ impl Backdrop {
     }
 }
 
-/// Integer hash to `[0, 1)` for cheap procedural texture.
+/// Integer hash of the unit cell containing `(a, b)` to `[0, 1)`, for cheap procedural texture.
+/// The offset keeps the truncating cast equal to `floor` for coordinates above -4096 cells.
 #[inline(always)]
 fn hash01(a: f32, b: f32) -> f32 {
-    let h = ((a.floor() as i32 as u32).wrapping_mul(0x8da6_b343))
-        ^ ((b.floor() as i32 as u32).wrapping_mul(0xd816_3841));
+    const OFFSET: f32 = 4096.0;
+    let h = (((a + OFFSET) as u32).wrapping_mul(0x8da6_b343))
+        ^ (((b + OFFSET) as u32).wrapping_mul(0xd816_3841));
     let h = (h ^ (h >> 13)).wrapping_mul(0x9e37_79b1);
     (h >> 8) as f32 / (1u32 << 24) as f32
 }
@@ -452,7 +569,7 @@ fn hash01(a: f32, b: f32) -> f32 {
 /// What is done with a pixel once a surface wins its depth test.
 trait Shader {
     fn sphere(&mut self, pixel: usize, prim: &SpherePrim, hit: V3);
-    fn disc(&mut self, pixel: usize, prim: &DiscPrim, across: f32, facing_camera: bool);
+    fn disc(&mut self, pixel: usize, prim: &DiscPrim, across: f32);
     fn cylinder(&mut self, pixel: usize, prim: &CylinderPrim, hit: V3, along: f32);
     fn backdrop(&mut self, pixel: usize, hit: BackdropHit);
 }
@@ -464,7 +581,7 @@ impl Shader for DepthOnly {
     #[inline(always)]
     fn sphere(&mut self, _: usize, _: &SpherePrim, _: V3) {}
     #[inline(always)]
-    fn disc(&mut self, _: usize, _: &DiscPrim, _: f32, _: bool) {}
+    fn disc(&mut self, _: usize, _: &DiscPrim, _: f32) {}
     #[inline(always)]
     fn cylinder(&mut self, _: usize, _: &CylinderPrim, _: V3, _: f32) {}
     #[inline(always)]
@@ -482,7 +599,7 @@ impl Shader for Labels<'_> {
         self.out[pixel] = prim.label;
     }
     #[inline(always)]
-    fn disc(&mut self, pixel: usize, _: &DiscPrim, _: f32, _: bool) {
+    fn disc(&mut self, pixel: usize, _: &DiscPrim, _: f32) {
         self.out[pixel] = label::LEAF;
     }
     #[inline(always)]
@@ -514,14 +631,38 @@ struct Colors<'a> {
     sky: V3,
 }
 
-impl Colors<'_> {
+impl<'a> Colors<'a> {
+    /// Lighting of `world` seen from a camera at `camera_from_robot`, writing into `out`.
+    fn new(world: &World, camera_from_robot: &RigidTransform, out: &'a mut [u8]) -> Self {
+        let scenario = world.scenario();
+        let lighting = &scenario.lighting;
+        let background = &scenario.background;
+        let sun_in_camera = camera_from_robot.rotate(lighting.sun_direction_in_robot);
+        let view = [0.0, 0.0, -1.0];
+        let half = crate::scenario::normalized(std::array::from_fn(|k| sun_in_camera[k] + view[k]))
+            .map_or(to_f32(view), to_f32);
+        let linear = |rgb: [u8; 3]| rgb.map(|c| f32::from(c) / 255.0);
+        Self {
+            out,
+            sun: to_f32(sun_in_camera),
+            half,
+            sun_intensity: lighting.sun_intensity as f32,
+            ambient: lighting.ambient as f32,
+            specular: lighting.specular as f32,
+            next_row: linear(background.next_row_rgb),
+            ground: linear(background.ground_rgb),
+            sky: linear(background.sky_rgb),
+        }
+    }
+
     #[inline(always)]
     fn put(&mut self, pixel: usize, rgb: V3) {
-        let base = 3 * pixel;
         // Rounded; float-to-int `as` saturates, so values above 255 clip (over-exposure).
-        self.out[base] = (rgb[0] + 0.5) as u8;
-        self.out[base + 1] = (rgb[1] + 0.5) as u8;
-        self.out[base + 2] = (rgb[2] + 0.5) as u8;
+        if let Some(out) = self.out.get_mut(3 * pixel..3 * pixel + 3) {
+            out[0] = (rgb[0] + 0.5) as u8;
+            out[1] = (rgb[1] + 0.5) as u8;
+            out[2] = (rgb[2] + 0.5) as u8;
+        }
     }
 }
 
@@ -549,9 +690,9 @@ impl Shader for Colors<'_> {
     }
 
     #[inline(always)]
-    fn disc(&mut self, pixel: usize, prim: &DiscPrim, across: f32, facing_camera: bool) {
-        let lit = dot(prim.normal, self.sun);
-        let lit = if facing_camera { -lit } else { lit };
+    fn disc(&mut self, pixel: usize, prim: &DiscPrim, across: f32) {
+        // The side facing the camera has normal -n.
+        let lit = -dot(prim.normal, self.sun);
         // Front-lit blades reflect; back-lit ones glow through (translucency).
         let diffuse = if lit > 0.0 { lit } else { -0.35 * lit };
         let vein = 0.8 + 0.2 * across.abs().min(1.0);
@@ -591,103 +732,128 @@ impl Shader for Colors<'_> {
     }
 }
 
-/// Draws every object of `scene` into the camera's z-buffer, then the backdrop into the pixels
-/// nothing covered (the backdrop lies behind the canopy by construction).
-fn rasterize<S: Shader>(camera: &mut RasterCamera, scene: &Scene, backdrop: &Backdrop, shader: &mut S) {
-    let width = camera.width;
-    let rays = &camera.rays;
-    let z_m = &mut camera.z_m;
-    z_m.fill(f32::INFINITY);
-    for prim in &scene.discs {
-        let a = prim.area;
-        for v in a.v0..=a.v1 {
-            let row = v * width;
-            for u in a.u0..=a.u1 {
-                let pixel = row + u;
-                let [x, y] = rays[pixel];
-                let facing = prim.normal[0] * x + prim.normal[1] * y + prim.normal[2];
-                if facing.abs() < 1e-6 {
-                    continue;
-                }
-                let t = prim.n_dot_c / facing;
-                if t <= 0.0 || t >= z_m[pixel] {
-                    continue;
-                }
-                let q = [x * t - prim.center[0], y * t - prim.center[1], t - prim.center[2]];
-                let along = dot(q, prim.axis_u);
-                let across = dot(q, prim.axis_v);
-                if along * along + across * across > 1.0 {
-                    continue;
-                }
-                z_m[pixel] = t;
-                shader.disc(pixel, prim, across, facing < 0.0);
+/// Intersects every pixel's ray with the backdrop, writing its depth (infinity for sky).
+fn backdrop_pass<S: Shader>(
+    rays: &[[f32; 2]],
+    z_m: &mut [f32],
+    backdrop: &Backdrop,
+    shader: &mut S,
+) {
+    for (pixel, (z, ray)) in z_m.iter_mut().zip(rays).enumerate() {
+        let hit = backdrop.hit(*ray);
+        *z = match hit {
+            BackdropHit::NextRow { z, .. } | BackdropHit::Ground { z, .. } => z,
+            BackdropHit::Sky => f32::INFINITY,
+        };
+        shader.backdrop(pixel, hit);
+    }
+}
+
+/// Image rows rasterised together: every object is clipped to one band at a time so the band's
+/// rays, depths and colours stay in cache while all objects covering it are drawn (objects
+/// overlap about three deep, and the RGB ray table alone is 16 MB).
+const BAND_ROWS: usize = 16;
+
+/// The rows of one band and the buffers they index.
+struct Band<'a> {
+    v0: usize,
+    v1: usize,
+    width: usize,
+    rays: &'a [[f32; 2]],
+    z_m: &'a mut [f32],
+}
+
+impl Band<'_> {
+    /// Visits `(pixel, ray, depth)` for the part of `area` inside this band.
+    #[inline(always)]
+    fn for_each(&mut self, area: PixelBox, mut visit: impl FnMut(usize, [f32; 2], &mut f32)) {
+        for v in area.v0.max(self.v0)..=area.v1.min(self.v1) {
+            let start = v * self.width + area.u0;
+            let end = v * self.width + area.u1 + 1;
+            let row = self.rays[start..end]
+                .iter()
+                .zip(self.z_m[start..end].iter_mut());
+            for (offset, (ray, z)) in row.enumerate() {
+                visit(start + offset, *ray, z);
             }
         }
     }
-    for prim in &scene.spheres {
-        let a = prim.area;
-        let [cx, cy, cz] = prim.center;
-        for v in a.v0..=a.v1 {
-            let row = v * width;
-            for u in a.u0..=a.u1 {
-                let pixel = row + u;
-                let [x, y] = rays[pixel];
+}
+
+/// Draws every object of `scene` over what the camera's z-buffer (and the shader's output)
+/// already hold.
+fn rasterize<S: Shader>(camera: &mut RasterCamera, scene: &Scene, shader: &mut S) {
+    let (width, height) = (camera.width, camera.height);
+    for v0 in (0..height).step_by(BAND_ROWS) {
+        let mut band = Band {
+            v0,
+            v1: band_rows_end(v0, height),
+            width,
+            rays: &camera.rays,
+            z_m: &mut camera.z_m,
+        };
+        let overlaps = |area: &PixelBox| area.v0 <= band_rows_end(v0, height) && area.v1 >= v0;
+        for prim in scene.discs.iter().filter(|p| overlaps(&p.area)) {
+            let (n, al, ac) = (prim.normal, prim.along, prim.across);
+            band.for_each(prim.area, |pixel, [x, y], z| {
+                let facing = n[0] * x + n[1] * y + n[2];
+                let along = al[0] * x + al[1] * y + al[2];
+                let across = ac[0] * x + ac[1] * y + ac[2];
+                if along * along + across * across > facing * facing
+                    || facing <= 0.0
+                    || prim.n_dot_c >= *z * facing
+                {
+                    return;
+                }
+                *z = prim.n_dot_c / facing;
+                shader.disc(pixel, prim, across / facing);
+            });
+        }
+        for prim in scene.spheres.iter().filter(|p| overlaps(&p.area)) {
+            let [cx, cy, cz] = prim.center;
+            band.for_each(prim.area, |pixel, [x, y], z| {
                 let b = x * cx + y * cy + cz;
                 let dd = x * x + y * y + 1.0;
                 let disc = b * b - dd * prim.c_sq_minus_r_sq;
                 if disc < 0.0 {
-                    continue;
+                    return;
                 }
                 let t = (b - disc.sqrt()) / dd;
-                if t <= 0.0 || t >= z_m[pixel] {
-                    continue;
+                if t <= 0.0 || t >= *z {
+                    return;
                 }
-                z_m[pixel] = t;
+                *z = t;
                 shader.sphere(pixel, prim, [x * t, y * t, t]);
-            }
+            });
         }
-    }
-    for prim in &scene.cylinders {
-        let a = prim.area;
-        for v in a.v0..=a.v1 {
-            let row = v * width;
-            for u in a.u0..=a.u1 {
-                let pixel = row + u;
-                let [x, y] = rays[pixel];
+        for prim in scene.cylinders.iter().filter(|p| overlaps(&p.area)) {
+            band.for_each(prim.area, |pixel, [x, y], z| {
                 let d = [x, y, 1.0];
                 let d_dot_a = dot(d, prim.axis);
                 let quad = dot(d, d) - d_dot_a * d_dot_a;
                 let half_b = dot(d, prim.w_perp);
                 let disc = half_b * half_b - quad * prim.w_perp_sq_minus_r_sq;
                 if disc < 0.0 || quad <= 0.0 {
-                    continue;
+                    return;
                 }
                 let t = (-half_b - disc.sqrt()) / quad;
-                if t <= 0.0 || t >= z_m[pixel] {
-                    continue;
+                if t <= 0.0 || t >= *z {
+                    return;
                 }
                 let along = t * d_dot_a - prim.start_dot_axis;
                 if !(0.0..=prim.length).contains(&along) {
-                    continue;
+                    return;
                 }
-                z_m[pixel] = t;
+                *z = t;
                 shader.cylinder(pixel, prim, [x * t, y * t, t], along);
-            }
+            });
         }
     }
-    for (pixel, (z, ray)) in z_m.iter_mut().zip(rays.iter()).enumerate() {
-        if z.is_finite() {
-            continue;
-        }
-        let hit = backdrop.hit(*ray);
-        match hit {
-            BackdropHit::NextRow { z: depth, .. } | BackdropHit::Ground { z: depth, .. } => {
-                *z = depth;
-            }
-            BackdropHit::Sky => {}
-        }
-        shader.backdrop(pixel, hit);
-    }
+}
+
+/// Last row of the band starting at `v0`.
+fn band_rows_end(v0: usize, height: usize) -> usize {
+    (v0 + BAND_ROWS).min(height) - 1
 }
 
 /// Renders the ToF camera's RGB, depth and label frames of a [`World`] into caller buffers.
@@ -757,29 +923,24 @@ impl RgbdRenderer {
     /// Renders the RGB8 frame (row-major, 3 bytes per pixel) into `rgb_out`.
     pub fn render_color(&mut self, world: &World, rgb_out: &mut [u8]) -> Result<(), RenderError> {
         Self::check_len("rgb", &self.color, 3, rgb_out.len())?;
-        let scenario = world.scenario();
-        let lighting = &scenario.lighting;
-        let pose = self.color.camera_from_robot;
-        let sun = to_f32(pose.rotate(lighting.sun_direction_in_robot));
-        let half = crate::scenario::normalized([f64::from(sun[0]), f64::from(sun[1]), f64::from(sun[2]) - 1.0])
-            .map_or([0.0, 0.0, -1.0], to_f32);
-        let background = &scenario.background;
-        let linear = |rgb: [u8; 3]| rgb.map(|c| f32::from(c) / 255.0);
-        let mut shader = Colors {
-            out: rgb_out,
-            sun,
-            half,
-            sun_intensity: lighting.sun_intensity as f32,
-            ambient: lighting.ambient as f32,
-            specular: lighting.specular as f32,
-            next_row: linear(background.next_row_rgb),
-            ground: linear(background.ground_rgb),
-            sky: linear(background.sky_rgb),
-        };
+        let key = BackdropKey::of(world);
+        let camera = &mut self.color;
+        if camera.backdrop.key.as_ref() != Some(&key) {
+            let backdrop = Backdrop::new(world, camera);
+            let cache = &mut camera.backdrop;
+            cache.z_m.resize(camera.z_m.len(), f32::INFINITY);
+            cache.rgb.resize(rgb_out.len(), 0);
+            let mut shader = Colors::new(world, &camera.camera_from_robot, &mut cache.rgb);
+            backdrop_pass(&camera.rays, &mut cache.z_m, &backdrop, &mut shader);
+            cache.key = Some(key);
+            tracing::debug!("rendered the rgb backdrop");
+        }
+        camera.z_m.copy_from_slice(&camera.backdrop.z_m);
+        rgb_out.copy_from_slice(&camera.backdrop.rgb);
         self.scene
             .prepare(world, &self.color, self.camera.overexposed_patch_scale);
-        let backdrop = Backdrop::new(world, &self.color);
-        rasterize(&mut self.color, &self.scene, &backdrop, &mut shader);
+        let mut shader = Colors::new(world, &self.color.camera_from_robot, rgb_out);
+        rasterize(&mut self.color, &self.scene, &mut shader);
         // Sunlight saturates the over-exposed discs towards white.
         let rgb_out = shader.out;
         let width = self.color.width;
@@ -817,10 +978,20 @@ impl RgbdRenderer {
         depth_out_mm: &mut [u16],
     ) -> Result<(), RenderError> {
         Self::check_len("depth", &self.depth, 1, depth_out_mm.len())?;
+        let key = BackdropKey::of(world);
+        let camera = &mut self.depth;
+        if camera.backdrop.key.as_ref() != Some(&key) {
+            let backdrop = Backdrop::new(world, camera);
+            let cache = &mut camera.backdrop;
+            cache.z_m.resize(camera.z_m.len(), f32::INFINITY);
+            backdrop_pass(&camera.rays, &mut cache.z_m, &backdrop, &mut DepthOnly);
+            cache.key = Some(key);
+            tracing::debug!("rendered the depth backdrop");
+        }
+        camera.z_m.copy_from_slice(&camera.backdrop.z_m);
         self.scene
             .prepare(world, &self.depth, self.camera.overexposed_patch_scale);
-        let backdrop = Backdrop::new(world, &self.depth);
-        rasterize(&mut self.depth, &self.scene, &backdrop, &mut DepthOnly);
+        rasterize(&mut self.depth, &self.scene, &mut DepthOnly);
         let mut rng = SmallRng::seed_from_u64(
             world.seed() ^ DEPTH_NOISE_STREAM ^ frame_seq.wrapping_mul(0xa24b_aed4_963e_e407),
         );
@@ -871,12 +1042,23 @@ impl RgbdRenderer {
 
     /// Renders per-pixel labels at RGB resolution (see [`label`]): ground truth for evaluating
     /// segmentation.
-    pub fn render_labels(&mut self, world: &World, labels_out: &mut [u32]) -> Result<(), RenderError> {
+    pub fn render_labels(
+        &mut self,
+        world: &World,
+        labels_out: &mut [u32],
+    ) -> Result<(), RenderError> {
         Self::check_len("labels", &self.color, 1, labels_out.len())?;
+        let mut shader = Labels { out: labels_out };
+        let backdrop = Backdrop::new(world, &self.color);
+        backdrop_pass(
+            &self.color.rays,
+            &mut self.color.z_m,
+            &backdrop,
+            &mut shader,
+        );
         self.scene
             .prepare(world, &self.color, self.camera.overexposed_patch_scale);
-        let backdrop = Backdrop::new(world, &self.color);
-        rasterize(&mut self.color, &self.scene, &backdrop, &mut Labels { out: labels_out });
+        rasterize(&mut self.color, &self.scene, &mut shader);
         Ok(())
     }
 }
@@ -914,7 +1096,9 @@ mod tests {
         renderer
             .render_depth(world, frame_seq, &mut frames.depth_mm)
             .expect("depth");
-        renderer.render_labels(world, &mut frames.labels).expect("labels");
+        renderer
+            .render_labels(world, &mut frames.labels)
+            .expect("labels");
         (renderer, frames)
     }
 
@@ -941,7 +1125,11 @@ mod tests {
             let pixel = pixel_index(color, u, v);
             assert_eq!(apple_from_label(frames.labels[pixel]), Some(apple.id));
             let [r, g, b] = [0, 1, 2].map(|k| frames.rgb[3 * pixel + k]);
-            assert!(r > g && r > b, "apple {:?} pixel is not red: {r} {g} {b}", apple.id);
+            assert!(
+                r > g && r > b,
+                "apple {:?} pixel is not red: {r} {g} {b}",
+                apple.id
+            );
             // Depth at the projected centre is the near surface: z_centre - r (to first order).
             let in_depth = depth_from_robot.apply(apple.center_in_robot_m);
             let (u, v) = depth.project(in_depth).expect("in front");
@@ -972,7 +1160,9 @@ mod tests {
         let expected_sigma_mm = scenario.camera.depth_sigma_mm(truth_mm);
         let (mut sum, mut sum_sq, mut count) = (0.0f64, 0.0f64, 0usize);
         for frame_seq in 0..4 {
-            renderer.render_depth(&world, frame_seq, &mut frame).expect("depth");
+            renderer
+                .render_depth(&world, frame_seq, &mut frame)
+                .expect("depth");
             // A 200x100 patch around the centre, all on the next row.
             for v in 190..290 {
                 for u in 220..420 {
@@ -1016,9 +1206,13 @@ mod tests {
         let world = World::generate(&scenario, 2).expect("world");
         let (_, occluded) = render(&world, 0);
         let (_, clear) = render(&ideal_world(), 0);
-        let apple_pixels = |labels: &[u32]| labels.iter().filter(|&&l| l >= label::APPLE_BASE).count();
+        let apple_pixels =
+            |labels: &[u32]| labels.iter().filter(|&&l| l >= label::APPLE_BASE).count();
         let (hidden, visible) = (apple_pixels(&occluded.labels), apple_pixels(&clear.labels));
-        assert!(hidden * 2 < visible, "occluded {hidden} vs clear {visible} apple pixels");
+        assert!(
+            hidden * 2 < visible,
+            "occluded {hidden} vs clear {visible} apple pixels"
+        );
     }
 
     #[test]
@@ -1031,9 +1225,15 @@ mod tests {
         let color = renderer.color_intrinsics();
         let color_from_robot = renderer.robot_from_color().inverse();
         for apple in world.apples() {
-            let (u, v) = color.project(color_from_robot.apply(apple.center_in_robot_m)).expect("front");
+            let (u, v) = color
+                .project(color_from_robot.apply(apple.center_in_robot_m))
+                .expect("front");
             let pixel = pixel_index(color, u, v);
-            assert!(frames.rgb[3 * pixel..3 * pixel + 3].iter().all(|&c| c == 255));
+            assert!(
+                frames.rgb[3 * pixel..3 * pixel + 3]
+                    .iter()
+                    .all(|&c| c == 255)
+            );
         }
         let dropouts = |d: &[u16]| d.iter().filter(|&&z| z == 0).count();
         assert!(dropouts(&frames.depth_mm) > dropouts(&clean.depth_mm) + 100);
@@ -1041,7 +1241,8 @@ mod tests {
 
     #[test]
     fn same_seed_and_frame_give_identical_frames() {
-        let world = World::generate(&Scenario::preset("default").expect("default"), 21).expect("world");
+        let world =
+            World::generate(&Scenario::preset("default").expect("default"), 21).expect("world");
         let (_, a) = render(&world, 5);
         let (_, b) = render(&world, 5);
         let (_, c) = render(&world, 6);
@@ -1054,8 +1255,17 @@ mod tests {
     fn wrong_buffer_sizes_are_refused() {
         let world = ideal_world();
         let mut renderer = RgbdRenderer::new(&world.scenario().camera).expect("renderer");
-        let error = renderer.render_color(&world, &mut [0u8; 10]).expect_err("size");
-        assert!(matches!(error, RenderError::BufferSize { buffer: "rgb", actual: 10, .. }));
+        let error = renderer
+            .render_color(&world, &mut [0u8; 10])
+            .expect_err("size");
+        assert!(matches!(
+            error,
+            RenderError::BufferSize {
+                buffer: "rgb",
+                actual: 10,
+                ..
+            }
+        ));
         assert!(renderer.render_depth(&world, 0, &mut [0u16; 10]).is_err());
     }
 }

@@ -73,16 +73,22 @@ pub enum ScenarioError {
         message: String,
     },
     /// A value parsed but lies outside its physical or logical range.
-    #[error("{location}: key `{key}` = {value}: {reason}")]
-    Invalid {
-        location: SourceLocation,
-        key: String,
-        value: String,
-        reason: String,
-    },
+    #[error(transparent)]
+    Invalid(Box<InvalidValue>),
     /// No preset has that name.
     #[error("unknown scenario preset `{name}` (known presets: {known})")]
     UnknownPreset { name: String, known: String },
+}
+
+/// A scenario value outside its allowed range.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{location}: key `{key}` = {value}: {reason}")]
+pub struct InvalidValue {
+    pub location: SourceLocation,
+    /// Dotted key path, e.g. `failures.seal_failure`.
+    pub key: String,
+    pub value: String,
+    pub reason: String,
 }
 
 /// One complete scenario.
@@ -333,10 +339,8 @@ impl CameraConfig {
         let forward = normalized(forward).ok_or(CameraPoseError::DegenerateLookAt {
             look_at: self.look_at_in_robot_m,
         })?;
-        let right =
-            normalized(cross(forward, [0.0, 0.0, 1.0])).ok_or(CameraPoseError::VerticalAxis {
-                axis: forward,
-            })?;
+        let right = normalized(cross(forward, [0.0, 0.0, 1.0]))
+            .ok_or(CameraPoseError::VerticalAxis { axis: forward })?;
         let down = cross(forward, right);
         // Columns are the camera axes expressed in the robot frame.
         let rotation = [
@@ -467,7 +471,7 @@ impl Scenario {
         if let Err(problem) = scenario.validate() {
             let (line, column) = locate_key(text, &problem.key)
                 .map_or((None, None), |(line, column)| (Some(line), Some(column)));
-            return Err(ScenarioError::Invalid {
+            return Err(ScenarioError::Invalid(Box::new(InvalidValue {
                 location: SourceLocation {
                     origin: origin.to_owned(),
                     line,
@@ -476,7 +480,7 @@ impl Scenario {
                 key: problem.key.join("."),
                 value: problem.value,
                 reason: problem.reason,
-            });
+            })));
         }
         if let Some(sun) = normalized(scenario.lighting.sun_direction_in_robot) {
             scenario.lighting.sun_direction_in_robot = sun;
@@ -513,7 +517,11 @@ impl Scenario {
         check.non_negative(&["apples", "min_spacing_m"], a.min_spacing_m);
         check.distribution(&["apples", "radius_m"], a.radius_m);
         if a.radius_m.min <= 0.0 {
-            check.fail(&["apples", "radius_m", "min"], a.radius_m.min, "must be > 0");
+            check.fail(
+                &["apples", "radius_m", "min"],
+                a.radius_m.min,
+                "must be > 0",
+            );
         }
         if 2.0 * a.radius_m.max >= c.depth_m {
             check.fail(
@@ -577,7 +585,10 @@ impl Scenario {
             &["failures", "insufficient_detachment_force"],
             fl.insufficient_detachment_force,
         );
-        check.probability(&["failures", "holding_interference"], fl.holding_interference);
+        check.probability(
+            &["failures", "holding_interference"],
+            fl.holding_interference,
+        );
         check.probability(&["failures", "camera_overexposure"], fl.camera_overexposure);
         check.probability(&["failures", "heavy_occlusion"], fl.heavy_occlusion);
         let cam = &self.camera;
@@ -589,7 +600,10 @@ impl Scenario {
             );
         }
         check.non_negative(&["camera", "depth_noise_mm"], cam.depth_noise_mm);
-        check.non_negative(&["camera", "depth_noise_fraction"], cam.depth_noise_fraction);
+        check.non_negative(
+            &["camera", "depth_noise_fraction"],
+            cam.depth_noise_fraction,
+        );
         check.positive_range(&["camera", "range_m"], cam.range_m);
         if cam.overexposed_depth_noise_gain < 1.0 {
             check.fail(
@@ -602,7 +616,10 @@ impl Scenario {
             &["camera", "overexposed_dropout_probability"],
             cam.overexposed_dropout_probability,
         );
-        check.positive(&["camera", "overexposed_patch_scale"], cam.overexposed_patch_scale);
+        check.positive(
+            &["camera", "overexposed_patch_scale"],
+            cam.overexposed_patch_scale,
+        );
         let v = &self.vacuum;
         for (key, value) in [
             ("source_max_vacuum_mmh2o", v.source_max_vacuum_mmh2o),
@@ -613,21 +630,30 @@ impl Scenario {
             ("inlet_conductance", v.inlet_conductance),
             ("vent_conductance", v.vent_conductance),
             ("open_cup_conductance", v.open_cup_conductance),
-            ("suction_force_at_max_vacuum_n", v.suction_force_at_max_vacuum_n),
+            (
+                "suction_force_at_max_vacuum_n",
+                v.suction_force_at_max_vacuum_n,
+            ),
             ("seal_distance_m", v.seal_distance_m),
         ] {
             check.positive(&["vacuum", key], value);
         }
         for (key, value) in [
             ("sealed_cup_conductance", v.sealed_cup_conductance),
-            ("leaf_blocked_cup_conductance", v.leaf_blocked_cup_conductance),
+            (
+                "leaf_blocked_cup_conductance",
+                v.leaf_blocked_cup_conductance,
+            ),
             ("source_leak_conductance", v.source_leak_conductance),
             ("attach_min_force_n", v.attach_min_force_n),
             ("hold_min_force_n", v.hold_min_force_n),
         ] {
             check.non_negative(&["vacuum", key], value);
         }
-        check.positive_range(&["vacuum", "interference_travel_m"], v.interference_travel_m);
+        check.positive_range(
+            &["vacuum", "interference_travel_m"],
+            v.interference_travel_m,
+        );
         check.finish()
     }
 }
@@ -681,19 +707,31 @@ impl Checker {
 
     fn range(&mut self, key: &[&'static str], range: [f64; 2]) {
         if !(range[0] < range[1] && range[0].is_finite() && range[1].is_finite()) {
-            self.fail_text(key, format!("{range:?}"), "must be [min, max] with min < max");
+            self.fail_text(
+                key,
+                format!("{range:?}"),
+                "must be [min, max] with min < max",
+            );
         }
     }
 
     fn positive_range(&mut self, key: &[&'static str], range: [f64; 2]) {
         if !(range[0] > 0.0 && range[0] <= range[1] && range[1].is_finite()) {
-            self.fail_text(key, format!("{range:?}"), "must be [min, max] with 0 < min <= max");
+            self.fail_text(
+                key,
+                format!("{range:?}"),
+                "must be [min, max] with 0 < min <= max",
+            );
         }
     }
 
     fn probability_range(&mut self, key: &[&'static str], range: [f64; 2]) {
         if !(0.0 <= range[0] && range[0] <= range[1] && range[1] <= 1.0) {
-            self.fail_text(key, format!("{range:?}"), "must be [min, max] within [0, 1]");
+            self.fail_text(
+                key,
+                format!("{range:?}"),
+                "must be [min, max] within [0, 1]",
+            );
         }
     }
 
@@ -701,7 +739,10 @@ impl Checker {
         if !(d.std >= 0.0 && d.min <= d.mean && d.mean <= d.max && d.max.is_finite()) {
             self.fail_text(
                 key,
-                format!("{{ mean = {}, std = {}, min = {}, max = {} }}", d.mean, d.std, d.min, d.max),
+                format!(
+                    "{{ mean = {}, std = {}, min = {}, max = {} }}",
+                    d.mean, d.std, d.min, d.max
+                ),
                 "must have std >= 0 and min <= mean <= max",
             );
         }
@@ -715,12 +756,10 @@ impl Checker {
 /// Turns a toml deserialisation error into one naming origin, line, column and key.
 fn parse_error(origin: &str, text: &str, error: &toml::de::Error) -> ScenarioError {
     let message = error.message().trim().to_owned();
-    let (line, column) = error
-        .span()
-        .map_or((None, None), |span| {
-            let (line, column) = line_column(text, span.start);
-            (Some(line), Some(column))
-        });
+    let (line, column) = error.span().map_or((None, None), |span| {
+        let (line, column) = line_column(text, span.start);
+        (Some(line), Some(column))
+    });
     let key = quoted_field(&message)
         .or_else(|| error.span().and_then(|span| key_before(text, span.start)))
         .unwrap_or_else(|| "<document>".to_owned());
@@ -890,18 +929,17 @@ mod tests {
 
     #[test]
     fn out_of_range_value_names_key_value_and_line() {
-        let (text, line) = replace_line(DEFAULT_TEXT, "holding_interference", "holding_interference = 1.5");
+        let (text, line) = replace_line(
+            DEFAULT_TEXT,
+            "holding_interference",
+            "holding_interference = 1.5",
+        );
         let error = Scenario::from_toml_str("bad.toml", &text).expect_err("invalid");
         match error {
-            ScenarioError::Invalid {
-                location,
-                key,
-                value,
-                ..
-            } => {
-                assert_eq!(key, "failures.holding_interference");
-                assert_eq!(value, "1.5");
-                assert_eq!(location.line, Some(line));
+            ScenarioError::Invalid(invalid) => {
+                assert_eq!(invalid.key, "failures.holding_interference");
+                assert_eq!(invalid.value, "1.5");
+                assert_eq!(invalid.location.line, Some(line));
             }
             other => panic!("unexpected {other:?}"),
         }
@@ -929,8 +967,8 @@ mod tests {
         // The optical axis (camera +z) passes through the look-at point.
         let distance = norm(sub(camera.look_at_in_robot_m, camera.position_in_robot_m));
         let on_axis = robot_from_camera.apply([0.0, 0.0, distance]);
-        for axis in 0..3 {
-            assert!((on_axis[axis] - camera.look_at_in_robot_m[axis]).abs() < 1e-12);
+        for (got, want) in on_axis.iter().zip(camera.look_at_in_robot_m) {
+            assert!((got - want).abs() < 1e-12);
         }
         // Image right is robot -y (the robot looks along +x), image down has negative z.
         let right = robot_from_camera.rotate([1.0, 0.0, 0.0]);

@@ -26,8 +26,16 @@ pub const DEFAULT_LAUNCH: &str = include_str!("../launch/default.toml");
 pub const DEFAULT_LAUNCH_NAME: &str = "<embedded launch/default.toml>";
 
 /// `harvest` subcommands a launch file may start.
-pub const KNOWN_COMMANDS: &[&str] =
-    &["sim", "camera", "perception", "arm", "vacuum", "laser", "recorder", "fixture"];
+pub const KNOWN_COMMANDS: &[&str] = &[
+    "sim",
+    "camera",
+    "perception",
+    "arm",
+    "vacuum",
+    "laser",
+    "recorder",
+    "fixture",
+];
 
 /// When a process that exited is started again.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -59,7 +67,11 @@ pub struct StackSettings {
 
 impl Default for StackSettings {
     fn default() -> Self {
-        Self { hang_timeout_ms: 3000, shutdown_grace_ms: 3000, startup_grace_ms: 5000 }
+        Self {
+            hang_timeout_ms: 3000,
+            shutdown_grace_ms: 3000,
+            startup_grace_ms: 5000,
+        }
     }
 }
 
@@ -125,18 +137,47 @@ pub struct Launch {
 #[derive(Debug, thiserror::Error)]
 pub enum LaunchError {
     #[error("cannot read launch file {path}: {source}")]
-    Read { path: PathBuf, source: std::io::Error },
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     /// Syntax errors, unknown keys, bad values (toml reports line, column and key).
     #[error("launch file {file}: {message}")]
     Parse { file: String, message: String },
-    #[error("launch file {file}, line {line}: process {name:?}: unknown command {command:?} (known: {known})")]
-    UnknownCommand { file: String, line: usize, name: String, command: String, known: String },
-    #[error("launch file {file}, line {line}: duplicate process name {name:?} (first at line {first_line})")]
-    DuplicateName { file: String, line: usize, first_line: usize, name: String },
-    #[error("launch file {file}, line {line}: process name {name:?} must be 1-30 characters of [a-z0-9_-]")]
-    BadName { file: String, line: usize, name: String },
+    #[error(
+        "launch file {file}, line {line}: process {name:?}: unknown command {command:?} (known: {known})"
+    )]
+    UnknownCommand {
+        file: String,
+        line: usize,
+        name: String,
+        command: String,
+        known: String,
+    },
+    #[error(
+        "launch file {file}, line {line}: duplicate process name {name:?} (first at line {first_line})"
+    )]
+    DuplicateName {
+        file: String,
+        line: usize,
+        first_line: usize,
+        name: String,
+    },
+    #[error(
+        "launch file {file}, line {line}: process name {name:?} must be 1-30 characters of [a-z0-9_-]"
+    )]
+    BadName {
+        file: String,
+        line: usize,
+        name: String,
+    },
     #[error("launch file {file}, line {line}: process {name:?}: {message}")]
-    BadValue { file: String, line: usize, name: String, message: String },
+    BadValue {
+        file: String,
+        line: usize,
+        name: String,
+        message: String,
+    },
     #[error("launch file {file}: no [[process]] entries")]
     Empty { file: String },
 }
@@ -144,8 +185,10 @@ pub enum LaunchError {
 impl Launch {
     /// Reads and validates a launch file.
     pub fn from_path(path: &Path) -> Result<Self, LaunchError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| LaunchError::Read { path: path.to_owned(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| LaunchError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
         Self::parse(&text, &path.display().to_string())
     }
 
@@ -156,8 +199,10 @@ impl Launch {
 
     /// Parses and validates launch-file text; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<Self, LaunchError> {
-        let raw: RawLaunch = toml::from_str(text)
-            .map_err(|error| LaunchError::Parse { file: file.to_owned(), message: error.to_string() })?;
+        let raw: RawLaunch = toml::from_str(text).map_err(|error| LaunchError::Parse {
+            file: file.to_owned(),
+            message: error.to_string(),
+        })?;
         let line_of = |offset: usize| text[..offset.min(text.len())].matches('\n').count() + 1;
         let mut processes: Vec<ProcessSpec> = Vec::new();
         let mut first_lines: Vec<usize> = Vec::new();
@@ -167,9 +212,15 @@ impl Launch {
             let name = process.name.into_inner();
             let valid_name = !name.is_empty()
                 && name.len() <= 30
-                && name.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-');
+                && name.bytes().all(|b| {
+                    b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-'
+                });
             if !valid_name {
-                return Err(LaunchError::BadName { file: file.to_owned(), line: name_line, name });
+                return Err(LaunchError::BadName {
+                    file: file.to_owned(),
+                    line: name_line,
+                    name,
+                });
             }
             if let Some(index) = processes.iter().position(|p| p.name == name) {
                 return Err(LaunchError::DuplicateName {
@@ -190,7 +241,8 @@ impl Launch {
                     known: KNOWN_COMMANDS.join(", "),
                 });
             }
-            if process.backoff_initial_ms > process.backoff_max_ms || process.restart_window_s == 0 {
+            if process.backoff_initial_ms > process.backoff_max_ms || process.restart_window_s == 0
+            {
                 return Err(LaunchError::BadValue {
                     file: file.to_owned(),
                     line: name_line,
@@ -212,9 +264,16 @@ impl Launch {
             });
         }
         if processes.is_empty() {
-            return Err(LaunchError::Empty { file: file.to_owned() });
+            return Err(LaunchError::Empty {
+                file: file.to_owned(),
+            });
         }
-        Ok(Self { source: file.to_owned(), text: text.to_owned(), stack: raw.stack, processes })
+        Ok(Self {
+            source: file.to_owned(),
+            text: text.to_owned(),
+            stack: raw.stack,
+            processes,
+        })
     }
 }
 
@@ -241,7 +300,9 @@ mod tests {
     #[test]
     fn unknown_key_names_file_line_and_key() {
         let text = GOOD.replace("restart = \"always\"", "restrat = \"always\"");
-        let message = Launch::parse(&text, "bad.toml").expect_err("unknown key").to_string();
+        let message = Launch::parse(&text, "bad.toml")
+            .expect_err("unknown key")
+            .to_string();
         assert!(message.contains("bad.toml"), "{message}");
         assert!(message.contains("restrat"), "{message}");
         assert!(message.contains("line 11"), "{message}");
@@ -250,15 +311,23 @@ mod tests {
     #[test]
     fn bad_restart_policy_is_named() {
         let text = GOOD.replace("restart = \"always\"", "restart = \"sometimes\"");
-        let message = Launch::parse(&text, "bad.toml").expect_err("bad policy").to_string();
-        assert!(message.contains("sometimes") && message.contains("line 11"), "{message}");
+        let message = Launch::parse(&text, "bad.toml")
+            .expect_err("bad policy")
+            .to_string();
+        assert!(
+            message.contains("sometimes") && message.contains("line 11"),
+            "{message}"
+        );
     }
 
     #[test]
     fn unknown_command_names_line() {
         let text = GOOD.replace("command = \"perception\"", "command = \"percepshun\"");
         let error = Launch::parse(&text, "bad.toml").expect_err("unknown command");
-        assert!(matches!(error, LaunchError::UnknownCommand { line: 10, .. }), "{error}");
+        assert!(
+            matches!(error, LaunchError::UnknownCommand { line: 10, .. }),
+            "{error}"
+        );
     }
 
     #[test]
@@ -266,7 +335,14 @@ mod tests {
         let text = GOOD.replace("name = \"perc\"", "name = \"cam\"");
         let error = Launch::parse(&text, "bad.toml").expect_err("duplicate");
         assert!(
-            matches!(error, LaunchError::DuplicateName { line: 9, first_line: 5, .. }),
+            matches!(
+                error,
+                LaunchError::DuplicateName {
+                    line: 9,
+                    first_line: 5,
+                    ..
+                }
+            ),
             "{error}"
         );
     }

@@ -60,7 +60,11 @@ impl RestartTracker {
             RestartPolicy::Always => true,
         };
         if !wants_restart {
-            return if failed { RestartDecision::FailedForGood } else { RestartDecision::Finished };
+            return if failed {
+                RestartDecision::FailedForGood
+            } else {
+                RestartDecision::Finished
+            };
         }
         while let Some(&oldest) = self.restarts_in_window.front() {
             if now.duration_since(oldest) > self.window {
@@ -73,7 +77,10 @@ impl RestartTracker {
             return RestartDecision::FailedForGood;
         }
         let factor = 1u32 << self.consecutive.min(16);
-        let backoff = self.backoff_initial.saturating_mul(factor).min(self.backoff_max);
+        let backoff = self
+            .backoff_initial
+            .saturating_mul(factor)
+            .min(self.backoff_max);
         self.consecutive += 1;
         self.total += 1;
         self.restarts_in_window.push_back(now);
@@ -102,9 +109,18 @@ mod tests {
     fn on_failure_backs_off_then_gives_up() {
         let mut tracker = RestartTracker::new(&spec(RestartPolicy::OnFailure, 3));
         let t0 = Instant::now();
-        assert_eq!(tracker.on_exit(t0, true), RestartDecision::RestartAt(t0 + Duration::from_millis(100)));
-        assert_eq!(tracker.on_exit(t0, true), RestartDecision::RestartAt(t0 + Duration::from_millis(200)));
-        assert_eq!(tracker.on_exit(t0, true), RestartDecision::RestartAt(t0 + Duration::from_millis(350)));
+        assert_eq!(
+            tracker.on_exit(t0, true),
+            RestartDecision::RestartAt(t0 + Duration::from_millis(100))
+        );
+        assert_eq!(
+            tracker.on_exit(t0, true),
+            RestartDecision::RestartAt(t0 + Duration::from_millis(200))
+        );
+        assert_eq!(
+            tracker.on_exit(t0, true),
+            RestartDecision::RestartAt(t0 + Duration::from_millis(350))
+        );
         assert_eq!(tracker.on_exit(t0, true), RestartDecision::FailedForGood);
         assert_eq!(tracker.restarts(), 3);
     }
@@ -113,18 +129,36 @@ mod tests {
     fn window_forgets_old_restarts() {
         let mut tracker = RestartTracker::new(&spec(RestartPolicy::OnFailure, 1));
         let t0 = Instant::now();
-        assert!(matches!(tracker.on_exit(t0, true), RestartDecision::RestartAt(_)));
-        assert_eq!(tracker.on_exit(t0 + Duration::from_secs(5), true), RestartDecision::FailedForGood);
-        assert!(matches!(tracker.on_exit(t0 + Duration::from_secs(11), true), RestartDecision::RestartAt(_)));
+        assert!(matches!(
+            tracker.on_exit(t0, true),
+            RestartDecision::RestartAt(_)
+        ));
+        assert_eq!(
+            tracker.on_exit(t0 + Duration::from_secs(5), true),
+            RestartDecision::FailedForGood
+        );
+        assert!(matches!(
+            tracker.on_exit(t0 + Duration::from_secs(11), true),
+            RestartDecision::RestartAt(_)
+        ));
     }
 
     #[test]
     fn clean_exit_and_never() {
         let mut on_failure = RestartTracker::new(&spec(RestartPolicy::OnFailure, 3));
-        assert_eq!(on_failure.on_exit(Instant::now(), false), RestartDecision::Finished);
+        assert_eq!(
+            on_failure.on_exit(Instant::now(), false),
+            RestartDecision::Finished
+        );
         let mut never = RestartTracker::new(&spec(RestartPolicy::Never, 3));
-        assert_eq!(never.on_exit(Instant::now(), true), RestartDecision::FailedForGood);
+        assert_eq!(
+            never.on_exit(Instant::now(), true),
+            RestartDecision::FailedForGood
+        );
         let mut always = RestartTracker::new(&spec(RestartPolicy::Always, 3));
-        assert!(matches!(always.on_exit(Instant::now(), false), RestartDecision::RestartAt(_)));
+        assert!(matches!(
+            always.on_exit(Instant::now(), false),
+            RestartDecision::RestartAt(_)
+        ));
     }
 }

@@ -104,12 +104,8 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     let context = Context::new(domain, "supervisor")?;
     let health = context.subscriber_with_buffer(PROCESS_HEALTH, 256)?;
     let waiter = Waiter::new()?;
-    let health_guard = waiter.waitset().attach_notification(health.listener()).map_err(|error| {
-        harvest_ipc::error::WaitError { reason: format!("attach health listener: {error:?}") }
-    })?;
-    let tick_guard = waiter.waitset().attach_interval(HOUSEKEEPING_PERIOD).map_err(|error| {
-        harvest_ipc::error::WaitError { reason: format!("attach interval: {error:?}") }
-    })?;
+    let health_guard = waiter.attach_listener(health.listener())?;
+    let tick_guard = waiter.attach_interval(HOUSEKEEPING_PERIOD)?;
 
     let stack = options.launch.stack;
     let started = Instant::now();
@@ -144,7 +140,11 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     );
 
     let tty = std::io::stderr().is_terminal();
-    let status_period = if tty { STATUS_PERIOD_TTY } else { STATUS_PERIOD_LOG };
+    let status_period = if tty {
+        STATUS_PERIOD_TTY
+    } else {
+        STATUS_PERIOD_LOG
+    };
     let mut last_status = started;
     let mut status_lines = 0usize;
     let mut failure: Option<String> = None;
@@ -240,12 +240,14 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
             None
         }
         Ok(RunEnd::Stopped) => None,
-        Err(harvest_ipc::RunError::Callback(error)) => Some(error),
-        Err(harvest_ipc::RunError::Wait(error)) => Some(SupervisorError::Wait(error)),
+        Err(error) => Some(error.flatten()),
     };
     drop(health_guard);
     drop(tick_guard);
-    shutdown(&mut processes, Duration::from_millis(stack.shutdown_grace_ms));
+    shutdown(
+        &mut processes,
+        Duration::from_millis(stack.shutdown_grace_ms),
+    );
     drop(health);
     drop(context);
     clean_dead_nodes(domain)?;
@@ -298,7 +300,12 @@ fn on_exit(process: &mut Managed, reason: String, failed: bool, now: Instant, do
     process.status.restarts = process.tracker.restarts();
 }
 
-fn is_hung(process: &Managed, now: Instant, hang_timeout: Duration, startup_grace: Duration) -> bool {
+fn is_hung(
+    process: &Managed,
+    now: Instant,
+    hang_timeout: Duration,
+    startup_grace: Duration,
+) -> bool {
     match process.last_heartbeat {
         Some(beat) => now.duration_since(beat) > hang_timeout,
         None => now.duration_since(process.started_at) > startup_grace.max(hang_timeout),
@@ -310,7 +317,9 @@ fn describe_exit(status: ExitStatus) -> String {
     match (status.code(), status.signal()) {
         (Some(code), _) => format!("exit code {code}"),
         (None, Some(signal)) => {
-            let name = Signal::try_from(signal).map(|s| s.as_str()).unwrap_or("unknown signal");
+            let name = Signal::try_from(signal)
+                .map(|s| s.as_str())
+                .unwrap_or("unknown signal");
             format!("killed by {name}")
         }
         _ => "unknown exit".to_owned(),
@@ -320,7 +329,9 @@ fn describe_exit(status: ExitStatus) -> String {
 /// SIGTERM to each process in reverse start order, waiting up to `grace` for each, then SIGKILL.
 fn shutdown(processes: &mut [Managed], grace: Duration) {
     for process in processes.iter_mut().rev() {
-        let Some(mut child) = process.child.take() else { continue };
+        let Some(mut child) = process.child.take() else {
+            continue;
+        };
         tracing::info!(process = %process.spec.name, pid = child.id(), "stopping");
         child::signal_group(&child, Signal::SIGTERM);
         let deadline = Instant::now() + grace;
@@ -339,7 +350,10 @@ fn shutdown(processes: &mut [Managed], grace: Duration) {
             None => {
                 tracing::warn!(process = %process.spec.name, grace_ms = grace.as_millis() as u64, "did not stop in time: SIGKILL");
                 child::signal_group(&child, Signal::SIGKILL);
-                child.wait().map(describe_exit).unwrap_or_else(|error| format!("wait failed: {error}"))
+                child
+                    .wait()
+                    .map(describe_exit)
+                    .unwrap_or_else(|error| format!("wait failed: {error}"))
             }
         };
         process.status.last_exit = Some(exit);

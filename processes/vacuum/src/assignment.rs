@@ -254,13 +254,25 @@ mod tests {
     fn paper_frame_reverses_side_and_depth_axis() {
         // Arm 1 towards -y, depth along z.
         let pts = [
-            Apple { id: AppleId(0), position_m: [0.0, -0.2, 0.9] },
-            Apple { id: AppleId(1), position_m: [0.0, -0.1, 0.5] },
-            Apple { id: AppleId(2), position_m: [0.0, 0.1, 0.7] },
-            Apple { id: AppleId(3), position_m: [0.0, 0.2, 0.6] },
+            Apple {
+                id: AppleId(0),
+                position_m: [0.0, -0.2, 0.9],
+            },
+            Apple {
+                id: AppleId(1),
+                position_m: [0.0, -0.1, 0.5],
+            },
+            Apple {
+                id: AppleId(2),
+                position_m: [0.0, 0.1, 0.7],
+            },
+            Apple {
+                id: AppleId(3),
+                position_m: [0.0, 0.2, 0.6],
+            },
         ];
-        let a = assign_apples(&pts, &AssignmentFrame::PAPER_ALGORITHM_1, |_, _| true)
-            .expect("finite");
+        let a =
+            assign_apples(&pts, &AssignmentFrame::PAPER_ALGORITHM_1, |_, _| true).expect("finite");
         assert_eq!(ids(&a.arm1), vec![1, 0]);
         assert_eq!(ids(&a.arm2), vec![3, 2]);
     }
@@ -299,7 +311,10 @@ mod tests {
             assert_eq!(all, (0..n).collect::<Vec<_>>());
             for (arm, q) in [(ArmId::Arm1, &a.arm1), (ArmId::Arm2, &a.arm2)] {
                 assert!(q.iter().all(|p| overlap_reach(arm, &p.position_m)));
-                assert!(q.windows(2).all(|w| w[0].position_m[0] <= w[1].position_m[0]));
+                assert!(
+                    q.windows(2)
+                        .all(|w| w[0].position_m[0] <= w[1].position_m[0])
+                );
             }
             assert!(a.unreachable.iter().all(|p| {
                 !overlap_reach(ArmId::Arm1, &p.position_m)
@@ -307,7 +322,8 @@ mod tests {
             }));
             let reach = a.arm1.len() + a.arm2.len();
             let shared = |p: &&Apple| {
-                overlap_reach(ArmId::Arm1, &p.position_m) && overlap_reach(ArmId::Arm2, &p.position_m)
+                overlap_reach(ArmId::Arm1, &p.position_m)
+                    && overlap_reach(ArmId::Arm2, &p.position_m)
             };
             let shared1: Vec<&Apple> = a.arm1.iter().filter(shared).collect();
             let shared2: Vec<&Apple> = a.arm2.iter().filter(shared).collect();
@@ -318,8 +334,14 @@ mod tests {
             if !shared2.is_empty() {
                 assert!(2 * a.arm1.len() >= reach);
             }
-            let min1 = shared1.iter().map(|p| p.position_m[1]).fold(f64::INFINITY, f64::min);
-            let max2 = shared2.iter().map(|p| p.position_m[1]).fold(f64::NEG_INFINITY, f64::max);
+            let min1 = shared1
+                .iter()
+                .map(|p| p.position_m[1])
+                .fold(f64::INFINITY, f64::min);
+            let max2 = shared2
+                .iter()
+                .map(|p| p.position_m[1])
+                .fold(f64::NEG_INFINITY, f64::max);
             assert!(shared1.is_empty() || shared2.is_empty() || min1 >= max2);
         }
     }

@@ -15,14 +15,14 @@
 mod report;
 mod scenario;
 
-pub use report::{
-    Fig12Row, SingleDualComparison, fig12, single_vs_dual, steady_state_interval_ns,
-};
+pub use report::{Fig12Row, SingleDualComparison, fig12, single_vs_dual, steady_state_interval_ns};
 pub use scenario::{DetectionTimes, FailureRates, PhaseTimes, Scenario, ScenarioError, seconds};
 
 use crate::arm_id::ArmId;
 use crate::arm_phase::ArmPhase;
-use crate::policy::{ArmStatus, Decision, PairStatus, PolicyKind, Request, VacuumPolicy, ValveOrder};
+use crate::policy::{
+    ArmStatus, Decision, PairStatus, PolicyKind, Request, VacuumPolicy, ValveOrder,
+};
 use crate::pressure::AttachmentState;
 use crate::trace::{FailureKind, TraceEvent};
 use rand::rngs::SmallRng;
@@ -128,7 +128,7 @@ pub fn run_episode(
     scenario: &Scenario,
 ) -> Result<EpisodeResult, CycleModelError> {
     scenario.validate()?;
-    let mut model = Model::new(policy, scenario);
+    let model = Model::new(policy, scenario);
     model.run()
 }
 
@@ -229,10 +229,9 @@ impl<'a> Model<'a> {
             self.handle(event)?;
             self.settle()?;
         }
-        let idle = self
-            .arms
-            .iter()
-            .all(|a| a.pending.is_none() && a.plans.is_empty() && a.status.phase == ArmPhase::Ready);
+        let idle = self.arms.iter().all(|a| {
+            a.pending.is_none() && a.plans.is_empty() && a.status.phase == ArmPhase::Ready
+        });
         if !idle {
             return Err(CycleModelError::Deadlock {
                 policy: self.policy.kind(),
@@ -369,7 +368,11 @@ impl<'a> Model<'a> {
                 if status.valve_open {
                     // At the drop-off with the valve open: the policy must order the release.
                     self.set_phase(arm, ArmPhase::Releasing);
-                    self.schedule(arm, EventKind::ReleaseDone, self.scenario.phase_times.release_ns);
+                    self.schedule(
+                        arm,
+                        EventKind::ReleaseDone,
+                        self.scenario.phase_times.release_ns,
+                    );
                 } else {
                     // Valve already closed after a failure: nothing to release (Fig. 9a).
                     self.set_phase(arm, ArmPhase::Ready);
@@ -415,7 +418,11 @@ impl<'a> Model<'a> {
             }
             let mut order: Vec<(u64, ArmId)> = ArmId::ALL
                 .iter()
-                .filter_map(|&arm| self.arms[arm.index()].pending.map(|(_, since)| (since, arm)))
+                .filter_map(|&arm| {
+                    self.arms[arm.index()]
+                        .pending
+                        .map(|(_, since)| (since, arm))
+                })
                 .collect();
             order.sort_unstable();
             for (_, arm) in order {
@@ -477,7 +484,11 @@ impl<'a> Model<'a> {
                 let stamp_ns = self.now_ns;
                 self.emit(TraceEvent::ValveOpened { stamp_ns, arm });
                 self.set_phase(arm, ArmPhase::Attaching);
-                self.schedule(arm, EventKind::AttachDone, self.scenario.phase_times.attach_ns);
+                self.schedule(
+                    arm,
+                    EventKind::AttachDone,
+                    self.scenario.phase_times.attach_ns,
+                );
                 self.schedule(arm, EventKind::AttachTimeout, detection.attach_timeout_ns);
                 if self.arms[i]
                     .current

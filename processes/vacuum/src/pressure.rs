@@ -368,7 +368,7 @@ impl AttachmentEstimator {
         arm_vacuum_mmh2o: f32,
         source_vacuum_mmh2o: f32,
     ) -> AttachmentState {
-        let c = &self.config;
+        let c = self.config;
         if !valve_open {
             return AttachmentState::Closed;
         }
@@ -546,8 +546,15 @@ mod tests {
             seal_ratio_on: 1.5,
             ..cfg()
         };
-        let msg = bad.validate().err().map(|e| e.to_string()).unwrap_or_default();
-        assert!(msg.contains("seal_ratio_on") && msg.contains("1.5"), "{msg}");
+        let msg = bad
+            .validate()
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            msg.contains("seal_ratio_on") && msg.contains("1.5"),
+            "{msg}"
+        );
         let bad = PressureConfig {
             debounce_ns: 300_000_000,
             ..cfg()
@@ -705,10 +712,16 @@ mod tests {
         let err = inf.update(&nan, [false, false]).expect_err("NaN refused");
         assert!(err.to_string().contains("arm 1"), "{err}");
         assert_eq!(inf.state(ArmId::Arm1), AttachmentState::OpenToAtmosphere);
-        let old = PressureSample { stamp_ns: 5, ..good };
+        let old = PressureSample {
+            stamp_ns: 5,
+            ..good
+        };
         assert!(matches!(
             inf.update(&old, [false, false]),
-            Err(PressureSampleError::StampWentBack { previous_ns: 10, .. })
+            Err(PressureSampleError::StampWentBack {
+                previous_ns: 10,
+                ..
+            })
         ));
         let dead = PressureSample {
             stamp_ns: 30,

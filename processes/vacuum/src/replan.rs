@@ -119,7 +119,10 @@ impl AssignmentPlanner {
     where
         F: Fn(ArmId, &[f64; 3]) -> bool,
     {
-        if let Some(bad) = detections_m.iter().find(|p| p.iter().any(|c| !c.is_finite())) {
+        if let Some(bad) = detections_m
+            .iter()
+            .find(|p| p.iter().any(|c| !c.is_finite()))
+        {
             return Err(AssignError::NonFinitePosition {
                 id: AppleId(self.next_id),
                 position_m: *bad,
@@ -318,7 +321,11 @@ mod tests {
             .replan(&[working.position_m, [0.6, 0.25, 0.0]], reach)
             .expect("finite");
         assert_eq!(s.added, 0);
-        assert!(ArmId::ALL.iter().all(|a| p.queue(*a).iter().all(|q| q.id != working.id)));
+        assert!(
+            ArmId::ALL
+                .iter()
+                .all(|a| p.queue(*a).iter().all(|q| q.id != working.id))
+        );
         // Busy arm cannot start another.
         assert_eq!(p.start_next(ArmId::Arm1), None);
     }

@@ -126,13 +126,33 @@ impl ColorSegmentationConfig {
             ("min_red_excess", self.min_red_excess, -1.0, 1.0),
             ("bright_red_excess", self.bright_red_excess, -1.0, 1.0),
             ("bright_knee", self.bright_knee, 0.0, 254.0),
-            ("max_blue_chromaticity", self.max_blue_chromaticity, 0.0, 1.0),
+            (
+                "max_blue_chromaticity",
+                self.max_blue_chromaticity,
+                0.0,
+                1.0,
+            ),
             ("dark_floor_fraction", self.dark_floor_fraction, 0.0, 1.0),
             ("dark_floor_min", self.dark_floor_min, 0.0, 255.0),
-            ("dark_floor_max", self.dark_floor_max, self.dark_floor_min, 255.0),
-            ("min_seed_radius_cells", self.min_seed_radius_cells, 0.5, 1000.0),
+            (
+                "dark_floor_max",
+                self.dark_floor_max,
+                self.dark_floor_min,
+                255.0,
+            ),
+            (
+                "min_seed_radius_cells",
+                self.min_seed_radius_cells,
+                0.5,
+                1000.0,
+            ),
             ("seed_relative_radius", self.seed_relative_radius, 0.0, 1.0),
-            ("seed_separation_factor", self.seed_separation_factor, 0.0, 2.0),
+            (
+                "seed_separation_factor",
+                self.seed_separation_factor,
+                0.0,
+                2.0,
+            ),
             ("saddle_ratio", self.saddle_ratio, 0.0, 1.0),
         ];
         for (key, value, min, max) in checks {
@@ -247,12 +267,18 @@ impl ColorSegmentation {
                     continue;
                 };
                 for (sums, block) in self.row_sums.iter_mut().zip(line.chunks_exact(3 * s)) {
+                    // Local accumulators keep the per-pixel work in registers.
+                    let (mut r, mut g, mut b, mut clipped) = (0_u32, 0_u32, 0_u32, 0_u32);
                     for px in block.chunks_exact(3) {
-                        sums[0] += u32::from(px[0]);
-                        sums[1] += u32::from(px[1]);
-                        sums[2] += u32::from(px[2]);
-                        sums[3] += u32::from(px[0].max(px[1]).max(px[2]) >= clip);
+                        r += u32::from(px[0]);
+                        g += u32::from(px[1]);
+                        b += u32::from(px[2]);
+                        clipped += u32::from(px[0].max(px[1]).max(px[2]) >= clip);
                     }
+                    sums[0] += r;
+                    sums[1] += g;
+                    sums[2] += b;
+                    sums[3] += clipped;
                 }
             }
             let base = gy * grid_w;
@@ -281,9 +307,14 @@ impl ColorSegmentation {
         if cells == 0 {
             return 0;
         }
-        let mean_brightness =
-            self.mean_rgb.iter().map(|p| p[0].max(p[1]).max(p[2])).sum::<f32>() / cells as f32;
-        let dark_floor = (c.dark_floor_fraction * mean_brightness).clamp(c.dark_floor_min, c.dark_floor_max);
+        let mean_brightness = self
+            .mean_rgb
+            .iter()
+            .map(|p| p[0].max(p[1]).max(p[2]))
+            .sum::<f32>()
+            / cells as f32;
+        let dark_floor =
+            (c.dark_floor_fraction * mean_brightness).clamp(c.dark_floor_min, c.dark_floor_max);
         let knee_span = (255.0 - c.bright_knee).max(1.0);
         let mut overexposed_cells = 0;
         for i in 0..cells {
@@ -298,7 +329,8 @@ impl ColorSegmentation {
             let red_excess = (r - g) / sum;
             let blue = b / sum;
             let brightness_t = ((brightness - c.bright_knee) / knee_span).clamp(0.0, 1.0);
-            let threshold = c.min_red_excess + (c.bright_red_excess - c.min_red_excess) * brightness_t;
+            let threshold =
+                c.min_red_excess + (c.bright_red_excess - c.min_red_excess) * brightness_t;
             if r >= b && red_excess >= threshold && blue <= c.max_blue_chromaticity {
                 self.class[i] = APPLE;
                 self.margin[i] = red_excess - threshold;
@@ -479,8 +511,20 @@ impl Detector for ColorSegmentation {
         self.downsample(rgb, grid_w, grid_h);
         let overexposed_cells = self.classify();
         self.absorb_highlights(grid_w, grid_h);
-        morphology::open(&mut self.mask, grid_w, grid_h, &mut self.scratch_a, &mut self.scratch_b);
-        morphology::close(&mut self.mask, grid_w, grid_h, &mut self.scratch_a, &mut self.scratch_b);
+        morphology::open(
+            &mut self.mask,
+            grid_w,
+            grid_h,
+            &mut self.scratch_a,
+            &mut self.scratch_b,
+        );
+        morphology::close(
+            &mut self.mask,
+            grid_w,
+            grid_h,
+            &mut self.scratch_a,
+            &mut self.scratch_b,
+        );
         chamfer_distance(&self.mask, grid_w, grid_h, &mut self.distance);
         self.components.label(&self.mask, grid_w, grid_h);
         let candidate_regions = self.components.count() as u32;

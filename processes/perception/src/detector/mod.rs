@@ -55,7 +55,10 @@ impl PixelBox {
 
     /// True when the pixel `(u_px, v_px)` lies in the box.
     pub fn contains(&self, u_px: u32, v_px: u32) -> bool {
-        u_px >= self.u_min_px && u_px < self.u_max_px && v_px >= self.v_min_px && v_px < self.v_max_px
+        u_px >= self.u_min_px
+            && u_px < self.u_max_px
+            && v_px >= self.v_min_px
+            && v_px < self.v_max_px
     }
 }
 

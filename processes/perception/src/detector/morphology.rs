@@ -4,7 +4,13 @@
 //! border and dilation does not grow from outside.
 
 /// `dst = erode(src)` (a cell stays set only when all its 3x3 neighbours are set).
-pub(crate) fn erode(src: &[u8], width: usize, height: usize, scratch: &mut Vec<u8>, dst: &mut Vec<u8>) {
+pub(crate) fn erode(
+    src: &[u8],
+    width: usize,
+    height: usize,
+    scratch: &mut Vec<u8>,
+    dst: &mut Vec<u8>,
+) {
     filter3x3(src, width, height, scratch, dst, u8::min);
 }
 
@@ -20,13 +26,25 @@ pub(crate) fn dilate(
 }
 
 /// Opening (erode, then dilate) in place: removes specks narrower than 3 cells.
-pub(crate) fn open(mask: &mut Vec<u8>, width: usize, height: usize, a: &mut Vec<u8>, b: &mut Vec<u8>) {
+pub(crate) fn open(
+    mask: &mut Vec<u8>,
+    width: usize,
+    height: usize,
+    a: &mut Vec<u8>,
+    b: &mut Vec<u8>,
+) {
     erode(mask, width, height, a, b);
     dilate(b, width, height, a, mask);
 }
 
 /// Closing (dilate, then erode) in place: fills gaps narrower than 3 cells.
-pub(crate) fn close(mask: &mut Vec<u8>, width: usize, height: usize, a: &mut Vec<u8>, b: &mut Vec<u8>) {
+pub(crate) fn close(
+    mask: &mut Vec<u8>,
+    width: usize,
+    height: usize,
+    a: &mut Vec<u8>,
+    b: &mut Vec<u8>,
+) {
     dilate(mask, width, height, a, b);
     erode(b, width, height, a, mask);
 }

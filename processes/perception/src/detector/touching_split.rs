@@ -45,7 +45,10 @@ pub(crate) fn find_seeds(
         if x < 0 || y < 0 || x >= width as isize || y >= height as isize {
             0
         } else {
-            distance.get(y as usize * width + x as usize).copied().unwrap_or(0)
+            distance
+                .get(y as usize * width + x as usize)
+                .copied()
+                .unwrap_or(0)
         }
     };
     for &index in cells {
@@ -76,7 +79,8 @@ pub(crate) fn find_seeds(
             let dx = candidate.x_cells - seed.x_cells;
             let dy = candidate.y_cells - seed.y_cells;
             let gap = (dx * dx + dy * dy).sqrt();
-            if gap <= params.seed_separation_factor * seed.radius_cells.max(candidate.radius_cells) {
+            if gap <= params.seed_separation_factor * seed.radius_cells.max(candidate.radius_cells)
+            {
                 return false;
             }
             let neck = min_distance_along(seed, &candidate, &at);
@@ -136,9 +140,11 @@ mod tests {
         (0..width * height)
             .map(|i| {
                 let (x, y) = ((i % width) as f32, (i / width) as f32);
-                u8::from(discs.iter().any(|&(cx, cy, r)| {
-                    (x - cx) * (x - cx) + (y - cy) * (y - cy) <= r * r
-                }))
+                u8::from(
+                    discs
+                        .iter()
+                        .any(|&(cx, cy, r)| (x - cx) * (x - cx) + (y - cy) * (y - cy) <= r * r),
+                )
             })
             .collect()
     }
@@ -150,7 +156,15 @@ mod tests {
             .filter(|&i| mask[i as usize] != 0)
             .collect();
         let (mut candidates, mut seeds) = (Vec::new(), Vec::new());
-        find_seeds(&cells, &distance, width, height, &PARAMS, &mut candidates, &mut seeds);
+        find_seeds(
+            &cells,
+            &distance,
+            width,
+            height,
+            &PARAMS,
+            &mut candidates,
+            &mut seeds,
+        );
         seeds
     }
 

@@ -68,7 +68,8 @@ impl Estimator for ClusterDepthEstimator {
         Some(PositionEstimate {
             position_in_camera_m: position,
             radius_m,
-            confidence: (share * support_factor(size as usize, SUPPORT_SCALE_POINTS)).clamp(0.0, 1.0),
+            confidence: (share * support_factor(size as usize, SUPPORT_SCALE_POINTS))
+                .clamp(0.0, 1.0),
             points_used: size,
             fallback: false,
         })
@@ -106,7 +107,10 @@ mod tests {
         let ray = cap.centre_ray;
         let p = estimate.position_in_camera_m;
         assert!((p[0] / p[2] - ray[0]).abs() < 1e-9 && (p[1] / p[2] - ray[1]).abs() < 1e-9);
-        assert!((estimate.radius_m - scene.radius_m).abs() < 0.006, "{estimate:?}");
+        assert!(
+            (estimate.radius_m - scene.radius_m).abs() < 0.006,
+            "{estimate:?}"
+        );
         assert!(estimate.confidence > 0.9);
     }
 

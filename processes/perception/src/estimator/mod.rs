@@ -10,8 +10,8 @@
 
 pub mod cluster_depth;
 mod point_clustering;
-mod sphere_model;
 pub mod sphere_fit;
+mod sphere_model;
 pub mod zscore_centroid;
 
 use serde::{Deserialize, Serialize};

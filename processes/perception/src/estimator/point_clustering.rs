@@ -3,8 +3,9 @@
 //!
 //! The DBSCAN radius must bridge the spacing of neighbouring depth samples on the fruit
 //! (`z / f_depth` per pixel) and their depth noise, but stay below the depth gap to leaves and
-//! background: `eps = max(eps_min_m, eps_pixel_pitches * z / f_depth + eps_noise_sigmas *
-//! sigma(z))` with `z` the median depth of the mask points.
+//! background: `eps = max(eps_min_m, eps_pixel_pitches * pitch + eps_noise_sigmas * sigma(z))`
+//! with `z` the median depth of the mask points and `pitch = z / f_depth * sqrt(stride)` the
+//! sample spacing after keeping every `stride`-th point (at most `max_points` remain).
 
 use serde::{Deserialize, Serialize};
 use tracing::warn;
@@ -35,7 +36,7 @@ impl Default for ClusteringConfig {
             eps_pixel_pitches: 3.0,
             eps_noise_sigmas: 1.0,
             min_points: 6,
-            max_points: 1500,
+            max_points: 600,
         }
     }
 }
@@ -43,8 +44,18 @@ impl Default for ClusteringConfig {
 impl ClusteringConfig {
     pub fn validate(&self) -> Result<(), EstimatorConfigError> {
         check_range("clustering.eps_min_m", self.eps_min_m, 1e-4, 1.0)?;
-        check_range("clustering.eps_pixel_pitches", self.eps_pixel_pitches, 0.0, 100.0)?;
-        check_range("clustering.eps_noise_sigmas", self.eps_noise_sigmas, 0.0, 100.0)?;
+        check_range(
+            "clustering.eps_pixel_pitches",
+            self.eps_pixel_pitches,
+            0.0,
+            100.0,
+        )?;
+        check_range(
+            "clustering.eps_noise_sigmas",
+            self.eps_noise_sigmas,
+            0.0,
+            100.0,
+        )?;
         check_range("clustering.min_points", self.min_points as f64, 1.0, 1e6)?;
         check_range("clustering.max_points", self.max_points as f64, 16.0, 1e8)
     }
@@ -58,7 +69,6 @@ pub(crate) struct PointClustering {
     dbscan: Dbscan,
     sampled: Vec<[f32; 3]>,
     depth_scratch: Vec<f32>,
-    median_depth_m: f64,
 }
 
 impl PointClustering {
@@ -69,7 +79,6 @@ impl PointClustering {
             dbscan: Dbscan::new(),
             sampled: Vec::new(),
             depth_scratch: Vec::new(),
-            median_depth_m: 0.0,
         }
     }
 
@@ -84,16 +93,18 @@ impl PointClustering {
                 .filter(|p| p.iter().all(|v| v.is_finite()) && p[2] > 0.0),
         );
         if self.sampled.is_empty() {
-            self.median_depth_m = 0.0;
             return 0;
         }
         self.depth_scratch.clear();
         self.depth_scratch.extend(self.sampled.iter().map(|p| p[2]));
         let middle = self.depth_scratch.len() / 2;
-        let (_, median, _) = self.depth_scratch.select_nth_unstable_by(middle, f32::total_cmp);
-        self.median_depth_m = f64::from(*median);
-        let z = self.median_depth_m;
-        let eps_m = (self.config.eps_pixel_pitches * z / self.context.depth_focal_px
+        let (_, median, _) = self
+            .depth_scratch
+            .select_nth_unstable_by(middle, f32::total_cmp);
+        let z = f64::from(*median);
+        // Subsampling by `stride` widens the sample spacing by about sqrt(stride).
+        let pitch_m = z / self.context.depth_focal_px * (stride as f64).sqrt();
+        let eps_m = (self.config.eps_pixel_pitches * pitch_m
             + self.config.eps_noise_sigmas * self.context.noise.sigma_m(z))
         .max(self.config.eps_min_m);
         let params = DbscanParams {
@@ -118,16 +129,7 @@ impl PointClustering {
         self.dbscan.labels()
     }
 
-    pub(crate) fn cluster_sizes(&self) -> &[u32] {
-        self.dbscan.cluster_sizes()
-    }
-
     pub(crate) fn largest_cluster(&self) -> Option<(u32, u32)> {
         self.dbscan.largest_cluster()
-    }
-
-    /// Median z of the subsampled points, metres.
-    pub(crate) fn median_depth_m(&self) -> f64 {
-        self.median_depth_m
     }
 }

@@ -85,20 +85,55 @@ impl Default for SphereFitConfig {
 impl SphereFitConfig {
     pub fn validate(&self) -> Result<(), EstimatorConfigError> {
         check_range("sphere_fit.radius_min_m", self.radius_min_m, 0.005, 0.5)?;
-        check_range("sphere_fit.radius_max_m", self.radius_max_m, self.radius_min_m, 0.5)?;
+        check_range(
+            "sphere_fit.radius_max_m",
+            self.radius_max_m,
+            self.radius_min_m,
+            0.5,
+        )?;
         check_range(
             "sphere_fit.radius_prior_m",
             self.radius_prior_m,
             self.radius_min_m,
             self.radius_max_m,
         )?;
-        check_range("sphere_fit.radius_prior_sigma_m", self.radius_prior_sigma_m, 1e-4, 0.5)?;
-        check_range("sphere_fit.ransac_iterations", self.ransac_iterations as f64, 1.0, 1e5)?;
-        check_range("sphere_fit.ransac_score_points", self.ransac_score_points as f64, 10.0, 1e7)?;
+        check_range(
+            "sphere_fit.radius_prior_sigma_m",
+            self.radius_prior_sigma_m,
+            1e-4,
+            0.5,
+        )?;
+        check_range(
+            "sphere_fit.ransac_iterations",
+            self.ransac_iterations as f64,
+            1.0,
+            1e5,
+        )?;
+        check_range(
+            "sphere_fit.ransac_score_points",
+            self.ransac_score_points as f64,
+            10.0,
+            1e7,
+        )?;
         check_range("sphere_fit.inlier_sigmas", self.inlier_sigmas, 0.1, 100.0)?;
-        check_range("sphere_fit.min_inlier_tolerance_m", self.min_inlier_tolerance_m, 0.0, 0.1)?;
-        check_range("sphere_fit.min_fit_points", self.min_fit_points as f64, 4.0, 1e6)?;
-        check_range("sphere_fit.refine_iterations", self.refine_iterations as f64, 1.0, 1000.0)?;
+        check_range(
+            "sphere_fit.min_inlier_tolerance_m",
+            self.min_inlier_tolerance_m,
+            0.0,
+            0.1,
+        )?;
+        check_range(
+            "sphere_fit.min_fit_points",
+            self.min_fit_points as f64,
+            4.0,
+            1e6,
+        )?;
+        check_range(
+            "sphere_fit.refine_iterations",
+            self.refine_iterations as f64,
+            1.0,
+            1000.0,
+        )?;
         check_range("sphere_fit.huber_sigmas", self.huber_sigmas, 0.1, 100.0)?;
         check_range(
             "sphere_fit.fallback_depth_offset_radii",
@@ -126,7 +161,11 @@ pub struct SphereFitEstimator {
 }
 
 impl SphereFitEstimator {
-    pub fn new(clustering: ClusteringConfig, config: SphereFitConfig, context: EstimatorContext) -> Self {
+    pub fn new(
+        clustering: ClusteringConfig,
+        config: SphereFitConfig,
+        context: EstimatorContext,
+    ) -> Self {
         Self {
             config,
             context,
@@ -192,7 +231,12 @@ impl SphereFitEstimator {
     fn collect_inliers(&mut self, sphere: &Sphere) {
         let mut inliers = std::mem::take(&mut self.inliers);
         inliers.clear();
-        inliers.extend(self.candidates.iter().copied().filter(|&p| self.is_inlier(sphere, p)));
+        inliers.extend(
+            self.candidates
+                .iter()
+                .copied()
+                .filter(|&p| self.is_inlier(sphere, p)),
+        );
         self.inliers = inliers;
     }
 
@@ -214,14 +258,21 @@ impl SphereFitEstimator {
             return None;
         }
         let noise = self.context.noise;
-        let mut sphere = refine(&self.inliers, &noise, hypothesis, &self.refine_params(false))?;
+        let mut sphere = refine(
+            &self.inliers,
+            &noise,
+            hypothesis,
+            &self.refine_params(false),
+        )?;
         // Second pass on the inliers of the refined sphere.
         self.collect_inliers(&sphere);
         if self.inliers.len() < self.config.min_fit_points / 2 {
             return None;
         }
         sphere = refine(&self.inliers, &noise, sphere, &self.refine_params(false))?;
-        let clamped_radius = sphere.radius.clamp(self.config.radius_min_m, self.config.radius_max_m);
+        let clamped_radius = sphere
+            .radius
+            .clamp(self.config.radius_min_m, self.config.radius_max_m);
         let clamped = clamped_radius != sphere.radius;
         if clamped {
             sphere.radius = clamped_radius;
@@ -248,7 +299,8 @@ impl SphereFitEstimator {
         if !(ray[2] > 0.0) {
             return None;
         }
-        let depth = surface_depth + self.config.fallback_depth_offset_radii * self.config.radius_prior_m;
+        let depth =
+            surface_depth + self.config.fallback_depth_offset_radii * self.config.radius_prior_m;
         let scale = depth / ray[2];
         Some(PositionEstimate {
             position_in_camera_m: [ray[0] * scale, ray[1] * scale, depth],
@@ -280,7 +332,8 @@ impl Estimator for SphereFitEstimator {
         self.candidates.clear();
         if clusters == 0 {
             // Too sparse for DBSCAN: the fallback uses whatever finite points there are.
-            self.candidates.extend(self.clustering.points().iter().map(to_f64));
+            self.candidates
+                .extend(self.clustering.points().iter().map(to_f64));
             return self.fallback(input.box_center_ray);
         }
         self.candidates.extend(
@@ -300,7 +353,13 @@ impl Estimator for SphereFitEstimator {
             if clamped {
                 confidence *= 0.8;
             }
-            trace!(candidates, inliers, radius_m = sphere.radius, clamped, "sphere fit");
+            trace!(
+                candidates,
+                inliers,
+                radius_m = sphere.radius,
+                clamped,
+                "sphere fit"
+            );
             return Some(PositionEstimate {
                 position_in_camera_m: sphere.centre,
                 radius_m: sphere.radius,
@@ -335,7 +394,11 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     fn sphere_fit() -> SphereFitEstimator {
-        SphereFitEstimator::new(ClusteringConfig::default(), SphereFitConfig::default(), context())
+        SphereFitEstimator::new(
+            ClusteringConfig::default(),
+            SphereFitConfig::default(),
+            context(),
+        )
     }
 
     fn paper() -> ClusterDepthEstimator {
@@ -343,7 +406,11 @@ mod tests {
     }
 
     /// Mean 3D error of both estimators over random fruit, as (sphere fit, paper) in metres.
-    fn mean_errors(occluder: Option<Occluder>, flying_fraction: f64, seed: u64) -> (f64, f64, usize) {
+    fn mean_errors(
+        occluder: Option<Occluder>,
+        flying_fraction: f64,
+        seed: u64,
+    ) -> (f64, f64, usize) {
         let mut rng = SmallRng::seed_from_u64(seed);
         let (mut fit_sum, mut paper_sum, mut fallbacks) = (0.0, 0.0, 0);
         let trials = 40;
@@ -368,7 +435,11 @@ mod tests {
             fit_sum += error_m(fit.position_in_camera_m, scene.centre_m);
             paper_sum += error_m(reference.position_in_camera_m, scene.centre_m);
         }
-        (fit_sum / trials as f64, paper_sum / trials as f64, fallbacks)
+        (
+            fit_sum / trials as f64,
+            paper_sum / trials as f64,
+            fallbacks,
+        )
     }
 
     #[test]
@@ -389,7 +460,9 @@ mod tests {
             in_mask_fraction: 0.3,
         };
         let (fit, paper, fallbacks) = mean_errors(Some(occluder), 0.3, 2);
-        eprintln!("occluded caps: sphere fit {fit:.4} m, paper {paper:.4} m, fallbacks {fallbacks}");
+        eprintln!(
+            "occluded caps: sphere fit {fit:.4} m, paper {paper:.4} m, fallbacks {fallbacks}"
+        );
         assert_eq!(fallbacks, 0);
         assert!(fit < 0.014, "sphere fit mean error {fit} m");
         assert!(fit < 0.5 * paper, "sphere fit {fit} m vs paper {paper} m");
@@ -438,7 +511,10 @@ mod tests {
         assert!(estimate.confidence <= FALLBACK_CONFIDENCE);
         // Front surface at 0.96 m pushed back by 2/3 of 42.5 mm.
         let expected_depth = 0.96 + 2.0 / 3.0 * 0.0425;
-        assert!((estimate.position_in_camera_m[2] - expected_depth).abs() < 0.002, "{estimate:?}");
+        assert!(
+            (estimate.position_in_camera_m[2] - expected_depth).abs() < 0.002,
+            "{estimate:?}"
+        );
         assert!(
             sphere_fit()
                 .estimate(&EstimatorInput {

@@ -89,7 +89,9 @@ pub(crate) fn sphere_through_three(
     }
     let circumcentre = [a[0] + offset[0], a[1] + offset[1], a[2] + offset[2]];
     let radius = radius_prior.max(circumradius);
-    let height = (radius * radius - circumradius * circumradius).max(0.0).sqrt();
+    let height = (radius * radius - circumradius * circumradius)
+        .max(0.0)
+        .sqrt();
     let length = normal_sq.sqrt();
     let mut unit = [normal[0] / length, normal[1] / length, normal[2] / length];
     if dot(unit, circumcentre) < 0.0 {
@@ -194,15 +196,31 @@ mod tests {
                 truth.centre[2] + truth.radius * dir[2] / n,
             ]
         };
-        let (a, b, c) = (on([0.3, 0.1, -1.0]), on([-0.4, 0.2, -1.0]), on([0.0, -0.5, -1.0]));
+        let (a, b, c) = (
+            on([0.3, 0.1, -1.0]),
+            on([-0.4, 0.2, -1.0]),
+            on([0.0, -0.5, -1.0]),
+        );
         let sphere = sphere_through_three(a, b, c, 0.04, 0.05).expect("sphere");
         for axis in 0..3 {
-            assert!((sphere.centre[axis] - truth.centre[axis]).abs() < 1e-9, "{sphere:?}");
+            assert!(
+                (sphere.centre[axis] - truth.centre[axis]).abs() < 1e-9,
+                "{sphere:?}"
+            );
         }
         // Collinear points have no sphere.
         assert!(sphere_through_three(a, a, c, 0.04, 0.05).is_none());
         // Points spread wider than the maximum radius have none either.
-        assert!(sphere_through_three([0.0, 0.0, 1.0], [0.2, 0.0, 1.0], [0.0, 0.2, 1.0], 0.04, 0.05).is_none());
+        assert!(
+            sphere_through_three(
+                [0.0, 0.0, 1.0],
+                [0.2, 0.0, 1.0],
+                [0.0, 0.2, 1.0],
+                0.04,
+                0.05
+            )
+            .is_none()
+        );
     }
 
     #[test]
@@ -234,7 +252,10 @@ mod tests {
         };
         let fitted = refine(&points, &DepthNoiseModel::TL460, start, &params).expect("fit");
         for axis in 0..3 {
-            assert!((fitted.centre[axis] - truth.centre[axis]).abs() < 1e-5, "{fitted:?}");
+            assert!(
+                (fitted.centre[axis] - truth.centre[axis]).abs() < 1e-5,
+                "{fitted:?}"
+            );
         }
         assert!((fitted.radius - truth.radius).abs() < 1e-5);
         assert!(fitted.faces_camera(points[0], 0.0));

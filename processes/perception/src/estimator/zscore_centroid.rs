@@ -8,8 +8,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::{
-    Estimator, EstimatorConfigError, EstimatorInput, EstimatorKind, PositionEstimate,
-    check_range, radius_from_lateral_spread, support_factor, to_f64,
+    Estimator, EstimatorConfigError, EstimatorInput, EstimatorKind, PositionEstimate, check_range,
+    radius_from_lateral_spread, support_factor, to_f64,
 };
 
 /// Z-score rejection settings.

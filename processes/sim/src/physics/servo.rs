@@ -74,8 +74,9 @@ impl<const N: usize> ServoModel<N> {
         if !(time_constant_s > 0.0 && time_constant_s.is_finite()) {
             return Err(ServoError::InvalidTimeConstant { time_constant_s });
         }
-        let position =
-            std::array::from_fn(|k| initial_position[k].clamp(limits[k].min_position, limits[k].max_position));
+        let position = std::array::from_fn(|k| {
+            initial_position[k].clamp(limits[k].min_position, limits[k].max_position)
+        });
         Ok(Self {
             limits,
             time_constant_s,
@@ -156,11 +157,17 @@ mod tests {
         let dt = 0.001;
         let steps = (tau / dt).round() as usize;
         for _ in 0..steps {
-            servo.step(dt, &[JointCommand::Position(0.5)]).expect("step");
+            servo
+                .step(dt, &[JointCommand::Position(0.5)])
+                .expect("step");
         }
         // After one time constant: 1 - 1/e of the step.
         let expected = 0.5 * (1.0 - (-1.0f64).exp());
-        assert!((servo.positions()[0] - expected).abs() < 1e-9, "{:?}", servo.positions());
+        assert!(
+            (servo.positions()[0] - expected).abs() < 1e-9,
+            "{:?}",
+            servo.positions()
+        );
     }
 
     #[test]
@@ -171,13 +178,17 @@ mod tests {
         };
         let mut servo = ServoModel::new([limits], 0.01, [0.0]).expect("servo");
         for _ in 0..100 {
-            servo.step(0.01, &[JointCommand::Position(0.9)]).expect("step");
+            servo
+                .step(0.01, &[JointCommand::Position(0.9)])
+                .expect("step");
         }
         // One second at 0.2 m/s at most.
         assert!(servo.positions()[0] <= 0.2 + 1e-12);
         assert!((servo.velocities()[0] - 0.2).abs() < 1e-9);
         for _ in 0..2000 {
-            servo.step(0.01, &[JointCommand::Velocity(5.0)]).expect("step");
+            servo
+                .step(0.01, &[JointCommand::Velocity(5.0)])
+                .expect("step");
         }
         assert_eq!(servo.positions()[0], 1.0);
         assert_eq!(servo.velocities()[0], 0.0);
@@ -197,7 +208,11 @@ mod tests {
         ));
         let mut servo = ServoModel::new([LIMITS], 0.1, [0.0]).expect("servo");
         assert!(servo.step(0.0, &[JointCommand::Position(0.0)]).is_err());
-        assert!(servo.step(0.01, &[JointCommand::Velocity(f64::NAN)]).is_err());
+        assert!(
+            servo
+                .step(0.01, &[JointCommand::Velocity(f64::NAN)])
+                .is_err()
+        );
         assert_eq!(servo.positions(), [0.0]);
     }
 }

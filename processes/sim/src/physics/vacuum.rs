@@ -70,8 +70,8 @@ impl VacuumState {
         let mut share = [0.0; 2];
         for arm in 0..2 {
             let g_in = config.inlet_conductance * self.valve_opening[inlet_valve(arm)];
-            let g_out =
-                cup_conductance[arm] + config.vent_conductance * self.valve_opening[vent_valve(arm)];
+            let g_out = cup_conductance[arm]
+                + config.vent_conductance * self.valve_opening[vent_valve(arm)];
             let total = g_in + g_out;
             if total > 0.0 {
                 share[arm] = g_in / total;
@@ -84,9 +84,8 @@ impl VacuumState {
         let source_blend = 1.0 - (-dt_s / config.source_time_constant_s).exp();
         let line_blend = 1.0 - (-dt_s / config.line_time_constant_s).exp();
         self.source_mmh2o += (source_target - self.source_mmh2o) * source_blend;
-        for arm in 0..2 {
-            let target = share[arm] * self.source_mmh2o;
-            self.arm_mmh2o[arm] += (target - self.arm_mmh2o[arm]) * line_blend;
+        for (pressure, share) in self.arm_mmh2o.iter_mut().zip(share) {
+            *pressure += (share * self.source_mmh2o - *pressure) * line_blend;
         }
     }
 
@@ -111,7 +110,12 @@ mod tests {
     fn closed_inlets_keep_the_source_at_its_maximum() {
         let config = VacuumConfig::default();
         let mut state = VacuumState::at_rest(&config);
-        settle(&mut state, &config, [false, true, false, true], [config.open_cup_conductance; 2]);
+        settle(
+            &mut state,
+            &config,
+            [false, true, false, true],
+            [config.open_cup_conductance; 2],
+        );
         let expected = config.source_max_vacuum_mmh2o * config.source_max_flow_m3_per_h
             / (config.source_max_flow_m3_per_h
                 + config.source_max_vacuum_mmh2o * config.source_leak_conductance);
@@ -124,9 +128,19 @@ mod tests {
         let config = VacuumConfig::default();
         let open_1 = [true, false, false, true];
         let mut sealed = VacuumState::at_rest(&config);
-        settle(&mut sealed, &config, open_1, [config.sealed_cup_conductance, config.open_cup_conductance]);
+        settle(
+            &mut sealed,
+            &config,
+            open_1,
+            [config.sealed_cup_conductance, config.open_cup_conductance],
+        );
         let mut leaking = VacuumState::at_rest(&config);
-        settle(&mut leaking, &config, open_1, [config.open_cup_conductance; 2]);
+        settle(
+            &mut leaking,
+            &config,
+            open_1,
+            [config.open_cup_conductance; 2],
+        );
         assert!(sealed.arm_mmh2o[0] > 0.9 * config.source_max_vacuum_mmh2o);
         assert!(leaking.arm_mmh2o[0] < 0.5 * sealed.arm_mmh2o[0]);
         assert!(leaking.source_mmh2o < 0.6 * config.source_max_vacuum_mmh2o);

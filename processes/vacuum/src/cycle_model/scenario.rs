@@ -173,7 +173,10 @@ impl Scenario {
             ("phase_times.retract_ns", p.retract_ns),
             ("phase_times.release_ns", p.release_ns),
             ("detection.seal_ns", self.detection.seal_ns),
-            ("detection.attach_timeout_ns", self.detection.attach_timeout_ns),
+            (
+                "detection.attach_timeout_ns",
+                self.detection.attach_timeout_ns,
+            ),
             ("detection.drop_ns", self.detection.drop_ns),
         ] {
             if value == 0 {
@@ -286,10 +289,19 @@ mod tests {
         assert_eq!(Scenario::ideal(3).validate(), Ok(()));
         let mut s = Scenario::ideal(3);
         s.failures.no_seal = 1.5;
-        assert!(s.validate().err().map(|e| e.to_string()).unwrap_or_default().contains("no_seal"));
+        assert!(
+            s.validate()
+                .err()
+                .map(|e| e.to_string())
+                .unwrap_or_default()
+                .contains("no_seal")
+        );
         let mut s = Scenario::ideal(3);
         s.detection.seal_ns = 300_000_000;
-        assert!(matches!(s.validate(), Err(ScenarioError::SealTooLate { .. })));
+        assert!(matches!(
+            s.validate(),
+            Err(ScenarioError::SealTooLate { .. })
+        ));
         let mut s = Scenario::ideal(3);
         s.phase_times.release_ns = 0;
         assert_eq!(

@@ -58,7 +58,11 @@ fn own_workflow_preconditions_are_enforced_by_every_policy() {
         // Both idle with apples: the first asker may go.
         let ready = ArmStatus::ready(true);
         assert_eq!(
-            p.decide(ArmId::Arm2, Request::StartApproach, &PairStatus([ready, ready])),
+            p.decide(
+                ArmId::Arm2,
+                Request::StartApproach,
+                &PairStatus([ready, ready])
+            ),
             Decision::Grant,
             "{k}"
         );
@@ -67,7 +71,11 @@ fn own_workflow_preconditions_are_enforced_by_every_policy() {
             ..ready
         };
         assert_eq!(
-            p.decide(ArmId::Arm1, Request::OpenValve, &PairStatus([waiting, idle_other])),
+            p.decide(
+                ArmId::Arm1,
+                Request::OpenValve,
+                &PairStatus([waiting, idle_other])
+            ),
             Decision::Grant,
             "{k}"
         );

@@ -98,11 +98,7 @@ mod tests {
     #[test]
     fn second_arm_waits_while_the_first_attempts_and_goes_once_it_seals() {
         let p = FailureAware2024;
-        let attempting = status(
-            ArmPhase::Attaching,
-            true,
-            AttachmentState::OpenToAtmosphere,
-        );
+        let attempting = status(ArmPhase::Attaching, true, AttachmentState::OpenToAtmosphere);
         let pair = PairStatus([attempting, WAITING]);
         assert_eq!(
             p.decide(ArmId::Arm2, Request::OpenValve, &pair),
@@ -111,13 +107,25 @@ mod tests {
         // Just granted, inference not yet updated (attachment still Closed): still attempting.
         let just_opened = status(ArmPhase::Attaching, true, AttachmentState::Closed);
         assert_eq!(
-            p.decide(ArmId::Arm2, Request::OpenValve, &PairStatus([just_opened, WAITING])),
+            p.decide(
+                ArmId::Arm2,
+                Request::OpenValve,
+                &PairStatus([just_opened, WAITING])
+            ),
             Decision::Refuse(RefuseReason::OtherArmAttempting)
         );
-        for sealed_phase in [ArmPhase::Attaching, ArmPhase::Retracting, ArmPhase::Releasing] {
+        for sealed_phase in [
+            ArmPhase::Attaching,
+            ArmPhase::Retracting,
+            ArmPhase::Releasing,
+        ] {
             let sealed = status(sealed_phase, true, AttachmentState::Sealed);
             assert_eq!(
-                p.decide(ArmId::Arm2, Request::OpenValve, &PairStatus([sealed, WAITING])),
+                p.decide(
+                    ArmId::Arm2,
+                    Request::OpenValve,
+                    &PairStatus([sealed, WAITING])
+                ),
                 Decision::Grant,
                 "other arm sealed while {sealed_phase}"
             );
@@ -125,7 +133,11 @@ mod tests {
         // Other arm's valve closed after a failure, still moving: free.
         let returning = status(ArmPhase::Retracting, false, AttachmentState::Closed);
         assert_eq!(
-            p.decide(ArmId::Arm2, Request::OpenValve, &PairStatus([returning, WAITING])),
+            p.decide(
+                ArmId::Arm2,
+                Request::OpenValve,
+                &PairStatus([returning, WAITING])
+            ),
             Decision::Grant
         );
     }
@@ -147,7 +159,11 @@ mod tests {
                 ValveOrder::ForceClose(CloseReason::Dropped),
             ),
             (
-                status(ArmPhase::Retracting, true, AttachmentState::OpenToAtmosphere),
+                status(
+                    ArmPhase::Retracting,
+                    true,
+                    AttachmentState::OpenToAtmosphere,
+                ),
                 ValveOrder::ForceClose(CloseReason::NoSealAtRetract),
             ),
             (
@@ -199,7 +215,11 @@ mod tests {
             for valve_open in [false, true] {
                 for attachment in attachments {
                     let other = status(phase, valve_open, attachment);
-                    let d = p.decide(ArmId::Arm1, Request::OpenValve, &PairStatus([WAITING, other]));
+                    let d = p.decide(
+                        ArmId::Arm1,
+                        Request::OpenValve,
+                        &PairStatus([WAITING, other]),
+                    );
                     if d == Decision::Grant {
                         assert!(!other.valve_open || other.sealed(), "{other:?}");
                     }

@@ -31,7 +31,7 @@ mod tl_node;
 pub use failure_aware_2024::FailureAware2024;
 pub use sequential_baseline::SequentialBaseline;
 pub use staggered_2023::Staggered2023;
-pub use tl_node::TlNode;
+pub use tl_node::{Propositions, TlNode};
 
 use crate::arm_id::ArmId;
 use crate::arm_phase::ArmPhase;

@@ -55,7 +55,11 @@ mod tests {
         let p = SequentialBaseline;
         let ready = ArmStatus::ready(true);
         assert_eq!(
-            p.decide(ArmId::Arm2, Request::StartApproach, &PairStatus([ready, ready])),
+            p.decide(
+                ArmId::Arm2,
+                Request::StartApproach,
+                &PairStatus([ready, ready])
+            ),
             Decision::Grant
         );
         for phase in [
@@ -72,7 +76,11 @@ mod tests {
                 apple_assigned: true,
             };
             assert_eq!(
-                p.decide(ArmId::Arm2, Request::StartApproach, &PairStatus([busy, ready])),
+                p.decide(
+                    ArmId::Arm2,
+                    Request::StartApproach,
+                    &PairStatus([busy, ready])
+                ),
                 Decision::Refuse(RefuseReason::OtherArmActive { other_phase: phase })
             );
         }

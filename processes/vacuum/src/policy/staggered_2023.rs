@@ -85,7 +85,11 @@ mod tests {
                 },
                 apple_assigned: true,
             };
-            let d = p.decide(ArmId::Arm1, Request::OpenValve, &PairStatus([waiting, other]));
+            let d = p.decide(
+                ArmId::Arm1,
+                Request::OpenValve,
+                &PairStatus([waiting, other]),
+            );
             assert_eq!(d == Decision::Grant, granted, "other {phase}");
         }
     }

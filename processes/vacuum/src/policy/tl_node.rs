@@ -212,12 +212,12 @@ mod tests {
                 TlNode::AwaitingVacuum => p.approach && !p.open_valve,
                 TlNode::Attempting => p.approach && p.open_valve && !p.attached,
                 TlNode::Detaching => p.approach && p.open_valve && p.attached,
-                TlNode::CarryingApple => {
-                    !p.retract && !p.approach && p.open_valve && p.attached
-                }
+                TlNode::CarryingApple => !p.retract && !p.approach && p.open_valve && p.attached,
                 TlNode::ReturningEmpty => !p.retract && !p.open_valve,
                 TlNode::AtDropOffWithApple => p.retract && p.open_valve && p.attached,
-                TlNode::Failing => p.open_valve && (!p.attached || s.attachment.failure_kind().is_some()),
+                TlNode::Failing => {
+                    p.open_valve && (!p.attached || s.attachment.failure_kind().is_some())
+                }
                 TlNode::Invalid => {
                     p.open_valve
                         && matches!(
@@ -243,10 +243,13 @@ mod tests {
             // staying put for the one control period the close takes.
             if node.must_close() {
                 for &next in node.successors() {
-                    assert!(next == node || !matches!(
-                        next,
-                        TlNode::Attempting | TlNode::Detaching | TlNode::CarryingApple
-                    ));
+                    assert!(
+                        next == node
+                            || !matches!(
+                                next,
+                                TlNode::Attempting | TlNode::Detaching | TlNode::CarryingApple
+                            )
+                    );
                 }
             }
         }

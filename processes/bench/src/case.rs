@@ -1,0 +1,228 @@
+//! One run of one case (payload x transport x mode) on the measuring side: start the peer,
+//! pace its stop-and-wait messages, record one-way latencies, then count its stream.
+//!
+//! One-way latency = receive time - `publish_ns`, both `CLOCK_MONOTONIC` on this host
+//! (`harvest_ipc::MonotonicClock`). `publish_ns` is stamped after the sender wrote the payload,
+//! right before it hands the message to the transport (for the copying baseline: before
+//! encoding). The receive time is read as soon as the message is available to the receiver
+//! (zero-copy: the sample was taken; copying: it was decoded into the receiver's memory). The
+//! receiver then checks a sample of the payload's lines outside the measured interval.
+
+use crate::control::{ACK, Control, END, GO_LATENCY, GO_STREAM, READY};
+use crate::error::BenchError;
+use crate::message::{BenchMessage, Phase};
+use crate::options::{BenchPeerArgs, PEER_SUBCOMMAND, Settings, Transport, WakeMode};
+use crate::payload_case::{PayloadCase, with_payload_type};
+use crate::socket_io::socket_error;
+use crate::stats::{LatencySummary, StreamTally, Throughput, latency_histogram};
+use crate::transport::ReceivePort;
+use crate::transport::copy::CopyReceiver;
+use crate::transport::ours::OursReceiver;
+use crate::transport::raw::RawReceiver;
+use crate::watchdog::Watchdog;
+use harvest_ipc::{Domain, Flow};
+use serde::Serialize;
+use std::os::unix::net::UnixListener;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+/// Slack on top of a phase's nominal length before the peer counts as stuck.
+const PHASE_GRACE: Duration = Duration::from_secs(20);
+
+/// What to run.
+#[derive(Debug, Clone, Copy)]
+pub struct CaseSpec<'a> {
+    pub payload: PayloadCase,
+    pub transport: Transport,
+    pub mode: WakeMode,
+    pub settings: &'a Settings,
+    pub domain: &'a Domain,
+    /// Unique within the run (names the control socket).
+    pub index: usize,
+}
+
+impl CaseSpec<'_> {
+    pub fn label(&self) -> String {
+        format!(
+            "{}/{}/{}",
+            self.payload,
+            self.transport.name(),
+            self.mode.name()
+        )
+    }
+}
+
+/// The numbers of one run.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct RunResult {
+    pub latency: LatencySummary,
+    /// Median time the sender spent writing the payload (capture_ns to publish_ns), not part
+    /// of the latency.
+    pub producer_write_p50_ns: u64,
+    pub throughput: Throughput,
+}
+
+/// Runs one case once.
+pub fn run_case(spec: &CaseSpec<'_>) -> Result<RunResult, BenchError> {
+    with_payload_type!(spec.payload, T => run_typed::<T>(spec))
+}
+
+/// Removes the control socket file when the case ends.
+struct SocketFile(PathBuf);
+
+impl Drop for SocketFile {
+    fn drop(&mut self) {
+        if let Err(error) = std::fs::remove_file(&self.0) {
+            tracing::debug!(path = %self.0.display(), %error, "control socket already removed");
+        }
+    }
+}
+
+fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchError> {
+    let name = spec.payload.name();
+    let settings = spec.settings;
+    let path = std::env::temp_dir().join(format!(
+        "harvest-bench-{}-{}.sock",
+        std::process::id(),
+        spec.index
+    ));
+    // A socket file of an earlier process with the same pid would make bind fail.
+    let _ = std::fs::remove_file(&path);
+    let listener = UnixListener::bind(&path).map_err(socket_error("control", &path))?;
+    let _socket_file = SocketFile(path.clone());
+
+    // The zero-copy receivers exist before the peer starts, so its first message finds them.
+    let mut receiver: Option<Box<dyn ReceivePort<T>>> = match spec.transport {
+        Transport::Ours => Some(Box::new(OursReceiver::<T>::open(
+            spec.domain,
+            spec.mode,
+            name,
+        )?)),
+        Transport::Iceoryx2 => Some(Box::new(RawReceiver::<T>::open(
+            spec.domain,
+            spec.mode,
+            name,
+        )?)),
+        Transport::UdsCopy => None,
+    };
+    let mut watchdog = Watchdog::new(spawn_peer(spec, &path)?, spec.label());
+    watchdog.start_phase("connect", PHASE_GRACE);
+    let mut control = Control::accept(&listener, &path, &mut watchdog)?;
+    let mut receiver = match receiver.take() {
+        Some(receiver) => receiver,
+        None => Box::new(CopyReceiver::<T>::accept(
+            &listener,
+            &path,
+            spec.mode,
+            name,
+            &mut watchdog,
+        )?),
+    };
+    control.expect_watched(READY, "peer ready", &mut watchdog)?;
+
+    // Latency: stop-and-wait, one message in flight.
+    let mut latency = latency_histogram()?;
+    let mut producer_write = latency_histogram()?;
+    control.send(GO_LATENCY)?;
+    watchdog.start_phase(
+        "latency",
+        settings.duration + settings.duration / 4 + PHASE_GRACE,
+    );
+    receiver.run_phase(&mut watchdog, &mut |message: &T, recv_ns| {
+        let header = *message.header();
+        let phase = message.check(name)?;
+        match phase {
+            Phase::Warmup => {}
+            Phase::Measure | Phase::MeasureLast => {
+                latency.saturating_record(recv_ns.saturating_sub(header.publish_ns).max(1));
+                producer_write
+                    .saturating_record(header.publish_ns.saturating_sub(header.capture_ns).max(1));
+            }
+            Phase::Stream | Phase::StreamLast => {
+                return Err(BenchError::UnexpectedPhase {
+                    payload: name,
+                    msg_seq: header.msg_seq,
+                    phase,
+                    during: "latency",
+                });
+            }
+        }
+        control.send(ACK)?;
+        Ok(if phase == Phase::MeasureLast {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        })
+    })?;
+
+    // Throughput: back to back for a quarter of --duration.
+    let mut tally = StreamTally::default();
+    control.send(GO_STREAM)?;
+    watchdog.start_phase("throughput", settings.duration / 4 + PHASE_GRACE);
+    receiver.run_phase(&mut watchdog, &mut |message: &T, recv_ns| {
+        let header = *message.header();
+        let phase = message.check(name)?;
+        match phase {
+            Phase::Stream | Phase::StreamLast => {
+                tally.add(header.msg_seq, header.publish_ns, recv_ns);
+            }
+            Phase::Warmup | Phase::Measure | Phase::MeasureLast => {
+                return Err(BenchError::UnexpectedPhase {
+                    payload: name,
+                    msg_seq: header.msg_seq,
+                    phase,
+                    during: "throughput",
+                });
+            }
+        }
+        Ok(if phase == Phase::StreamLast {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        })
+    })?;
+    control.send(END)?;
+    watchdog.wait_exit(PHASE_GRACE)?;
+    drop(receiver);
+
+    let result = RunResult {
+        latency: LatencySummary::from_histogram(&latency),
+        producer_write_p50_ns: producer_write.value_at_quantile(0.5),
+        throughput: tally.throughput(spec.payload.size_bytes()),
+    };
+    tracing::info!(
+        case = watchdog.case(),
+        samples = result.latency.samples,
+        p50_ns = result.latency.p50_ns,
+        p99_ns = result.latency.p99_ns,
+        msgs_per_s = result.throughput.msgs_per_s,
+        "case done"
+    );
+    Ok(result)
+}
+
+fn spawn_peer(spec: &CaseSpec<'_>, control: &Path) -> Result<std::process::Child, BenchError> {
+    let exe = std::env::current_exe().map_err(|source| BenchError::Spawn {
+        exe: PathBuf::from("<current exe>"),
+        source,
+    })?;
+    let peer = BenchPeerArgs {
+        control: control.to_owned(),
+        domain: spec.domain.name().to_owned(),
+        transport: spec.transport,
+        mode: spec.mode,
+        payload: spec.payload.name().to_owned(),
+        warmup: spec.settings.warmup,
+        iterations: spec.settings.iterations,
+        duration: spec.settings.duration,
+        pin_cpu: spec.settings.pin_cpus.map(|(_, sender)| sender),
+    };
+    Command::new(&exe)
+        .arg(PEER_SUBCOMMAND)
+        .args(peer.to_command_line())
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .spawn()
+        .map_err(|source| BenchError::Spawn { exe, source })
+}

@@ -1,0 +1,36 @@
+//! harvest-bench: latency benchmarks of the stack's inter-process transport.
+//!
+//! `harvest bench ipc` measures one-way latency between two separate processes for payloads
+//! from 64 B to 16 MiB (and the stack's real `RgbdFrame`, `AppleDetections` and
+//! `LaserScanRequest`), through our layer (harvest_ipc), raw iceoryx2 and a copying Unix socket
+//! baseline, each with event-driven and busy-poll wake-ups. The measuring process receives; it
+//! starts one sending peer per run as `<current exe> bench-peer ...` ([`PEER_SUBCOMMAND`]).
+//!
+//! - [`run_bench_ipc`] / [`BenchIpcArgs`]: the benchmark, returning a [`BenchReport`].
+//! - [`run_bench_peer`] / [`BenchPeerArgs`]: the hidden peer subcommand.
+
+pub mod affinity;
+pub mod bench_payload;
+pub mod case;
+pub mod control;
+pub mod error;
+pub mod message;
+pub mod options;
+pub mod payload_case;
+pub mod peer;
+pub mod report;
+pub mod run;
+pub mod socket_io;
+pub mod stats;
+pub mod svg;
+pub mod transport;
+pub mod watchdog;
+
+pub use bench_payload::BenchPayload;
+pub use error::BenchError;
+pub use options::{BenchIpcArgs, BenchPeerArgs, PEER_SUBCOMMAND, Transport, WakeMode};
+pub use payload_case::PayloadCase;
+pub use peer::run_bench_peer;
+pub use report::BenchReport;
+pub use run::run_bench_ipc;
+pub use svg::render_svg;

@@ -1,0 +1,174 @@
+//! `harvest bench-peer`: the sending process of one case.
+
+use crate::affinity::pin_to_cpu;
+use crate::control::{ACK, Control, END, GO_LATENCY, GO_STREAM, READY};
+use crate::error::BenchError;
+use crate::message::{BenchMessage, Phase};
+use crate::options::{BenchPeerArgs, Transport};
+use crate::payload_case::{PayloadCase, with_payload_type};
+use crate::transport::SendPort;
+use crate::transport::copy::CopySender;
+use crate::transport::ours::OursSender;
+use crate::transport::raw::RawSender;
+use harvest_ipc::Domain;
+use std::time::{Duration, Instant};
+
+/// Runs the sending side of one case: connects to the measuring process, sends the
+/// stop-and-wait messages (each after the previous one was acknowledged), then the stream.
+pub fn run_bench_peer(args: &BenchPeerArgs) -> Result<(), BenchError> {
+    if let Some(cpu) = args.pin_cpu {
+        pin_to_cpu(cpu)?;
+    }
+    let payload = PayloadCase::parse(&args.payload)?;
+    with_payload_type!(payload, T => run_typed::<T>(args, payload.name()))
+}
+
+fn run_typed<T: BenchMessage>(
+    args: &BenchPeerArgs,
+    payload: &'static str,
+) -> Result<(), BenchError> {
+    let mut control = Control::connect(&args.control)?;
+    let domain = Domain::new(&args.domain)?;
+    let mut sender: Box<dyn SendPort<T>> = match args.transport {
+        Transport::Ours => Box::new(OursSender::<T>::open(&domain, payload)?),
+        Transport::Iceoryx2 => Box::new(RawSender::<T>::open(&domain, args.mode, payload)?),
+        Transport::UdsCopy => Box::new(CopySender::<T>::connect(&args.control, payload)?),
+    };
+    control.send(READY)?;
+
+    control.expect(GO_LATENCY, "start of the latency phase")?;
+    let plan = LatencyPlan::new(args.warmup, args.iterations, args.duration);
+    let mut progress = LatencyProgress::default();
+    loop {
+        let phase = plan.next_phase(&mut progress, Instant::now());
+        sender.send(phase)?;
+        control.expect(ACK, "acknowledgement of a stop-and-wait message")?;
+        if phase == Phase::MeasureLast {
+            break;
+        }
+    }
+    tracing::debug!(
+        payload,
+        warmup = progress.warmup_sent,
+        measured = progress.measured_sent
+    );
+
+    control.expect(GO_STREAM, "start of the throughput phase")?;
+    let stream_for = args.duration / 4;
+    let start = Instant::now();
+    loop {
+        let last = start.elapsed() >= stream_for;
+        sender.send(if last {
+            Phase::StreamLast
+        } else {
+            Phase::Stream
+        })?;
+        if last {
+            break;
+        }
+    }
+    control.expect(END, "end of the case")?;
+    Ok(())
+}
+
+/// When the stop-and-wait phase warms up, measures, and ends.
+#[derive(Debug, Clone, Copy)]
+struct LatencyPlan {
+    warmup: u64,
+    iterations: u64,
+    /// Limit of the measured part; warm-up is limited to a quarter of it.
+    duration: Duration,
+}
+
+#[derive(Debug, Default, Clone, Copy)]
+struct LatencyProgress {
+    started: Option<Instant>,
+    measure_started: Option<Instant>,
+    warmup_sent: u64,
+    measured_sent: u64,
+}
+
+impl LatencyPlan {
+    fn new(warmup: u64, iterations: u64, duration: Duration) -> Self {
+        Self {
+            warmup,
+            iterations: iterations.max(1),
+            duration,
+        }
+    }
+
+    /// The phase of the next message to send at `now`, counting it as sent.
+    fn next_phase(&self, progress: &mut LatencyProgress, now: Instant) -> Phase {
+        let started = *progress.started.get_or_insert(now);
+        let warming = progress.measure_started.is_none()
+            && progress.warmup_sent < self.warmup
+            && now.duration_since(started) < self.duration / 4;
+        if warming {
+            progress.warmup_sent += 1;
+            return Phase::Warmup;
+        }
+        let measure_started = *progress.measure_started.get_or_insert(now);
+        progress.measured_sent += 1;
+        let out_of_time = now.duration_since(measure_started) >= self.duration;
+        if progress.measured_sent >= self.iterations || out_of_time {
+            Phase::MeasureLast
+        } else {
+            Phase::Measure
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plan_counts_warmup_then_iterations() {
+        let plan = LatencyPlan::new(2, 3, Duration::from_secs(100));
+        let mut progress = LatencyProgress::default();
+        let now = Instant::now();
+        let phases: Vec<_> = (0..5)
+            .map(|_| plan.next_phase(&mut progress, now))
+            .collect();
+        assert_eq!(
+            phases,
+            vec![
+                Phase::Warmup,
+                Phase::Warmup,
+                Phase::Measure,
+                Phase::Measure,
+                Phase::MeasureLast
+            ]
+        );
+    }
+
+    #[test]
+    fn plan_stops_on_time() {
+        let plan = LatencyPlan::new(100, 1000, Duration::from_secs(4));
+        let mut progress = LatencyProgress::default();
+        let t0 = Instant::now();
+        assert_eq!(plan.next_phase(&mut progress, t0), Phase::Warmup);
+        // Warm-up ends after a quarter of the duration.
+        let t1 = t0 + Duration::from_secs(1);
+        assert_eq!(plan.next_phase(&mut progress, t1), Phase::Measure);
+        assert_eq!(
+            plan.next_phase(&mut progress, t1 + Duration::from_secs(1)),
+            Phase::Measure
+        );
+        // Measuring ends after the duration; the message sent then is the last.
+        assert_eq!(
+            plan.next_phase(&mut progress, t1 + Duration::from_secs(4)),
+            Phase::MeasureLast
+        );
+    }
+
+    #[test]
+    fn zero_warmup_measures_at_once() {
+        let plan = LatencyPlan::new(0, 1, Duration::from_secs(1));
+        let mut progress = LatencyProgress::default();
+        assert_eq!(
+            plan.next_phase(&mut progress, Instant::now()),
+            Phase::MeasureLast
+        );
+    }
+}

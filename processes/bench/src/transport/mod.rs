@@ -1,0 +1,33 @@
+//! The three transports, each as a sending port (peer process) and a receiving port (the
+//! measuring process), in both wake-up modes.
+
+pub mod copy;
+pub mod ours;
+pub mod raw;
+
+use crate::error::BenchError;
+use crate::message::{BenchMessage, Phase};
+use crate::watchdog::Watchdog;
+use harvest_ipc::Flow;
+
+/// Called once per received message with the message (in shared memory for the zero-copy
+/// transports) and its receive time in `CLOCK_MONOTONIC` nanoseconds.
+pub type OnMessage<'a, T> = dyn FnMut(&T, u64) -> Result<Flow, BenchError> + 'a;
+
+/// The sending side of a transport.
+pub trait SendPort<T: BenchMessage> {
+    /// Writes a fresh message of `phase` (every line of its body) and sends it. Stamps
+    /// `capture_ns` before writing and `publish_ns` right before handing it to the transport.
+    fn send(&mut self, phase: Phase) -> Result<(), BenchError>;
+}
+
+/// The receiving side of a transport.
+pub trait ReceivePort<T: BenchMessage> {
+    /// Receives messages (sleeping or spinning, by mode) and hands each to `on_message` until it
+    /// returns [`Flow::Stop`]. Checks `watchdog` whenever nothing arrives for a while.
+    fn run_phase(
+        &mut self,
+        watchdog: &mut Watchdog,
+        on_message: &mut OnMessage<'_, T>,
+    ) -> Result<(), BenchError>;
+}

@@ -1,0 +1,182 @@
+//! Extrinsic calibration of the ALACS unit (paper 000, section 4.2 and 5.1): samples
+//! `[u_bar, v_bar, z]`, the two depth models, least squares (problem 9), RANSAC (Algorithm 1),
+//! the four compared methods, and the calibration file.
+
+pub mod csv;
+pub mod error;
+pub mod file;
+pub mod fit;
+pub mod generate;
+pub mod least_squares;
+pub mod methods;
+pub mod model;
+pub mod sample;
+
+pub use csv::{SampleFileError, parse_samples_csv, read_samples_csv, write_samples_csv};
+pub use error::CalibrationError;
+pub use file::{
+    CalibrationFileError, ExtrinsicsRecord, FitRecord, LaserCalibrationFile, read_calibration_file,
+    write_calibration_file,
+};
+pub use fit::{FitOutcome, RansacOptions, fit_all, fit_ransac};
+pub use generate::{GenerateError, GeneratedSamples, SampleGeneratorConfig, generate_samples};
+pub use least_squares::{LmOptions, LmSolution, levenberg_marquardt};
+pub use methods::{
+    Calibration, CalibrationMethod, CalibrationOptions, CalibrationReport, EvaluationSet,
+    MethodResult, PaperRow, calibrate, compare_methods, mean_abs_depth_error_m,
+};
+pub use model::{DepthModel, HighFidelity, LowFidelity};
+pub use sample::{CalibrationSample, MIN_DEPTH_SPREAD_M, MIN_SAMPLES, validate_samples};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use harvest_hw::alacs::alacs_camera_intrinsics;
+
+    fn paper_like(seed: u64) -> GeneratedSamples {
+        generate_samples(&SampleGeneratorConfig::paper_like(
+            alacs_camera_intrinsics(),
+            seed,
+        ))
+        .expect("generate")
+    }
+
+    #[test]
+    fn method_4_recovers_the_generating_parameters() {
+        for seed in 1..=5 {
+            let generated = paper_like(seed);
+            let calibration = calibrate(
+                &generated.samples,
+                CalibrationMethod::HighFidelityRansac,
+                &CalibrationOptions::default(),
+            )
+            .expect("calibrate");
+            let (fit, truth) = (calibration.extrinsics, generated.truth);
+            assert!(
+                (fit.alpha_rad - truth.alpha_rad).abs().to_degrees() < 0.1,
+                "seed {seed}: alpha {} deg",
+                fit.alpha_rad.to_degrees()
+            );
+            assert!(
+                (fit.l0_m - truth.l0_m).abs() < 2e-3,
+                "seed {seed}: L0 {} m",
+                fit.l0_m
+            );
+            assert!(
+                (fit.beta_rad - truth.beta_rad).abs().to_degrees() < 0.1,
+                "seed {seed}: beta {} deg",
+                fit.beta_rad.to_degrees()
+            );
+            // Every planted outlier is left out of the final fit.
+            for (index, outlier) in generated.is_outlier.iter().enumerate() {
+                if *outlier {
+                    assert!(
+                        !calibration.used.contains(&index),
+                        "seed {seed}: outlier {index} used"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn comparison_ranks_like_table_1() {
+        let generated = paper_like(1);
+        let clean = generated.clean_mask();
+        let report = compare_methods(
+            &generated.samples,
+            Some(&clean),
+            &CalibrationOptions::default(),
+        )
+        .expect("compare");
+        let error = |method| report.method(method).expect("row").mean_abs_error_mm;
+        // RANSAC with the high-fidelity model is best, and beats the all-data fit.
+        assert!(
+            error(CalibrationMethod::HighFidelityRansac)
+                < error(CalibrationMethod::HighFidelityAllData)
+        );
+        assert!(
+            error(CalibrationMethod::HighFidelityAllData)
+                < error(CalibrationMethod::LowFidelityAllData)
+        );
+        assert!(
+            error(CalibrationMethod::HighFidelityRansac)
+                < error(CalibrationMethod::LowFidelityRansac)
+        );
+        assert!(
+            report
+                .method(CalibrationMethod::LowFidelityAllData)
+                .expect("row")
+                .beta_deg
+                .is_none()
+        );
+        assert_eq!(report.evaluation_samples, 27);
+        let table = report.to_string();
+        assert!(table.contains("4 high-fidelity + RANSAC"), "{table}");
+    }
+
+    #[test]
+    fn bad_sample_sets_are_refused() {
+        let options = CalibrationOptions::default();
+        let generated = paper_like(2);
+        let samples = &generated.samples;
+        for method in CalibrationMethod::ALL {
+            assert_eq!(
+                calibrate(&samples[..3], method, &options),
+                Err(CalibrationError::TooFewSamples { got: 3, needed: 4 })
+            );
+        }
+        let mut with_nan = samples.clone();
+        with_nan[5].v_bar = f64::NAN;
+        assert!(matches!(
+            calibrate(&with_nan, CalibrationMethod::HighFidelityRansac, &options),
+            Err(CalibrationError::NonFiniteSample {
+                index: 5,
+                field: "v_bar",
+                ..
+            })
+        ));
+        let one_depth: Vec<CalibrationSample> = samples
+            .iter()
+            .map(|s| CalibrationSample { z_m: 0.8, ..*s })
+            .collect();
+        assert!(matches!(
+            calibrate(&one_depth, CalibrationMethod::HighFidelityAllData, &options),
+            Err(CalibrationError::SingleDepth { .. })
+        ));
+        // Samples on one image line at different depths: the model is not determined.
+        let collinear: Vec<CalibrationSample> = (0..8)
+            .map(|k| CalibrationSample {
+                u_bar: -0.1,
+                v_bar: 0.05 * k as f64 - 0.2,
+                z_m: 0.7 + 0.05 * k as f64,
+            })
+            .collect();
+        assert!(matches!(
+            calibrate(&collinear, CalibrationMethod::HighFidelityAllData, &options),
+            Err(CalibrationError::Degenerate { .. })
+        ));
+        assert!(matches!(
+            calibrate(&collinear, CalibrationMethod::HighFidelityRansac, &options),
+            Err(CalibrationError::NoConsensus { .. })
+        ));
+        let no_iterations = CalibrationOptions {
+            ransac: RansacOptions {
+                iterations: 0,
+                ..options.ransac
+            },
+            ..options
+        };
+        assert!(matches!(
+            calibrate(
+                samples,
+                CalibrationMethod::LowFidelityRansac,
+                &no_iterations
+            ),
+            Err(CalibrationError::InvalidOption {
+                name: "iterations",
+                ..
+            })
+        ));
+    }
+}

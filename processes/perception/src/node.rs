@@ -1,0 +1,137 @@
+//! The perception process's logic, free of transport and clock: one camera frame in, one
+//! detections message out. The same type runs in the `perception` process, in-process under
+//! `harvest eval`, and on replayed recordings.
+
+use crate::calibration::Calibration;
+use crate::camera_setup::CameraSetup;
+use crate::estimator::EstimatorKind;
+use crate::frame::{DepthView, RgbView};
+use crate::pipeline::{AppleEstimate, Perception, PerceptionConfig, PerceptionSetupError};
+use crate::stats::FrameStats;
+use harvest_ipc::payloads::apple_detections::MAX_APPLES_PER_FRAME;
+use harvest_ipc::payloads::{
+    AppleDetection, AppleDetections, LocalizationMethod, RgbdFrame, RgbdFrameMeta,
+};
+
+/// Perception with its rig; rebuilt when a frame's camera metadata changes.
+pub struct PerceptionNode {
+    config: PerceptionConfig,
+    calibration: Calibration,
+    pipeline: Option<(RgbdFrameMeta, Perception)>,
+    apples: Vec<AppleEstimate>,
+    frames_processed: u64,
+    frames_rejected: u64,
+}
+
+impl PerceptionNode {
+    pub fn new(config: PerceptionConfig, calibration: Calibration) -> Self {
+        Self {
+            config,
+            calibration,
+            pipeline: None,
+            apples: Vec::new(),
+            frames_processed: 0,
+            frames_rejected: 0,
+        }
+    }
+
+    pub fn frames_processed(&self) -> u64 {
+        self.frames_processed
+    }
+
+    /// Frames rejected as a whole (bad size, bad camera parameters).
+    pub fn frames_rejected(&self) -> u64 {
+        self.frames_rejected
+    }
+
+    /// Detects and localizes the apples of `frame` into `out` (which may be loaned shared
+    /// memory; every field of it is written). Returns the frame's statistics, or the setup
+    /// error when the frame's camera parameters are unusable (then `out` holds no apples).
+    pub fn process(
+        &mut self,
+        frame: &RgbdFrame,
+        out: &mut AppleDetections,
+    ) -> Result<FrameStats, PerceptionSetupError> {
+        out.source_frame_seq = frame.header.msg_seq;
+        out.source_capture_ns = frame.header.capture_ns;
+        out.processing_ns = 0;
+        out.apples.clear();
+        self.frames_processed += 1;
+        let mut apples = std::mem::take(&mut self.apples);
+        let perception = match self.pipeline_for(&frame.meta) {
+            Ok(perception) => perception,
+            Err(error) => {
+                self.frames_rejected += 1;
+                self.apples = apples;
+                return Err(error);
+            }
+        };
+        let rgb = RgbView {
+            width_px: frame.meta.rgb_intrinsics.width_px,
+            height_px: frame.meta.rgb_intrinsics.height_px,
+            data: &frame.rgb,
+        };
+        let depth = DepthView {
+            width_px: frame.meta.depth_intrinsics.width_px,
+            height_px: frame.meta.depth_intrinsics.height_px,
+            data: &frame.depth_mm,
+        };
+        let stats = perception.process_into(&rgb, &depth, &mut apples).clone();
+        if stats.rejection.is_some() {
+            self.frames_rejected += 1;
+        }
+        out.processing_ns = stats.timings.total_us * 1000;
+        for (index, apple) in apples.iter().take(MAX_APPLES_PER_FRAME).enumerate() {
+            let detection = AppleDetection {
+                apple_id: index as u32,
+                method: localization_method(apple.estimator) as u8,
+                _reserved: [0; 3],
+                position_in_camera_m: apple.position_in_camera_m,
+                position_in_robot_m: apple.position_in_robot_m,
+                radius_m: apple.radius_m,
+                confidence: apple.confidence,
+                box_px: [
+                    apple.pixel_box.u_min_px,
+                    apple.pixel_box.v_min_px,
+                    apple.pixel_box.width_px(),
+                    apple.pixel_box.height_px(),
+                ],
+                visible_px: apple.visible_px,
+            };
+            if out.apples.push(detection).is_err() {
+                break;
+            }
+        }
+        self.apples = apples;
+        Ok(stats)
+    }
+
+    fn pipeline_for(
+        &mut self,
+        meta: &RgbdFrameMeta,
+    ) -> Result<&mut Perception, PerceptionSetupError> {
+        let perception = match self.pipeline.take() {
+            Some((built_for, perception)) if built_for == *meta => perception,
+            _ => {
+                let cameras = CameraSetup {
+                    color: meta.rgb_intrinsics,
+                    depth: meta.depth_intrinsics,
+                    color_from_depth: meta.color_from_depth,
+                    robot_from_camera: self.calibration.camera.robot_from_camera,
+                };
+                Perception::new(self.config, cameras)?
+            }
+        };
+        let (_, perception) = self.pipeline.insert((*meta, perception));
+        Ok(perception)
+    }
+}
+
+/// The wire code of an estimator.
+pub fn localization_method(kind: EstimatorKind) -> LocalizationMethod {
+    match kind {
+        EstimatorKind::ClusterDepth => LocalizationMethod::ClusterCentroid,
+        EstimatorKind::SphereFit => LocalizationMethod::SphereFit,
+        EstimatorKind::ZScoreCentroid => LocalizationMethod::ZScoreCentroid,
+    }
+}

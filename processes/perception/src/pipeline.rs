@@ -1,0 +1,881 @@
+//! The perception pipeline of one ToF camera: detections -> mask points -> apple positions.
+//!
+//! Implements Zhu et al. 3.1 with a pluggable detector and estimator. Per frame:
+//! 1. Both frames are checked against the calibrated sizes; a malformed frame yields no apples and
+//!    is counted ([`FrameStats::rejection`]).
+//! 2. The detector finds apples in the colour image; detections below `min_detection_confidence`
+//!    (0.3 in the paper) are dropped.
+//! 3. The masks are painted into a label image (2x2-pixel cells; where masks overlap the more
+//!    confident detection wins) and every registered depth sample is assigned to the detection
+//!    under it: the mask points.
+//! 4. The estimator turns each detection's points and box-centre ray into a position; positions
+//!    that are non-finite or outside the camera's working range are dropped.
+//! 5. Estimates of one fruit split by an occluder into several detections (the paper's
+//!    over-detection, 4.3) are merged when their centres are closer than
+//!    `duplicate_distance_radii` times the sum of their radii, and re-estimated from the union of
+//!    their points.
+//! 6. Each apple is reported in the colour camera frame and, via `robot_from_camera`, in the robot
+//!    frame (the LiDAR-camera paper's eq. 20).
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+use tracing::{debug, trace};
+
+use crate::camera_setup::{CameraSetup, CameraSetupError};
+use crate::detector::color_segmentation::{
+    ColorSegmentation, ColorSegmentationConfig, ColorSegmentationConfigError,
+};
+use crate::detector::{Detection, Detector, PixelBox};
+use crate::estimator::{
+    Estimator, EstimatorConfig, EstimatorConfigError, EstimatorContext, EstimatorInput,
+    EstimatorKind, PositionEstimate, make_estimator,
+};
+use crate::frame::{DepthView, RgbView};
+use crate::noise_model::DepthNoiseModel;
+use crate::registration::{DepthRange, DepthRangeError, DepthRegistration};
+use crate::stats::{FrameStats, PerceptionStats};
+
+/// Side of a label-image cell in colour pixels.
+const LABEL_CELL_PX: u32 = 2;
+
+/// Pipeline configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PerceptionConfig {
+    /// Parameters of the default colour-segmentation detector.
+    pub detector: ColorSegmentationConfig,
+    /// Detections below this confidence are dropped (the paper's detector threshold is 0.3).
+    pub min_detection_confidence: f32,
+    /// Accepted depth samples, mm.
+    pub depth_range: DepthRange,
+    /// Depth noise scale of the ToF camera.
+    pub noise: DepthNoiseModel,
+    pub estimator: EstimatorConfig,
+    /// Merge estimates that localize the same fruit.
+    pub merge_duplicates: bool,
+    /// Two estimates are one fruit when their centres are closer than this times the sum of
+    /// their radii.
+    pub duplicate_distance_radii: f64,
+    /// Detections with fewer registered depth samples are dropped.
+    pub min_points_per_apple: u32,
+}
+
+impl Default for PerceptionConfig {
+    fn default() -> Self {
+        Self {
+            detector: ColorSegmentationConfig::default(),
+            min_detection_confidence: 0.3,
+            depth_range: DepthRange::default(),
+            noise: DepthNoiseModel::TL460,
+            estimator: EstimatorConfig::default(),
+            merge_duplicates: true,
+            duplicate_distance_radii: 0.5,
+            min_points_per_apple: 3,
+        }
+    }
+}
+
+/// Why a [`Perception`] cannot be built.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum PerceptionSetupError {
+    /// A camera intrinsic or extrinsic parameter is invalid.
+    #[error(transparent)]
+    Camera(#[from] CameraSetupError),
+    /// The colour-segmentation parameters are invalid.
+    #[error(transparent)]
+    Detector(#[from] ColorSegmentationConfigError),
+    /// The estimator parameters are invalid.
+    #[error(transparent)]
+    Estimator(#[from] EstimatorConfigError),
+    /// The depth range is invalid.
+    #[error(transparent)]
+    DepthRange(#[from] DepthRangeError),
+    /// A pipeline parameter is not finite or outside its range.
+    #[error("perception config: {key} = {value} is not finite or outside {min}..={max}")]
+    OutOfRange {
+        key: &'static str,
+        value: f64,
+        min: f64,
+        max: f64,
+    },
+}
+
+/// One localized apple.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AppleEstimate {
+    /// Box in the colour image (union of the boxes when detections were merged).
+    pub pixel_box: PixelBox,
+    /// Visible apple pixels in the colour image.
+    pub visible_px: u32,
+    /// Detection confidence from the mask, [0, 1].
+    pub mask_confidence: f32,
+    /// Geometric confidence of the 3D estimate, [0, 1].
+    pub position_confidence: f32,
+    /// `mask_confidence * position_confidence`.
+    pub confidence: f32,
+    /// Apple centre in the colour camera frame, metres.
+    pub position_in_camera_m: [f64; 3],
+    /// Apple centre in the robot frame, metres.
+    pub position_in_robot_m: [f64; 3],
+    /// Apple radius, metres.
+    pub radius_m: f64,
+    /// Depth samples supporting the estimate.
+    pub points_used: u32,
+    pub estimator: EstimatorKind,
+    /// The estimator used its fallback model (few points).
+    pub fallback: bool,
+    /// Number of detections merged into this apple (1 when not merged).
+    pub detections_merged: u32,
+}
+
+/// An estimate waiting for duplicate merging.
+#[derive(Debug, Clone, Copy)]
+struct Pending {
+    pixel_box: PixelBox,
+    visible_px: u32,
+    mask_confidence: f32,
+    estimate: PositionEstimate,
+    detections_merged: u32,
+}
+
+/// The perception pipeline with its scratch buffers. Not thread-safe by itself; one instance per
+/// camera stream.
+pub struct Perception {
+    config: PerceptionConfig,
+    cameras: CameraSetup,
+    detector: Box<dyn Detector + Send>,
+    estimator: Box<dyn Estimator + Send>,
+    registration: DepthRegistration,
+    detections: Vec<Detection>,
+    active: Vec<usize>,
+    label_map: Vec<u16>,
+    label_width: usize,
+    label_height: usize,
+    points: Vec<Vec<[f32; 3]>>,
+    merged_points: Vec<[f32; 3]>,
+    pending: Vec<Pending>,
+    /// Detection indices of each pending estimate (`pending_members[k]` lists detections).
+    pending_members: Vec<Vec<usize>>,
+    accepted: Vec<usize>,
+    last: FrameStats,
+    totals: PerceptionStats,
+}
+
+impl std::fmt::Debug for Perception {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Perception")
+            .field("config", &self.config)
+            .field("cameras", &self.cameras)
+            .field("detector", &self.detector.name())
+            .field("estimator", &self.estimator.kind())
+            .field("totals", &self.totals)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Perception {
+    /// A pipeline with the default colour-segmentation detector.
+    pub fn new(
+        config: PerceptionConfig,
+        cameras: CameraSetup,
+    ) -> Result<Self, PerceptionSetupError> {
+        let detector = ColorSegmentation::new(config.detector)?;
+        Self::with_detector(config, cameras, Box::new(detector))
+    }
+
+    /// A pipeline with a caller-supplied detector (e.g. a learned one).
+    pub fn with_detector(
+        config: PerceptionConfig,
+        cameras: CameraSetup,
+        detector: Box<dyn Detector + Send>,
+    ) -> Result<Self, PerceptionSetupError> {
+        cameras.validate()?;
+        config.depth_range.validate()?;
+        let checks = [
+            (
+                "min_detection_confidence",
+                f64::from(config.min_detection_confidence),
+                0.0,
+                1.0,
+            ),
+            (
+                "duplicate_distance_radii",
+                config.duplicate_distance_radii,
+                0.0,
+                2.0,
+            ),
+            (
+                "min_points_per_apple",
+                f64::from(config.min_points_per_apple),
+                1.0,
+                1e6,
+            ),
+        ];
+        for (key, value, min, max) in checks {
+            if !value.is_finite() || value < min || value > max {
+                return Err(PerceptionSetupError::OutOfRange {
+                    key,
+                    value,
+                    min,
+                    max,
+                });
+            }
+        }
+        let estimator = make_estimator(
+            &config.estimator,
+            EstimatorContext {
+                noise: config.noise,
+                depth_focal_px: cameras.depth.fx_px,
+            },
+        )?;
+        let registration = DepthRegistration::new(
+            cameras.depth,
+            cameras.color,
+            cameras.color_from_depth,
+            config.depth_range,
+        );
+        let label_width = cameras.color.width_px.div_ceil(LABEL_CELL_PX) as usize;
+        let label_height = cameras.color.height_px.div_ceil(LABEL_CELL_PX) as usize;
+        Ok(Self {
+            config,
+            cameras,
+            detector,
+            estimator,
+            registration,
+            detections: Vec::new(),
+            active: Vec::new(),
+            label_map: vec![0; label_width * label_height],
+            label_width,
+            label_height,
+            points: Vec::new(),
+            merged_points: Vec::new(),
+            pending: Vec::new(),
+            pending_members: Vec::new(),
+            accepted: Vec::new(),
+            last: FrameStats::default(),
+            totals: PerceptionStats::default(),
+        })
+    }
+
+    pub fn config(&self) -> &PerceptionConfig {
+        &self.config
+    }
+
+    pub fn cameras(&self) -> &CameraSetup {
+        &self.cameras
+    }
+
+    /// Statistics of the last processed frame.
+    pub fn last_frame_stats(&self) -> &FrameStats {
+        &self.last
+    }
+
+    /// Statistics accumulated since construction.
+    pub fn stats(&self) -> &PerceptionStats {
+        &self.totals
+    }
+
+    /// The 2D detections of the last frame (all of them, before the confidence threshold).
+    pub fn detections(&self) -> &[Detection] {
+        &self.detections
+    }
+
+    /// Localizes the apples in one RGB-D frame. Bad input yields fewer (or no) apples, never a
+    /// panic; see [`Self::last_frame_stats`].
+    pub fn process(&mut self, rgb: &RgbView<'_>, depth: &DepthView<'_>) -> Vec<AppleEstimate> {
+        let mut apples = Vec::new();
+        self.process_into(rgb, depth, &mut apples);
+        apples
+    }
+
+    /// Like [`Self::process`], reusing `apples` (cleared first).
+    pub fn process_into(
+        &mut self,
+        rgb: &RgbView<'_>,
+        depth: &DepthView<'_>,
+        apples: &mut Vec<AppleEstimate>,
+    ) -> &FrameStats {
+        apples.clear();
+        let start = Instant::now();
+        let mut stats = FrameStats::default();
+        self.run(rgb, depth, apples, &mut stats, start);
+        stats.apples = apples.len() as u32;
+        stats.timings.total_us = start.elapsed().as_micros() as u64;
+        trace!(
+            apples = stats.apples,
+            detections = stats.detections,
+            registered = stats.depth_registered_px,
+            total_us = stats.timings.total_us,
+            "perception frame"
+        );
+        self.totals.accumulate(&stats);
+        self.last = stats;
+        &self.last
+    }
+
+    fn run(
+        &mut self,
+        rgb: &RgbView<'_>,
+        depth: &DepthView<'_>,
+        apples: &mut Vec<AppleEstimate>,
+        stats: &mut FrameStats,
+        start: Instant,
+    ) {
+        self.detections.clear();
+        let frame_check = rgb
+            .validate_size(self.cameras.color.width_px, self.cameras.color.height_px)
+            .and_then(|()| {
+                depth.validate_size(self.cameras.depth.width_px, self.cameras.depth.height_px)
+            });
+        if let Err(error) = frame_check {
+            debug!(%error, "frame rejected");
+            stats.rejection = Some(error);
+            return;
+        }
+        match self.detector.detect(rgb, &mut self.detections) {
+            Ok(info) => stats.saturated_fraction = info.saturated_fraction,
+            Err(error) => {
+                debug!(%error, detector = self.detector.name(), "frame rejected by the detector");
+                stats.rejection = Some(error);
+                self.detections.clear();
+                return;
+            }
+        }
+        stats.detections = self.detections.len() as u32;
+        let after_detect = Instant::now();
+        stats.timings.detect_us = (after_detect - start).as_micros() as u64;
+
+        self.active.clear();
+        let limit = usize::from(u16::MAX - 1);
+        for (index, detection) in self.detections.iter().enumerate() {
+            if detection.confidence >= self.config.min_detection_confidence
+                && detection.confidence.is_finite()
+                && self.active.len() < limit
+            {
+                self.active.push(index);
+            } else {
+                stats.detections_below_confidence += 1;
+            }
+        }
+        self.paint_labels();
+        self.collect_points(depth, stats);
+        let after_register = Instant::now();
+        stats.timings.register_us = (after_register - after_detect).as_micros() as u64;
+
+        self.estimate_all(stats);
+        if self.config.merge_duplicates {
+            self.merge_duplicates(stats);
+        } else {
+            self.accepted.clear();
+            self.accepted.extend(0..self.pending.len());
+        }
+        let robot_from_camera = self.cameras.robot_from_camera;
+        let kind = self.estimator.kind();
+        for &k in &self.accepted {
+            let p = &self.pending[k];
+            stats.estimates_fallback += u32::from(p.estimate.fallback);
+            apples.push(AppleEstimate {
+                pixel_box: p.pixel_box,
+                visible_px: p.visible_px,
+                mask_confidence: p.mask_confidence,
+                position_confidence: p.estimate.confidence,
+                confidence: p.mask_confidence * p.estimate.confidence,
+                position_in_camera_m: p.estimate.position_in_camera_m,
+                position_in_robot_m: robot_from_camera.apply(p.estimate.position_in_camera_m),
+                radius_m: p.estimate.radius_m,
+                points_used: p.estimate.points_used,
+                estimator: kind,
+                fallback: p.estimate.fallback,
+                detections_merged: p.detections_merged,
+            });
+        }
+        stats.timings.estimate_us = after_register.elapsed().as_micros() as u64;
+    }
+
+    /// Paints the active detections' masks into the label image, least confident first.
+    fn paint_labels(&mut self) {
+        self.label_map.fill(0);
+        let detections = &self.detections;
+        self.active.sort_by(|&a, &b| {
+            detections[a]
+                .confidence
+                .total_cmp(&detections[b].confidence)
+                .then(a.cmp(&b))
+        });
+        let cell = LABEL_CELL_PX;
+        for &index in &self.active {
+            let detection = &self.detections[index];
+            let b = detection.pixel_box;
+            let x_end = (b.u_max_px.div_ceil(cell) as usize).min(self.label_width);
+            let y_end = (b.v_max_px.div_ceil(cell) as usize).min(self.label_height);
+            let label = (index + 1) as u16;
+            for y in (b.v_min_px / cell) as usize..y_end {
+                let v_px = y as u32 * cell + cell / 2;
+                let row = y * self.label_width;
+                for x in (b.u_min_px / cell) as usize..x_end {
+                    if detection.mask.contains_px(x as u32 * cell + cell / 2, v_px) {
+                        self.label_map[row + x] = label;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Registers the depth frame and appends every sample to the detection under it.
+    fn collect_points(&mut self, depth: &DepthView<'_>, stats: &mut FrameStats) {
+        if self.points.len() < self.detections.len() {
+            self.points.resize_with(self.detections.len(), Vec::new);
+        }
+        for points in &mut self.points {
+            points.clear();
+        }
+        if self.active.is_empty() {
+            // Still count the depth quality of the frame.
+            let counts = self.registration.register(depth, |_| {});
+            if let Ok(counts) = counts {
+                stats.depth_registered_px = counts.registered;
+                stats.depth_zero_px = counts.zero;
+                stats.depth_out_of_range_px = counts.out_of_range;
+                stats.depth_outside_color_px = counts.outside_color;
+            }
+            return;
+        }
+        let label_map = &self.label_map;
+        let label_width = self.label_width;
+        let label_height = self.label_height;
+        let points = &mut self.points;
+        let cell = f64::from(LABEL_CELL_PX);
+        let result = self.registration.register(depth, |sample| {
+            let x = ((sample.u_px + 0.5) / cell) as usize;
+            let y = ((sample.v_px + 0.5) / cell) as usize;
+            if x >= label_width || y >= label_height {
+                return;
+            }
+            let label = label_map[y * label_width + x];
+            if label == 0 {
+                return;
+            }
+            if let Some(list) = points.get_mut(usize::from(label) - 1) {
+                let p = sample.point_in_camera_m;
+                list.push([p[0] as f32, p[1] as f32, p[2] as f32]);
+            }
+        });
+        match result {
+            Ok(counts) => {
+                stats.depth_registered_px = counts.registered;
+                stats.depth_zero_px = counts.zero;
+                stats.depth_out_of_range_px = counts.out_of_range;
+                stats.depth_outside_color_px = counts.outside_color;
+            }
+            Err(error) => {
+                // Unreachable after the size check in `run`; kept so a bad frame never panics.
+                debug!(%error, "depth registration failed");
+                stats.rejection = Some(error);
+            }
+        }
+    }
+
+    /// Ray `(x/z, y/z, 1)` through a box centre in the colour camera.
+    fn box_center_ray(&self, pixel_box: &PixelBox) -> [f64; 3] {
+        let (u, v) = pixel_box.center_px();
+        let (x, y) = self.cameras.color.normalize(u, v);
+        [x, y, 1.0]
+    }
+
+    fn plausible(&self, estimate: &PositionEstimate) -> bool {
+        let p = estimate.position_in_camera_m;
+        let min_m = f64::from(self.config.depth_range.min_mm) * 1e-3;
+        let max_m = f64::from(self.config.depth_range.max_mm) * 1e-3;
+        p.iter().all(|v| v.is_finite())
+            && estimate.radius_m.is_finite()
+            && estimate.confidence.is_finite()
+            && p[2] >= min_m
+            && p[2] <= max_m
+    }
+
+    /// One estimate per active detection with enough points.
+    fn estimate_all(&mut self, stats: &mut FrameStats) {
+        self.pending.clear();
+        for members in &mut self.pending_members {
+            members.clear();
+        }
+        for i in 0..self.active.len() {
+            let index = self.active[i];
+            let points = &self.points[index];
+            if points.len() < self.config.min_points_per_apple as usize {
+                stats.detections_without_depth += 1;
+                continue;
+            }
+            let detection = &self.detections[index];
+            let input = EstimatorInput {
+                points_in_camera_m: points,
+                box_center_ray: self.box_center_ray(&detection.pixel_box),
+            };
+            let Some(estimate) = self.estimator.estimate(&input) else {
+                stats.estimates_failed += 1;
+                continue;
+            };
+            if !self.plausible(&estimate) {
+                stats.estimates_rejected += 1;
+                continue;
+            }
+            let k = self.pending.len();
+            self.pending.push(Pending {
+                pixel_box: detection.pixel_box,
+                visible_px: detection.visible_px,
+                mask_confidence: detection.confidence,
+                estimate,
+                detections_merged: 1,
+            });
+            if self.pending_members.len() <= k {
+                self.pending_members.push(Vec::new());
+            }
+            self.pending_members[k].push(index);
+        }
+    }
+
+    /// Greedy merging of estimates of the same fruit, best-supported first.
+    fn merge_duplicates(&mut self, stats: &mut FrameStats) {
+        let mut order: Vec<usize> = (0..self.pending.len()).collect();
+        order.sort_by(|&a, &b| {
+            self.pending[b]
+                .estimate
+                .points_used
+                .cmp(&self.pending[a].estimate.points_used)
+                .then(a.cmp(&b))
+        });
+        self.accepted.clear();
+        for k in order {
+            let candidate = self.pending[k];
+            let duplicate_of = self.accepted.iter().copied().find(|&a| {
+                let kept = &self.pending[a].estimate;
+                let c = &candidate.estimate;
+                let distance = (0..3)
+                    .map(|i| (kept.position_in_camera_m[i] - c.position_in_camera_m[i]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                distance < self.config.duplicate_distance_radii * (kept.radius_m + c.radius_m)
+            });
+            let Some(a) = duplicate_of else {
+                self.accepted.push(k);
+                continue;
+            };
+            stats.duplicates_merged += 1;
+            let members = std::mem::take(&mut self.pending_members[k]);
+            self.pending_members[a].extend_from_slice(&members);
+            self.pending_members[k] = members;
+            self.merged_points.clear();
+            for &index in &self.pending_members[a] {
+                self.merged_points.extend_from_slice(&self.points[index]);
+            }
+            let merged_box = self.pending[a].pixel_box.union(&candidate.pixel_box);
+            let input = EstimatorInput {
+                points_in_camera_m: &self.merged_points,
+                box_center_ray: self.box_center_ray(&merged_box),
+            };
+            let reestimate = self.estimator.estimate(&input);
+            let kept = &mut self.pending[a];
+            kept.pixel_box = merged_box;
+            kept.visible_px += candidate.visible_px;
+            kept.mask_confidence = kept.mask_confidence.max(candidate.mask_confidence);
+            kept.detections_merged += candidate.detections_merged;
+            if let Some(estimate) = reestimate
+                && self.plausible(&estimate)
+            {
+                self.pending[a].estimate = estimate;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::{SyntheticFrame, SyntheticScene};
+    use harvest_ipc::camera_model::RigidTransform;
+
+    fn cameras() -> CameraSetup {
+        CameraSetup::tl460_simulated(RigidTransform::from_rpy_translation(
+            0.05,
+            -0.1,
+            1.2,
+            [0.4, -0.2, 1.1],
+        ))
+    }
+
+    fn perception(kind: EstimatorKind) -> Perception {
+        let mut config = PerceptionConfig::default();
+        config.estimator.kind = kind;
+        Perception::new(config, cameras()).expect("valid setup")
+    }
+
+    fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    }
+
+    /// Matches every true apple to the nearest estimate; returns (errors of matched apples,
+    /// unmatched estimates). An estimate within 2 fruit radii of a true centre is a match.
+    fn match_apples(scene: &SyntheticScene, apples: &[AppleEstimate]) -> (Vec<f64>, usize) {
+        let mut used = vec![false; apples.len()];
+        let mut errors = Vec::new();
+        for truth in &scene.apples {
+            let best = apples
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !used[*i])
+                .map(|(i, a)| {
+                    (
+                        i,
+                        distance(a.position_in_camera_m, truth.center_in_camera_m),
+                    )
+                })
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((i, error)) = best
+                && error < 2.0 * truth.radius_m
+            {
+                used[i] = true;
+                errors.push(error);
+            }
+        }
+        (errors, used.iter().filter(|u| !**u).count())
+    }
+
+    fn scene_and_frame(apples: usize, seed: u64) -> (SyntheticScene, SyntheticFrame) {
+        let scene = SyntheticScene::orchard(&cameras(), apples, seed);
+        let frame = scene.render(&cameras());
+        (scene, frame)
+    }
+
+    #[test]
+    fn synthetic_orchard_apples_are_found_and_sphere_fit_is_more_accurate() {
+        let mut fit_errors = Vec::new();
+        let mut paper_errors = Vec::new();
+        let mut truth_count = 0;
+        let mut false_positives = 0;
+        for seed in [1, 2] {
+            let (scene, frame) = scene_and_frame(12, seed);
+            truth_count += scene.apples.len();
+            let mut fit = perception(EstimatorKind::SphereFit);
+            let apples = fit.process(&frame.rgb_view(), &frame.depth_view());
+            let (errors, unmatched) = match_apples(&scene, &apples);
+            fit_errors.extend(errors);
+            false_positives += unmatched;
+            let stats = fit.last_frame_stats();
+            assert_eq!(stats.rejection, None);
+            assert_eq!(stats.apples as usize, apples.len());
+            for apple in &apples {
+                let expected = cameras()
+                    .robot_from_camera
+                    .apply(apple.position_in_camera_m);
+                assert!(distance(expected, apple.position_in_robot_m) < 1e-12);
+                assert!((0.0..=1.0).contains(&apple.confidence));
+                assert!(apple.radius_m >= 0.035 && apple.radius_m <= 0.050);
+                assert_eq!(apple.estimator, EstimatorKind::SphereFit);
+            }
+            let mut paper = perception(EstimatorKind::ClusterDepth);
+            let apples = paper.process(&frame.rgb_view(), &frame.depth_view());
+            paper_errors.extend(match_apples(&scene, &apples).0);
+        }
+        let mean = |e: &[f64]| e.iter().sum::<f64>() / e.len().max(1) as f64;
+        eprintln!(
+            "truth {truth_count}, sphere fit matched {} (mean error {:.4} m), paper matched {} (mean error {:.4} m), false positives {false_positives}",
+            fit_errors.len(),
+            mean(&fit_errors),
+            paper_errors.len(),
+            mean(&paper_errors)
+        );
+        assert!(
+            fit_errors.len() * 10 >= truth_count * 9,
+            "recall below 90 %"
+        );
+        assert!(false_positives <= 1, "{false_positives} false positives");
+        assert!(
+            mean(&fit_errors) < 0.012,
+            "sphere fit mean error {}",
+            mean(&fit_errors)
+        );
+        assert!(mean(&fit_errors) < 0.6 * mean(&paper_errors));
+    }
+
+    #[test]
+    fn zero_depth_frame_reports_no_apples_and_counts_it() {
+        let (_, mut frame) = scene_and_frame(6, 3);
+        frame.depth_mm.fill(0);
+        let mut pipeline = perception(EstimatorKind::SphereFit);
+        let apples = pipeline.process(&frame.rgb_view(), &frame.depth_view());
+        assert!(apples.is_empty());
+        let stats = pipeline.last_frame_stats().clone();
+        assert!(stats.detections >= 5, "{stats:?}");
+        assert_eq!(
+            stats.detections_without_depth,
+            stats.detections - stats.detections_below_confidence
+        );
+        assert_eq!(stats.depth_registered_px, 0);
+        assert_eq!(stats.depth_zero_px, 640 * 480);
+        assert_eq!(pipeline.stats().frames_without_depth, 1);
+    }
+
+    #[test]
+    fn wrong_buffer_sizes_are_rejected_without_apples() {
+        let (_, frame) = scene_and_frame(4, 4);
+        let mut pipeline = perception(EstimatorKind::ClusterDepth);
+        let short_rgb = RgbView {
+            data: &frame.rgb[..frame.rgb.len() - 1],
+            ..frame.rgb_view()
+        };
+        assert!(pipeline.process(&short_rgb, &frame.depth_view()).is_empty());
+        assert!(pipeline.last_frame_stats().rejection.is_some());
+        let small_rgb = RgbView {
+            width_px: 960,
+            height_px: 540,
+            data: &frame.rgb[..960 * 540 * 3],
+        };
+        assert!(pipeline.process(&small_rgb, &frame.depth_view()).is_empty());
+        let short_depth = DepthView {
+            data: &frame.depth_mm[..100],
+            ..frame.depth_view()
+        };
+        assert!(pipeline.process(&frame.rgb_view(), &short_depth).is_empty());
+        let empty = DepthView {
+            width_px: 0,
+            height_px: 0,
+            data: &[],
+        };
+        assert!(pipeline.process(&frame.rgb_view(), &empty).is_empty());
+        let totals = pipeline.stats();
+        assert_eq!(totals.frames, 4);
+        assert_eq!(totals.frames_rejected_rgb, 2);
+        assert_eq!(totals.frames_rejected_depth, 2);
+        assert_eq!(totals.apples, 0);
+        // A good frame afterwards still works.
+        assert!(
+            !pipeline
+                .process(&frame.rgb_view(), &frame.depth_view())
+                .is_empty()
+        );
+    }
+
+    #[test]
+    fn saturated_frame_invents_no_apples() {
+        let (_, frame) = scene_and_frame(6, 5);
+        let white = vec![255_u8; frame.rgb.len()];
+        let mut pipeline = perception(EstimatorKind::SphereFit);
+        let rgb = RgbView {
+            data: &white,
+            ..frame.rgb_view()
+        };
+        assert!(pipeline.process(&rgb, &frame.depth_view()).is_empty());
+        assert!(pipeline.last_frame_stats().saturated_fraction > 0.99);
+        assert_eq!(pipeline.stats().frames_mostly_saturated, 1);
+    }
+
+    #[test]
+    fn over_exposed_scene_still_localizes_most_apples() {
+        let mut scene = SyntheticScene::orchard(&cameras(), 8, 6);
+        scene.light_gain = 1.8;
+        let frame = scene.render(&cameras());
+        let mut pipeline = perception(EstimatorKind::SphereFit);
+        let apples = pipeline.process(&frame.rgb_view(), &frame.depth_view());
+        let (errors, false_positives) = match_apples(&scene, &apples);
+        eprintln!(
+            "over-exposed: {} of {} found, saturated fraction {}",
+            errors.len(),
+            scene.apples.len(),
+            pipeline.last_frame_stats().saturated_fraction
+        );
+        assert!(errors.len() * 4 >= scene.apples.len() * 3);
+        assert!(false_positives <= 1);
+    }
+
+    #[test]
+    fn invalid_setup_is_an_error() {
+        let mut bad = cameras();
+        bad.color.fx_px = f64::NAN;
+        assert!(matches!(
+            Perception::new(PerceptionConfig::default(), bad),
+            Err(PerceptionSetupError::Camera(_))
+        ));
+        let config = PerceptionConfig {
+            min_detection_confidence: f32::NAN,
+            ..PerceptionConfig::default()
+        };
+        assert!(matches!(
+            Perception::new(config, cameras()),
+            Err(PerceptionSetupError::OutOfRange { .. })
+        ));
+    }
+
+    #[test]
+    fn config_parses_from_toml_and_rejects_unknown_keys() {
+        let config: PerceptionConfig = toml::from_str(
+            "min_detection_confidence = 0.4\n[estimator]\nkind = \"cluster_depth\"\n[estimator.sphere_fit]\nradius_prior_m = 0.04\n",
+        )
+        .expect("valid toml");
+        assert_eq!(config.estimator.kind, EstimatorKind::ClusterDepth);
+        assert_eq!(config.estimator.sphere_fit.radius_prior_m, 0.04);
+        assert_eq!(config.min_detection_confidence, 0.4);
+        assert_eq!(config.depth_range, DepthRange::default());
+        assert!(toml::from_str::<PerceptionConfig>("min_detection_confidense = 0.4").is_err());
+    }
+
+    /// Writes the synthetic frame and the detections to /tmp for visual inspection.
+    #[test]
+    #[ignore = "debug output"]
+    fn dump_synthetic_frame() {
+        let (scene, frame) = scene_and_frame(24, 100);
+        let mut pipeline = perception(EstimatorKind::SphereFit);
+        let apples = pipeline.process(&frame.rgb_view(), &frame.depth_view());
+        let mut rgb = frame.rgb.clone();
+        let w = frame.rgb_width_px as usize;
+        for d in pipeline.detections() {
+            let b = d.pixel_box;
+            let colour = if d.confidence >= 0.3 {
+                [255, 255, 0]
+            } else {
+                [0, 0, 255]
+            };
+            for u in b.u_min_px..b.u_max_px {
+                for v in [b.v_min_px, b.v_max_px - 1] {
+                    let i = (v as usize * w + u as usize) * 3;
+                    rgb[i..i + 3].copy_from_slice(&colour);
+                }
+            }
+            for v in b.v_min_px..b.v_max_px {
+                for u in [b.u_min_px, b.u_max_px - 1] {
+                    let i = (v as usize * w + u as usize) * 3;
+                    rgb[i..i + 3].copy_from_slice(&colour);
+                }
+            }
+        }
+        image::save_buffer(
+            "/tmp/perception_rgb.png",
+            &rgb,
+            frame.rgb_width_px,
+            frame.rgb_height_px,
+            image::ExtendedColorType::Rgb8,
+        )
+        .expect("write png");
+        let depth: Vec<u8> = frame
+            .depth_mm
+            .iter()
+            .map(|&d| (d / 12).min(255) as u8)
+            .collect();
+        image::save_buffer(
+            "/tmp/perception_depth.png",
+            &depth,
+            640,
+            480,
+            image::ExtendedColorType::L8,
+        )
+        .expect("write png");
+        let (errors, fp) = match_apples(&scene, &apples);
+        eprintln!(
+            "truth {} matched {} fp {fp} errors {errors:?}",
+            scene.apples.len(),
+            errors.len()
+        );
+        eprintln!("{:?}", pipeline.last_frame_stats());
+    }
+}

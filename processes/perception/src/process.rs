@@ -1,0 +1,137 @@
+//! `harvest perception`: `camera/rgbd` -> `perception/apples`.
+//!
+//! Event-driven: the wait set wakes on each frame; the frame is read in place in shared memory
+//! and the detections are written in place into a loaned sample. Only the newest frame is
+//! processed when several are queued (perception must not fall behind the camera).
+
+use crate::calibration::{Calibration, CalibrationError};
+use crate::estimator::EstimatorKind;
+use crate::node::PerceptionNode;
+use crate::pipeline::PerceptionConfig;
+use harvest_ipc::catalogue::{CAMERA_RGBD, PERCEPTION_APPLES};
+use harvest_ipc::payloads::ProcessRunState;
+use harvest_ipc::{
+    Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
+};
+use std::path::PathBuf;
+
+/// Localization estimator selectable on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EstimatorChoice {
+    /// The paper's DBSCAN cluster-depth method.
+    ClusterDepth,
+    /// Robust sphere fit with an apple-radius prior (default).
+    SphereFit,
+}
+
+impl EstimatorChoice {
+    pub fn kind(self) -> EstimatorKind {
+        match self {
+            Self::ClusterDepth => EstimatorKind::ClusterDepth,
+            Self::SphereFit => EstimatorKind::SphereFit,
+        }
+    }
+}
+
+#[derive(Debug, Clone, clap::Args)]
+pub struct PerceptionArgs {
+    /// Camera calibration (TOML); default: the simulated robot's camera mounting.
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
+    #[arg(long, value_enum, default_value = "sphere-fit")]
+    pub estimator: EstimatorChoice,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum PerceptionProcessError {
+    #[error(transparent)]
+    Calibration(#[from] CalibrationError),
+    #[error(transparent)]
+    Node(#[from] harvest_ipc::error::NodeError),
+    #[error(transparent)]
+    Channel(#[from] harvest_ipc::error::OpenChannelError),
+    #[error(transparent)]
+    Send(#[from] harvest_ipc::error::SendError),
+    #[error(transparent)]
+    Receive(#[from] harvest_ipc::error::ReceiveError),
+    #[error(transparent)]
+    Wait(#[from] harvest_ipc::error::WaitError),
+}
+
+/// Runs until SIGINT/SIGTERM.
+pub fn run(
+    args: &PerceptionArgs,
+    domain: &Domain,
+    process_name: &str,
+) -> Result<(), PerceptionProcessError> {
+    let calibration = match &args.calibration {
+        Some(path) => Calibration::from_path(path)?,
+        None => Calibration::default_calibration()?,
+    };
+    let mut config = PerceptionConfig::default();
+    config.estimator.kind = args.estimator.kind();
+    let mut node = PerceptionNode::new(config, calibration);
+
+    let context = Context::new(domain, process_name)?;
+    let frames = context.subscriber(CAMERA_RGBD)?;
+    let mut detections = context.publisher(PERCEPTION_APPLES)?;
+    let mut health = HealthReporter::new(&context)?;
+    let waiter = Waiter::new()?;
+    let frame_guard = waiter.attach_listener(frames.listener())?;
+    let heartbeat = waiter.attach_interval(HEARTBEAT_PERIOD)?;
+    let mut last_receive_latency_ns = 0u64;
+    let mut apples_published = 0u64;
+    tracing::info!(estimator = ?args.estimator, "perception running");
+    waiter
+        .run(|attachment| -> Result<Flow, PerceptionProcessError> {
+            if attachment.has_event_from(&frame_guard) {
+                if let Some(frame) = frames.receive_latest()? {
+                    let received_ns = MonotonicClock::read_ns();
+                    last_receive_latency_ns = received_ns.saturating_sub(frame.header.publish_ns);
+                    let mut out = detections.loan()?;
+                    let result = node.process(&frame, &mut out);
+                    out.header.capture_ns = frame.header.capture_ns;
+                    let count = out.apples.len();
+                    drop(frame);
+                    detections.send(out)?;
+                    apples_published += count as u64;
+                    match result {
+                        Ok(stats) => tracing::trace!(
+                            apples = count,
+                            receive_latency_ns = last_receive_latency_ns,
+                            total_us = stats.timings.total_us,
+                            "frame processed"
+                        ),
+                        Err(error) => {
+                            tracing::warn!(%error, "frame rejected: camera parameters unusable")
+                        }
+                    }
+                }
+            }
+            if attachment.has_event_from(&heartbeat) {
+                let state = if node.frames_rejected() > 0
+                    && node.frames_rejected() == node.frames_processed()
+                {
+                    ProcessRunState::Degraded
+                } else {
+                    ProcessRunState::Running
+                };
+                health.report(
+                    state,
+                    frames.received_count(),
+                    "recv_latency_ns",
+                    last_receive_latency_ns,
+                )?;
+            }
+            Ok(Flow::Continue)
+        })
+        .map_err(harvest_ipc::RunError::flatten)?;
+    tracing::info!(
+        frames = node.frames_processed(),
+        rejected = node.frames_rejected(),
+        dropped = frames.dropped_count(),
+        apples = apples_published,
+        "perception stopped"
+    );
+    Ok(())
+}

@@ -1,0 +1,769 @@
+//! `harvest recorder`: taps every selected catalogue channel of the domain and writes it to
+//! MCAP (see the crate docs for the file layout).
+//!
+//! The loop is the ipc wait set: each subscriber's listener wakes it when data arrives; a
+//! housekeeping interval sends heartbeats, retries channels that could not be opened yet,
+//! watches the writer and the stop flag. SIGINT/SIGTERM end the loop; the recorder then drains
+//! what is still queued, writes per-channel drop counts and finishes the file.
+
+use crate::metadata;
+use crate::schema::{TopicInfo, catalogue_topics, layer_name};
+use crate::segment_writer::{ChunkCompression, ChunkSettings};
+use crate::tap::{Tap, TapCounts, TypedTap};
+use crate::topic_filter::TopicFilter;
+use crate::units::{format_bytes, parse_duration, parse_size_bytes};
+use crate::wall_clock::{ClockPair, format_utc_iso};
+use crate::writer_thread::{OutputSettings, WriteError, WriterHandle};
+use harvest_ipc::catalogue::{self, Layer};
+use harvest_ipc::payloads::ProcessRunState;
+use harvest_ipc::{
+    Channel, ChannelVisitor, Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, Payload,
+    RunEnd, RunError, Waiter,
+};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Catalogue layers on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LayerArg {
+    Stack,
+    Hardware,
+    Evaluation,
+}
+
+impl LayerArg {
+    pub fn layer(self) -> Layer {
+        match self {
+            Self::Stack => Layer::Stack,
+            Self::Hardware => Layer::Hardware,
+            Self::Evaluation => Layer::Evaluation,
+        }
+    }
+}
+
+/// Options of `harvest recorder`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RecorderArgs {
+    /// Directory the recording segments are written to.
+    #[arg(long, default_value = "recordings")]
+    pub output_dir: PathBuf,
+    /// File name prefix; the size bound only counts and removes `<prefix>-*.mcap` files.
+    #[arg(long, default_value = "harvest")]
+    pub prefix: String,
+    /// Chunk compression.
+    #[arg(long, value_enum, default_value = "zstd")]
+    pub compression: ChunkCompression,
+    /// Compression level (default: zstd 1, lz4 0 = fast default).
+    #[arg(long)]
+    pub compression_level: Option<u32>,
+    /// zstd worker threads (0: compress on the writer thread itself).
+    #[arg(long, default_value_t = 1)]
+    pub compression_threads: u32,
+    /// Uncompressed size at which a chunk is closed (e.g. 4MiB).
+    #[arg(long, default_value = "4MiB", value_parser = parse_size_bytes)]
+    pub chunk_size: u64,
+    /// A chunk is also closed after this long, bounding what a crash can lose (e.g. 1s).
+    #[arg(long, default_value = "1s", value_parser = parse_duration)]
+    pub chunk_interval: Duration,
+    /// Start a new segment file at this size (0: never split by size).
+    #[arg(long, default_value = "1GiB", value_parser = parse_size_bytes)]
+    pub split_size: u64,
+    /// Start a new segment file after this long (e.g. 5m).
+    #[arg(long, value_parser = parse_duration)]
+    pub split_duration: Option<Duration>,
+    /// Bound on the total size of `<prefix>-*.mcap` files in the output directory; the oldest
+    /// are removed first when a segment starts (0: unbounded).
+    #[arg(long, default_value = "20GiB", value_parser = parse_size_bytes)]
+    pub max_total_size: u64,
+    /// Record only topics matching one of these globs (`*` matches across `/`); repeatable.
+    #[arg(long = "include", value_name = "GLOB")]
+    pub include: Vec<String>,
+    /// Leave out topics matching one of these globs; repeatable.
+    #[arg(long = "exclude", value_name = "GLOB")]
+    pub exclude: Vec<String>,
+    /// Catalogue layers to record; repeatable. Default: the stack layer only (hardware
+    /// channels duplicate what drivers republish, evaluation channels are ground truth).
+    #[arg(long = "layer", value_enum, default_value = "stack")]
+    pub layers: Vec<LayerArg>,
+    /// Encoded bytes that may wait for the disk before messages are dropped (and counted).
+    #[arg(long, default_value = "512MiB", value_parser = parse_size_bytes)]
+    pub queue_size: u64,
+    /// Launch file of the stack, stored in the recording's metadata.
+    #[arg(long)]
+    pub launch_file: Option<PathBuf>,
+    /// Calibration file, stored in the recording's metadata.
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
+    /// Scenario name or file, stored in the recording's metadata.
+    #[arg(long)]
+    pub scenario: Option<String>,
+    /// Extra `key=value` metadata; repeatable.
+    #[arg(long = "note", value_name = "KEY=VALUE")]
+    pub notes: Vec<String>,
+    /// How often channels that could not be opened are retried.
+    #[arg(long, default_value = "1s", value_parser = parse_duration)]
+    pub retry_interval: Duration,
+}
+
+impl Default for RecorderArgs {
+    fn default() -> Self {
+        Self {
+            output_dir: PathBuf::from("recordings"),
+            prefix: "harvest".to_owned(),
+            compression: ChunkCompression::Zstd,
+            compression_level: None,
+            compression_threads: 1,
+            chunk_size: 4 << 20,
+            chunk_interval: Duration::from_secs(1),
+            split_size: 1 << 30,
+            split_duration: None,
+            max_total_size: 20 << 30,
+            include: Vec::new(),
+            exclude: Vec::new(),
+            layers: vec![LayerArg::Stack],
+            queue_size: 512 << 20,
+            launch_file: None,
+            calibration: None,
+            scenario: None,
+            notes: Vec::new(),
+            retry_interval: Duration::from_secs(1),
+        }
+    }
+}
+
+impl RecorderArgs {
+    /// The topic selection these options describe.
+    pub fn topic_filter(&self) -> TopicFilter {
+        TopicFilter {
+            include: self.include.clone(),
+            exclude: self.exclude.clone(),
+            layers: self.layers.iter().map(|layer| layer.layer()).collect(),
+        }
+    }
+
+    fn chunk_settings(&self) -> ChunkSettings {
+        let default_level = match self.compression {
+            ChunkCompression::Zstd => 1,
+            ChunkCompression::Lz4 | ChunkCompression::None => 0,
+        };
+        ChunkSettings {
+            compression: self.compression,
+            compression_level: self.compression_level.unwrap_or(default_level),
+            compression_threads: self.compression_threads,
+            chunk_size_bytes: self.chunk_size,
+        }
+    }
+
+    /// Output settings, after checking the options fit together.
+    pub fn output_settings(&self, domain: &Domain) -> Result<OutputSettings, RecorderError> {
+        let nonzero = |value: u64| (value > 0).then_some(value);
+        let settings = OutputSettings {
+            dir: self.output_dir.clone(),
+            prefix: self.prefix.clone(),
+            domain: domain.name().to_owned(),
+            chunks: self.chunk_settings(),
+            chunk_interval: self.chunk_interval.max(Duration::from_millis(1)),
+            split_size_bytes: nonzero(self.split_size),
+            split_duration: self.split_duration.filter(|duration| !duration.is_zero()),
+            max_total_bytes: nonzero(self.max_total_size),
+            queue_bytes: usize::try_from(self.queue_size).unwrap_or(usize::MAX),
+        };
+        if self.prefix.is_empty() || self.prefix.contains('/') {
+            return Err(RecorderError::InvalidOption {
+                option: "--prefix",
+                value: self.prefix.clone(),
+                reason: "must be a non-empty file-name fragment without '/'".to_owned(),
+            });
+        }
+        if self.compression == ChunkCompression::Zstd && settings.chunks.compression_level > 22 {
+            return Err(RecorderError::InvalidOption {
+                option: "--compression-level",
+                value: settings.chunks.compression_level.to_string(),
+                reason: "zstd levels are 1..=22".to_owned(),
+            });
+        }
+        if let Some(max_total) = settings.max_total_bytes {
+            match settings.split_size_bytes {
+                Some(split) if split.saturating_mul(2) <= max_total => {}
+                _ => tracing::warn!(
+                    max_total = %format_bytes(max_total),
+                    "the size bound only removes finished segments: use --split-size of at most half of --max-total-size"
+                ),
+            }
+        }
+        Ok(settings)
+    }
+}
+
+/// Controls a recorder run from another thread (tests, embedding).
+#[derive(Debug)]
+pub struct RecorderControl {
+    /// Set to end the recording; checked every `housekeeping_period`.
+    pub stop: AtomicBool,
+    /// Set by the recorder once every channel it could open is tapped.
+    pub ready: AtomicBool,
+    /// How often the recorder checks `stop`, retries channels and considers a heartbeat.
+    pub housekeeping_period: Duration,
+}
+
+impl RecorderControl {
+    pub fn new(housekeeping_period: Duration) -> Self {
+        Self {
+            stop: AtomicBool::new(false),
+            ready: AtomicBool::new(false),
+            housekeeping_period,
+        }
+    }
+}
+
+impl Default for RecorderControl {
+    fn default() -> Self {
+        Self::new(HEARTBEAT_PERIOD / 2)
+    }
+}
+
+/// Why the recording ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RecordingEnd {
+    /// SIGINT or SIGTERM.
+    Signal,
+    /// The control's stop flag.
+    Stopped,
+}
+
+/// One channel's line of the end-of-recording report.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TopicReport {
+    pub topic: &'static str,
+    pub counts: TapCounts,
+    pub written: u64,
+}
+
+/// What a recorder run did.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RecordingReport {
+    pub end: RecordingEnd,
+    pub files: Vec<PathBuf>,
+    pub bytes_written: u64,
+    pub topics: Vec<TopicReport>,
+    /// Selected channels that never opened, with the last reason.
+    pub unopened: Vec<(&'static str, String)>,
+    pub removed_files: Vec<PathBuf>,
+}
+
+impl RecordingReport {
+    pub fn messages_written(&self) -> u64 {
+        self.topics.iter().map(|topic| topic.written).sum()
+    }
+
+    pub fn total_dropped(&self) -> u64 {
+        self.topics
+            .iter()
+            .map(|topic| topic.counts.dropped_by_transport + topic.counts.dropped_by_queue)
+            .sum()
+    }
+}
+
+impl std::fmt::Display for RecordingReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "recording ended ({:?}): {} message(s), {} in {} file(s)",
+            self.end,
+            self.messages_written(),
+            format_bytes(self.bytes_written),
+            self.files.len()
+        )?;
+        for file in &self.files {
+            writeln!(f, "  {}", file.display())?;
+        }
+        writeln!(
+            f,
+            "  {:<24} {:>10} {:>10} {:>16} {:>14}",
+            "topic", "received", "written", "dropped(buffer)", "dropped(queue)"
+        )?;
+        for topic in &self.topics {
+            writeln!(
+                f,
+                "  {:<24} {:>10} {:>10} {:>16} {:>14}",
+                topic.topic,
+                topic.counts.received,
+                topic.written,
+                topic.counts.dropped_by_transport,
+                topic.counts.dropped_by_queue
+            )?;
+        }
+        for (topic, reason) in &self.unopened {
+            writeln!(f, "  not recorded: {topic}: {reason}")?;
+        }
+        Ok(())
+    }
+}
+
+/// The recorder could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum RecorderError {
+    /// An option has an unusable value.
+    #[error("recorder option {option} {value:?}: {reason}")]
+    InvalidOption {
+        option: &'static str,
+        value: String,
+        reason: String,
+    },
+    /// The include/exclude patterns and layers leave no channel to record.
+    #[error(
+        "no catalogue channel matches the topic selection (include {include:?}, exclude {exclude:?}, layers {layers:?})"
+    )]
+    NothingSelected {
+        include: Vec<String>,
+        exclude: Vec<String>,
+        layers: Vec<&'static str>,
+    },
+    #[error(transparent)]
+    Node(#[from] harvest_ipc::error::NodeError),
+    /// The heartbeat publisher cannot be opened.
+    #[error("heartbeats: {0}")]
+    Health(#[from] harvest_ipc::error::OpenChannelError),
+    /// The wait set failed.
+    #[error("recorder event loop: {0}")]
+    Wait(String),
+    #[error(transparent)]
+    Write(#[from] WriteError),
+}
+
+/// Runs the recorder process until SIGINT/SIGTERM (what `harvest recorder` calls).
+pub fn run_recorder(
+    args: &RecorderArgs,
+    domain: &Domain,
+    process_name: &str,
+) -> Result<RecordingReport, RecorderError> {
+    run_recorder_until(args, domain, process_name, &RecorderControl::default())
+}
+
+/// Runs the recorder until SIGINT/SIGTERM or until `control.stop` is set.
+pub fn run_recorder_until(
+    args: &RecorderArgs,
+    domain: &Domain,
+    process_name: &str,
+    control: &RecorderControl,
+) -> Result<RecordingReport, RecorderError> {
+    let settings = args.output_settings(domain)?;
+    let filter = args.topic_filter();
+    let all_topics = catalogue_topics();
+    let topic_names: Vec<&str> = all_topics.iter().map(|topic| topic.spec.topic).collect();
+    for pattern in filter.unmatched_includes(&topic_names) {
+        tracing::warn!(pattern, "--include pattern matches no catalogue channel");
+    }
+    let topics: Vec<TopicInfo> = all_topics
+        .into_iter()
+        .filter(|topic| filter.selects(topic.spec.topic, topic.spec.layer))
+        .collect();
+    if topics.is_empty() {
+        return Err(RecorderError::NothingSelected {
+            include: filter.include.clone(),
+            exclude: filter.exclude.clone(),
+            layers: filter
+                .layers
+                .iter()
+                .map(|layer| layer_name(*layer))
+                .collect(),
+        });
+    }
+    let context = Context::new(domain, process_name)?;
+    let mut health = HealthReporter::new(&context)?;
+    let started = ClockPair::now();
+    let recording_fields =
+        recording_fields(args, &settings, domain, process_name, &topics, started);
+    let mut writer = WriterHandle::spawn(
+        settings,
+        topics.clone(),
+        recording_fields,
+        session_records(args),
+    )?;
+    let waiter = Waiter::new().map_err(|error| RecorderError::Wait(error.to_string()))?;
+
+    let mut taps: Vec<Box<dyn Tap>> = Vec::new();
+    let mut pending: Vec<usize> = (0..topics.len()).collect();
+    let mut last_failure: BTreeMap<usize, String> = BTreeMap::new();
+    let mut heartbeat = Heartbeat::new(control.housekeeping_period);
+    let end = loop {
+        open_pending(
+            &context,
+            &topics,
+            &mut pending,
+            &mut taps,
+            &mut last_failure,
+            &writer,
+        );
+        if pending.is_empty() {
+            control.ready.store(true, Ordering::SeqCst);
+        }
+        heartbeat.send(&mut health, &taps, &writer, true);
+        match run_attached(
+            &waiter,
+            &taps,
+            &mut writer,
+            &mut health,
+            &mut heartbeat,
+            control,
+            args.retry_interval,
+            !pending.is_empty(),
+        )? {
+            LoopEnd::Reopen => continue,
+            LoopEnd::Signal => break RecordingEnd::Signal,
+            LoopEnd::Stopped | LoopEnd::WriterFailed => break RecordingEnd::Stopped,
+        }
+    };
+    // Drain what is still queued in the subscribers, then close the file.
+    if !writer.has_failed() {
+        for tap in &taps {
+            if let Err(error) = tap.drain(&mut writer) {
+                tracing::warn!(topic = tap.topic(), %error, "final drain failed");
+            }
+        }
+    }
+    let unopened: Vec<(&'static str, String)> = pending
+        .iter()
+        .map(|&index| {
+            (
+                topics[index].spec.topic,
+                last_failure.get(&index).cloned().unwrap_or_default(),
+            )
+        })
+        .collect();
+    let drops = drops_record(&taps, &unopened);
+    let _ = health.report(
+        ProcessRunState::Stopping,
+        heartbeat.received(&taps),
+        "dropped",
+        total_drops(&taps),
+    );
+    let written = writer.finish(vec![drops])?;
+    let mut topic_reports: Vec<TopicReport> = taps
+        .iter()
+        .map(|tap| TopicReport {
+            topic: tap.topic(),
+            counts: tap.counts(),
+            written: written
+                .messages_per_topic
+                .get(tap.topic_index())
+                .copied()
+                .unwrap_or(0),
+        })
+        .collect();
+    topic_reports.sort_by_key(|report| report.topic);
+    let report = RecordingReport {
+        end,
+        files: written.files,
+        bytes_written: written.bytes_written,
+        topics: topic_reports,
+        unopened,
+        removed_files: written.removed_files,
+    };
+    for topic in &report.topics {
+        let dropped = topic.counts.dropped_by_transport + topic.counts.dropped_by_queue;
+        if dropped > 0 {
+            tracing::warn!(
+                topic = topic.topic,
+                dropped_by_buffer = topic.counts.dropped_by_transport,
+                dropped_by_queue = topic.counts.dropped_by_queue,
+                received = topic.counts.received,
+                "messages were lost"
+            );
+        }
+    }
+    tracing::info!("{report}");
+    Ok(report)
+}
+
+enum LoopEnd {
+    Signal,
+    Stopped,
+    WriterFailed,
+    /// Leave the wait set to open channels that became available.
+    Reopen,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_attached(
+    waiter: &Waiter,
+    taps: &[Box<dyn Tap>],
+    writer: &mut WriterHandle,
+    health: &mut HealthReporter,
+    heartbeat: &mut Heartbeat,
+    control: &RecorderControl,
+    retry_interval: Duration,
+    retry_pending: bool,
+) -> Result<LoopEnd, RecorderError> {
+    let tick = waiter
+        .waitset()
+        .attach_interval(control.housekeeping_period)
+        .map_err(|error| RecorderError::Wait(format!("attach interval: {error:?}")))?;
+    let guards = taps
+        .iter()
+        .map(|tap| tap.attach(waiter))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|error| RecorderError::Wait(format!("attach listener: {error}")))?;
+    let retry_at = Instant::now() + retry_interval;
+    let mut warned = vec![false; taps.len()];
+    let mut end = LoopEnd::Stopped;
+    let result = waiter.run(|attachment| -> Result<Flow, RecorderError> {
+        for (index, (tap, guard)) in taps.iter().zip(&guards).enumerate() {
+            if attachment.has_event_from(guard) {
+                if let Err(error) = tap.drain(writer) {
+                    if !std::mem::replace(&mut warned[index], true) {
+                        tracing::warn!(topic = tap.topic(), %error, "receive failed");
+                    }
+                }
+            }
+        }
+        if attachment.has_event_from(&tick) {
+            heartbeat.send(health, taps, writer, false);
+            if control.stop.load(Ordering::SeqCst) {
+                end = LoopEnd::Stopped;
+                return Ok(Flow::Stop);
+            }
+            if writer.has_failed() {
+                end = LoopEnd::WriterFailed;
+                return Ok(Flow::Stop);
+            }
+            if retry_pending && Instant::now() >= retry_at {
+                end = LoopEnd::Reopen;
+                return Ok(Flow::Stop);
+            }
+        }
+        Ok(Flow::Continue)
+    });
+    match result {
+        Ok(RunEnd::Signal) => Ok(LoopEnd::Signal),
+        Ok(RunEnd::Stopped) => Ok(end),
+        Err(RunError::Wait(error)) => Err(RecorderError::Wait(error.to_string())),
+        Err(RunError::Callback(error)) => Err(error),
+    }
+}
+
+/// Opens taps for the pending topics that can be opened now.
+fn open_pending(
+    context: &Context,
+    topics: &[TopicInfo],
+    pending: &mut Vec<usize>,
+    taps: &mut Vec<Box<dyn Tap>>,
+    last_failure: &mut BTreeMap<usize, String>,
+    writer: &WriterHandle,
+) {
+    struct Opener<'a> {
+        context: &'a Context,
+        topics: &'a [TopicInfo],
+        pending: &'a mut Vec<usize>,
+        opened: Vec<Box<dyn Tap>>,
+        failures: Vec<(usize, String)>,
+    }
+    impl ChannelVisitor for Opener<'_> {
+        fn visit<T: Payload>(&mut self, channel: Channel<T>) {
+            let topics = self.topics;
+            let Some(position) = self
+                .pending
+                .iter()
+                .position(|&index| topics[index].spec.topic == channel.spec.topic)
+            else {
+                return;
+            };
+            let index = self.pending[position];
+            match TypedTap::open(self.context, channel, index) {
+                Ok(tap) => {
+                    self.pending.remove(position);
+                    self.opened.push(Box::new(tap));
+                }
+                Err(error) => self.failures.push((index, error.to_string())),
+            }
+        }
+    }
+    let mut opener = Opener {
+        context,
+        topics,
+        pending,
+        opened: Vec::new(),
+        failures: Vec::new(),
+    };
+    catalogue::visit_all(&mut opener);
+    for tap in &opener.opened {
+        tracing::debug!(topic = tap.topic(), "tapped");
+        writer.add_channel(tap.topic_index());
+        last_failure.remove(&tap.topic_index());
+    }
+    for (index, reason) in opener.failures {
+        let topic = topics[index].spec.topic;
+        if last_failure.get(&index) != Some(&reason) {
+            tracing::warn!(topic, %reason, "cannot tap channel yet; retrying");
+        }
+        last_failure.insert(index, reason);
+    }
+    taps.extend(opener.opened);
+}
+
+/// Heartbeats at `HEARTBEAT_PERIOD`, driven by the housekeeping tick.
+struct Heartbeat {
+    last: Option<Instant>,
+    min_gap: Duration,
+    drops_at_last: u64,
+}
+
+impl Heartbeat {
+    fn new(housekeeping_period: Duration) -> Self {
+        Self {
+            last: None,
+            min_gap: HEARTBEAT_PERIOD.saturating_sub(housekeeping_period / 2),
+            drops_at_last: 0,
+        }
+    }
+
+    fn received(&self, taps: &[Box<dyn Tap>]) -> u64 {
+        taps.iter().map(|tap| tap.counts().received).sum()
+    }
+
+    fn send(
+        &mut self,
+        health: &mut HealthReporter,
+        taps: &[Box<dyn Tap>],
+        writer: &WriterHandle,
+        force: bool,
+    ) {
+        if !force && self.last.is_some_and(|last| last.elapsed() < self.min_gap) {
+            return;
+        }
+        self.last = Some(Instant::now());
+        let drops = total_drops(taps);
+        let state = if writer.has_failed() || drops > self.drops_at_last {
+            ProcessRunState::Degraded
+        } else {
+            ProcessRunState::Running
+        };
+        self.drops_at_last = drops;
+        if let Err(error) = health.report(state, self.received(taps), "dropped", drops) {
+            tracing::debug!(%error, "heartbeat not sent");
+        }
+    }
+}
+
+fn total_drops(taps: &[Box<dyn Tap>]) -> u64 {
+    taps.iter()
+        .map(|tap| {
+            let counts = tap.counts();
+            counts.dropped_by_transport + counts.dropped_by_queue
+        })
+        .sum()
+}
+
+fn drops_record(
+    taps: &[Box<dyn Tap>],
+    unopened: &[(&'static str, String)],
+) -> mcap::records::Metadata {
+    let mut entries = BTreeMap::new();
+    for tap in taps {
+        let counts = tap.counts();
+        let topic = tap.topic();
+        entries.insert(format!("{topic}.received"), counts.received.to_string());
+        entries.insert(
+            format!("{topic}.dropped_buffer"),
+            counts.dropped_by_transport.to_string(),
+        );
+        entries.insert(
+            format!("{topic}.dropped_queue"),
+            counts.dropped_by_queue.to_string(),
+        );
+        entries.insert(
+            format!("{topic}.encode_failures"),
+            counts.encode_failures.to_string(),
+        );
+    }
+    for (topic, reason) in unopened {
+        entries.insert(format!("{topic}.not_recorded"), reason.clone());
+    }
+    mcap::records::Metadata {
+        name: metadata::DROPS.to_owned(),
+        metadata: entries,
+    }
+}
+
+fn recording_fields(
+    args: &RecorderArgs,
+    settings: &OutputSettings,
+    domain: &Domain,
+    process_name: &str,
+    topics: &[TopicInfo],
+    started: ClockPair,
+) -> BTreeMap<String, String> {
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|name| name.trim().to_owned())
+        .unwrap_or_default();
+    let topic_list: Vec<&str> = topics.iter().map(|topic| topic.spec.topic).collect();
+    let layers: Vec<&str> = args
+        .layers
+        .iter()
+        .map(|layer| layer_name(layer.layer()))
+        .collect();
+    BTreeMap::from([
+        (
+            "software_version".to_owned(),
+            metadata::SOFTWARE_VERSION.to_owned(),
+        ),
+        ("recorder".to_owned(), process_name.to_owned()),
+        ("domain".to_owned(), domain.name().to_owned()),
+        ("host".to_owned(), host),
+        (
+            "session_started_utc".to_owned(),
+            format_utc_iso(started.realtime_ns),
+        ),
+        (
+            "message_encoding".to_owned(),
+            harvest_ipc::codec::ENCODING.to_owned(),
+        ),
+        (
+            "compression".to_owned(),
+            settings.chunks.compression.name().to_owned(),
+        ),
+        (
+            "compression_level".to_owned(),
+            settings.chunks.compression_level.to_string(),
+        ),
+        (
+            "chunk_size_bytes".to_owned(),
+            settings.chunks.chunk_size_bytes.to_string(),
+        ),
+        (
+            "chunk_interval_ms".to_owned(),
+            settings.chunk_interval.as_millis().to_string(),
+        ),
+        ("include".to_owned(), args.include.join(",")),
+        ("exclude".to_owned(), args.exclude.join(",")),
+        ("layers".to_owned(), layers.join(",")),
+        ("topics".to_owned(), topic_list.join(",")),
+        (
+            "log_time".to_owned(),
+            "receive time, CLOCK_MONOTONIC ns (see harvest.clock)".to_owned(),
+        ),
+        (
+            "publish_time".to_owned(),
+            "header.publish_ns, CLOCK_MONOTONIC ns".to_owned(),
+        ),
+    ])
+}
+
+fn session_records(args: &RecorderArgs) -> Vec<mcap::records::Metadata> {
+    let mut records = Vec::new();
+    if let Some(path) = &args.launch_file {
+        records.push(metadata::file_record(metadata::LAUNCH, path));
+    }
+    if let Some(path) = &args.calibration {
+        records.push(metadata::file_record(metadata::CALIBRATION, path));
+    }
+    if let Some(scenario) = &args.scenario {
+        records.push(metadata::scenario_record(scenario));
+    }
+    if !args.notes.is_empty() {
+        records.push(metadata::notes_record(&args.notes));
+    }
+    records
+}

@@ -1,0 +1,123 @@
+//! How a catalogue channel is described in an MCAP file.
+//!
+//! - Schema name: `<TYPE_NAME>.v<VERSION>`, e.g. `harvest.RgbdFrame.v1`: a reader knows both the
+//!   type and the layout version without decoding anything.
+//! - Schema encoding and channel message encoding: [`codec::ENCODING`] (`bincode2-fixint-le`).
+//! - Schema data: UTF-8 text naming the type, version and encoding, then the payload's
+//!   field-by-field [`Payload::SCHEMA`] layout, so another tool can decode the bytes.
+//! - Channel metadata: `type_name`, `version`, `layer`, `description`.
+
+use harvest_ipc::catalogue::{self, ChannelSpec, Layer};
+use harvest_ipc::codec;
+use harvest_ipc::{Channel, ChannelVisitor, Payload};
+use std::collections::BTreeMap;
+
+/// A catalogue channel as the recording tools see it: its spec plus its payload's layout text.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TopicInfo {
+    pub spec: ChannelSpec,
+    /// [`Payload::SCHEMA`] of the channel's payload type.
+    pub layout: &'static str,
+}
+
+impl TopicInfo {
+    pub fn of<T: Payload>(channel: Channel<T>) -> Self {
+        Self {
+            spec: channel.spec,
+            layout: T::SCHEMA,
+        }
+    }
+
+    /// The MCAP schema name of this channel's payload.
+    pub fn schema_name(&self) -> String {
+        schema_name(self.spec.type_name, self.spec.version)
+    }
+
+    /// The MCAP schema data of this channel's payload (see the module docs).
+    pub fn schema_data(&self) -> String {
+        format!(
+            "harvest message schema\ntype: {}\nversion: {}\nencoding: {}\nlayout: {}\n",
+            self.spec.type_name,
+            self.spec.version,
+            codec::ENCODING,
+            self.layout
+        )
+    }
+
+    /// The MCAP channel metadata of this channel.
+    pub fn channel_metadata(&self) -> BTreeMap<String, String> {
+        BTreeMap::from([
+            ("type_name".to_owned(), self.spec.type_name.to_owned()),
+            ("version".to_owned(), self.spec.version.to_string()),
+            ("layer".to_owned(), layer_name(self.spec.layer).to_owned()),
+            ("description".to_owned(), self.spec.description.to_owned()),
+        ])
+    }
+}
+
+/// `harvest.RgbdFrame` version 1 -> `harvest.RgbdFrame.v1`.
+pub fn schema_name(type_name: &str, version: u32) -> String {
+    format!("{type_name}.v{version}")
+}
+
+/// `harvest.RgbdFrame.v1` -> (`harvest.RgbdFrame`, 1); `None` for a name of another form.
+pub fn parse_schema_name(name: &str) -> Option<(&str, u32)> {
+    let (type_name, version) = name.rsplit_once(".v")?;
+    let version = version.parse().ok()?;
+    (!type_name.is_empty()).then_some((type_name, version))
+}
+
+/// Lower-case layer name used on the command line and in channel metadata.
+pub fn layer_name(layer: Layer) -> &'static str {
+    match layer {
+        Layer::Stack => "stack",
+        Layer::Hardware => "hardware",
+        Layer::Evaluation => "evaluation",
+    }
+}
+
+/// Every catalogue channel, in catalogue order.
+pub fn catalogue_topics() -> Vec<TopicInfo> {
+    struct Collect(Vec<TopicInfo>);
+    impl ChannelVisitor for Collect {
+        fn visit<T: Payload>(&mut self, channel: Channel<T>) {
+            self.0.push(TopicInfo::of(channel));
+        }
+    }
+    let mut collect = Collect(Vec::new());
+    catalogue::visit_all(&mut collect);
+    collect.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schema_names_round_trip() {
+        assert_eq!(schema_name("harvest.RgbdFrame", 1), "harvest.RgbdFrame.v1");
+        assert_eq!(
+            parse_schema_name("harvest.RgbdFrame.v12"),
+            Some(("harvest.RgbdFrame", 12))
+        );
+        assert_eq!(parse_schema_name("harvest.RgbdFrame"), None);
+        assert_eq!(parse_schema_name(".v1"), None);
+        assert_eq!(parse_schema_name("foxglove.RawImage"), None);
+    }
+
+    #[test]
+    fn every_catalogue_channel_has_a_described_schema() {
+        let topics = catalogue_topics();
+        assert_eq!(topics.len(), catalogue::all_specs().len());
+        for topic in &topics {
+            let data = topic.schema_data();
+            assert!(data.contains(codec::ENCODING));
+            assert!(data.contains(topic.layout));
+            let name = topic.schema_name();
+            assert_eq!(
+                parse_schema_name(&name),
+                Some((topic.spec.type_name, topic.spec.version))
+            );
+        }
+    }
+}

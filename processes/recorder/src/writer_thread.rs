@@ -1,0 +1,550 @@
+//! The recording's writer thread: owns the open segment file, turns queued messages into
+//! chunked MCAP, closes chunks on a timer (bounded loss on a crash), splits segments by size or
+//! duration and keeps the recordings directory under its size bound.
+//!
+//! The receiving thread encodes each sample into a buffer taken from a recycling pool and hands
+//! it over a bounded queue (bounded in bytes too); when the queue is full the message is
+//! dropped and counted, so a slow disk never stalls receiving (nor, through iceoryx2's safe
+//! overflow, any publisher).
+
+use crate::mcap_error::mcap_error_text;
+use crate::metadata;
+use crate::output_dir::{create_segment, enforce_size_bound};
+use crate::schema::TopicInfo;
+use crate::segment_writer::{ChunkSettings, SegmentWriter};
+use crate::wall_clock::{ClockPair, format_utc_compact, format_utc_iso};
+use mcap::records::Metadata;
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, SyncSender, TrySendError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// Where and how a recording is written.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputSettings {
+    pub dir: PathBuf,
+    /// File name prefix (`harvest`); also what the size bound counts and removes.
+    pub prefix: String,
+    pub domain: String,
+    pub chunks: ChunkSettings,
+    /// An open chunk holding messages is closed after at most this long.
+    pub chunk_interval: Duration,
+    /// Start a new segment file once the current one reaches this size.
+    pub split_size_bytes: Option<u64>,
+    /// Start a new segment file after this long.
+    pub split_duration: Option<Duration>,
+    /// Keep the prefix's files in `dir` under this total (oldest removed first).
+    pub max_total_bytes: Option<u64>,
+    /// Encoded bytes allowed in flight between the receiving and the writer thread.
+    pub queue_bytes: usize,
+}
+
+/// One encoded message on its way to the file.
+#[derive(Debug)]
+pub struct QueuedMessage {
+    /// Index in the recording's topic table.
+    pub topic: usize,
+    /// `msg_seq` of the header (MCAP stores 32 bits: wraps after 4e9 messages).
+    pub sequence: u32,
+    /// Receive time on the stack clock.
+    pub log_time_ns: u64,
+    /// `header.publish_ns`.
+    pub publish_time_ns: u64,
+    pub data: Vec<u8>,
+}
+
+enum Command {
+    AddChannel(usize),
+    Message(QueuedMessage),
+    Finish(Vec<Metadata>),
+}
+
+/// What the writer thread wrote.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct WriterReport {
+    /// Segment files, in order.
+    pub files: Vec<PathBuf>,
+    /// Messages written per topic index.
+    pub messages_per_topic: Vec<u64>,
+    pub bytes_written: u64,
+    /// Old recordings removed to stay under the size bound.
+    pub removed_files: Vec<PathBuf>,
+}
+
+/// Writing the recording failed.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// The output directory cannot be created.
+    #[error("cannot create the recordings directory {dir}: {source}")]
+    CreateDir {
+        dir: PathBuf,
+        source: std::io::Error,
+    },
+    /// A segment file cannot be created.
+    #[error("cannot create a recording file in {dir}: {source}")]
+    CreateFile {
+        dir: PathBuf,
+        source: std::io::Error,
+    },
+    /// Writing into a segment failed (disk full, I/O error); the file keeps what was written
+    /// before and can be repaired with `harvest rec recover`.
+    #[error(
+        "writing {file} failed: {reason}. The file is incomplete: `harvest rec recover {file} <out.mcap>` keeps what it holds"
+    )]
+    Write { file: PathBuf, reason: String },
+    /// The writer thread panicked (a bug).
+    #[error("the recording writer thread panicked")]
+    Panicked,
+}
+
+/// The receiving side's handle on the writer thread.
+pub struct WriterHandle {
+    commands: SyncSender<Command>,
+    recycled: Receiver<Vec<u8>>,
+    free_small: Vec<Vec<u8>>,
+    free_large: Vec<Vec<u8>>,
+    queued_bytes: Arc<AtomicUsize>,
+    max_queued_bytes: usize,
+    failed: Arc<AtomicBool>,
+    thread: JoinHandle<Result<WriterReport, WriteError>>,
+}
+
+/// Buffers at least this big are pooled as "large" (frames); smaller ones as "small".
+const LARGE_BUFFER_BYTES: usize = 64 * 1024;
+const MAX_FREE_SMALL: usize = 256;
+const MAX_FREE_LARGE: usize = 8;
+/// Queue depth in messages (the byte bound usually binds first for frames).
+const QUEUE_MESSAGES: usize = 16 * 1024;
+
+impl WriterHandle {
+    /// Creates the output directory and the first segment, then starts the writer thread.
+    /// `recording_fields` go into every segment's `harvest.recording` record, `session_records`
+    /// follow it.
+    pub fn spawn(
+        settings: OutputSettings,
+        topics: Vec<TopicInfo>,
+        recording_fields: BTreeMap<String, String>,
+        session_records: Vec<Metadata>,
+    ) -> Result<Self, WriteError> {
+        std::fs::create_dir_all(&settings.dir).map_err(|source| WriteError::CreateDir {
+            dir: settings.dir.clone(),
+            source,
+        })?;
+        let (commands, command_receiver) = mpsc::sync_channel(QUEUE_MESSAGES);
+        let (recycle, recycled) = mpsc::channel();
+        let queued_bytes = Arc::new(AtomicUsize::new(0));
+        let failed = Arc::new(AtomicBool::new(false));
+        let max_queued_bytes = settings.queue_bytes;
+        let mut state = WriterState {
+            report: WriterReport {
+                messages_per_topic: vec![0; topics.len()],
+                ..WriterReport::default()
+            },
+            settings,
+            topics,
+            registered: Vec::new(),
+            recording_fields,
+            session_records,
+            session_utc: format_utc_compact(ClockPair::now().realtime_ns),
+            segment_index: 0,
+            current: None,
+            segment_started: Instant::now(),
+            chunk_opened: None,
+        };
+        state.open_segment()?;
+        let thread_failed = failed.clone();
+        let thread_queued = queued_bytes.clone();
+        let thread = std::thread::Builder::new()
+            .name("recorder-writer".to_owned())
+            .spawn(move || state.run(command_receiver, recycle, thread_queued, thread_failed))
+            .map_err(|source| WriteError::CreateFile {
+                dir: PathBuf::from("<writer thread>"),
+                source,
+            })?;
+        Ok(Self {
+            commands,
+            recycled,
+            free_small: Vec::new(),
+            free_large: Vec::new(),
+            queued_bytes,
+            max_queued_bytes,
+            failed,
+            thread,
+        })
+    }
+
+    /// Registers a topic in the recording (it appears in every segment, even without messages).
+    pub fn add_channel(&self, topic: usize) {
+        // Only fails when the writer thread is gone, which `finish` reports.
+        let _ = self.commands.send(Command::AddChannel(topic));
+    }
+
+    /// True while roughly `size_bytes` more fit in the queue.
+    pub fn has_room(&self, size_bytes: usize) -> bool {
+        self.queued_bytes.load(Ordering::Relaxed) + size_bytes <= self.max_queued_bytes
+    }
+
+    /// An empty buffer for encoding a message of about `size_hint` bytes (recycled when one is
+    /// available, so frames do not cost a fresh allocation each).
+    pub fn take_buffer(&mut self, size_hint: usize) -> Vec<u8> {
+        while let Ok(mut buffer) = self.recycled.try_recv() {
+            buffer.clear();
+            if buffer.capacity() >= LARGE_BUFFER_BYTES {
+                if self.free_large.len() < MAX_FREE_LARGE {
+                    self.free_large.push(buffer);
+                }
+            } else if self.free_small.len() < MAX_FREE_SMALL {
+                self.free_small.push(buffer);
+            }
+        }
+        let pool = if size_hint >= LARGE_BUFFER_BYTES {
+            &mut self.free_large
+        } else {
+            &mut self.free_small
+        };
+        pool.pop().unwrap_or_else(|| Vec::with_capacity(size_hint))
+    }
+
+    /// Returns a buffer that was not sent.
+    pub fn give_back(&mut self, mut buffer: Vec<u8>) {
+        buffer.clear();
+        if buffer.capacity() >= LARGE_BUFFER_BYTES {
+            if self.free_large.len() < MAX_FREE_LARGE {
+                self.free_large.push(buffer);
+            }
+        } else if self.free_small.len() < MAX_FREE_SMALL {
+            self.free_small.push(buffer);
+        }
+    }
+
+    /// Queues a message; `false` (and the buffer returned to the pool) when the queue is full or
+    /// the writer has failed.
+    pub fn try_enqueue(&mut self, message: QueuedMessage) -> bool {
+        let bytes = message.data.len();
+        if !self.has_room(bytes) || self.has_failed() {
+            self.give_back(message.data);
+            return false;
+        }
+        self.queued_bytes.fetch_add(bytes, Ordering::Relaxed);
+        match self.commands.try_send(Command::Message(message)) {
+            Ok(()) => true,
+            Err(TrySendError::Full(Command::Message(message)))
+            | Err(TrySendError::Disconnected(Command::Message(message))) => {
+                self.queued_bytes.fetch_sub(bytes, Ordering::Relaxed);
+                self.give_back(message.data);
+                false
+            }
+            Err(_) => false,
+        }
+    }
+
+    /// True once writing failed (the error comes from [`Self::finish`]).
+    pub fn has_failed(&self) -> bool {
+        self.failed.load(Ordering::Relaxed) || self.thread.is_finished()
+    }
+
+    /// Writes `trailing` metadata, finishes the open segment and waits for the thread.
+    pub fn finish(self, trailing: Vec<Metadata>) -> Result<WriterReport, WriteError> {
+        let _ = self.commands.send(Command::Finish(trailing));
+        drop(self.commands);
+        self.thread.join().unwrap_or(Err(WriteError::Panicked))
+    }
+}
+
+type OpenSegment = (PathBuf, SegmentWriter<BufWriter<File>>);
+
+struct WriterState {
+    settings: OutputSettings,
+    topics: Vec<TopicInfo>,
+    /// Topic indices registered so far, re-added to each new segment.
+    registered: Vec<usize>,
+    recording_fields: BTreeMap<String, String>,
+    session_records: Vec<Metadata>,
+    session_utc: String,
+    segment_index: u32,
+    current: Option<OpenSegment>,
+    segment_started: Instant,
+    /// When the open chunk got its first message.
+    chunk_opened: Option<Instant>,
+    report: WriterReport,
+}
+
+impl WriterState {
+    fn run(
+        mut self,
+        commands: Receiver<Command>,
+        recycle: Sender<Vec<u8>>,
+        queued_bytes: Arc<AtomicUsize>,
+        failed: Arc<AtomicBool>,
+    ) -> Result<WriterReport, WriteError> {
+        let mut failure: Option<WriteError> = None;
+        let idle_wait = self
+            .settings
+            .chunk_interval
+            .min(Duration::from_secs(1))
+            .max(Duration::from_millis(1));
+        loop {
+            let wait = match self.chunk_opened {
+                Some(opened) => self
+                    .settings
+                    .chunk_interval
+                    .saturating_sub(opened.elapsed()),
+                None => idle_wait,
+            };
+            let result = match commands.recv_timeout(wait) {
+                Ok(Command::Message(message)) => {
+                    queued_bytes.fetch_sub(message.data.len(), Ordering::Relaxed);
+                    let result = if failure.is_none() {
+                        self.write(&message)
+                    } else {
+                        Ok(())
+                    };
+                    let _ = recycle.send(message.data);
+                    result
+                }
+                Ok(Command::AddChannel(topic)) => {
+                    if !self.registered.contains(&topic) {
+                        self.registered.push(topic);
+                    }
+                    if failure.is_none() {
+                        self.add_channel(topic)
+                    } else {
+                        Ok(())
+                    }
+                }
+                Ok(Command::Finish(trailing)) => {
+                    if failure.is_none() {
+                        if let Err(error) = self.finish_segment(&trailing) {
+                            failure = Some(error);
+                        }
+                    }
+                    break;
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    if failure.is_none() {
+                        self.on_timer()
+                    } else {
+                        Ok(())
+                    }
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    if failure.is_none() {
+                        if let Err(error) = self.finish_segment(&[]) {
+                            failure = Some(error);
+                        }
+                    }
+                    break;
+                }
+            };
+            if let Err(error) = result {
+                tracing::error!(%error, "recording writer failed; dropping further messages");
+                failed.store(true, Ordering::Relaxed);
+                failure = Some(error);
+                // The segment keeps what was written: its complete chunks stay recoverable.
+                // (Dropping the MCAP writer attempts its summary once more and ignores errors.)
+                if let Some((path, segment)) = self.current.take() {
+                    self.report.files.push(path);
+                    self.report.bytes_written += segment.size_bytes();
+                    drop(segment);
+                }
+            }
+        }
+        match failure {
+            Some(error) => Err(error),
+            None => Ok(self.report),
+        }
+    }
+
+    fn segment_path(&self) -> PathBuf {
+        self.current
+            .as_ref()
+            .map(|(path, _)| path.clone())
+            .unwrap_or_default()
+    }
+
+    fn write_error(&self, error: &mcap::McapError) -> WriteError {
+        WriteError::Write {
+            file: self.segment_path(),
+            reason: mcap_error_text(error),
+        }
+    }
+
+    fn open_segment(&mut self) -> Result<(), WriteError> {
+        let dir = self.settings.dir.clone();
+        let (path, file) = create_segment(
+            &dir,
+            &self.settings.prefix,
+            &self.settings.domain,
+            &self.session_utc,
+            self.segment_index,
+        )
+        .map_err(|source| WriteError::CreateFile {
+            dir: dir.clone(),
+            source,
+        })?;
+        tracing::info!(path = %path.display(), segment = self.segment_index, "recording to");
+        let writer = SegmentWriter::new(
+            BufWriter::with_capacity(1 << 20, file),
+            &self.settings.chunks,
+            self.topics.len(),
+        )
+        .map_err(|reason| WriteError::Write {
+            file: path.clone(),
+            reason,
+        })?;
+        self.current = Some((path.clone(), writer));
+        self.segment_started = Instant::now();
+        self.chunk_opened = None;
+        let clock = ClockPair::now();
+        let mut recording = self.recording_fields.clone();
+        recording.insert("segment".to_owned(), self.segment_index.to_string());
+        recording.insert(
+            "segment_started_utc".to_owned(),
+            format_utc_iso(clock.realtime_ns),
+        );
+        let mut records = vec![
+            Metadata {
+                name: metadata::RECORDING.to_owned(),
+                metadata: recording,
+            },
+            metadata::clock_record(clock),
+        ];
+        records.extend(self.session_records.iter().cloned());
+        for record in &records {
+            self.with_segment(|segment| segment.write_metadata(record))?;
+        }
+        for topic in self.registered.clone() {
+            self.add_channel(topic)?;
+        }
+        if let Some(max_total_bytes) = self.settings.max_total_bytes {
+            match enforce_size_bound(&dir, &self.settings.prefix, max_total_bytes, Some(&path)) {
+                Ok(removed) => self
+                    .report
+                    .removed_files
+                    .extend(removed.into_iter().map(|f| f.path)),
+                Err(error) => {
+                    tracing::warn!(dir = %dir.display(), %error, "cannot apply the size bound")
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn with_segment(
+        &mut self,
+        operation: impl FnOnce(&mut SegmentWriter<BufWriter<File>>) -> Result<(), mcap::McapError>,
+    ) -> Result<(), WriteError> {
+        let result = match self.current.as_mut() {
+            Some((_, segment)) => operation(segment),
+            None => return Ok(()),
+        };
+        result.map_err(|error| self.write_error(&error))
+    }
+
+    fn add_channel(&mut self, topic: usize) -> Result<(), WriteError> {
+        let Some(info) = self.topics.get(topic).copied() else {
+            return Ok(());
+        };
+        self.with_segment(|segment| segment.add_channel(topic, &info).map(|_| ()))
+    }
+
+    fn write(&mut self, message: &QueuedMessage) -> Result<(), WriteError> {
+        let Some(info) = self.topics.get(message.topic).copied() else {
+            return Ok(());
+        };
+        if self.current.is_none() {
+            self.open_segment()?;
+        }
+        self.with_segment(|segment| {
+            segment.write_message(
+                message.topic,
+                &info,
+                message.sequence,
+                message.log_time_ns,
+                message.publish_time_ns,
+                &message.data,
+            )
+        })?;
+        if let Some(count) = self.report.messages_per_topic.get_mut(message.topic) {
+            *count += 1;
+        }
+        tracing::trace!(
+            topic = info.spec.topic,
+            bytes = message.data.len(),
+            "message written"
+        );
+        if self.chunk_opened.is_none() {
+            self.chunk_opened = Some(Instant::now());
+        }
+        if self
+            .chunk_opened
+            .is_some_and(|opened| opened.elapsed() >= self.settings.chunk_interval)
+        {
+            self.close_chunk()?;
+        }
+        self.split_if_due()
+    }
+
+    fn close_chunk(&mut self) -> Result<(), WriteError> {
+        self.chunk_opened = None;
+        self.with_segment(|segment| segment.close_chunk())
+    }
+
+    fn on_timer(&mut self) -> Result<(), WriteError> {
+        if self
+            .chunk_opened
+            .is_some_and(|opened| opened.elapsed() >= self.settings.chunk_interval)
+        {
+            self.close_chunk()?;
+        }
+        self.split_if_due()
+    }
+
+    fn split_if_due(&mut self) -> Result<(), WriteError> {
+        let Some((_, segment)) = self.current.as_ref() else {
+            return Ok(());
+        };
+        let by_size = self
+            .settings
+            .split_size_bytes
+            .is_some_and(|limit| segment.size_bytes() >= limit);
+        let by_time = self.settings.split_duration.is_some_and(|limit| {
+            self.segment_started.elapsed() >= limit && segment.message_count() > 0
+        });
+        if by_size || by_time {
+            self.finish_segment(&[])?;
+            self.segment_index += 1;
+            self.open_segment()?;
+        }
+        Ok(())
+    }
+
+    fn finish_segment(&mut self, trailing: &[Metadata]) -> Result<(), WriteError> {
+        for record in trailing {
+            self.with_segment(|segment| segment.write_metadata(record))?;
+        }
+        let Some((path, segment)) = self.current.take() else {
+            return Ok(());
+        };
+        self.chunk_opened = None;
+        let size_bytes = segment.size_bytes();
+        let result = segment.finish();
+        self.report.files.push(path.clone());
+        self.report.bytes_written += size_bytes;
+        match result {
+            Ok(_) => {
+                tracing::info!(path = %path.display(), size_bytes, "recording segment finished");
+                Ok(())
+            }
+            Err(error) => Err(WriteError::Write {
+                file: path,
+                reason: mcap_error_text(&error),
+            }),
+        }
+    }
+}

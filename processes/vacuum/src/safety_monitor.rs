@@ -1,0 +1,524 @@
+//! An independent checker of harvesting traces ([`TraceEvent`]).
+//!
+//! It shares no logic with the policies or the pressure inference: it keeps its own view of
+//! which valves are open and which cups are sealed, built only from the events, and reports
+//! - [`Violation::OpenedBesideUnsealed`]: a valve opened while the other arm's valve was open
+//!   without a seal (two attachment attempts at once, eq. 11 clauses 3-4);
+//! - [`Violation::BothOpenUnsealed`]: both valves open with neither cup sealed for longer than
+//!   one control period (a seal lost next to an attempt must be answered within the period);
+//! - [`Violation::FailureNotClosed`]: a valve still open one control period after a failure
+//!   was detected on its arm (eq. 11 clauses 1-2);
+//! - [`Violation::JointOutOfLimits`]: a joint command outside the limits it was sent with;
+//! - [`Violation::EndEffectorsTooClose`]: the two end-effectors closer than the clearance.
+//!
+//! A closed valve vents the tube, so it ends any seal on that arm.
+
+use crate::arm_id::ArmId;
+use crate::trace::{FailureKind, JointId, TraceEvent};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// Settings of the monitor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MonitorConfig {
+    /// Reaction deadline, ns. Default 5 ms: one period of the 200 Hz control loop
+    /// (section 2.2).
+    pub control_period_ns: u64,
+    /// Minimum distance between the two end-effectors, m. Default 0.10 m (choice: the arms'
+    /// end-effectors sit 0.22 m apart at zero yaw per Table 1; 0.10 m leaves room for the
+    /// soft cups and tracking error).
+    pub clearance_m: f64,
+}
+
+impl Default for MonitorConfig {
+    fn default() -> Self {
+        MonitorConfig {
+            control_period_ns: 5_000_000,
+            clearance_m: 0.10,
+        }
+    }
+}
+
+/// A safety rule broken by a trace.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Violation {
+    /// `arm` opened its valve while the other arm's valve was open and unsealed.
+    OpenedBesideUnsealed {
+        /// Time of the opening, ns.
+        stamp_ns: u64,
+        /// The arm that opened.
+        arm: ArmId,
+    },
+    /// Both valves open, neither sealed, from `since_ns` for longer than one control period.
+    BothOpenUnsealed {
+        /// Start of the condition, ns.
+        since_ns: u64,
+        /// First event time at which it had lasted too long, ns.
+        noticed_ns: u64,
+    },
+    /// A valve was not closed by `deadline_ns` after a failure on its arm.
+    FailureNotClosed {
+        /// The arm.
+        arm: ArmId,
+        /// The failure.
+        kind: FailureKind,
+        /// When it was detected, ns.
+        failure_ns: u64,
+        /// When the valve had to be closed, ns.
+        deadline_ns: u64,
+    },
+    /// A joint command outside its limits (or not finite).
+    JointOutOfLimits {
+        /// Time of the command, ns.
+        stamp_ns: u64,
+        /// The arm.
+        arm: ArmId,
+        /// The joint.
+        joint: JointId,
+        /// The command.
+        command: f64,
+        /// Lower limit.
+        lower: f64,
+        /// Upper limit.
+        upper: f64,
+    },
+    /// The end-effectors came closer than the clearance (or a position was not finite).
+    EndEffectorsTooClose {
+        /// Time of validity, ns.
+        stamp_ns: u64,
+        /// Their distance, m.
+        distance_m: f64,
+        /// The required clearance, m.
+        clearance_m: f64,
+    },
+}
+
+/// A trace the monitor cannot judge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+pub enum TraceError {
+    /// Events must come in time order.
+    #[error("trace event at {stamp_ns} ns comes after one at {previous_ns} ns")]
+    OutOfOrder {
+        /// Stamp of the refused event, ns.
+        stamp_ns: u64,
+        /// Stamp of the previous event, ns.
+        previous_ns: u64,
+    },
+}
+
+/// The streaming checker. Feed events in time order with [`SafetyMonitor::observe`], then
+/// call [`SafetyMonitor::finish`] with the end of the trace.
+#[derive(Debug, Clone)]
+pub struct SafetyMonitor {
+    config: MonitorConfig,
+    last_ns: Option<u64>,
+    open: [bool; 2],
+    sealed: [bool; 2],
+    /// Detected failure waiting for its valve to close: (detection time, kind).
+    pending_failure: [Option<(u64, FailureKind)>; 2],
+    /// Start of the both-open-unsealed condition, and whether it has been reported.
+    unsealed_pair_since: Option<(u64, bool)>,
+    violations: Vec<Violation>,
+}
+
+impl SafetyMonitor {
+    /// A monitor with both valves closed.
+    pub fn new(config: MonitorConfig) -> Self {
+        SafetyMonitor {
+            config,
+            last_ns: None,
+            open: [false; 2],
+            sealed: [false; 2],
+            pending_failure: [None; 2],
+            unsealed_pair_since: None,
+            violations: Vec::new(),
+        }
+    }
+
+    /// Violations found so far, in the order found.
+    pub fn violations(&self) -> &[Violation] {
+        &self.violations
+    }
+
+    /// Judge one event. An out-of-order event is refused and changes nothing.
+    pub fn observe(&mut self, event: &TraceEvent) -> Result<(), TraceError> {
+        let stamp_ns = event.stamp_ns();
+        if let Some(previous_ns) = self.last_ns
+            && stamp_ns < previous_ns
+        {
+            return Err(TraceError::OutOfOrder {
+                stamp_ns,
+                previous_ns,
+            });
+        }
+        self.last_ns = Some(stamp_ns);
+        self.check_deadlines(stamp_ns);
+        match *event {
+            TraceEvent::ValveOpened { arm, .. } => {
+                let other = arm.other().index();
+                if self.open[other] && !self.sealed[other] {
+                    self.violations
+                        .push(Violation::OpenedBesideUnsealed { stamp_ns, arm });
+                }
+                self.open[arm.index()] = true;
+                self.sealed[arm.index()] = false;
+            }
+            TraceEvent::ValveClosed { arm, .. } => {
+                self.open[arm.index()] = false;
+                self.sealed[arm.index()] = false;
+                self.pending_failure[arm.index()] = None;
+            }
+            TraceEvent::AttachmentChanged { arm, sealed, .. } => {
+                self.sealed[arm.index()] = sealed && self.open[arm.index()];
+            }
+            TraceEvent::FailureDetected { arm, kind, .. } => {
+                self.sealed[arm.index()] = false;
+                if self.open[arm.index()] && self.pending_failure[arm.index()].is_none() {
+                    self.pending_failure[arm.index()] = Some((stamp_ns, kind));
+                }
+            }
+            TraceEvent::PhaseChanged { .. } => {}
+            TraceEvent::JointCommand {
+                arm,
+                joint,
+                command,
+                lower,
+                upper,
+                ..
+            } => {
+                let inside = command.is_finite() && lower <= command && command <= upper;
+                if !inside {
+                    self.violations.push(Violation::JointOutOfLimits {
+                        stamp_ns,
+                        arm,
+                        joint,
+                        command,
+                        lower,
+                        upper,
+                    });
+                }
+            }
+            TraceEvent::EndEffectors {
+                arm1_in_robot_m,
+                arm2_in_robot_m,
+                ..
+            } => {
+                let distance_m = (0..3)
+                    .map(|i| (arm1_in_robot_m[i] - arm2_in_robot_m[i]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                // A NaN distance (non-finite position) counts as too close.
+                if distance_m.is_nan() || distance_m < self.config.clearance_m {
+                    self.violations.push(Violation::EndEffectorsTooClose {
+                        stamp_ns,
+                        distance_m,
+                        clearance_m: self.config.clearance_m,
+                    });
+                }
+            }
+        }
+        self.update_pair_condition(stamp_ns);
+        Ok(())
+    }
+
+    /// End of the trace at `end_ns`: deadlines that expired before it are judged. Returns all
+    /// violations.
+    pub fn finish(&mut self, end_ns: u64) -> &[Violation] {
+        let end_ns = end_ns.max(self.last_ns.unwrap_or(0));
+        self.check_deadlines(end_ns);
+        &self.violations
+    }
+
+    /// Judge the deadlines that expire before `now_ns` given the state since the last event.
+    fn check_deadlines(&mut self, now_ns: u64) {
+        let period = self.config.control_period_ns;
+        for arm in ArmId::ALL {
+            if let Some((failure_ns, kind)) = self.pending_failure[arm.index()] {
+                let deadline_ns = failure_ns + period;
+                if now_ns > deadline_ns {
+                    self.violations.push(Violation::FailureNotClosed {
+                        arm,
+                        kind,
+                        failure_ns,
+                        deadline_ns,
+                    });
+                    self.pending_failure[arm.index()] = None;
+                }
+            }
+        }
+        if let Some((since_ns, reported)) = self.unsealed_pair_since
+            && !reported
+            && now_ns > since_ns + period
+        {
+            self.violations.push(Violation::BothOpenUnsealed {
+                since_ns,
+                noticed_ns: now_ns,
+            });
+            self.unsealed_pair_since = Some((since_ns, true));
+        }
+    }
+
+    fn update_pair_condition(&mut self, now_ns: u64) {
+        let both_unsealed = self.open[0] && self.open[1] && !self.sealed[0] && !self.sealed[1];
+        match (both_unsealed, self.unsealed_pair_since) {
+            (true, None) => self.unsealed_pair_since = Some((now_ns, false)),
+            (false, Some(_)) => self.unsealed_pair_since = None,
+            _ => {}
+        }
+    }
+}
+
+/// Check a whole trace ending at its last event.
+pub fn check_trace(
+    events: &[TraceEvent],
+    config: MonitorConfig,
+) -> Result<Vec<Violation>, TraceError> {
+    let mut monitor = SafetyMonitor::new(config);
+    for event in events {
+        monitor.observe(event)?;
+    }
+    let end_ns = events.last().map_or(0, TraceEvent::stamp_ns);
+    Ok(monitor.finish(end_ns).to_vec())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use TraceEvent::*;
+
+    const MS: u64 = 1_000_000;
+    const A1: ArmId = ArmId::Arm1;
+    const A2: ArmId = ArmId::Arm2;
+
+    fn check(events: &[TraceEvent]) -> Vec<Violation> {
+        check_trace(events, MonitorConfig::default()).expect("ordered")
+    }
+
+    #[test]
+    fn attempt_beside_a_sealed_apple_is_fine_beside_an_unsealed_one_is_not() {
+        let ok = [
+            ValveOpened {
+                stamp_ns: 0,
+                arm: A1,
+            },
+            AttachmentChanged {
+                stamp_ns: 50 * MS,
+                arm: A1,
+                sealed: true,
+            },
+            ValveOpened {
+                stamp_ns: 50 * MS,
+                arm: A2,
+            },
+            ValveClosed {
+                stamp_ns: 300 * MS,
+                arm: A2,
+            },
+            ValveClosed {
+                stamp_ns: 2000 * MS,
+                arm: A1,
+            },
+        ];
+        assert_eq!(check(&ok), vec![]);
+        let bad = [
+            ValveOpened {
+                stamp_ns: 0,
+                arm: A1,
+            },
+            ValveOpened {
+                stamp_ns: 10 * MS,
+                arm: A2,
+            },
+            ValveClosed {
+                stamp_ns: 12 * MS,
+                arm: A2,
+            },
+        ];
+        assert_eq!(
+            check(&bad),
+            vec![Violation::OpenedBesideUnsealed {
+                stamp_ns: 10 * MS,
+                arm: A2
+            }]
+        );
+    }
+
+    #[test]
+    fn a_drop_beside_an_attempt_must_be_closed_within_the_period() {
+        let base = [
+            ValveOpened {
+                stamp_ns: 0,
+                arm: A1,
+            },
+            AttachmentChanged {
+                stamp_ns: 50 * MS,
+                arm: A1,
+                sealed: true,
+            },
+            ValveOpened {
+                stamp_ns: 60 * MS,
+                arm: A2,
+            },
+            AttachmentChanged {
+                stamp_ns: 100 * MS,
+                arm: A1,
+                sealed: false,
+            },
+            FailureDetected {
+                stamp_ns: 100 * MS,
+                arm: A1,
+                kind: FailureKind::Dropped,
+            },
+        ];
+        // Closed exactly at the deadline: fine.
+        let mut on_time = base.to_vec();
+        on_time.push(ValveClosed {
+            stamp_ns: 105 * MS,
+            arm: A1,
+        });
+        on_time.push(ValveClosed {
+            stamp_ns: 400 * MS,
+            arm: A2,
+        });
+        assert_eq!(check(&on_time), vec![]);
+        // One nanosecond late: both rules fire.
+        let mut late = base.to_vec();
+        late.push(ValveClosed {
+            stamp_ns: 105 * MS + 1,
+            arm: A1,
+        });
+        let v = check(&late);
+        assert!(v.contains(&Violation::FailureNotClosed {
+            arm: A1,
+            kind: FailureKind::Dropped,
+            failure_ns: 100 * MS,
+            deadline_ns: 105 * MS,
+        }));
+        assert!(v.contains(&Violation::BothOpenUnsealed {
+            since_ns: 100 * MS,
+            noticed_ns: 105 * MS + 1,
+        }));
+        assert_eq!(v.len(), 2);
+    }
+
+    #[test]
+    fn failure_left_open_is_caught_at_finish_and_closed_valve_failures_are_ignored() {
+        let mut m = SafetyMonitor::new(MonitorConfig::default());
+        for e in [
+            ValveOpened {
+                stamp_ns: 0,
+                arm: A2,
+            },
+            FailureDetected {
+                stamp_ns: 250 * MS,
+                arm: A2,
+                kind: FailureKind::AttachFailed,
+            },
+            // A failure reported on an arm whose valve is closed needs nothing.
+            FailureDetected {
+                stamp_ns: 250 * MS,
+                arm: A1,
+                kind: FailureKind::Dropped,
+            },
+        ] {
+            m.observe(&e).expect("ordered");
+        }
+        assert_eq!(m.finish(254 * MS).len(), 0);
+        assert_eq!(
+            m.finish(256 * MS),
+            &[Violation::FailureNotClosed {
+                arm: A2,
+                kind: FailureKind::AttachFailed,
+                failure_ns: 250 * MS,
+                deadline_ns: 255 * MS,
+            }]
+        );
+    }
+
+    #[test]
+    fn joint_limits_and_clearance() {
+        let events = [
+            JointCommand {
+                stamp_ns: 0,
+                arm: A1,
+                joint: JointId::Extension,
+                command: 0.3,
+                lower: -0.02,
+                upper: 0.6,
+            },
+            JointCommand {
+                stamp_ns: 1,
+                arm: A1,
+                joint: JointId::Extension,
+                command: 0.61,
+                lower: -0.02,
+                upper: 0.6,
+            },
+            JointCommand {
+                stamp_ns: 2,
+                arm: A2,
+                joint: JointId::Pitch,
+                command: f64::NAN,
+                lower: -0.26,
+                upper: 0.52,
+            },
+            EndEffectors {
+                stamp_ns: 3,
+                arm1_in_robot_m: [0.5, 0.11, 0.2],
+                arm2_in_robot_m: [0.5, -0.11, 0.2],
+            },
+            EndEffectors {
+                stamp_ns: 4,
+                arm1_in_robot_m: [0.5, 0.03, 0.2],
+                arm2_in_robot_m: [0.5, -0.03, 0.2],
+            },
+        ];
+        let v = check(&events);
+        assert_eq!(v.len(), 3, "{v:?}");
+        assert!(
+            matches!(v[0], Violation::JointOutOfLimits { stamp_ns: 1, command, .. } if command == 0.61)
+        );
+        assert!(matches!(
+            v[1],
+            Violation::JointOutOfLimits {
+                stamp_ns: 2,
+                arm: ArmId::Arm2,
+                ..
+            }
+        ));
+        assert!(
+            matches!(v[2], Violation::EndEffectorsTooClose { stamp_ns: 4, distance_m, .. }
+            if (distance_m - 0.06).abs() < 1e-12)
+        );
+    }
+
+    #[test]
+    fn out_of_order_events_are_refused() {
+        let mut m = SafetyMonitor::new(MonitorConfig::default());
+        m.observe(&ValveOpened {
+            stamp_ns: 10,
+            arm: A1,
+        })
+        .expect("first");
+        assert_eq!(
+            m.observe(&ValveOpened {
+                stamp_ns: 5,
+                arm: A2
+            }),
+            Err(TraceError::OutOfOrder {
+                stamp_ns: 5,
+                previous_ns: 10
+            })
+        );
+        assert!(m.violations().is_empty());
+    }
+
+    #[test]
+    fn config_refuses_unknown_keys() {
+        let cfg: MonitorConfig =
+            toml::from_str("control_period_ns = 5000000\nclearance_m = 0.12\n").expect("valid");
+        assert_eq!(cfg.clearance_m, 0.12);
+        assert!(toml::from_str::<MonitorConfig>("period_ns = 1\nclearance_m = 0.1\n").is_err());
+    }
+}
