@@ -42,6 +42,9 @@ enum Command {
     Camera(harvest_camera::CameraArgs),
     /// Perception process: camera/rgbd -> perception/apples.
     Perception(harvest_perception::process::PerceptionArgs),
+    /// Calibrate a sensor and print the comparison of methods.
+    #[command(subcommand)]
+    Calibrate(CalibrateCommand),
     /// Remove stale iceoryx2 resources of dead processes in the domain.
     Clean {
         /// Only list this domain's files still present; exit 1 if any.
@@ -58,6 +61,12 @@ enum Command {
     },
 }
 
+#[derive(Debug, Subcommand)]
+enum CalibrateCommand {
+    /// ALACS laser-camera extrinsics (alpha, L0, beta): Algorithm 1 and the Table 1 comparison.
+    Laser(harvest_laser::CalibrateLaserArgs),
+}
+
 impl Cli {
     /// The name this process runs under: given by the supervisor, else the subcommand's name.
     pub fn process_name(&self) -> String {
@@ -71,6 +80,7 @@ impl Cli {
             Command::Sim(_) => "sim",
             Command::Camera(_) => "camera",
             Command::Perception(_) => "perception",
+            Command::Calibrate(_) => "calibrate",
             Command::Clean { .. } => "clean",
             Command::Channels => "channels",
             Command::Fixture { .. } => "fixture",
@@ -93,6 +103,10 @@ impl Cli {
             }
             Command::Camera(args) => {
                 harvest_camera::run(&args, &domain, process_name).context("camera process")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Calibrate(CalibrateCommand::Laser(args)) => {
+                harvest_laser::run_calibrate_laser(&args).context("laser calibration")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Clean { check } => clean(&domain, check),

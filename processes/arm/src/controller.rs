@@ -562,6 +562,12 @@ mod tests {
             },
             constant_disturbance,
         );
+        println!(
+            "constant disturbance: RISE max {:.2} mm final {:.3} mm; P-only final {:.3} mm",
+            rise.max_error_m * 1e3,
+            rise.final_error_m * 1e3,
+            p_only.final_error_m * 1e3
+        );
         assert!(
             rise.final_error_m < 3e-4,
             "RISE final error {}",
@@ -592,6 +598,12 @@ mod tests {
             },
             varying_disturbance,
         );
+        println!(
+            "varying disturbance: RISE max {:.2} mm, hold rms {:.3} mm; P-only hold rms {:.3} mm",
+            rise.max_error_m * 1e3,
+            rise.hold_rms_error_m * 1e3,
+            p_only.hold_rms_error_m * 1e3
+        );
         assert!(
             rise.max_error_m < MAX_ERROR_BOUND_M,
             "max error {}",
@@ -608,6 +620,26 @@ mod tests {
             rise.hold_rms_error_m,
             p_only.hold_rms_error_m
         );
+    }
+
+    /// Reports (does not assert) the cost of one controller step. Run:
+    /// `cargo test -p harvest-arm --release -- --ignored --nocapture report_step_time`.
+    #[test]
+    #[ignore = "performance report, run explicitly"]
+    fn report_step_time() {
+        let params = ArmParams::arm1();
+        let mut c = TrackingController::new(params, TrackingGains::default()).unwrap();
+        let q = inverse(&params, [1.3, 0.0, 0.35]).unwrap();
+        let mut r = TrackingReference::hold(&params.links, &q);
+        r.velocity_m_per_s = [0.1, -0.05, 0.02];
+        let n = 1_000_000;
+        let t0 = std::time::Instant::now();
+        for k in 0..n {
+            r.position_m[0] += 1e-9 * k as f64;
+            std::hint::black_box(c.step(&r, &q, CONTROL_DT_S));
+        }
+        let ns = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
+        println!("controller step: {ns:.0} ns (budget at 200 Hz: 5 ms)");
     }
 
     #[test]

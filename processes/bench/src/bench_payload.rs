@@ -23,7 +23,7 @@ impl<const N: usize> BenchPayload<N> {
     /// Total size in bytes; evaluating it also proves the layout has no padding.
     pub const SIZE: usize = {
         assert!(
-            N % 8 == 0,
+            N.is_multiple_of(8),
             "BenchPayload body must be a multiple of 8 bytes"
         );
         assert!(std::mem::size_of::<Self>() == BENCH_PAYLOAD_OVERHEAD + N);

@@ -114,12 +114,12 @@ pub struct TargetCheck {
     pub met: bool,
 }
 
-fn find<'a>(
-    results: &'a [CaseResult],
+fn find(
+    results: &[CaseResult],
     payload: PayloadCase,
     transport: Transport,
     mode: WakeMode,
-) -> Option<(&'a CaseResult, LatencySummary)> {
+) -> Option<(&CaseResult, LatencySummary)> {
     results
         .iter()
         .find(|r| r.payload == payload.name() && r.transport == transport && r.mode == mode)

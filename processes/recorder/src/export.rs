@@ -69,10 +69,10 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
     if options.png_dir.is_none() && options.foxglove.is_none() {
         return Err(ExportError::NothingRequested);
     }
-    if let Some(out) = &options.foxglove {
-        if crate::recover::same_file(path, out) {
-            return Err(ExportError::SameFile(out.clone()));
-        }
+    if let Some(out) = &options.foxglove
+        && crate::recover::same_file(path, out)
+    {
+        return Err(ExportError::SameFile(out.clone()));
     }
     let filter = TopicFilter::patterns(&options.topics, &[]);
     let start_ns = recording_start_ns(path)?.unwrap_or(0);

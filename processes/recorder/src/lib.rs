@@ -14,16 +14,19 @@ pub mod base64;
 pub mod export;
 pub mod foxglove_export;
 pub mod json_schema;
+pub mod keyboard;
 pub mod mcap_error;
 pub mod metadata;
 pub mod output_dir;
 pub mod payload_codec;
 pub mod png_export;
+pub mod rec;
 pub mod rec_cat;
 pub mod rec_info;
 pub mod recorder;
 pub mod recording_file;
 pub mod recover;
+pub mod replay;
 pub mod scan;
 pub mod schema;
 pub mod segment_writer;
@@ -34,6 +37,8 @@ pub mod units;
 pub mod wall_clock;
 pub mod writer_thread;
 
+pub use rec::{RecCommand, RecError, run_rec};
 pub use recorder::{
     RecorderArgs, RecorderControl, RecorderError, RecordingReport, run_recorder, run_recorder_until,
 };
+pub use replay::{ReplayArgs, ReplayError, ReplayReport, run_replay};

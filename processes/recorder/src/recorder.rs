@@ -511,12 +511,11 @@ fn run_attached(
     let mut end = LoopEnd::Stopped;
     let result = waiter.run(|attachment| -> Result<Flow, RecorderError> {
         for (index, (tap, guard)) in taps.iter().zip(&guards).enumerate() {
-            if attachment.has_event_from(guard) {
-                if let Err(error) = tap.drain(writer) {
-                    if !std::mem::replace(&mut warned[index], true) {
-                        tracing::warn!(topic = tap.topic(), %error, "receive failed");
-                    }
-                }
+            if attachment.has_event_from(guard)
+                && let Err(error) = tap.drain(writer)
+                && !std::mem::replace(&mut warned[index], true)
+            {
+                tracing::warn!(topic = tap.topic(), %error, "receive failed");
             }
         }
         if attachment.has_event_from(&tick) {

@@ -9,14 +9,10 @@ use std::time::Duration;
 /// `log_time` of the recording's first message: from the summary statistics when present,
 /// else from the first chunk or message in the file. `None` for a recording without messages.
 pub fn recording_start_ns(path: &Path) -> Result<Option<u64>, ReadError> {
-    if let Ok(Some(summary)) = read_summary(path) {
-        if let Some(stats) = summary
-            .stats
-            .as_ref()
-            .filter(|stats| stats.message_count > 0)
-        {
-            return Ok(Some(stats.message_start_time));
-        }
+    if let Ok(Some(summary)) = read_summary(path)
+        && let Some(stats) = summary.stats.as_ref().filter(|stats| stats.message_count > 0)
+    {
+        return Ok(Some(stats.message_start_time));
     }
     let mut start = None;
     scan_file(path, ScanOptions::default(), |item| match item {

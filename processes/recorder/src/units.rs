@@ -57,7 +57,7 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
         .parse()
         .map_err(|_| format!("invalid duration {text:?}: use e.g. 10s, 500ms, 2m"))?;
     let seconds = value * scale_s;
-    if !seconds.is_finite() || seconds < 0.0 || seconds > 1e12 {
+    if !seconds.is_finite() || !(0.0..=1e12).contains(&seconds) {
         return Err(format!(
             "invalid duration {text:?}: must be a non-negative number"
         ));

@@ -318,10 +318,10 @@ impl WriterState {
                     }
                 }
                 Ok(Command::Finish(trailing)) => {
-                    if failure.is_none() {
-                        if let Err(error) = self.finish_segment(&trailing) {
-                            failure = Some(error);
-                        }
+                    if failure.is_none()
+                        && let Err(error) = self.finish_segment(&trailing)
+                    {
+                        failure = Some(error);
                     }
                     break;
                 }
@@ -333,10 +333,10 @@ impl WriterState {
                     }
                 }
                 Err(RecvTimeoutError::Disconnected) => {
-                    if failure.is_none() {
-                        if let Err(error) = self.finish_segment(&[]) {
-                            failure = Some(error);
-                        }
+                    if failure.is_none()
+                        && let Err(error) = self.finish_segment(&[])
+                    {
+                        failure = Some(error);
                     }
                     break;
                 }

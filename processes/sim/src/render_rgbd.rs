@@ -780,6 +780,50 @@ impl Band<'_> {
     }
 }
 
+impl Band<'_> {
+    /// Draws a leaf into this band. Leaves are the bulk of the work, so each row is tested in
+    /// chunks: first a branch-free pass computing which pixels the leaf wins (vectorisable),
+    /// then the winners are written and shaded.
+    #[inline(always)]
+    fn draw_disc<S: Shader>(&mut self, prim: &DiscPrim, shader: &mut S) {
+        const CHUNK: usize = 64;
+        let (n, al, ac) = (prim.normal, prim.along, prim.across);
+        let area = prim.area;
+        let mut wins = [false; CHUNK];
+        for v in area.v0.max(self.v0)..=area.v1.min(self.v1) {
+            let row_start = v * self.width + area.u0;
+            let row_end = v * self.width + area.u1 + 1;
+            let mut start = row_start;
+            while start < row_end {
+                let end = (start + CHUNK).min(row_end);
+                let rays = &self.rays[start..end];
+                let z_m = &mut self.z_m[start..end];
+                for ((win, &[x, y]), &z) in wins.iter_mut().zip(rays).zip(z_m.iter()) {
+                    let facing = n[0] * x + n[1] * y + n[2];
+                    let along = al[0] * x + al[1] * y + al[2];
+                    let across = ac[0] * x + ac[1] * y + ac[2];
+                    *win = (along * along + across * across <= facing * facing)
+                        & (facing > 0.0)
+                        & (prim.n_dot_c < z * facing);
+                }
+                for (offset, ((_, &[x, y]), z)) in wins
+                    .iter()
+                    .zip(rays)
+                    .zip(z_m.iter_mut())
+                    .enumerate()
+                    .filter(|(_, ((win, _), _))| **win)
+                {
+                    let facing = n[0] * x + n[1] * y + n[2];
+                    let across = ac[0] * x + ac[1] * y + ac[2];
+                    *z = prim.n_dot_c / facing;
+                    shader.disc(start + offset, prim, across / facing);
+                }
+                start = end;
+            }
+        }
+    }
+}
+
 /// Draws every object of `scene` over what the camera's z-buffer (and the shader's output)
 /// already hold.
 fn rasterize<S: Shader>(camera: &mut RasterCamera, scene: &Scene, shader: &mut S) {
@@ -794,20 +838,7 @@ fn rasterize<S: Shader>(camera: &mut RasterCamera, scene: &Scene, shader: &mut S
         };
         let overlaps = |area: &PixelBox| area.v0 <= band_rows_end(v0, height) && area.v1 >= v0;
         for prim in scene.discs.iter().filter(|p| overlaps(&p.area)) {
-            let (n, al, ac) = (prim.normal, prim.along, prim.across);
-            band.for_each(prim.area, |pixel, [x, y], z| {
-                let facing = n[0] * x + n[1] * y + n[2];
-                let along = al[0] * x + al[1] * y + al[2];
-                let across = ac[0] * x + ac[1] * y + ac[2];
-                if along * along + across * across > facing * facing
-                    || facing <= 0.0
-                    || prim.n_dot_c >= *z * facing
-                {
-                    return;
-                }
-                *z = prim.n_dot_c / facing;
-                shader.disc(pixel, prim, across / facing);
-            });
+            band.draw_disc(prim, shader);
         }
         for prim in scene.spheres.iter().filter(|p| overlaps(&p.area)) {
             let [cx, cy, cz] = prim.center;
@@ -1030,8 +1061,8 @@ impl RgbdRenderer {
             *out = if z >= min_m && z <= max_m {
                 let noise: f32 = rng.sample(StandardNormal);
                 let z_mm = 1000.0 * (z + (sigma_const_m + sigma_fraction * z) * noise);
-                // 0 is reserved for "no return".
-                z_mm.round().clamp(1.0, f32::from(u16::MAX)) as u16
+                // Rounded; 0 is reserved for "no return".
+                (z_mm.clamp(1.0, f32::from(u16::MAX)) + 0.5) as u16
             } else {
                 0
             };

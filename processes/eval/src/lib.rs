@@ -1,0 +1,1 @@
+//! harvest-eval: evaluations of the stack against the simulator's ground truth.
