@@ -2,7 +2,9 @@
 //! (simulated devices reached over iceoryx2 hardware channels, and real drivers).
 
 pub mod alacs;
+pub mod arm_servos;
 pub mod error_kind;
+pub mod platform;
 pub mod rgbd_camera;
 pub mod valve_board;
 

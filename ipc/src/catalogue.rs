@@ -258,6 +258,33 @@ pub const HW_CAMERA_RGBD: Channel<RgbdFrame> = Channel::in_layer(
     "frames as the ToF camera device delivers them to its driver",
 );
 
+pub const HW_ARM_SERVO: [Channel<ServoSetpoint>; 2] = [
+    Channel::in_layer(Layer::Hardware, "hw/arm1/servo", Qos::SMALL, "servo set-points to arm 1, 200 Hz"),
+    Channel::in_layer(Layer::Hardware, "hw/arm2/servo", Qos::SMALL, "servo set-points to arm 2, 200 Hz"),
+];
+pub const HW_ARM_ENCODERS: [Channel<EncoderFeedback>; 2] = [
+    Channel::in_layer(Layer::Hardware, "hw/arm1/encoders", Qos::STATE, "arm 1 encoder feedback, 200 Hz"),
+    Channel::in_layer(Layer::Hardware, "hw/arm2/encoders", Qos::STATE, "arm 2 encoder feedback, 200 Hz"),
+];
+pub const HW_VALVE_COMMAND: Channel<ValveBoardCommand> = Channel::in_layer(
+    Layer::Hardware,
+    "hw/valves/command",
+    Qos::STATE,
+    "valve commands to the valve board",
+);
+pub const HW_VALVE_READINGS: Channel<ValveBoardReadings> = Channel::in_layer(
+    Layer::Hardware,
+    "hw/valves/readings",
+    Qos::STATE,
+    "valve states and the 3 pressures from the valve board, 200 Hz",
+);
+pub const SIM_GROUND_TRUTH: Channel<GroundTruth> = Channel::in_layer(
+    Layer::Evaluation,
+    "sim/ground_truth",
+    Qos::STATE,
+    "true apple centres and states, for evaluation only",
+);
+
 /// Called once per catalogue channel with its payload type.
 pub trait ChannelVisitor {
     fn visit<T: Payload>(&mut self, channel: Channel<T>);
@@ -280,6 +307,13 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(EMERGENCY_STOP);
     visitor.visit(PROCESS_HEALTH);
     visitor.visit(HW_CAMERA_RGBD);
+    for arm in ArmId::ALL {
+        visitor.visit(HW_ARM_SERVO[arm.index()]);
+        visitor.visit(HW_ARM_ENCODERS[arm.index()]);
+    }
+    visitor.visit(HW_VALVE_COMMAND);
+    visitor.visit(HW_VALVE_READINGS);
+    visitor.visit(SIM_GROUND_TRUTH);
 }
 
 /// Every channel's spec, in catalogue order.

@@ -3,6 +3,7 @@
 pub mod apple_detections;
 pub mod arm;
 pub mod emergency_stop;
+pub mod hardware;
 pub mod laser_scan;
 pub mod process_health;
 pub mod rgbd_frame;
@@ -11,6 +12,9 @@ pub mod vacuum;
 pub use apple_detections::{AppleDetection, AppleDetections, LocalizationMethod};
 pub use arm::{ArmCommand, ArmPhase, ArmState, ArmTarget, JOINT_COUNT};
 pub use emergency_stop::EmergencyStop;
+pub use hardware::{
+    EncoderFeedback, GroundTruth, ServoSetpoint, TrueApple, ValveBoardCommand, ValveBoardReadings,
+};
 pub use laser_scan::{LaserScanRequest, LaserScanResult};
 pub use process_health::{ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};

@@ -11,11 +11,13 @@
 //! state; it returns rate commands from the tracking controller, the valve request, the phase
 //! and at most one event. It reads no clock and does no I/O.
 //!
-//! Timing. With the simulated servos following the trajectories, a target about 0.45 m from
-//! home takes about 2 s to approach and 2 s to retract at the default 0.6 speed fraction (the
-//! field setting of section 4.2), and Attach + Release take about 0.5 s, so one cycle lasts
-//! about 4.5 s: the single-arm interval of Fig. 12 (4.5 s baseline, 2.25 s per apple with both
-//! arms interleaved). The test `cycle_timing_matches_the_fig_12_analysis` checks this.
+//! Timing. With the simulated servos following the trajectories, a target 0.52 m from the home
+//! end-effector position takes about 1.9 s to approach and 1.9 s to retract at the default 0.6
+//! speed fraction (the field setting of section 4.2), and Attach + Release take about 0.55 s,
+//! so one cycle lasts about 4.3 s: the single-arm interval of Fig. 12 (4.5 s baseline, 2.25 s
+//! per apple with both arms interleaved; derivation in `CONTROLLER.md`). The tests
+//! `cycle_timing_matches_the_fig_12_analysis` and `two_arms_interleave_as_in_the_2024_timeline`
+//! check this.
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -186,6 +188,12 @@ pub enum TargetRejection {
         /// Why its position could not be inverted.
         reason: IkError,
     },
+    /// Joint feedback is invalid or stale, so no motion can start (retry when it recovers).
+    #[error("target {id} refused: joint feedback invalid or stale")]
+    NoFeedback {
+        /// Target id.
+        id: u64,
+    },
     /// No trajectory could be planned.
     #[error("target {id} refused: planning failed: {reason}")]
     Planning {
@@ -203,6 +211,7 @@ impl TargetRejection {
         matches!(
             self,
             TargetRejection::Busy { .. }
+                | TargetRejection::NoFeedback { .. }
                 | TargetRejection::ClearanceConflict { .. }
                 | TargetRejection::OtherArmGoalUnknown { .. }
         )
@@ -580,7 +589,15 @@ impl PickingCycle {
                 "joint feedback invalid or stale: stopping the arm"
             );
             self.needs_replan = !matches!(self.state, State::Idle);
-            let decision = input.target.and_then(|t| self.busy_or_repeat(&t));
+            let decision = match input.target {
+                Some(t) if matches!(self.state, State::Idle) => {
+                    Some(TargetDecision::Rejected(TargetRejection::NoFeedback {
+                        id: t.id,
+                    }))
+                }
+                Some(t) => self.busy_or_repeat(&t),
+                None => None,
+            };
             return self.output(
                 JointCommand::STOP,
                 decision,
@@ -1519,6 +1536,28 @@ mod tests {
         assert_eq!(
             w.events.last().map(|e| e.0),
             Some(CycleEvent::CycleComplete { harvested: true })
+        );
+    }
+
+    #[test]
+    fn no_motion_starts_without_fresh_feedback() {
+        let mut w = World::new(ArmParams::arm1(), ArmParams::arm2(), TYPICAL_APPLE_M);
+        w.feedback_delay_ns = 1_000_000_000;
+        let target = w.target(9);
+        let out = w.tick(Some(target), None);
+        assert_eq!(
+            out.target_decision,
+            Some(TargetDecision::Rejected(TargetRejection::NoFeedback {
+                id: 9
+            }))
+        );
+        assert_eq!(out.phase, CyclePhase::Idle);
+        assert!(out.command.stopped);
+        w.feedback_delay_ns = 0;
+        let target = w.target(9);
+        assert_eq!(
+            w.tick(Some(target), None).target_decision,
+            Some(TargetDecision::Accepted { id: 9 })
         );
     }
 

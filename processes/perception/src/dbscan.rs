@@ -5,10 +5,13 @@
 //! `min_points` points (itself included) lie within `eps_m`; clusters are the connected sets of
 //! core points plus the border points within `eps_m` of them; all other points are noise.
 //!
-//! Index: points are bucketed into cubic cells of side `eps_m`, the cells sorted by a packed key
-//! `(z, y, x)`. The neighbours of a point lie in its 3x3x3 block of cells; for each of the 9
-//! `(y, z)` rows the three x-cells are consecutive keys, found by one binary search. Building is
-//! O(n log n), a query O(9 log c + k) for c occupied cells and k candidates.
+//! Index: points are bucketed into cubic cells of side `eps_m`; the neighbours of a point lie in
+//! its 3x3x3 block of cells. When the occupied bounding box is small (the usual case: one fruit
+//! and its surroundings), the cells form a dense x-fastest array filled by counting sort, so the
+//! three x-cells of each of the 9 `(y, z)` rows are one contiguous run of points. When outliers
+//! spread the box too far, the occupied cells are instead sorted by a packed `(z, y, x)` key and
+//! each row is found by binary search. Points are stored in cell order for locality. Building is
+//! O(n) (dense) or O(n log n) (sparse); a query is O(9 + k) or O(9 log c + k) for k candidates.
 
 use thiserror::Error;
 
@@ -36,17 +39,35 @@ pub enum DbscanError {
     InvalidMinPoints { min_points: usize },
 }
 
+/// How the occupied cells are looked up.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+enum GridLayout {
+    /// Dense array of `size[0] * size[1] * size[2]` cells starting at cell `origin`.
+    Dense { origin: [i32; 3], size: [usize; 3] },
+    /// Sorted packed keys with binary search.
+    #[default]
+    Sparse,
+}
+
 /// Reusable DBSCAN state: spatial index, labels and scratch buffers.
 #[derive(Debug, Default)]
 pub struct Dbscan {
-    /// `(cell key, point index)` sorted by key.
-    sorted: Vec<(u64, u32)>,
-    /// Distinct occupied cell keys, ascending.
-    cell_keys: Vec<u64>,
-    /// `cell_start[c]..cell_start[c + 1]` indexes `sorted` for cell `c`.
+    layout: GridLayout,
+    /// Original index of each point in cell order (finite points only).
+    order: Vec<u32>,
+    /// Points in cell order.
+    sorted_points: Vec<[f32; 3]>,
+    /// Cell coordinates of each point in cell order.
+    sorted_cells: Vec<[i32; 3]>,
+    /// Dense: `cell_start[c]..cell_start[c + 1]` are the points of cell `c`.
+    /// Sparse: the same for the `c`-th occupied key of `cell_keys`.
     cell_start: Vec<u32>,
-    /// Integer cell coordinates of each point (unused for non-finite points).
-    cell_of: Vec<[i32; 3]>,
+    /// Sparse layout: distinct occupied cell keys, ascending.
+    cell_keys: Vec<u64>,
+    /// Scratch: `(key or dense cell, original index)`.
+    keyed: Vec<(u64, u32)>,
+    /// Labels in cell order, then in the caller's order.
+    sorted_labels: Vec<u32>,
     labels: Vec<u32>,
     cluster_sizes: Vec<u32>,
     neighbours: Vec<u32>,
@@ -56,6 +77,9 @@ pub struct Dbscan {
 const KEY_BITS: u32 = 21;
 const KEY_OFFSET: i32 = 1 << (KEY_BITS - 1);
 const KEY_MAX: i32 = (1 << KEY_BITS) - 2;
+/// The dense layout is used while it has at most this many cells per point (plus a constant).
+const DENSE_CELLS_PER_POINT: usize = 8;
+const DENSE_EXTRA_CELLS: usize = 1 << 15;
 
 fn pack(cell: [i32; 3]) -> u64 {
     let c = |v: i32| (v + KEY_OFFSET).clamp(1, KEY_MAX) as u64;
@@ -81,37 +105,36 @@ impl Dbscan {
             });
         }
         self.build_index(points, params.eps_m);
-        let n = points.len();
-        self.labels.clear();
-        self.labels.resize(n, UNVISITED);
+        let n = self.sorted_points.len();
+        self.sorted_labels.clear();
+        self.sorted_labels.resize(n, UNVISITED);
         self.cluster_sizes.clear();
         let eps_sq = params.eps_m * params.eps_m;
         for start in 0..n {
-            if self.labels[start] != UNVISITED {
+            if self.sorted_labels[start] != UNVISITED {
                 continue;
             }
-            if !is_finite(&points[start]) {
-                self.labels[start] = NOISE;
-                continue;
-            }
-            self.query(points, start, eps_sq);
+            self.query(start, eps_sq);
             if self.neighbours.len() < params.min_points {
-                self.labels[start] = NOISE;
+                self.sorted_labels[start] = NOISE;
                 continue;
             }
             let cluster = self.cluster_sizes.len() as u32;
             self.cluster_sizes.push(0);
-            self.labels[start] = cluster;
+            self.sorted_labels[start] = cluster;
             self.stack.clear();
             self.claim_neighbours(cluster);
             while let Some(q) = self.stack.pop() {
-                self.query(points, q as usize, eps_sq);
+                self.query(q as usize, eps_sq);
                 if self.neighbours.len() >= params.min_points {
                     self.claim_neighbours(cluster);
                 }
             }
         }
-        for &label in &self.labels {
+        self.labels.clear();
+        self.labels.resize(points.len(), NOISE);
+        for (&original, &label) in self.order.iter().zip(&self.sorted_labels) {
+            self.labels[original as usize] = label;
             if let Some(size) = self.cluster_sizes.get_mut(label as usize) {
                 *size += 1;
             }
@@ -119,7 +142,7 @@ impl Dbscan {
         Ok(self.cluster_sizes.len())
     }
 
-    /// Per-point labels of the last run.
+    /// Per-point labels of the last run, in the caller's order.
     pub fn labels(&self) -> &[u32] {
         &self.labels
     }
@@ -144,7 +167,7 @@ impl Dbscan {
     /// expansion, noise points become border points.
     fn claim_neighbours(&mut self, cluster: u32) {
         for &q in &self.neighbours {
-            let label = &mut self.labels[q as usize];
+            let label = &mut self.sorted_labels[q as usize];
             if *label == UNVISITED {
                 *label = cluster;
                 self.stack.push(q);
@@ -156,52 +179,128 @@ impl Dbscan {
 
     fn build_index(&mut self, points: &[[f32; 3]], eps_m: f32) {
         let inverse = 1.0 / eps_m;
-        self.sorted.clear();
-        self.cell_of.clear();
-        for (i, p) in points.iter().enumerate() {
-            let cell = [
+        let cell_of = |p: &[f32; 3]| {
+            [
                 (p[0] * inverse).floor() as i32,
                 (p[1] * inverse).floor() as i32,
                 (p[2] * inverse).floor() as i32,
-            ];
-            self.cell_of.push(cell);
-            if is_finite(p) {
-                self.sorted.push((pack(cell), i as u32));
+            ]
+        };
+        let mut lo = [i32::MAX; 3];
+        let mut hi = [i32::MIN; 3];
+        let mut finite = 0usize;
+        for p in points.iter().filter(|p| is_finite(p)) {
+            let cell = cell_of(p);
+            for axis in 0..3 {
+                lo[axis] = lo[axis].min(cell[axis]);
+                hi[axis] = hi[axis].max(cell[axis]);
             }
+            finite += 1;
         }
-        self.sorted.sort_unstable();
-        self.cell_keys.clear();
+        let size =
+            [0, 1, 2].map(|axis| (i64::from(hi[axis]) - i64::from(lo[axis]) + 1).max(0) as usize);
+        let cells = size[0]
+            .checked_mul(size[1])
+            .and_then(|c| c.checked_mul(size[2]));
+        let dense_limit = DENSE_CELLS_PER_POINT * finite + DENSE_EXTRA_CELLS;
+        self.keyed.clear();
         self.cell_start.clear();
-        for (position, &(key, _)) in self.sorted.iter().enumerate() {
-            if self.cell_keys.last() != Some(&key) {
-                self.cell_keys.push(key);
-                self.cell_start.push(position as u32);
+        self.cell_keys.clear();
+        match cells {
+            Some(cells) if finite > 0 && cells <= dense_limit => {
+                self.layout = GridLayout::Dense { origin: lo, size };
+                // Counting sort by dense cell index.
+                self.cell_start.resize(cells + 1, 0);
+                for (i, p) in points.iter().enumerate().filter(|(_, p)| is_finite(p)) {
+                    let c = cell_of(p);
+                    let index = ((c[2] - lo[2]) as usize * size[1] + (c[1] - lo[1]) as usize)
+                        * size[0]
+                        + (c[0] - lo[0]) as usize;
+                    self.cell_start[index + 1] += 1;
+                    self.keyed.push((index as u64, i as u32));
+                }
+                for c in 0..cells {
+                    self.cell_start[c + 1] += self.cell_start[c];
+                }
+                self.order.clear();
+                self.order.resize(finite, 0);
+                self.stack.clear();
+                self.stack.extend_from_slice(&self.cell_start[..cells]);
+                for &(index, original) in &self.keyed {
+                    let slot = &mut self.stack[index as usize];
+                    self.order[*slot as usize] = original;
+                    *slot += 1;
+                }
+            }
+            _ => {
+                self.layout = GridLayout::Sparse;
+                for (i, p) in points.iter().enumerate().filter(|(_, p)| is_finite(p)) {
+                    self.keyed.push((pack(cell_of(p)), i as u32));
+                }
+                self.keyed.sort_unstable();
+                self.order.clear();
+                for (position, &(key, original)) in self.keyed.iter().enumerate() {
+                    if self.cell_keys.last() != Some(&key) {
+                        self.cell_keys.push(key);
+                        self.cell_start.push(position as u32);
+                    }
+                    self.order.push(original);
+                }
+                self.cell_start.push(self.keyed.len() as u32);
             }
         }
-        self.cell_start.push(self.sorted.len() as u32);
+        self.sorted_points.clear();
+        self.sorted_cells.clear();
+        for &original in &self.order {
+            let p = points[original as usize];
+            self.sorted_points.push(p);
+            self.sorted_cells.push(cell_of(&p));
+        }
     }
 
-    /// Fills `self.neighbours` with the points within `sqrt(eps_sq)` of point `i` (itself included).
-    fn query(&mut self, points: &[[f32; 3]], i: usize, eps_sq: f32) {
+    /// Fills `self.neighbours` with the (cell-order) points within `sqrt(eps_sq)` of point `i`,
+    /// itself included.
+    fn query(&mut self, i: usize, eps_sq: f32) {
         self.neighbours.clear();
-        let p = points[i];
-        let [cx, cy, cz] = self.cell_of[i];
+        let p = self.sorted_points[i];
+        let [cx, cy, cz] = self.sorted_cells[i];
         for dz in -1..=1 {
             for dy in -1..=1 {
-                let first = pack([cx - 1, cy + dy, cz + dz]);
-                let last = pack([cx + 1, cy + dy, cz + dz]);
-                let mut cell = self.cell_keys.partition_point(|&k| k < first);
-                while cell < self.cell_keys.len() && self.cell_keys[cell] <= last {
-                    let range = self.cell_start[cell] as usize..self.cell_start[cell + 1] as usize;
-                    for &(_, j) in &self.sorted[range] {
-                        let q = points[j as usize];
-                        let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
-                        if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= eps_sq {
-                            self.neighbours.push(j);
-                        }
+                let Some(range) = self.row_range(cx, cy + dy, cz + dz) else {
+                    continue;
+                };
+                for (j, q) in self.sorted_points[range.clone()].iter().enumerate() {
+                    let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+                    if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= eps_sq {
+                        self.neighbours.push((range.start + j) as u32);
                     }
-                    cell += 1;
                 }
+            }
+        }
+    }
+
+    /// Point range (cell order) of cells `x - 1..=x + 1` in row `(y, z)`.
+    fn row_range(&self, x: i32, y: i32, z: i32) -> Option<std::ops::Range<usize>> {
+        match self.layout {
+            GridLayout::Dense { origin, size } => {
+                let (ry, rz) = (y - origin[1], z - origin[2]);
+                if ry < 0 || rz < 0 || ry as usize >= size[1] || rz as usize >= size[2] {
+                    return None;
+                }
+                let row = (rz as usize * size[1] + ry as usize) * size[0];
+                let first = (x - 1 - origin[0]).max(0) as usize;
+                let last = ((x + 1 - origin[0]) as usize).min(size[0] - 1);
+                let start = self.cell_start[row + first] as usize;
+                let end = self.cell_start[row + last + 1] as usize;
+                Some(start..end)
+            }
+            GridLayout::Sparse => {
+                let first_key = pack([x - 1, y, z]);
+                let last_key = pack([x + 1, y, z]);
+                let first = self.cell_keys.partition_point(|&k| k < first_key);
+                let last = self.cell_keys.partition_point(|&k| k <= last_key);
+                (first < last)
+                    .then(|| self.cell_start[first] as usize..self.cell_start[last] as usize)
             }
         }
     }
@@ -308,6 +407,36 @@ mod tests {
         assert_eq!(dbscan.largest_cluster(), Some((0, 20)));
         assert!(dbscan.labels()[..20].iter().all(|&l| l == 0));
         assert!(dbscan.labels()[20..].iter().all(|&l| l == 1));
+    }
+
+    #[test]
+    fn dense_and_sparse_layouts_agree() {
+        let mut rng = SmallRng::seed_from_u64(3);
+        let spread = Normal::new(0.0_f32, 0.01).expect("valid sigma");
+        let mut points: Vec<[f32; 3]> = (0..600)
+            .map(|i| {
+                let c = if i % 2 == 0 { 0.0 } else { 0.05 };
+                [
+                    c + spread.sample(&mut rng),
+                    spread.sample(&mut rng),
+                    1.0 + spread.sample(&mut rng),
+                ]
+            })
+            .collect();
+        let params = DbscanParams {
+            eps_m: 0.006,
+            min_points: 5,
+        };
+        let mut dbscan = Dbscan::new();
+        let clusters = dbscan.run(&points, params).expect("valid");
+        assert!(matches!(dbscan.layout, GridLayout::Dense { .. }));
+        let dense_labels = dbscan.labels().to_vec();
+        // One point 5 km away makes the bounding box too large for the dense layout.
+        points.push([5000.0, 0.0, 1.0]);
+        assert_eq!(dbscan.run(&points, params), Ok(clusters));
+        assert_eq!(dbscan.layout, GridLayout::Sparse);
+        assert_eq!(&dbscan.labels()[..600], &dense_labels[..]);
+        assert_eq!(dbscan.labels()[600], NOISE);
     }
 
     #[test]

@@ -34,6 +34,8 @@ use crate::frame::{FrameError, RgbView};
 pub struct ColorSegmentationConfig {
     /// Side of one analysis cell in colour pixels (4: 1920x1080 -> 480x270 cells).
     pub downscale: u32,
+    /// Every `row_sampling_step`-th pixel row of a cell enters its mean colour (speed; 1 = all).
+    pub row_sampling_step: u32,
     /// Minimum red excess `r - g` in normalized chromaticity for an apple cell.
     pub min_red_excess: f32,
     /// Minimum red excess for a cell whose brightest channel is at 255.
@@ -71,6 +73,7 @@ impl Default for ColorSegmentationConfig {
     fn default() -> Self {
         Self {
             downscale: 4,
+            row_sampling_step: 2,
             min_red_excess: 0.20,
             bright_red_excess: 0.08,
             bright_knee: 210.0,
@@ -96,6 +99,11 @@ pub enum ColorSegmentationConfigError {
     /// `downscale` must be 1..=32.
     #[error("colour segmentation: downscale = {value} is outside 1..=32")]
     Downscale { value: u32 },
+    /// `row_sampling_step` must be 1..=downscale.
+    #[error(
+        "colour segmentation: row_sampling_step = {value} is outside 1..={downscale} (downscale)"
+    )]
+    RowSampling { value: u32, downscale: u32 },
     /// `max_seeds_per_region` must be 1..=255.
     #[error("colour segmentation: max_seeds_per_region = {value} is outside 1..=255")]
     MaxSeeds { value: u32 },
@@ -115,6 +123,12 @@ impl ColorSegmentationConfig {
         if !(1..=32).contains(&self.downscale) {
             return Err(ColorSegmentationConfigError::Downscale {
                 value: self.downscale,
+            });
+        }
+        if !(1..=self.downscale).contains(&self.row_sampling_step) {
+            return Err(ColorSegmentationConfigError::RowSampling {
+                value: self.row_sampling_step,
+                downscale: self.downscale,
             });
         }
         if !(1..=255).contains(&self.max_seeds_per_region) {
@@ -245,7 +259,7 @@ impl ColorSegmentation {
         &self.config
     }
 
-    /// Step 1: mean colour and clipped-majority flag of every cell.
+    /// Step 1: mean colour and clipped-majority flag of every cell (over the sampled rows).
     fn downsample(&mut self, rgb: &RgbView<'_>, grid_w: usize, grid_h: usize) {
         let s = self.config.downscale as usize;
         let width = rgb.width_px as usize;
@@ -257,11 +271,12 @@ impl ColorSegmentation {
         self.row_sums.clear();
         self.row_sums.resize(grid_w, [0; 4]);
         let clip = self.config.clip_level;
-        let pixels_per_cell = (s * s) as u32;
+        let step = self.config.row_sampling_step as usize;
+        let pixels_per_cell = (s * s.div_ceil(step)) as u32;
         let inverse = 1.0 / pixels_per_cell as f32;
         for gy in 0..grid_h {
             self.row_sums.fill([0; 4]);
-            for row in gy * s..(gy + 1) * s {
+            for row in (gy * s..(gy + 1) * s).step_by(step) {
                 let start = row * width * 3;
                 let Some(line) = rgb.data.get(start..start + grid_w * s * 3) else {
                     continue;

@@ -1,0 +1,126 @@
+//! Hardware-layer messages: what device drivers exchange with their devices (the simulator
+//! serves them in simulation; a bridge to a real bus could serve them on the robot).
+
+use crate::bounded_vec::BoundedVec;
+use crate::header::Header;
+use crate::payloads::arm::JOINT_COUNT;
+use crate::payloads::vacuum::{PRESSURE_SENSOR_COUNT, VALVE_COUNT};
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Serialize};
+
+/// Servo set-points sent to one arm's joint servos (driver -> device).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.ServoSetpoint.v1")]
+pub struct ServoSetpoint {
+    pub header: Header,
+    /// 1: hold position (brake), 0: track.
+    pub hold: u8,
+    pub _reserved: [u8; 7],
+    /// D in m, theta/phi/twist in rad.
+    pub joint_position: [f64; JOINT_COUNT],
+    /// Feed-forward velocities, m/s and rad/s.
+    pub joint_velocity: [f64; JOINT_COUNT],
+}
+
+crate::serde_payload!(
+    ServoSetpoint,
+    "harvest.ServoSetpoint",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+hold:u8; _reserved:[u8;7]; joint_position:[f64;4]; joint_velocity:[f64;4]"
+);
+
+/// Encoder feedback of one arm (device -> driver), at the servo rate.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.EncoderFeedback.v1")]
+pub struct EncoderFeedback {
+    pub header: Header,
+    pub joint_position: [f64; JOINT_COUNT],
+    pub joint_velocity: [f64; JOINT_COUNT],
+    /// Bit per joint: fault (over-current, limit switch).
+    pub fault_bits: u8,
+    pub _reserved: [u8; 7],
+}
+
+crate::serde_payload!(
+    EncoderFeedback,
+    "harvest.EncoderFeedback",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+joint_position:[f64;4]; joint_velocity:[f64;4]; fault_bits:u8; _reserved:[u8;7]"
+);
+
+/// Valve commands to the valve board (driver -> device).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.ValveBoardCommand.v1")]
+pub struct ValveBoardCommand {
+    pub header: Header,
+    /// 1 open, 0 closed, valves 1..4.
+    pub valve_open: [u8; VALVE_COUNT],
+    pub _reserved: [u8; 4],
+}
+
+crate::serde_payload!(
+    ValveBoardCommand,
+    "harvest.ValveBoardCommand",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+valve_open:[u8;4]; _reserved:[u8;4]"
+);
+
+/// Valve and pressure readings of the valve board (device -> driver).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.ValveBoardReadings.v1")]
+pub struct ValveBoardReadings {
+    pub header: Header,
+    pub valve_open: [u8; VALVE_COUNT],
+    pub valve_in_transit: [u8; VALVE_COUNT],
+    /// Vacuum in mmH2O: inside arm 1, inside arm 2, at the source.
+    pub pressure_mmh2o: [f32; PRESSURE_SENSOR_COUNT],
+    pub _reserved: [u8; 4],
+}
+
+crate::serde_payload!(
+    ValveBoardReadings,
+    "harvest.ValveBoardReadings",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+valve_open:[u8;4]; valve_in_transit:[u8;4]; pressure_mmh2o:[f32;3]; _reserved:[u8;4]"
+);
+
+/// At most this many apples in the ground truth message.
+pub const MAX_TRUE_APPLES: usize = 256;
+
+/// One apple as the simulator knows it.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+pub struct TrueApple {
+    pub apple_id: u32,
+    /// 0 on tree, 1 attached to arm 1, 2 attached to arm 2, 3 dropped, 4 harvested.
+    pub state: u8,
+    pub _reserved: [u8; 3],
+    pub center_in_robot_m: [f64; 3],
+    pub radius_m: f64,
+}
+
+/// Evaluation only: the true apples. No stack process may subscribe.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.GroundTruth.v1")]
+pub struct GroundTruth {
+    pub header: Header,
+    pub apples: BoundedVec<TrueApple, MAX_TRUE_APPLES>,
+}
+
+crate::serde_payload!(
+    GroundTruth,
+    "harvest.GroundTruth",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; apples: \
+u64 count then count x {apple_id:u32, state:u8 (0 tree,1 arm1,2 arm2,3 dropped,4 harvested), \
+_reserved:[u8;3], center_in_robot_m:[f64;3], radius_m:f64}"
+);
