@@ -278,6 +278,18 @@ pub const HW_VALVE_READINGS: Channel<ValveBoardReadings> = Channel::in_layer(
     Qos::STATE,
     "valve states and the 3 pressures from the valve board, 200 Hz",
 );
+pub const HW_ALACS_COMMAND: Channel<AlacsCommand> = Channel::in_layer(
+    Layer::Hardware,
+    "hw/alacs/command",
+    Qos::SMALL,
+    "ALACS slide, laser and capture commands",
+);
+pub const HW_ALACS_IMAGE: Channel<AlacsImage> = Channel::in_layer(
+    Layer::Hardware,
+    "hw/alacs/image",
+    Qos { max_subscribers: 2, ..Qos::FRAMES },
+    "ALACS device answers with the 1440x1080 RGB image",
+);
 pub const SIM_GROUND_TRUTH: Channel<GroundTruth> = Channel::in_layer(
     Layer::Evaluation,
     "sim/ground_truth",
@@ -313,6 +325,8 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     }
     visitor.visit(HW_VALVE_COMMAND);
     visitor.visit(HW_VALVE_READINGS);
+    visitor.visit(HW_ALACS_COMMAND);
+    visitor.visit(HW_ALACS_IMAGE);
     visitor.visit(SIM_GROUND_TRUTH);
 }
 

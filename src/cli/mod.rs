@@ -45,6 +45,12 @@ enum Command {
     /// Calibrate a sensor and print the comparison of methods.
     #[command(subcommand)]
     Calibrate(CalibrateCommand),
+    /// Benchmarks (latency of the transport and of the running stack).
+    #[command(subcommand)]
+    Bench(BenchCommand),
+    /// The sending process of one benchmark case (started by `harvest bench ipc`).
+    #[command(name = "bench-peer", hide = true)]
+    BenchPeer(harvest_bench::BenchPeerArgs),
     /// Remove stale iceoryx2 resources of dead processes in the domain.
     Clean {
         /// Only list this domain's files still present; exit 1 if any.
@@ -67,6 +73,13 @@ enum CalibrateCommand {
     Laser(harvest_laser::CalibrateLaserArgs),
 }
 
+#[derive(Debug, Subcommand)]
+enum BenchCommand {
+    /// One-way latency between separate processes: our layer vs raw iceoryx2 vs a copying
+    /// Unix socket, 64 B to 16 MB, event-driven and busy-poll wake-ups.
+    Ipc(harvest_bench::BenchIpcArgs),
+}
+
 impl Cli {
     /// The name this process runs under: given by the supervisor, else the subcommand's name.
     pub fn process_name(&self) -> String {
@@ -81,6 +94,8 @@ impl Cli {
             Command::Camera(_) => "camera",
             Command::Perception(_) => "perception",
             Command::Calibrate(_) => "calibrate",
+            Command::Bench(_) => "bench",
+            Command::BenchPeer(_) => "bench-peer",
             Command::Clean { .. } => "clean",
             Command::Channels => "channels",
             Command::Fixture { .. } => "fixture",
@@ -107,6 +122,15 @@ impl Cli {
             }
             Command::Calibrate(CalibrateCommand::Laser(args)) => {
                 harvest_laser::run_calibrate_laser(&args).context("laser calibration")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Bench(BenchCommand::Ipc(args)) => {
+                let report = harvest_bench::run_bench_ipc(&args).context("ipc benchmark")?;
+                print!("{}", report.table());
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::BenchPeer(args) => {
+                harvest_bench::run_bench_peer(&args).context("benchmark peer")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Clean { check } => clean(&domain, check),

@@ -7,6 +7,8 @@
 //! controller's capture time. Commands are expected at >= 200 Hz; a servo controller that stops
 //! receiving them holds position.
 
+pub mod sim;
+
 use crate::error_kind::DeviceError;
 
 /// Joint order everywhere: `[D m, theta rad, phi rad, twist rad]`.

@@ -20,6 +20,7 @@ pub mod fake_board;
 pub mod line_assembler;
 pub mod protocol;
 pub mod serial;
+pub mod sim;
 pub mod types;
 
 pub use dyn_board::{BoxedBoardError, DynValveBoard, ErasedValveBoard};

@@ -1,5 +1,6 @@
 //! The message types of the stack, one concept per file.
 
+pub mod alacs;
 pub mod apple_detections;
 pub mod arm;
 pub mod emergency_stop;
@@ -9,6 +10,7 @@ pub mod process_health;
 pub mod rgbd_frame;
 pub mod vacuum;
 
+pub use alacs::{AlacsCommand, AlacsImage};
 pub use apple_detections::{AppleDetection, AppleDetections, LocalizationMethod};
 pub use arm::{ArmCommand, ArmPhase, ArmState, ArmTarget, JOINT_COUNT};
 pub use emergency_stop::EmergencyStop;

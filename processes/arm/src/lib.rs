@@ -6,6 +6,7 @@ pub mod clearance;
 pub mod controller;
 pub mod joint;
 pub mod kinematics;
+pub mod node;
 pub mod params;
 pub mod picking_cycle;
 pub mod servo_model;

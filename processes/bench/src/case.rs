@@ -1,6 +1,11 @@
 //! One run of one case (payload x transport x mode) on the measuring side: start the peer,
 //! pace its stop-and-wait messages, record one-way latencies, then count its stream.
 //!
+//! Throughput: the peer streams for a quarter of `--duration`, keeping at most a window of
+//! unacknowledged messages in flight (the payload's default subscriber buffer, see
+//! [`crate::peer::stream_window`]), so the rate is the sustained loss-free one; it is the
+//! delivered messages over the time from the first message's publish to the last's receipt.
+//!
 //! One-way latency = receive time - `publish_ns`, both `CLOCK_MONOTONIC` on this host
 //! (`harvest_ipc::MonotonicClock`). `publish_ns` is stamped after the sender wrote the payload,
 //! right before it hands the message to the transport (for the copying baseline: before
@@ -156,7 +161,7 @@ fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchErr
         })
     })?;
 
-    // Throughput: back to back for a quarter of --duration.
+    // Throughput: a quarter of --duration, at most a window of messages in flight.
     let mut tally = StreamTally::default();
     control.send(GO_STREAM)?;
     watchdog.start_phase("throughput", settings.duration / 4 + PHASE_GRACE);
@@ -166,6 +171,7 @@ fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchErr
         match phase {
             Phase::Stream | Phase::StreamLast => {
                 tally.add(header.msg_seq, header.publish_ns, recv_ns);
+                control.send(ACK)?;
             }
             Phase::Warmup | Phase::Measure | Phase::MeasureLast => {
                 return Err(BenchError::UnexpectedPhase {

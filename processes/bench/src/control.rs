@@ -2,12 +2,14 @@
 //!
 //! Peer: connect (`HELLO_CONTROL`; for the copying baseline also a data connection with
 //! `HELLO_DATA`), open its sender, `READY`. Receiver: `GO_LATENCY`; then per stop-and-wait
-//! message `ACK`; `GO_STREAM`; after the last streamed message `END`, and the peer exits.
+//! message `ACK`; `GO_STREAM`; then `ACK` per streamed message (the peer keeps at most a window
+//! of unacknowledged messages in flight); after the last one `END`, and the peer exits.
 //! The control connection only paces the run: it is never inside a measured interval.
 
 use crate::error::BenchError;
 use crate::socket_io::{read_full, socket_error, write_all};
 use crate::watchdog::{WATCH_PERIOD, Watchdog};
+use std::io::Read;
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -68,6 +70,36 @@ impl Control {
             &mut || Ok(()),
         )?;
         check_byte(expected, byte[0], context)
+    }
+
+    /// Peer side: blocks until at least one byte arrives, reads at most `outstanding` bytes
+    /// (so a following `END` stays unread), checks that all are `ACK`, and returns how many.
+    pub fn read_acks(&mut self, outstanding: usize) -> Result<usize, BenchError> {
+        let mut bytes = [0u8; 256];
+        let wanted = outstanding.clamp(1, bytes.len());
+        let read = loop {
+            match self.stream.read(&mut bytes[..wanted]) {
+                Ok(0) => {
+                    return Err(BenchError::SocketClosed {
+                        what: WHAT,
+                        path: self.path.clone(),
+                    });
+                }
+                Ok(read) => break read,
+                Err(error) if error.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(source) => {
+                    return Err(BenchError::Socket {
+                        what: WHAT,
+                        path: self.path.clone(),
+                        source,
+                    });
+                }
+            }
+        };
+        for &byte in &bytes[..read] {
+            check_byte(ACK, byte, "acknowledgement of a streamed message")?;
+        }
+        Ok(read)
     }
 
     /// Receiver side: waits for the next byte while watching the peer.

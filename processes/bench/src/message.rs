@@ -29,7 +29,7 @@ pub enum Phase {
     Measure = 2,
     /// The last recorded stop-and-wait message.
     MeasureLast = 3,
-    /// Back-to-back stream for throughput.
+    /// Windowed stream for throughput.
     Stream = 4,
     /// The last message of the stream.
     StreamLast = 5,

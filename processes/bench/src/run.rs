@@ -18,6 +18,7 @@ pub fn run_bench_ipc(args: &BenchIpcArgs) -> Result<BenchReport, BenchError> {
     let cpus = std::thread::available_parallelism().map_or(1, usize::from);
     let settings = Settings::resolve(args, cpus)?;
     let domain = unique_domain()?;
+    let _remove_domain = DomainRemoval(&domain);
     let _pinned = match settings.pin_cpus {
         Some((receiver, _)) => Some(AffinityRestore::pin(receiver)?),
         None => None,
@@ -85,7 +86,6 @@ constructor is private): measured on scan-request, detections and rgbd only"
             }
         })
         .collect();
-    remove_domain(&domain);
 
     let leftover: Vec<String> = leftover_files(&domain)
         .iter()
@@ -139,6 +139,15 @@ fn clean_domain(domain: &Domain) {
         }
         Ok(_) => {}
         Err(error) => tracing::warn!(%error, "cannot check the benchmark domain for stale nodes"),
+    }
+}
+
+/// Removes the run's domain when the run ends, also when a case failed.
+struct DomainRemoval<'a>(&'a Domain);
+
+impl Drop for DomainRemoval<'_> {
+    fn drop(&mut self) {
+        remove_domain(self.0);
     }
 }
 

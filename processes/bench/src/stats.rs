@@ -61,7 +61,8 @@ impl LatencySummary {
     }
 }
 
-/// Delivery rate of the streaming phase.
+/// Delivery rate of the streaming phase (a window of messages in flight, see
+/// [`crate::peer::stream_window`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Throughput {
     /// Messages delivered per second, from the first message's publish time to the last
@@ -70,7 +71,8 @@ pub struct Throughput {
     /// `msgs_per_s` x message size, in 10^6 bytes per second.
     pub mb_per_s: f64,
     pub received: u64,
-    /// Messages sent but never seen (overwritten in a full subscriber buffer).
+    /// Messages sent but never seen (overwritten in a full subscriber buffer); 0 while the
+    /// window fits the buffer.
     pub dropped: u64,
 }
 

@@ -181,6 +181,12 @@ fn quick_run_across_processes_reports_every_transport_and_size() {
                 );
                 let throughput = &result["throughput"];
                 assert!(u64_field(throughput, "received") >= 1);
+                // The stream's window fits the subscriber buffer: nothing may be overwritten.
+                assert_eq!(
+                    u64_field(throughput, "dropped"),
+                    0,
+                    "{payload}/{transport}/{mode}"
+                );
                 assert!(f64_field(throughput, "msgs_per_s") > 0.0);
                 let expected_mb = f64_field(throughput, "msgs_per_s") * size as f64 / 1e6;
                 assert!(
@@ -266,4 +272,35 @@ fn unknown_size_is_rejected_with_the_supported_list() {
         stderr.contains("\"3K\"") && stderr.contains("16MiB"),
         "{stderr}"
     );
+}
+
+#[test]
+fn peer_without_a_measuring_process_fails_naming_the_socket() {
+    let control = scratch_dir("peer").join("missing.sock");
+    let output = Command::new(EXE)
+        .args([
+            "bench-peer",
+            "--domain",
+            "bench-test-peer",
+            "--transport",
+            "ours",
+        ])
+        .args([
+            "--mode",
+            "event",
+            "--payload",
+            "rgbd",
+            "--warmup",
+            "1",
+            "--iterations",
+            "1",
+        ])
+        .args(["--duration", "10ms", "--control"])
+        .arg(&control)
+        .output()
+        .expect("run the peer");
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("missing.sock"), "{stderr}");
+    assert!(domain_files("bench-test-peer").is_empty());
 }

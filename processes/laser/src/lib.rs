@@ -3,24 +3,33 @@
 //! interval scan, extrinsic calibration (Algorithm 1 and the section 5.1 comparison), the
 //! `calibrate laser` command, and the localisation accuracy evaluation (section 5.2).
 //!
-//! No IPC here: the process wiring uses [`scan::ScanPlanner`], [`scan::ScanProcessor`] and
-//! [`scan::run_scan`].
+//! The scan algorithms are transport-free; [`service`] answers one scan request on any ALACS
+//! unit, [`process`] is the `harvest laser` process around it (IPC, heartbeats), and
+//! [`refinement`] measures what the scan adds to the ToF camera's localisation
+//! (`harvest eval laser`).
 
 pub mod accuracy;
 pub mod calibration;
 pub mod candidate;
 pub mod cli;
 pub mod extraction;
+pub mod observed_unit;
+pub mod process;
+pub mod refinement;
 pub mod scan;
 pub mod selection;
+pub mod service;
 pub mod triangulation;
 
 pub use accuracy::{AccuracyConfig, AccuracyReport, evaluate_localization_accuracy};
 pub use candidate::{CandidateConfig, PositionCandidate, TargetHint};
 pub use cli::{CalibrateLaserArgs, CalibrateLaserError, run_calibrate_laser};
 pub use extraction::{ExtractionConfig, LaserLineExtractor, PixelRoi, StripePoint};
+pub use process::{LaserArgs, LaserProcessError, run};
+pub use refinement::{EvalLaserArgs, EvalLaserError, RefinementReport, evaluate_refinement, run_eval_laser};
 pub use scan::{
     ProcessorConfig, ScanConfig, ScanError, ScanPlan, ScanPlanner, ScanProcessor, ScanResult,
     run_scan,
 };
+pub use service::{ScanRequestError, ScanService};
 pub use triangulation::{LaserTriangulator, TriangulationModel};

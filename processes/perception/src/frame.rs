@@ -123,9 +123,7 @@ impl DepthView<'_> {
                 height_px: self.height_px,
             });
         }
-        let expected_samples = (self.width_px as usize)
-            .checked_mul(self.height_px as usize)
-            .unwrap_or(usize::MAX);
+        let expected_samples = (self.width_px as usize).saturating_mul(self.height_px as usize);
         if self.data.len() != expected_samples {
             return Err(FrameError::DepthBufferSize {
                 width_px: self.width_px,

@@ -10,6 +10,8 @@
 //!    under it: the mask points.
 //! 4. The estimator turns each detection's points and box-centre ray into a position; positions
 //!    that are non-finite or outside the camera's working range are dropped.
+//!    An estimator may find several fruit in one mask (fruit hidden behind fruit); each then gets
+//!    the box of its sphere's image and a share of the mask's visible pixels.
 //! 5. Estimates of one fruit split by an occluder into several detections (the paper's
 //!    over-detection, 4.3) are merged when their centres are closer than
 //!    `duplicate_distance_radii` times the sum of their radii, and re-estimated from the union of
@@ -130,6 +132,10 @@ pub struct AppleEstimate {
     pub detections_merged: u32,
 }
 
+fn squared_distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum()
+}
+
 /// An estimate waiting for duplicate merging.
 #[derive(Debug, Clone, Copy)]
 struct Pending {
@@ -155,6 +161,7 @@ pub struct Perception {
     label_height: usize,
     points: Vec<Vec<[f32; 3]>>,
     merged_points: Vec<[f32; 3]>,
+    estimates: Vec<PositionEstimate>,
     pending: Vec<Pending>,
     /// Detection indices of each pending estimate (`pending_members[k]` lists detections).
     pending_members: Vec<Vec<usize>>,
@@ -251,6 +258,7 @@ impl Perception {
             label_height,
             points: Vec::new(),
             merged_points: Vec::new(),
+            estimates: Vec::new(),
             pending: Vec::new(),
             pending_members: Vec::new(),
             accepted: Vec::new(),
@@ -364,7 +372,7 @@ impl Perception {
         let after_register = Instant::now();
         stats.timings.register_us = (after_register - after_detect).as_micros() as u64;
 
-        self.estimate_all(stats);
+        self.estimate_detections(stats);
         if self.config.merge_duplicates {
             self.merge_duplicates(stats);
         } else {
@@ -495,12 +503,35 @@ impl Perception {
             && p[2] <= max_m
     }
 
-    /// One estimate per active detection with enough points.
-    fn estimate_all(&mut self, stats: &mut FrameStats) {
+    /// Box of a sphere's image in the colour camera, clipped to the image.
+    fn sphere_box(&self, estimate: &PositionEstimate) -> Option<PixelBox> {
+        let color = &self.cameras.color;
+        let centre = estimate.position_in_camera_m;
+        let (u, v) = color.project(centre)?;
+        let depth = centre[2] - estimate.radius_m;
+        if depth <= 0.0 {
+            return None;
+        }
+        let half_u = color.fx_px * estimate.radius_m / depth;
+        let half_v = color.fy_px * estimate.radius_m / depth;
+        let clip = |x: f64, max: u32| x.clamp(0.0, f64::from(max)) as u32;
+        let pixel_box = PixelBox {
+            u_min_px: clip((u - half_u).floor(), color.width_px),
+            v_min_px: clip((v - half_v).floor(), color.height_px),
+            u_max_px: clip((u + half_u).ceil() + 1.0, color.width_px),
+            v_max_px: clip((v + half_v).ceil() + 1.0, color.height_px),
+        };
+        (pixel_box.width_px() > 0 && pixel_box.height_px() > 0).then_some(pixel_box)
+    }
+
+    /// Estimates per active detection with enough points (several when the estimator finds
+    /// several fruit in one mask).
+    fn estimate_detections(&mut self, stats: &mut FrameStats) {
         self.pending.clear();
         for members in &mut self.pending_members {
             members.clear();
         }
+        let mut estimates = std::mem::take(&mut self.estimates);
         for i in 0..self.active.len() {
             let index = self.active[i];
             let points = &self.points[index];
@@ -513,27 +544,43 @@ impl Perception {
                 points_in_camera_m: points,
                 box_center_ray: self.box_center_ray(&detection.pixel_box),
             };
-            let Some(estimate) = self.estimator.estimate(&input) else {
+            self.estimator.estimate_all(&input, &mut estimates);
+            if estimates.is_empty() {
                 stats.estimates_failed += 1;
                 continue;
-            };
-            if !self.plausible(&estimate) {
-                stats.estimates_rejected += 1;
-                continue;
             }
-            let k = self.pending.len();
-            self.pending.push(Pending {
-                pixel_box: detection.pixel_box,
-                visible_px: detection.visible_px,
-                mask_confidence: detection.confidence,
-                estimate,
-                detections_merged: 1,
-            });
-            if self.pending_members.len() <= k {
-                self.pending_members.push(Vec::new());
+            let several = estimates.len() > 1;
+            let support: f64 = estimates.iter().map(|e| f64::from(e.points_used)).sum();
+            for estimate in &estimates {
+                if !self.plausible(estimate) {
+                    stats.estimates_rejected += 1;
+                    continue;
+                }
+                let (pixel_box, visible_px) = if several {
+                    let share = f64::from(estimate.points_used) / support.max(1.0);
+                    (
+                        self.sphere_box(estimate).unwrap_or(detection.pixel_box),
+                        (f64::from(detection.visible_px) * share).round() as u32,
+                    )
+                } else {
+                    (detection.pixel_box, detection.visible_px)
+                };
+                let k = self.pending.len();
+                self.pending.push(Pending {
+                    pixel_box,
+                    visible_px,
+                    mask_confidence: detection.confidence,
+                    estimate: *estimate,
+                    detections_merged: 1,
+                });
+                if self.pending_members.len() <= k {
+                    self.pending_members.push(Vec::new());
+                }
+                self.pending_members[k].push(index);
             }
-            self.pending_members[k].push(index);
+            stats.extra_fruit_in_detections += estimates.len().saturating_sub(1) as u32;
         }
+        self.estimates = estimates;
     }
 
     /// Greedy merging of estimates of the same fruit, best-supported first.
@@ -552,10 +599,8 @@ impl Perception {
             let duplicate_of = self.accepted.iter().copied().find(|&a| {
                 let kept = &self.pending[a].estimate;
                 let c = &candidate.estimate;
-                let distance = (0..3)
-                    .map(|i| (kept.position_in_camera_m[i] - c.position_in_camera_m[i]).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
+                let distance =
+                    squared_distance(kept.position_in_camera_m, c.position_in_camera_m).sqrt();
                 distance < self.config.duplicate_distance_radii * (kept.radius_m + c.radius_m)
             });
             let Some(a) = duplicate_of else {
@@ -575,7 +620,12 @@ impl Perception {
                 points_in_camera_m: &self.merged_points,
                 box_center_ray: self.box_center_ray(&merged_box),
             };
-            let reestimate = self.estimator.estimate(&input);
+            self.estimator.estimate_all(&input, &mut self.estimates);
+            let kept_position = self.pending[a].estimate.position_in_camera_m;
+            let reestimate = self.estimates.iter().copied().min_by(|x, y| {
+                squared_distance(x.position_in_camera_m, kept_position)
+                    .total_cmp(&squared_distance(y.position_in_camera_m, kept_position))
+            });
             let kept = &mut self.pending[a];
             kept.pixel_box = merged_box;
             kept.visible_px += candidate.visible_px;
@@ -824,7 +874,12 @@ mod tests {
     #[test]
     #[ignore = "debug output"]
     fn dump_synthetic_frame() {
-        let (scene, frame) = scene_and_frame(24, 100);
+        let seed = std::env::var("DUMP_SEED")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(100);
+        let scene = SyntheticScene::orchard(&cameras(), 24, seed);
+        let frame = scene.render(&cameras());
         let mut pipeline = perception(EstimatorKind::SphereFit);
         let apples = pipeline.process(&frame.rgb_view(), &frame.depth_view());
         let mut rgb = frame.rgb.clone();

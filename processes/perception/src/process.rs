@@ -84,27 +84,27 @@ pub fn run(
     tracing::info!(estimator = ?args.estimator, "perception running");
     waiter
         .run(|attachment| -> Result<Flow, PerceptionProcessError> {
-            if attachment.has_event_from(&frame_guard) {
-                if let Some(frame) = frames.receive_latest()? {
-                    let received_ns = MonotonicClock::read_ns();
-                    last_receive_latency_ns = received_ns.saturating_sub(frame.header.publish_ns);
-                    let mut out = detections.loan()?;
-                    let result = node.process(&frame, &mut out);
-                    out.header.capture_ns = frame.header.capture_ns;
-                    let count = out.apples.len();
-                    drop(frame);
-                    detections.send(out)?;
-                    apples_published += count as u64;
-                    match result {
-                        Ok(stats) => tracing::trace!(
-                            apples = count,
-                            receive_latency_ns = last_receive_latency_ns,
-                            total_us = stats.timings.total_us,
-                            "frame processed"
-                        ),
-                        Err(error) => {
-                            tracing::warn!(%error, "frame rejected: camera parameters unusable")
-                        }
+            if attachment.has_event_from(&frame_guard)
+                && let Some(frame) = frames.receive_latest()?
+            {
+                let received_ns = MonotonicClock::read_ns();
+                last_receive_latency_ns = received_ns.saturating_sub(frame.header.publish_ns);
+                let mut out = detections.loan()?;
+                let result = node.process(&frame, &mut out);
+                out.header.capture_ns = frame.header.capture_ns;
+                let count = out.apples.len();
+                drop(frame);
+                detections.send(out)?;
+                apples_published += count as u64;
+                match result {
+                    Ok(stats) => tracing::trace!(
+                        apples = count,
+                        receive_latency_ns = last_receive_latency_ns,
+                        total_us = stats.timings.total_us,
+                        "frame processed"
+                    ),
+                    Err(error) => {
+                        tracing::warn!(%error, "frame rejected: camera parameters unusable")
                     }
                 }
             }

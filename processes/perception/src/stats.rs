@@ -40,6 +40,8 @@ pub struct FrameStats {
     pub estimates_fallback: u32,
     /// Detections merged into another because both localized the same fruit.
     pub duplicates_merged: u32,
+    /// Further fruit found inside a detection's mask (fruit hidden behind fruit).
+    pub extra_fruit_in_detections: u32,
     /// Apples reported.
     pub apples: u32,
     pub timings: StageTimings,
@@ -64,6 +66,7 @@ pub struct PerceptionStats {
     pub estimates_rejected: u64,
     pub estimates_fallback: u64,
     pub duplicates_merged: u64,
+    pub extra_fruit_in_detections: u64,
     pub apples: u64,
 }
 
@@ -94,6 +97,7 @@ impl PerceptionStats {
         self.estimates_rejected += u64::from(frame.estimates_rejected);
         self.estimates_fallback += u64::from(frame.estimates_fallback);
         self.duplicates_merged += u64::from(frame.duplicates_merged);
+        self.extra_fruit_in_detections += u64::from(frame.extra_fruit_in_detections);
         self.apples += u64::from(frame.apples);
     }
 }

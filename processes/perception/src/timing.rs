@@ -20,6 +20,8 @@ pub struct ProcessingTimeReport {
     /// Mean apples reported per frame.
     pub mean_apples_reported: f64,
     pub mean_ms: f64,
+    /// Fastest frame: the least disturbed by other load on the machine.
+    pub min_ms: f64,
     pub median_ms: f64,
     pub max_ms: f64,
     pub mean_detect_ms: f64,
@@ -65,6 +67,7 @@ pub fn measure_processing_time(
         apples_in_scene: apple_count,
         mean_apples_reported: reported / n,
         mean_ms: times_ms.iter().sum::<f64>() / n,
+        min_ms: sorted.first().copied().unwrap_or(0.0),
         median_ms: sorted.get(sorted.len() / 2).copied().unwrap_or(0.0),
         max_ms: sorted.last().copied().unwrap_or(0.0),
         mean_detect_ms: detect / n,

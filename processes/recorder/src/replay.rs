@@ -57,6 +57,10 @@ pub struct ReplayArgs {
     /// Do not read keys from the terminal (space: pause, s: step, q: quit).
     #[arg(long)]
     pub no_keyboard: bool,
+    /// After the last message, keep the channels open this long so subscribers can still take
+    /// what they have not read (a sample is gone once its publisher closes).
+    #[arg(long, default_value = "500ms", value_parser = parse_duration)]
+    pub linger: Duration,
 }
 
 impl ReplayArgs {
@@ -73,6 +77,7 @@ impl ReplayArgs {
             fast: false,
             with_health: false,
             no_keyboard: true,
+            linger: Duration::from_millis(500),
         }
     }
 }
@@ -225,8 +230,19 @@ fn open_port(context: &Context, topic: &str, schema: &str) -> Result<Box<dyn Rep
         .unwrap_or_else(|| Err("not a channel of this build's catalogue".to_owned()))
 }
 
-/// Runs `harvest replay` into `domain`.
+/// Runs `harvest replay` into `domain`; after the last message the channels stay open for
+/// `args.linger`.
 pub fn run_replay(args: &ReplayArgs, domain: &Domain) -> Result<ReplayReport, ReplayError> {
+    run_replay_with(args, domain, |_| std::thread::sleep(args.linger))
+}
+
+/// Runs a replay into `domain` and calls `before_close` with the report once publishing is
+/// over (not after a signal), while the channels are still open.
+pub fn run_replay_with(
+    args: &ReplayArgs,
+    domain: &Domain,
+    before_close: impl FnOnce(&ReplayReport),
+) -> Result<ReplayReport, ReplayError> {
     if !(args.rate.is_finite() && args.rate > 0.0) {
         return Err(ReplayError::InvalidRate(args.rate));
     }
@@ -354,6 +370,9 @@ pub fn run_replay(args: &ReplayArgs, domain: &Domain) -> Result<ReplayReport, Re
         }
     }
     report.wall_time = clock.active_time();
+    if report.end != ReplayEnd::Signal {
+        before_close(&report);
+    }
     tracing::info!("{report}");
     Ok(report)
 }

@@ -54,7 +54,8 @@ pub struct ChunkInfo {
     pub uncompressed_bytes: u64,
     pub message_start_time: u64,
     pub message_end_time: u64,
-    /// Outside the requested time window: not decompressed.
+    /// Outside the requested time window: its messages are not delivered (and it is not even
+    /// decompressed when the summary already lists every channel).
     pub skipped: bool,
 }
 
@@ -129,6 +130,14 @@ pub fn scan_file(
 ) -> Result<ScanOutcome, ReadError> {
     let (file, file_bytes) = open_recording(path)?;
     let mut scanner = Scanner::new(file_bytes, options);
+    // Chunks outside the window can only be skipped unread when every channel is already known
+    // (channel records live inside chunks): take them from the summary when there is one.
+    if options.log_time_window.is_some()
+        && let Ok(Some(summary)) = crate::recording_file::read_summary(path)
+    {
+        scanner.channels = ChannelAccumulator::from_summary(&summary);
+        scanner.channels_known = true;
+    }
     scanner.run(
         path,
         std::io::BufReader::with_capacity(1 << 20, file),
@@ -141,6 +150,8 @@ struct Scanner {
     channels: ChannelAccumulator<'static>,
     chunk_buffer: Vec<u8>,
     zstd: Option<zstd::bulk::Decompressor<'static>>,
+    /// Every channel is known up front (from the summary).
+    channels_known: bool,
     outcome: ScanOutcome,
 }
 
@@ -156,6 +167,7 @@ impl Scanner {
             channels: ChannelAccumulator::default(),
             chunk_buffer: Vec::new(),
             zstd: None,
+            channels_known: false,
             outcome: ScanOutcome {
                 file_bytes,
                 valid_bytes: mcap::MAGIC.len() as u64,
@@ -280,17 +292,22 @@ record and summary (the recorder did not finish it)"
                 }
             };
         }
-        self.on_plain_record(opcode, data, on_item)
+        self.on_plain_record(opcode, data, true, on_item)
             .unwrap_or(Step::Continue)
     }
 
-    /// A record outside a chunk or inside one. `None` when the record was unparseable.
+    /// A record outside a chunk or inside one; with `deliver` false only schemas and channels
+    /// are taken in. `None` when the record was unparseable.
     fn on_plain_record(
         &mut self,
         opcode: u8,
         data: &[u8],
+        deliver: bool,
         on_item: &mut impl FnMut(ScanItem<'_>) -> ControlFlow<()>,
     ) -> Option<Step> {
+        if !deliver && opcode != op::SCHEMA && opcode != op::CHANNEL {
+            return Some(Step::Continue);
+        }
         let record = match mcap::parse_record(opcode, data) {
             Ok(record) => record,
             Err(error) => {
@@ -371,7 +388,7 @@ record and summary (the recorder did not finish it)"
         if on_item(ScanItem::Chunk(&info)).is_break() {
             return Step::Stop;
         }
-        if skipped {
+        if skipped && self.channels_known {
             return Step::Continue;
         }
         let mut damaged = DamagedChunk {
@@ -411,7 +428,7 @@ record and summary (the recorder did not finish it)"
                 );
                 break;
             };
-            match self.on_plain_record(opcode, body, on_item) {
+            match self.on_plain_record(opcode, body, !skipped, on_item) {
                 Some(Step::Continue) => {}
                 Some(Step::Stop) => {
                     step = Step::Stop;

@@ -230,6 +230,12 @@ impl<W: Write + Seek> SegmentWriter<W> {
         self.messages
     }
 
+    /// Gives the stream back without finishing the file (after a write error: the file then
+    /// holds its complete chunks, which `rec recover` reads).
+    pub fn into_stream(self) -> W {
+        self.writer.into_inner().into_inner()
+    }
+
     /// Writes the summary, footer and end magic, flushes, and returns the stream.
     pub fn finish(mut self) -> Result<W, McapError> {
         self.writer.finish()?;

@@ -104,7 +104,7 @@ fn a_channel_that_cannot_be_opened_yet_is_retried_until_it_can() {
     let second = context.subscriber(HW_CAMERA_RGBD).expect("subscriber 2");
     let args = harvest_recorder::RecorderArgs {
         layers: vec![LayerArg::Hardware],
-        include: vec!["hw/*".into()],
+        include: vec!["hw/camera/*".into()],
         ..test_args(dir.path())
     };
     let recorder = RunningRecorder::start(&domain, args);

@@ -5,12 +5,14 @@
 //! ([`render_rgbd`]), the vacuum and contact physics plus joint servo dynamics ([`physics`]) and
 //! the evaluation-only ground truth ([`ground_truth`]).
 
+pub mod alacs_device;
 pub mod ground_truth;
 pub mod orchard;
 pub mod physics;
 pub mod process;
 pub mod render_rate;
 pub mod render_rgbd;
+pub mod robot;
 pub mod scenario;
 
 pub use ground_truth::{AppleTruth, GroundTruth};

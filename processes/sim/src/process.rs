@@ -1,17 +1,30 @@
 //! `harvest sim`: the simulated robot as hardware. Owns the world and serves the device
 //! channels the drivers in the other processes talk to, as real devices would over USB/serial:
-//! the ToF camera's frames on `hw/camera/rgbd` at the camera's frame rate.
+//! - the ToF camera's frames on `hw/camera/rgbd` at the camera's frame rate;
+//! - each arm's servo set-points (`hw/armN/servo`) in, encoder feedback (`hw/armN/encoders`) out;
+//! - the valve board's commands (`hw/valves/command`) in, readings (`hw/valves/readings`) out;
+//! - the true apples on `sim/ground_truth` (evaluation only).
 //!
 //! The loop is one wait set: each device has an interval at its own period (the simulated
-//! device's clock) and the loop sleeps in between.
+//! device's clock: physics and servos at 200 Hz, camera at its frame rate, ground truth at
+//! 10 Hz) and the loop sleeps in between. Simulated time advances with the host clock.
 
-use crate::orchard::World;
+use crate::orchard::AppleState;
+use crate::physics::Arm;
 use crate::render_rgbd::RgbdRenderer;
+use crate::robot::SimRobot;
 use crate::scenario::Scenario;
-use harvest_ipc::catalogue::HW_CAMERA_RGBD;
-use harvest_ipc::payloads::ProcessRunState;
+use harvest_ipc::catalogue::{
+    HW_ARM_ENCODERS, HW_ARM_SERVO, HW_CAMERA_RGBD, HW_VALVE_COMMAND, HW_VALVE_READINGS,
+    SIM_GROUND_TRUTH,
+};
+use harvest_ipc::payloads::{ProcessRunState, TrueApple};
+use harvest_ipc::payloads::{
+    EncoderFeedback, GroundTruth, ServoSetpoint, ValveBoardCommand, ValveBoardReadings,
+};
 use harvest_ipc::{
-    Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
+    Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Publisher, Subscriber,
+    Waiter,
 };
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -38,6 +51,10 @@ pub enum SimError {
     #[error(transparent)]
     Render(#[from] crate::render_rgbd::RenderError),
     #[error(transparent)]
+    Robot(#[from] crate::robot::SimRobotError),
+    #[error(transparent)]
+    Receive(#[from] harvest_ipc::error::ReceiveError),
+    #[error(transparent)]
     Node(#[from] harvest_ipc::error::NodeError),
     #[error(transparent)]
     Channel(#[from] harvest_ipc::error::OpenChannelError),
@@ -47,6 +64,94 @@ pub enum SimError {
     Wait(#[from] harvest_ipc::error::WaitError),
     #[error("camera rate must be between 0.1 and 120 Hz, got {0}")]
     BadRate(f64),
+}
+
+/// Servo and physics rate of the simulated robot.
+const PHYSICS_PERIOD: Duration = Duration::from_millis(5);
+/// Rate of the evaluation-only ground truth.
+const GROUND_TRUTH_PERIOD: Duration = Duration::from_millis(100);
+
+const ARMS: [Arm; 2] = [Arm::One, Arm::Two];
+
+/// Applies the newest commands the drivers sent, then advances the physics by `dt_s`.
+fn step_devices(
+    robot: &mut SimRobot,
+    servo_in: &[Subscriber<ServoSetpoint>; 2],
+    valves_in: &Subscriber<ValveBoardCommand>,
+    dt_s: f64,
+) -> Result<(), SimError> {
+    for (arm, setpoints) in ARMS.into_iter().zip(servo_in) {
+        if let Some(setpoint) = setpoints.receive_latest()? {
+            if setpoint.hold != 0 {
+                robot.hold(arm);
+            } else if let Err(error) =
+                robot.set_servo_setpoint(arm, setpoint.joint_position, setpoint.joint_velocity)
+            {
+                // A real servo controller refuses such a set-point and keeps its last order.
+                tracing::warn!(%error, "servo set-point refused");
+            }
+        }
+    }
+    if let Some(command) = valves_in.receive_latest()? {
+        robot.set_valves(command.valve_open.map(|open| open != 0));
+    }
+    for event in robot.step(dt_s)? {
+        tracing::debug!(?event, "world event");
+    }
+    Ok(())
+}
+
+/// Publishes what the devices report: encoders of both arms and the valve board's readings.
+fn publish_device_state(
+    robot: &SimRobot,
+    encoders_out: &mut [Publisher<EncoderFeedback>; 2],
+    valves_out: &mut Publisher<ValveBoardReadings>,
+) -> Result<(), SimError> {
+    let capture_ns = MonotonicClock::read_ns();
+    for (arm, encoders) in ARMS.into_iter().zip(encoders_out.iter_mut()) {
+        let (position, velocity) = robot.encoders(arm);
+        encoders.publish_with(capture_ns, |feedback| {
+            feedback.joint_position = position;
+            feedback.joint_velocity = velocity;
+            feedback.fault_bits = 0;
+            feedback._reserved = [0; 7];
+        })?;
+    }
+    let (open, in_transit, pressure_mmh2o) = robot.valve_readings();
+    valves_out.publish_with(capture_ns, |readings| {
+        readings.valve_open = open.map(u8::from);
+        readings.valve_in_transit = in_transit.map(u8::from);
+        readings.pressure_mmh2o = pressure_mmh2o;
+        readings._reserved = [0; 4];
+    })?;
+    Ok(())
+}
+
+fn publish_ground_truth(robot: &SimRobot, truth_out: &mut Publisher<GroundTruth>) -> Result<(), SimError> {
+    let truth = robot.world().ground_truth();
+    truth_out.publish_with(MonotonicClock::read_ns(), |message| {
+        message.apples.clear();
+        for apple in &truth.apples {
+            let state = match apple.state {
+                AppleState::OnTree => 0,
+                AppleState::Attached { arm: Arm::One, .. } => 1,
+                AppleState::Attached { arm: Arm::Two, .. } => 2,
+                AppleState::Dropped => 3,
+                AppleState::Harvested => 4,
+            };
+            let entry = TrueApple {
+                apple_id: apple.id.0,
+                state,
+                _reserved: [0; 3],
+                center_in_robot_m: apple.center_in_robot_m,
+                radius_m: apple.radius_m,
+            };
+            if message.apples.push(entry).is_err() {
+                break;
+            }
+        }
+    })?;
+    Ok(())
 }
 
 /// Loads a scenario by preset name, or from a file when the argument is a path to one.
@@ -65,14 +170,28 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
         return Err(SimError::BadRate(args.camera_rate_hz));
     }
     let scenario = load_scenario(&args.scenario)?;
-    let world = World::generate(&scenario, args.seed)?;
+    let mut robot = SimRobot::new(&scenario, args.seed)?;
     let mut renderer = RgbdRenderer::new(&scenario.camera)?;
     let context = Context::new(domain, process_name)?;
     let mut camera_out = context.publisher(HW_CAMERA_RGBD)?;
+    let servo_in = [
+        context.subscriber(HW_ARM_SERVO[0])?,
+        context.subscriber(HW_ARM_SERVO[1])?,
+    ];
+    let mut encoders_out = [
+        context.publisher(HW_ARM_ENCODERS[0])?,
+        context.publisher(HW_ARM_ENCODERS[1])?,
+    ];
+    let valves_in = context.subscriber(HW_VALVE_COMMAND)?;
+    let mut valves_out = context.publisher(HW_VALVE_READINGS)?;
+    let mut truth_out = context.publisher(SIM_GROUND_TRUTH)?;
     let mut health = HealthReporter::new(&context)?;
     let waiter = Waiter::new()?;
     let camera_tick = waiter.attach_interval(Duration::from_secs_f64(1.0 / args.camera_rate_hz))?;
     let heartbeat_tick = waiter.attach_interval(HEARTBEAT_PERIOD)?;
+    let physics_tick = waiter.attach_interval(PHYSICS_PERIOD)?;
+    let truth_tick = waiter.attach_interval(GROUND_TRUTH_PERIOD)?;
+    let mut last_physics = Instant::now();
     let color_from_depth = renderer
         .robot_from_color()
         .inverse()
@@ -80,7 +199,7 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
     tracing::info!(
         scenario = %args.scenario,
         seed = args.seed,
-        apples = world.apples().len(),
+        apples = robot.world().apples().len(),
         camera_rate_hz = args.camera_rate_hz,
         "simulated robot running"
     );
@@ -92,8 +211,8 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
                 let capture_ns = MonotonicClock::read_ns();
                 let mut frame = camera_out.loan()?;
                 let frame_seq = camera_out.last_seq() + 1;
-                renderer.render_color(&world, &mut frame.rgb)?;
-                renderer.render_depth(&world, frame_seq, &mut frame.depth_mm)?;
+                renderer.render_color(robot.world(), &mut frame.rgb)?;
+                renderer.render_depth(robot.world(), frame_seq, &mut frame.depth_mm)?;
                 frame.meta.rgb_intrinsics = *renderer.color_intrinsics();
                 frame.meta.depth_intrinsics = *renderer.depth_intrinsics();
                 frame.meta.color_from_depth = color_from_depth;
@@ -105,13 +224,19 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
                 render_ns_total += render_ns;
                 tracing::trace!(frame_seq, render_ns, "frame rendered");
             }
+            if attachment.has_event_from(&physics_tick) {
+                let now = Instant::now();
+                let dt_s = now.duration_since(last_physics).as_secs_f64().clamp(1e-4, 0.05);
+                last_physics = now;
+                step_devices(&mut robot, &servo_in, &valves_in, dt_s)?;
+                publish_device_state(&robot, &mut encoders_out, &mut valves_out)?;
+            }
+            if attachment.has_event_from(&truth_tick) {
+                publish_ground_truth(&robot, &mut truth_out)?;
+            }
             if attachment.has_event_from(&heartbeat_tick) {
                 let frames = camera_out.last_seq();
-                let mean_render_us = if frames == 0 {
-                    0
-                } else {
-                    render_ns_total / frames / 1000
-                };
+                let mean_render_us = render_ns_total.checked_div(frames).map_or(0, |ns| ns / 1000);
                 health.report(
                     ProcessRunState::Running,
                     frames,

@@ -9,6 +9,8 @@
 //! - [`cycle_model`]: a discrete-event model of the picking timeline driven by the policies
 //!   (Fig. 12, single vs. dual arm with injected failures).
 //! - [`trace`] and [`safety_monitor`]: time-stamped observations and an independent checker.
+//! - [`node`]: the vacuum supervisor process's logic (valves, inference, policy, assignment)
+//!   without transport.
 //!
 //! The mapping from the paper's formulas to the policy state machine is in `POLICY.md`.
 
@@ -16,6 +18,7 @@ pub mod arm_id;
 pub mod arm_phase;
 pub mod assignment;
 pub mod cycle_model;
+pub mod node;
 pub mod policy;
 pub mod pressure;
 pub mod replan;

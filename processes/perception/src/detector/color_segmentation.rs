@@ -87,7 +87,7 @@ impl Default for ColorSegmentationConfig {
             min_seed_radius_cells: 2.0,
             seed_relative_radius: 0.35,
             seed_separation_factor: 0.9,
-            saddle_ratio: 0.8,
+            saddle_ratio: 0.9,
             max_seeds_per_region: 12,
         }
     }
@@ -567,5 +567,250 @@ impl Detector for ColorSegmentation {
             candidate_regions,
             split_regions,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const W: usize = 640;
+    const H: usize = 480;
+
+    /// Deterministic pixel noise in [-0.5, 0.5).
+    fn noise(x: usize, y: usize) -> f32 {
+        let h = (x as u32).wrapping_mul(0x9E37_79B1) ^ (y as u32).wrapping_mul(0x85EB_CA77);
+        let h = (h ^ (h >> 15)).wrapping_mul(0x2C1B_3C6D);
+        ((h ^ (h >> 12)) & 0xFFFF) as f32 / 65536.0 - 0.5
+    }
+
+    /// Leaf texture: green with blotches and pixel noise, a brown branch and a sky band on top.
+    fn background() -> Vec<u8> {
+        let mut image = vec![0_u8; W * H * 3];
+        for y in 0..H {
+            for x in 0..W {
+                let blotch = ((x as f32 / 23.0).sin() * (y as f32 / 17.0).cos() + 1.0) / 2.0;
+                let n = noise(x, y) * 30.0;
+                let rgb = if y < 60 {
+                    [160.0 + n * 0.2, 200.0, 245.0]
+                } else if (x as i32 - y as i32 - 100).abs() < 6 {
+                    [100.0 + n, 72.0 + n, 50.0]
+                } else {
+                    [
+                        30.0 + 80.0 * blotch + n,
+                        70.0 + 90.0 * blotch + n,
+                        25.0 + 30.0 * blotch + n,
+                    ]
+                };
+                let i = (y * W + x) * 3;
+                for c in 0..3 {
+                    image[i + c] = rgb[c].clamp(0.0, 255.0) as u8;
+                }
+            }
+        }
+        image
+    }
+
+    /// A shaded red disc (light from the upper left) with a clipped specular highlight.
+    fn draw_apple(image: &mut [u8], cx: f32, cy: f32, radius: f32, gain: f32) {
+        for y in 0..H {
+            for x in 0..W {
+                let (dx, dy) = ((x as f32 - cx) / radius, (y as f32 - cy) / radius);
+                let rho_sq = dx * dx + dy * dy;
+                if rho_sq > 1.0 {
+                    continue;
+                }
+                let nz = (1.0 - rho_sq).sqrt();
+                let diffuse = (-0.4 * dx - 0.5 * dy + 0.77 * nz).max(0.0);
+                let shade = 0.3 + 0.7 * diffuse;
+                let highlight = if (dx + 0.3).powi(2) + (dy + 0.35).powi(2) < 0.02 {
+                    400.0
+                } else {
+                    0.0
+                };
+                let n = noise(x, y) * 8.0;
+                let rgb = [200.0 * shade, 25.0 * shade, 30.0 * shade];
+                let i = (y * W + x) * 3;
+                for c in 0..3 {
+                    image[i + c] = ((rgb[c] + highlight + n) * gain).clamp(0.0, 255.0) as u8;
+                }
+            }
+        }
+    }
+
+    fn detect(image: &[u8]) -> (Vec<Detection>, DetectorFrameInfo) {
+        let mut detector =
+            ColorSegmentation::new(ColorSegmentationConfig::default()).expect("valid");
+        let mut detections = Vec::new();
+        let info = detector
+            .detect(
+                &RgbView {
+                    width_px: W as u32,
+                    height_px: H as u32,
+                    data: image,
+                },
+                &mut detections,
+            )
+            .expect("valid frame");
+        (detections, info)
+    }
+
+    /// Index of the confident detection whose box contains `(x, y)`.
+    fn covering(detections: &[Detection], x: f32, y: f32) -> Vec<usize> {
+        detections
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.confidence >= 0.3 && d.pixel_box.contains(x as u32, y as u32))
+            .map(|(i, _)| i)
+            .collect()
+    }
+
+    #[test]
+    fn shaded_apples_on_leaves_are_detected_with_tight_boxes() {
+        let mut image = background();
+        let apples = [
+            (120.0, 150.0, 30.0),
+            (400.0, 300.0, 45.0),
+            (550.0, 120.0, 18.0),
+        ];
+        for &(x, y, r) in &apples {
+            draw_apple(&mut image, x, y, r, 1.0);
+        }
+        let (detections, _) = detect(&image);
+        let confident: Vec<&Detection> =
+            detections.iter().filter(|d| d.confidence >= 0.3).collect();
+        assert_eq!(confident.len(), apples.len(), "{detections:?}");
+        for &(x, y, r) in &apples {
+            let hits = covering(&detections, x, y);
+            assert_eq!(hits.len(), 1, "apple at ({x}, {y})");
+            let d = &detections[hits[0]];
+            let (u, v) = d.pixel_box.center_px();
+            assert!(
+                (u as f32 - x).abs() < 0.25 * r && (v as f32 - y).abs() < 0.25 * r,
+                "{d:?}"
+            );
+            assert!(
+                (d.pixel_box.width_px() as f32 - 2.0 * r).abs() < 0.35 * r,
+                "{:?}",
+                d.pixel_box
+            );
+            let disc_px = std::f32::consts::PI * r * r;
+            assert!(
+                (d.visible_px as f32 / disc_px - 1.0).abs() < 0.3,
+                "visible {} vs {disc_px}",
+                d.visible_px
+            );
+            assert!(d.mask.contains_px(x as u32, y as u32));
+            assert!(!d.mask.contains_px((x + 1.3 * r) as u32, y as u32));
+        }
+    }
+
+    #[test]
+    fn touching_apples_are_split_into_two() {
+        for (r1, r2, gap) in [(40.0, 40.0, 0.0), (40.0, 30.0, -6.0), (35.0, 35.0, -12.0)] {
+            let mut image = background();
+            let (x1, y) = (250.0, 250.0);
+            let x2 = x1 + r1 + r2 + gap;
+            draw_apple(&mut image, x1, y, r1, 1.0);
+            draw_apple(&mut image, x2, y, r2, 1.0);
+            let (detections, info) = detect(&image);
+            let confident = detections.iter().filter(|d| d.confidence >= 0.3).count();
+            assert_eq!(confident, 2, "radii {r1}/{r2}, gap {gap}: {detections:?}");
+            assert_eq!(info.split_regions, 1);
+            let left = covering(&detections, x1 - 0.5 * r1, y);
+            let right = covering(&detections, x2 + 0.5 * r2, y);
+            assert_eq!(left.len(), 1);
+            assert_eq!(right.len(), 1);
+            assert_ne!(left, right);
+            // Each mask holds its own centre, not the other's.
+            assert!(detections[left[0]].mask.contains_px(x1 as u32, y as u32));
+            assert!(!detections[left[0]].mask.contains_px(x2 as u32, y as u32));
+        }
+    }
+
+    #[test]
+    fn frames_without_apples_yield_nothing() {
+        let (leaves, _) = detect(&background());
+        assert!(leaves.iter().all(|d| d.confidence < 0.3), "{leaves:?}");
+        for value in [0_u8, 128] {
+            let (flat, _) = detect(&vec![value; W * H * 3]);
+            assert!(flat.is_empty());
+        }
+        let (white, info) = detect(&vec![255_u8; W * H * 3]);
+        assert!(white.is_empty());
+        assert!(info.saturated_fraction > 0.99);
+    }
+
+    #[test]
+    fn over_exposed_and_dim_apples_are_still_found() {
+        for gain in [0.35, 1.8] {
+            let mut image = background();
+            for byte in &mut image {
+                *byte = (f32::from(*byte) * gain).clamp(0.0, 255.0) as u8;
+            }
+            draw_apple(&mut image, 200.0, 200.0, 40.0, gain);
+            let (detections, info) = detect(&image);
+            let hits = covering(&detections, 200.0, 200.0);
+            assert_eq!(hits.len(), 1, "gain {gain}: {detections:?}");
+            if gain > 1.0 {
+                assert!(info.saturated_fraction > 0.0);
+                // The highlight is part of the mask.
+                assert!(detections[hits[0]].mask.contains_px(188, 186));
+            }
+        }
+    }
+
+    #[test]
+    fn wrong_buffer_size_is_an_error_and_clears_detections() {
+        let mut detector =
+            ColorSegmentation::new(ColorSegmentationConfig::default()).expect("valid");
+        let mut detections = vec![];
+        let data = vec![0_u8; 100];
+        let result = detector.detect(
+            &RgbView {
+                width_px: 64,
+                height_px: 64,
+                data: &data,
+            },
+            &mut detections,
+        );
+        assert!(matches!(result, Err(FrameError::RgbBufferSize { .. })));
+        assert!(detections.is_empty());
+        let tiny = vec![200_u8; 2 * 2 * 3];
+        let info = detector
+            .detect(
+                &RgbView {
+                    width_px: 2,
+                    height_px: 2,
+                    data: &tiny,
+                },
+                &mut detections,
+            )
+            .expect("valid, smaller than one cell");
+        assert!(detections.is_empty());
+        assert_eq!(info, DetectorFrameInfo::default());
+    }
+
+    #[test]
+    fn invalid_config_is_rejected() {
+        let config = ColorSegmentationConfig {
+            downscale: 0,
+            ..ColorSegmentationConfig::default()
+        };
+        assert!(matches!(
+            ColorSegmentation::new(config),
+            Err(ColorSegmentationConfigError::Downscale { value: 0 })
+        ));
+        let config = ColorSegmentationConfig {
+            min_red_excess: f32::NAN,
+            ..ColorSegmentationConfig::default()
+        };
+        assert!(matches!(
+            ColorSegmentation::new(config),
+            Err(ColorSegmentationConfigError::OutOfRange {
+                key: "min_red_excess",
+                ..
+            })
+        ));
     }
 }

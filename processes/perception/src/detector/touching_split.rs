@@ -132,7 +132,7 @@ mod tests {
         min_seed_radius_cells: 2.0,
         seed_relative_radius: 0.35,
         seed_separation_factor: 0.9,
-        saddle_ratio: 0.8,
+        saddle_ratio: 0.9,
         max_seeds: 12,
     };
 

@@ -58,7 +58,7 @@ impl Estimator for ClusterDepthEstimator {
         let centroid = [sum[0] / n, sum[1] / n, sum[2] / n];
         let z_d = centroid[2];
         let ray = input.box_center_ray;
-        if !(ray[2] > 0.0) || !z_d.is_finite() {
+        if ray[2].is_nan() || ray[2] <= 0.0 || !z_d.is_finite() {
             return None;
         }
         let scale = z_d / ray[2];

@@ -86,6 +86,13 @@ pub trait Estimator {
 
     /// `None` when the points support no position (no apple is invented).
     fn estimate(&mut self, input: &EstimatorInput<'_>) -> Option<PositionEstimate>;
+
+    /// Every apple the points support, best supported first, replacing the contents of `out`.
+    /// The default reports the single [`Self::estimate`].
+    fn estimate_all(&mut self, input: &EstimatorInput<'_>, out: &mut Vec<PositionEstimate>) {
+        out.clear();
+        out.extend(self.estimate(input));
+    }
 }
 
 /// Configuration of all estimators and the choice among them.

@@ -12,7 +12,15 @@
 //!    `max(min_inlier_tolerance_m, inlier_sigmas * sigma(z))` with the TL460 noise scale.
 //! 3. Gauss-Newton with Huber weights and the Gaussian radius prior refines centre and radius on
 //!    the inliers; a radius outside the prior interval is clamped and the centre refitted.
-//! 4. With too few points, or when the fit is implausible, it falls back to the median surface
+//! 4. Fruit hidden behind fruit in one mask (a cluster the 2D split could not separate): the
+//!    candidates the first sphere does not explain are fitted again, up to
+//!    `max_spheres_per_detection` spheres; a further sphere needs `secondary_min_fraction` of the
+//!    candidates and must lie within `secondary_max_depth_gap_m` behind the first (same canopy
+//!    layer; background foliage and flying pixels lie further back).
+//! 5. Every sphere must show significant curvature: `n * (plane MSE - sphere MSE) / sigma^2`
+//!    over its inliers reaches `min_curvature_evidence`. A leaf, or background seen past a fruit
+//!    edge because of the depth-colour baseline, fits a plane as well as a sphere and is refused.
+//! 6. With too few points, or when the fit is implausible or flat, it falls back to the median surface
 //!    depth pushed back by `fallback_depth_offset_radii` prior radii along the box-centre ray
 //!    (the mean depth of a uniformly sampled visible hemisphere lies 2/3 r in front of the
 //!    centre), flagged as fallback with low confidence.
@@ -23,7 +31,7 @@ use serde::{Deserialize, Serialize};
 use tracing::trace;
 
 use super::point_clustering::{ClusteringConfig, PointClustering};
-use super::sphere_model::{RefineParams, Sphere, refine, sphere_through_three};
+use super::sphere_model::{RefineParams, Sphere, plane_rms, refine, sphere_through_three};
 use super::{
     Estimator, EstimatorConfigError, EstimatorContext, EstimatorInput, EstimatorKind,
     PositionEstimate, check_range, support_factor, to_f64,
@@ -60,6 +68,15 @@ pub struct SphereFitConfig {
     pub fallback_depth_offset_radii: f64,
     /// RANSAC random seed (the estimate is deterministic for given points).
     pub seed: u64,
+    /// At most this many fruit are extracted from one detection's points.
+    pub max_spheres_per_detection: usize,
+    /// A further fruit in one detection needs at least this fraction of its candidate points.
+    pub secondary_min_fraction: f64,
+    /// A further fruit lies at most this far behind the first one (same canopy layer), metres.
+    pub secondary_max_depth_gap_m: f64,
+    /// Minimum curvature evidence of a sphere (chi-square scale, see `curvature_evidence`);
+    /// flatter point sets use the fallback (first fruit) or end the search (further fruit).
+    pub min_curvature_evidence: f64,
 }
 
 impl Default for SphereFitConfig {
@@ -78,6 +95,10 @@ impl Default for SphereFitConfig {
             huber_sigmas: 1.5,
             fallback_depth_offset_radii: 2.0 / 3.0,
             seed: 0x5eed_a991e,
+            max_spheres_per_detection: 3,
+            secondary_min_fraction: 0.15,
+            secondary_max_depth_gap_m: 0.3,
+            min_curvature_evidence: 16.0,
         }
     }
 }
@@ -140,12 +161,38 @@ impl SphereFitConfig {
             self.fallback_depth_offset_radii,
             0.0,
             1.0,
+        )?;
+        check_range(
+            "sphere_fit.max_spheres_per_detection",
+            self.max_spheres_per_detection as f64,
+            1.0,
+            16.0,
+        )?;
+        check_range(
+            "sphere_fit.secondary_min_fraction",
+            self.secondary_min_fraction,
+            0.0,
+            1.0,
+        )?;
+        check_range(
+            "sphere_fit.secondary_max_depth_gap_m",
+            self.secondary_max_depth_gap_m,
+            0.0,
+            10.0,
+        )?;
+        check_range(
+            "sphere_fit.min_curvature_evidence",
+            self.min_curvature_evidence,
+            0.0,
+            1e6,
         )
     }
 }
 
 /// Support scale (points) of the confidence.
 const SUPPORT_SCALE_POINTS: f64 = 40.0;
+/// Confidence factor of a further fruit found in the same detection.
+const SECONDARY_CONFIDENCE_FACTOR: f32 = 0.8;
 /// Confidence ceiling of a fallback estimate.
 const FALLBACK_CONFIDENCE: f32 = 0.3;
 
@@ -158,6 +205,7 @@ pub struct SphereFitEstimator {
     candidates: Vec<[f64; 3]>,
     inliers: Vec<[f64; 3]>,
     depths: Vec<f64>,
+    results: Vec<PositionEstimate>,
 }
 
 impl SphereFitEstimator {
@@ -173,6 +221,7 @@ impl SphereFitEstimator {
             candidates: Vec::new(),
             inliers: Vec::new(),
             depths: Vec::new(),
+            results: Vec::new(),
         }
     }
 
@@ -296,7 +345,7 @@ impl SphereFitEstimator {
         self.depths.clear();
         self.depths.extend(self.candidates.iter().map(|p| p[2]));
         let surface_depth = median(&mut self.depths)?;
-        if !(ray[2] > 0.0) {
+        if ray[2].is_nan() || ray[2] <= 0.0 {
             return None;
         }
         let depth =
@@ -322,19 +371,16 @@ fn median(values: &mut [f64]) -> Option<f64> {
     Some(*value)
 }
 
-impl Estimator for SphereFitEstimator {
-    fn kind(&self) -> EstimatorKind {
-        EstimatorKind::SphereFit
-    }
-
-    fn estimate(&mut self, input: &EstimatorInput<'_>) -> Option<PositionEstimate> {
-        let clusters = self.clustering.run(input.points_in_camera_m);
+impl SphereFitEstimator {
+    /// Fills `self.candidates` with the points of DBSCAN clusters; `false` when DBSCAN found no
+    /// cluster (then `self.candidates` holds every finite point).
+    fn prepare_candidates(&mut self, points: &[[f32; 3]]) -> bool {
+        let clusters = self.clustering.run(points);
         self.candidates.clear();
         if clusters == 0 {
-            // Too sparse for DBSCAN: the fallback uses whatever finite points there are.
             self.candidates
                 .extend(self.clustering.points().iter().map(to_f64));
-            return self.fallback(input.box_center_ray);
+            return false;
         }
         self.candidates.extend(
             self.clustering
@@ -344,29 +390,114 @@ impl Estimator for SphereFitEstimator {
                 .filter(|(_, label)| **label != NOISE)
                 .map(|(p, _)| to_f64(p)),
         );
-        let candidates = self.candidates.len();
-        if candidates >= self.config.min_fit_points
-            && let Some((sphere, inliers, clamped)) = self.fit()
+        true
+    }
+
+    /// Removes the candidates explained by `sphere` (near its surface or inside it).
+    fn remove_explained(&mut self, sphere: &Sphere) {
+        let mut candidates = std::mem::take(&mut self.candidates);
+        candidates.retain(|&p| sphere.residual(p) > 2.0 * self.tolerance_m(p[2]));
+        self.candidates = candidates;
+    }
+
+    /// Evidence that the current inliers are curved like `sphere` rather than flat:
+    /// `n * (plane MSE - sphere MSE) / mean(sigma^2)`, roughly chi-square distributed with one
+    /// degree of freedom when the surface is flat. A leaf, or a patch too small to show the
+    /// fruit's curvature, scores near zero.
+    fn curvature_evidence(&self, sphere: &Sphere) -> f64 {
+        let n = self.inliers.len();
+        if n < 4 {
+            return 0.0;
+        }
+        let count = n as f64;
+        let sphere_mse = self
+            .inliers
+            .iter()
+            .map(|&p| sphere.residual(p).powi(2))
+            .sum::<f64>()
+            / count;
+        let noise_var = self
+            .inliers
+            .iter()
+            .map(|p| self.context.noise.sigma_m(p[2]).powi(2))
+            .sum::<f64>()
+            / count;
+        let Some(plane_rms) = plane_rms(&self.inliers) else {
+            return 0.0;
+        };
+        count * (plane_rms * plane_rms - sphere_mse) / noise_var
+    }
+}
+
+impl Estimator for SphereFitEstimator {
+    fn kind(&self) -> EstimatorKind {
+        EstimatorKind::SphereFit
+    }
+
+    fn estimate(&mut self, input: &EstimatorInput<'_>) -> Option<PositionEstimate> {
+        let mut results = std::mem::take(&mut self.results);
+        self.estimate_all(input, &mut results);
+        let first = results.first().copied();
+        self.results = results;
+        first
+    }
+
+    /// Sequential fit: the best-supported sphere first, then further spheres on the candidates
+    /// it does not explain (fruit hidden behind fruit in one mask), while enough remain. Every
+    /// sphere must be significantly curved; a further one must also hold
+    /// `secondary_min_fraction` of the candidates.
+    fn estimate_all(&mut self, input: &EstimatorInput<'_>, out: &mut Vec<PositionEstimate>) {
+        out.clear();
+        if !self.prepare_candidates(input.points_in_camera_m) {
+            // Too sparse for DBSCAN: the fallback uses whatever finite points there are.
+            out.extend(self.fallback(input.box_center_ray));
+            return;
+        }
+        let total = self.candidates.len();
+        let secondary_min = (self.config.secondary_min_fraction * total as f64).ceil() as usize;
+        while out.len() < self.config.max_spheres_per_detection
+            && self.candidates.len() >= self.config.min_fit_points
+            && (out.is_empty() || self.candidates.len() >= secondary_min)
         {
-            let share = inliers as f32 / candidates as f32;
+            let Some((sphere, inliers, clamped)) = self.fit() else {
+                break;
+            };
+            let curved = self.curvature_evidence(&sphere) >= self.config.min_curvature_evidence;
+            let secondary_ok = out.first().is_none_or(|first| {
+                inliers >= secondary_min
+                    && sphere.centre[2] - first.position_in_camera_m[2]
+                        <= self.config.secondary_max_depth_gap_m
+            });
+            if !curved || !secondary_ok {
+                break;
+            }
+            let share = inliers as f32 / self.candidates.len() as f32;
             let mut confidence = share * support_factor(inliers, SUPPORT_SCALE_POINTS);
             if clamped {
                 confidence *= 0.8;
             }
+            if !out.is_empty() {
+                confidence *= SECONDARY_CONFIDENCE_FACTOR;
+            }
             trace!(
-                candidates,
+                total,
                 inliers,
                 radius_m = sphere.radius,
                 clamped,
+                sphere = out.len(),
                 "sphere fit"
             );
-            return Some(PositionEstimate {
+            out.push(PositionEstimate {
                 position_in_camera_m: sphere.centre,
                 radius_m: sphere.radius,
                 confidence: confidence.clamp(0.0, 1.0),
                 points_used: inliers as u32,
                 fallback: false,
             });
+            self.remove_explained(&sphere);
+        }
+        if !out.is_empty() {
+            return;
         }
         // Few points or an implausible sphere: the largest cluster's median depth, pushed back.
         if let Some((cluster, _)) = self.clustering.largest_cluster() {
@@ -380,8 +511,8 @@ impl Estimator for SphereFitEstimator {
                     .map(|(p, _)| to_f64(p)),
             );
         }
-        trace!(candidates, "sphere fit fell back to median depth");
-        self.fallback(input.box_center_ray)
+        trace!(total, "sphere fit fell back to median depth");
+        out.extend(self.fallback(input.box_center_ray));
     }
 }
 
@@ -422,7 +553,6 @@ mod tests {
                 noise_scale: 1.0,
                 occluder,
                 flying_fraction,
-                ..CapScene::default()
             };
             let cap = sample_cap(&scene, seed * 1000 + trial);
             let input = EstimatorInput {
@@ -466,6 +596,97 @@ mod tests {
         assert_eq!(fallbacks, 0);
         assert!(fit < 0.014, "sphere fit mean error {fit} m");
         assert!(fit < 0.5 * paper, "sphere fit {fit} m vs paper {paper} m");
+    }
+
+    /// Points of `back` whose camera ray hits `front` first are hidden.
+    fn hide_behind(front: &CapScene, back: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        let [cx, cy, cz] = front.centre_m;
+        let r = front.radius_m;
+        back.iter()
+            .copied()
+            .filter(|p| {
+                let d = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
+                let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                let dc = d[0] * cx + d[1] * cy + d[2] * cz;
+                let cc = cx * cx + cy * cy + cz * cz;
+                dc * dc - dd * (cc - r * r) < 0.0
+            })
+            .collect()
+    }
+
+    #[test]
+    fn fruit_hidden_behind_fruit_is_found_as_a_second_sphere() {
+        let front = CapScene {
+            centre_m: [0.0, 0.0, 1.0],
+            radius_m: 0.042,
+            ..CapScene::default()
+        };
+        let back = CapScene {
+            centre_m: [0.055, 0.01, 1.12],
+            radius_m: 0.04,
+            ..CapScene::default()
+        };
+        let mut points = sample_cap(&front, 21).points;
+        let back_points = hide_behind(&front, &sample_cap(&back, 22).points);
+        points.extend_from_slice(&back_points);
+        let mut estimator = sphere_fit();
+        let mut out = Vec::new();
+        estimator.estimate_all(
+            &EstimatorInput {
+                points_in_camera_m: &points,
+                box_center_ray: [0.02, 0.0, 1.0],
+            },
+            &mut out,
+        );
+        assert_eq!(out.len(), 2, "{out:?}");
+        assert!(
+            error_m(out[0].position_in_camera_m, front.centre_m) < 0.012,
+            "{out:?}"
+        );
+        assert!(
+            error_m(out[1].position_in_camera_m, back.centre_m) < 0.015,
+            "{out:?}"
+        );
+        assert!(out[1].confidence <= SECONDARY_CONFIDENCE_FACTOR);
+        // `estimate` reports the best-supported fruit only.
+        let single = estimator
+            .estimate(&EstimatorInput {
+                points_in_camera_m: &points,
+                box_center_ray: [0.02, 0.0, 1.0],
+            })
+            .expect("estimate");
+        assert_eq!(single, out[0]);
+    }
+
+    #[test]
+    fn leaf_patch_next_to_a_fruit_is_not_a_second_fruit() {
+        let fruit = CapScene {
+            centre_m: [0.0, 0.0, 1.0],
+            radius_m: 0.042,
+            ..CapScene::default()
+        };
+        let mut points = sample_cap(&fruit, 31).points;
+        let mut rng = SmallRng::seed_from_u64(32);
+        let leaf_count = points.len() / 3;
+        // A flat, slightly tilted leaf 10 cm behind, 5 x 5 cm.
+        for _ in 0..leaf_count {
+            let (x, y) = (
+                rng.random_range(0.03..0.08),
+                rng.random_range(-0.025..0.025),
+            );
+            let z = 1.1 + 0.2 * x + rng.random_range(-0.004..0.004);
+            points.push([x as f32, y as f32, z as f32]);
+        }
+        let mut out = Vec::new();
+        sphere_fit().estimate_all(
+            &EstimatorInput {
+                points_in_camera_m: &points,
+                box_center_ray: [0.0, 0.0, 1.0],
+            },
+            &mut out,
+        );
+        assert_eq!(out.len(), 1, "{out:?}");
+        assert!(error_m(out[0].position_in_camera_m, fruit.centre_m) < 0.012);
     }
 
     #[test]

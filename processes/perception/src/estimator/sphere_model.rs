@@ -1,7 +1,7 @@
 //! Sphere geometry for the sphere-fit estimator: a minimal 3-point hypothesis with a radius prior
 //! and a robust Gauss-Newton refinement.
 
-use nalgebra::{Matrix4, Vector4};
+use nalgebra::{Matrix3, Matrix4, SymmetricEigen, Vector3, Vector4};
 
 use crate::noise_model::DepthNoiseModel;
 
@@ -178,6 +178,30 @@ pub(crate) fn refine(
     Some(sphere)
 }
 
+/// RMS distance of `points` from their least-squares plane (square root of the smallest
+/// eigenvalue of their covariance); `None` for fewer than 3 points.
+pub(crate) fn plane_rms(points: &[[f64; 3]]) -> Option<f64> {
+    if points.len() < 3 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let mean = points
+        .iter()
+        .fold(Vector3::zeros(), |acc: Vector3<f64>, p| {
+            acc + Vector3::from(*p)
+        })
+        / n;
+    let covariance = points
+        .iter()
+        .fold(Matrix3::zeros(), |acc: Matrix3<f64>, p| {
+            let d = Vector3::from(*p) - mean;
+            acc + d * d.transpose()
+        })
+        / n;
+    let smallest = SymmetricEigen::new(covariance).eigenvalues.min();
+    smallest.is_finite().then(|| smallest.max(0.0).sqrt())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -221,6 +245,32 @@ mod tests {
             )
             .is_none()
         );
+    }
+
+    #[test]
+    fn plane_rms_separates_planes_from_caps() {
+        let plane: Vec<[f64; 3]> = (0..100)
+            .map(|i| {
+                [
+                    (i % 10) as f64 * 0.005,
+                    (i / 10) as f64 * 0.005,
+                    1.0 + (i % 10) as f64 * 0.002,
+                ]
+            })
+            .collect();
+        assert!(plane_rms(&plane).expect("enough points") < 1e-9);
+        let cap: Vec<[f64; 3]> = (0..100)
+            .filter_map(|i| {
+                let (x, y) = (
+                    (i % 10) as f64 * 0.008 - 0.036,
+                    (i / 10) as f64 * 0.008 - 0.036,
+                );
+                let rho_sq = x * x + y * y;
+                (rho_sq < 0.04 * 0.04).then(|| [x, y, 1.0 - (0.04 * 0.04 - rho_sq).sqrt()])
+            })
+            .collect();
+        assert!(plane_rms(&cap).expect("enough points") > 0.005);
+        assert!(plane_rms(&cap[..2]).is_none());
     }
 
     #[test]

@@ -67,7 +67,7 @@ impl Estimator for ZScoreCentroidEstimator {
                 .points_in_camera_m
                 .iter()
                 .filter(finite)
-                .map(|p| to_f64(p))
+                .map(to_f64)
                 .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()),
         );
         let n = self.ranges.len();

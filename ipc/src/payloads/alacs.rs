@@ -1,0 +1,138 @@
+//! Hardware-layer messages of the ALACS unit (laser on a linear slide + RGB camera): the driver
+//! commands slide and laser and triggers a capture; the device answers with the image.
+
+use crate::camera_model::CameraIntrinsics;
+use crate::codec::{self, CodecError};
+use crate::header::Header;
+use crate::payload::Payload;
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Serialize};
+
+pub const ALACS_WIDTH_PX: usize = 1440;
+pub const ALACS_HEIGHT_PX: usize = 1080;
+pub const ALACS_RGB_BYTES: usize = ALACS_WIDTH_PX * ALACS_HEIGHT_PX * 3;
+
+/// Driver -> device: move the slide, switch the laser, and capture one image once there.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.AlacsCommand.v1")]
+pub struct AlacsCommand {
+    pub header: Header,
+    pub request_seq: u32,
+    /// 1 laser on.
+    pub laser_on: u8,
+    /// 1 capture an image after the move.
+    pub capture: u8,
+    pub _reserved: [u8; 2],
+    /// Slide position target, metres from the home end, within the 0.20 m stroke.
+    pub slide_target_m: f64,
+}
+
+crate::serde_payload!(
+    AlacsCommand,
+    "harvest.AlacsCommand",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+request_seq:u32; laser_on:u8; capture:u8; _reserved:[u8;2]; slide_target_m:f64"
+);
+
+/// Device -> driver: the answer to one command, with the image when one was requested.
+#[repr(C)]
+#[derive(ZeroCopySend)]
+#[type_name("harvest.AlacsImage.v1")]
+pub struct AlacsImage {
+    pub header: Header,
+    pub request_seq: u32,
+    pub laser_on: u8,
+    /// 0 ok, 1 slide target outside the stroke (nothing moved), 2 device fault.
+    pub status: u8,
+    pub has_image: u8,
+    pub _reserved: u8,
+    /// Where the slide actually stopped, metres.
+    pub slide_position_m: f64,
+    pub intrinsics: CameraIntrinsics,
+    /// Row-major RGB8, `ALACS_WIDTH_PX` x `ALACS_HEIGHT_PX`.
+    pub rgb: [u8; ALACS_RGB_BYTES],
+}
+
+impl std::fmt::Debug for AlacsImage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AlacsImage")
+            .field("header", &self.header)
+            .field("request_seq", &self.request_seq)
+            .field("status", &self.status)
+            .field("slide_position_m", &self.slide_position_m)
+            .finish_non_exhaustive()
+    }
+}
+
+#[derive(Serialize, Deserialize)]
+struct AlacsImageMeta {
+    header: Header,
+    request_seq: u32,
+    laser_on: u8,
+    status: u8,
+    has_image: u8,
+    slide_position_m: f64,
+    intrinsics: CameraIntrinsics,
+}
+
+// SAFETY: #[repr(C)], integers, floats and arrays of those only.
+unsafe impl Payload for AlacsImage {
+    const TYPE_NAME: &'static str = "harvest.AlacsImage";
+    const VERSION: u32 = 1;
+    const SCHEMA: &'static str = "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, \
+publish_ns:u64}; request_seq:u32; laser_on:u8; status:u8; has_image:u8; slide_position_m:f64; \
+intrinsics: {width_px:u32, height_px:u32, fx_px:f64, fy_px:f64, cx_px:f64, cy_px:f64, \
+distortion:[f64;5]}; then rgb: 4665600 raw bytes (RGB8 1440x1080 row-major)";
+
+    fn header(&self) -> &Header {
+        &self.header
+    }
+    fn header_mut(&mut self) -> &mut Header {
+        &mut self.header
+    }
+    fn encode(&self, out: &mut Vec<u8>) -> Result<(), CodecError> {
+        let meta = AlacsImageMeta {
+            header: self.header,
+            request_seq: self.request_seq,
+            laser_on: self.laser_on,
+            status: self.status,
+            has_image: self.has_image,
+            slide_position_m: self.slide_position_m,
+            intrinsics: self.intrinsics,
+        };
+        codec::encode_into(&meta, out)?;
+        out.extend_from_slice(&self.rgb);
+        Ok(())
+    }
+    fn decode_into(bytes: &[u8], dst: &mut Self) -> Result<(), CodecError> {
+        let (meta, used): (AlacsImageMeta, usize) = codec::decode_prefix(bytes)?;
+        let expected = used + ALACS_RGB_BYTES;
+        if bytes.len() != expected {
+            return Err(CodecError::Length { expected, actual: bytes.len() });
+        }
+        dst.header = meta.header;
+        dst.request_seq = meta.request_seq;
+        dst.laser_on = meta.laser_on;
+        dst.status = meta.status;
+        dst.has_image = meta.has_image;
+        dst._reserved = 0;
+        dst.slide_position_m = meta.slide_position_m;
+        dst.intrinsics = meta.intrinsics;
+        dst.rgb.copy_from_slice(&bytes[used..]);
+        Ok(())
+    }
+    fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "header": self.header,
+            "request_seq": self.request_seq,
+            "laser_on": self.laser_on,
+            "status": self.status,
+            "has_image": self.has_image,
+            "slide_position_m": self.slide_position_m,
+            "intrinsics": self.intrinsics,
+            "rgb_bytes": ALACS_RGB_BYTES,
+        })
+    }
+}

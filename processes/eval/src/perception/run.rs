@@ -1,0 +1,338 @@
+//! The evaluation loop: render, process, match, record.
+
+use std::time::Instant;
+
+use harvest_ipc::payloads::AppleDetections;
+use harvest_perception::PerceptionConfig;
+use harvest_perception::calibration::{Calibration, CameraCalibration};
+use harvest_perception::estimator::EstimatorKind;
+use harvest_perception::node::PerceptionNode;
+use harvest_sim::process::load_scenario;
+use harvest_sim::{Scenario, World};
+use nix::time::{ClockId, clock_gettime};
+use tracing::{info, trace, warn};
+
+use crate::perception::args::EvalPerceptionArgs;
+use crate::perception::error::EvalError;
+use crate::perception::frame::{FrameRenderer, zeroed_frame};
+use crate::perception::matching::{MatchRule, Matching, OverlapTable, ReportedApple, TrueApple};
+use crate::perception::records::{AppleOutcome, EstimatorRecords, FrameTiming};
+use crate::perception::report::{PerceptionReport, ScenarioReport};
+use crate::perception::tables::render_tables;
+use crate::perception::truth::{FrameApple, TruthMeter, count_box_overlap};
+
+/// Where perception's extrinsic calibration comes from in this evaluation.
+pub const CALIBRATION_SOURCE: &str = "robot_from_camera = the simulator's true colour-sensor pose \
+     (renderer robot_from_color), i.e. a perfect extrinsic calibration";
+
+/// Runs the evaluation, prints the tables to stdout and writes the JSON report if asked.
+pub fn run_eval_perception(args: &EvalPerceptionArgs) -> Result<PerceptionReport, EvalError> {
+    let report = evaluate(args)?;
+    print!("{}", render_tables(&report));
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&report)?;
+        std::fs::write(path, text + "\n").map_err(|source| EvalError::WriteJson {
+            path: path.clone(),
+            source,
+        })?;
+        info!(path = %path.display(), "wrote the JSON report");
+    }
+    Ok(report)
+}
+
+/// Runs the evaluation and returns the report (prints nothing).
+pub fn evaluate(args: &EvalPerceptionArgs) -> Result<PerceptionReport, EvalError> {
+    if args.frames == 0 {
+        return Err(EvalError::BadArgument {
+            argument: "--frames",
+            value: "0".to_owned(),
+            reason: "at least one frame is needed",
+        });
+    }
+    let empty_frames = args.empty_frames.unwrap_or(args.frames);
+    let span = u64::from(args.frames.max(empty_frames));
+    if args.seed.checked_add(span).is_none() {
+        return Err(EvalError::BadArgument {
+            argument: "--seed",
+            value: args.seed.to_string(),
+            reason: "seed + frames overflows u64",
+        });
+    }
+    let mut kinds: Vec<EstimatorKind> = Vec::new();
+    for estimator in &args.estimators {
+        if !kinds.contains(&estimator.kind()) {
+            kinds.push(estimator.kind());
+        }
+    }
+    if kinds.is_empty() {
+        return Err(EvalError::BadArgument {
+            argument: "--estimators",
+            value: String::new(),
+            reason: "name at least one estimator",
+        });
+    }
+    if args.scenario.is_empty() {
+        return Err(EvalError::BadArgument {
+            argument: "--scenario",
+            value: String::new(),
+            reason: "name at least one scenario preset or file",
+        });
+    }
+    let rule = MatchRule::default();
+    let mut scenarios = Vec::new();
+    for name in &args.scenario {
+        let scenario = load_scenario(name).map_err(|source| EvalError::Scenario {
+            scenario: name.clone(),
+            source: Box::new(source),
+        })?;
+        let run = ScenarioRun {
+            name,
+            scenario: &scenario,
+            seed: args.seed,
+            frames: args.frames,
+            empty_frames,
+            rule,
+        };
+        scenarios.push(run.evaluate(&kinds)?);
+    }
+    Ok(PerceptionReport {
+        seed: args.seed,
+        frames_per_scenario: args.frames,
+        empty_frames_per_scenario: empty_frames,
+        matching_rule: rule,
+        scenarios,
+    })
+}
+
+/// CPU time consumed by the calling thread, nanoseconds.
+fn thread_cpu_ns() -> Result<i128, EvalError> {
+    let now = clock_gettime(ClockId::CLOCK_THREAD_CPUTIME_ID).map_err(EvalError::CpuClock)?;
+    Ok(i128::from(now.tv_sec()) * 1_000_000_000 + i128::from(now.tv_nsec()))
+}
+
+/// The evaluation of one scenario.
+struct ScenarioRun<'a> {
+    name: &'a str,
+    scenario: &'a Scenario,
+    seed: u64,
+    frames: u32,
+    empty_frames: u32,
+    rule: MatchRule,
+}
+
+/// Per-frame scratch reused across frames and estimators.
+#[derive(Default)]
+struct Scratch {
+    truth: Vec<FrameApple>,
+    true_apples: Vec<TrueApple>,
+    reported: Vec<ReportedApple>,
+    overlap: OverlapTable,
+    matching: Matching,
+    matching_2d: Matching,
+}
+
+impl ScenarioRun<'_> {
+    fn world(&self, scenario: &Scenario, seed: u64) -> Result<World, EvalError> {
+        World::generate(scenario, seed).map_err(|source| EvalError::World {
+            scenario: self.name.to_owned(),
+            seed,
+            source: Box::new(source),
+        })
+    }
+
+    fn render_error(&self, source: harvest_sim::RenderError) -> EvalError {
+        EvalError::Render {
+            scenario: self.name.to_owned(),
+            source: Box::new(source),
+        }
+    }
+
+    fn evaluate(&self, kinds: &[EstimatorKind]) -> Result<ScenarioReport, EvalError> {
+        let mut renderer =
+            FrameRenderer::new(&self.scenario.camera).map_err(|e| self.render_error(e))?;
+        let robot_from_color = renderer.robot_from_color();
+        let calibration = Calibration {
+            camera: CameraCalibration {
+                robot_from_camera: robot_from_color,
+            },
+        };
+        let meter = TruthMeter::new(renderer.color_intrinsics(), robot_from_color);
+        let mut nodes: Vec<PerceptionNode> = kinds
+            .iter()
+            .map(|&kind| {
+                let mut config = PerceptionConfig::default();
+                config.estimator.kind = kind;
+                PerceptionNode::new(config, calibration)
+            })
+            .collect();
+        let mut records: Vec<EstimatorRecords> = kinds
+            .iter()
+            .map(|&kind| EstimatorRecords::new(kind))
+            .collect();
+        let mut frame = zeroed_frame();
+        let mut out = Box::<AppleDetections>::default();
+        let mut labels = vec![0u32; meter.pixel_count()];
+        let mut scratch = Scratch::default();
+        let mut apples_generated = 0;
+        info!(
+            scenario = self.name,
+            frames = self.frames,
+            empty_frames = self.empty_frames,
+            estimators = kinds.len(),
+            "evaluating perception"
+        );
+        for i in 0..self.frames {
+            let seed = self.seed + u64::from(i);
+            let world = self.world(self.scenario, seed)?;
+            apples_generated += world.apples().len();
+            renderer
+                .render(&world, u64::from(i), &mut frame)
+                .map_err(|e| self.render_error(e))?;
+            renderer
+                .render_labels(&world, &mut labels)
+                .map_err(|e| self.render_error(e))?;
+            meter.measure(&world, &labels, &mut scratch.truth);
+            scratch.true_apples.clear();
+            scratch
+                .true_apples
+                .extend(scratch.truth.iter().map(|apple| TrueApple {
+                    center_in_robot_m: apple.center_in_robot_m,
+                    radius_m: apple.radius_m,
+                    visible_px: apple.visible_px,
+                }));
+            let visible_apples = scratch.truth.iter().filter(|a| a.visible_px > 0).count();
+            // Rotate the order so no estimator always runs first on a freshly rendered frame.
+            for k in 0..nodes.len() {
+                let e = (k + i as usize) % nodes.len();
+                let (node, record) = (&mut nodes[e], &mut records[e]);
+                if i == 0 {
+                    // Warm-up: builds the pipeline for the frame's camera metadata.
+                    self.process(node, record.kind, &frame, &mut out)?;
+                }
+                let start_cpu_ns = thread_cpu_ns()?;
+                let start = Instant::now();
+                self.process(node, record.kind, &frame, &mut out)?;
+                let process_ms = start.elapsed().as_secs_f64() * 1e3;
+                let process_cpu_ms = (thread_cpu_ns()? - start_cpu_ns) as f64 * 1e-6;
+                record.timings.push(FrameTiming {
+                    process_ms,
+                    process_cpu_ms,
+                    visible_apples,
+                });
+                self.score(&out, &labels, meter.width_px(), &mut scratch, record);
+                trace!(
+                    frame = i,
+                    estimator = record.kind.name(),
+                    reported = out.apples.len(),
+                    visible_apples,
+                    process_ms,
+                    process_cpu_ms,
+                    "frame evaluated"
+                );
+            }
+        }
+        let mut empty = self.scenario.clone();
+        empty.apples.count = 0;
+        for i in 0..self.empty_frames {
+            let world = self.world(&empty, self.seed + u64::from(i))?;
+            renderer
+                .render(&world, u64::from(self.frames) + u64::from(i), &mut frame)
+                .map_err(|e| self.render_error(e))?;
+            for (node, record) in nodes.iter_mut().zip(&mut records) {
+                self.process(node, record.kind, &frame, &mut out)?;
+                record.empty_frame_detections.push(out.apples.len());
+                trace!(
+                    frame = i,
+                    estimator = record.kind.name(),
+                    reported = out.apples.len(),
+                    "frame without apples evaluated"
+                );
+            }
+        }
+        for (node, record) in nodes.iter().zip(&records) {
+            if node.frames_rejected() > 0 {
+                warn!(
+                    estimator = record.kind.name(),
+                    rejected = node.frames_rejected(),
+                    "perception rejected frames"
+                );
+            }
+        }
+        Ok(ScenarioReport::from_records(
+            self.name,
+            CALIBRATION_SOURCE,
+            apples_generated,
+            &records,
+        ))
+    }
+
+    fn process(
+        &self,
+        node: &mut PerceptionNode,
+        kind: EstimatorKind,
+        frame: &harvest_ipc::payloads::RgbdFrame,
+        out: &mut AppleDetections,
+    ) -> Result<(), EvalError> {
+        let stats = node
+            .process(frame, out)
+            .map_err(|source| EvalError::PerceptionSetup {
+                scenario: self.name.to_owned(),
+                estimator: kind.name(),
+                source: Box::new(source),
+            })?;
+        if let Some(rejection) = stats.rejection {
+            warn!(estimator = kind.name(), %rejection, "perception rejected a frame");
+        }
+        Ok(())
+    }
+
+    /// Matches the reported apples of one frame and records the outcome.
+    fn score(
+        &self,
+        out: &AppleDetections,
+        labels: &[u32],
+        width_px: usize,
+        scratch: &mut Scratch,
+        record: &mut EstimatorRecords,
+    ) {
+        let apples = out.apples.as_slice();
+        scratch.reported.clear();
+        scratch
+            .reported
+            .extend(apples.iter().map(|a| ReportedApple {
+                position_in_robot_m: a.position_in_robot_m,
+                box_area_px: u64::from(a.box_px[2]) * u64::from(a.box_px[3]),
+            }));
+        scratch.overlap.reset(apples.len(), scratch.truth.len());
+        for (d, apple) in apples.iter().enumerate() {
+            count_box_overlap(labels, width_px, apple.box_px, scratch.overlap.row_mut(d));
+        }
+        self.rule.match_frame(
+            &scratch.reported,
+            &scratch.true_apples,
+            &scratch.overlap,
+            &mut scratch.matching,
+        );
+        self.rule.without_3d_gate().match_frame(
+            &scratch.reported,
+            &scratch.true_apples,
+            &scratch.overlap,
+            &mut scratch.matching_2d,
+        );
+        record.detections += apples.len();
+        record.false_positives += scratch.matching.false_positives();
+        let matching = &scratch.matching;
+        for (t, apple) in scratch.truth.iter().enumerate() {
+            if apple.visible_px == 0 {
+                continue;
+            }
+            let error_m = matching.detection_of_truth[t]
+                .and_then(|d| matching.truth_of_detection[d])
+                .map(|(_, error_m)| error_m);
+            let found_2d = scratch.matching_2d.detection_of_truth[t].is_some();
+            record
+                .apples
+                .push(AppleOutcome::new(apple, error_m, found_2d));
+        }
+    }
+}

@@ -1,0 +1,243 @@
+//! The report as Markdown tables (what `harvest eval perception` prints; pasted into the README).
+
+use std::fmt::Write;
+
+use crate::perception::report::{EstimatorReport, PerceptionReport, ScenarioReport};
+use crate::perception::stats::Summary;
+
+fn number(value: Option<f64>, decimals: usize) -> String {
+    value.map_or_else(|| "-".to_owned(), |v| format!("{v:.decimals$}"))
+}
+
+fn fraction(value: Option<f64>, numerator: usize, denominator: usize) -> String {
+    format!("{} ({numerator}/{denominator})", number(value, 3))
+}
+
+/// `median / p95 / max` of a summary.
+fn spread(summary: &Summary, decimals: usize) -> String {
+    format!(
+        "{} / {} / {}",
+        number(summary.median, decimals),
+        number(summary.p95, decimals),
+        number(summary.max, decimals)
+    )
+}
+
+fn name(e: &EstimatorReport) -> String {
+    format!("{} ({})", e.estimator, e.role)
+}
+
+/// Renders every scenario of `report` as Markdown.
+pub fn render_tables(report: &PerceptionReport) -> String {
+    let mut out = String::new();
+    let rule = report.matching_rule;
+    // Writing into a String cannot fail.
+    let _ = writeln!(
+        out,
+        "Perception evaluation: {} frames per scenario (worlds seed {}..{}), {} frames without \
+         apples. A reported apple matches a true apple when its box holds >= {:.0} % of \
+         min(box area, apple's visible pixels) of that apple and its centre is within {} true \
+         radii; pairs are assigned one to one by increasing 3D distance. \"Found in 2D\" drops the 3D \
+         condition (the detector alone). Errors are Euclidean distances in the robot frame.\n",
+        report.frames_per_scenario,
+        report.seed,
+        report.seed + u64::from(report.frames_per_scenario.max(1)) - 1,
+        report.empty_frames_per_scenario,
+        100.0 * rule.min_overlap_coefficient,
+        rule.max_distance_radii,
+    );
+    for scenario in &report.scenarios {
+        render_scenario(&mut out, scenario);
+    }
+    out
+}
+
+fn render_scenario(out: &mut String, s: &ScenarioReport) {
+    let t = &s.truth;
+    let _ = writeln!(
+        out,
+        "## Scenario `{}`\n\n{} frames: {} apples generated, {} visible (>= 1 pixel), {} at least \
+         50 % visible; {} frames with 20+ visible apples; {} frames without apples. \
+         Calibration: {}.\n",
+        s.scenario,
+        t.frames,
+        t.apples_generated,
+        t.apples_visible,
+        t.apples_half_visible,
+        t.frames_with_20_plus_apples,
+        t.empty_frames,
+        s.calibration,
+    );
+    let _ = writeln!(
+        out,
+        "### Detection\n\n| estimator | reported | true pos. | false pos. | precision | recall \
+         (visible) | recall (>= 50 % visible) | same, not over-exposed | found in 2D (>= 50 % \
+         visible) | reported on empty frames |\n|---|---|---|---|---|---|---|---|---|---|"
+    );
+    for e in &s.estimators {
+        let d = &e.detection;
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({} of {} frames) |",
+            name(e),
+            d.detections,
+            d.true_positives,
+            d.false_positives,
+            number(d.precision, 3),
+            fraction(d.recall, d.matched_visible, d.truth_visible),
+            fraction(
+                d.recall_half_visible,
+                d.matched_half_visible,
+                d.truth_half_visible
+            ),
+            number(d.recall_half_visible_not_over_exposed, 3),
+            fraction(
+                d.recall_2d_half_visible,
+                d.found_2d_half_visible,
+                d.truth_half_visible
+            ),
+            d.empty_frame_detections,
+            d.empty_frames_with_detections,
+            d.empty_frames,
+        );
+    }
+    let _ = writeln!(
+        out,
+        "\n### 3D error of matched apples, mm\n\n| estimator | matched | mean | median | p95 | max |\n|---|---|---|---|---|---|"
+    );
+    for e in &s.estimators {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} |",
+            name(e),
+            e.error_mm.count,
+            number(e.error_mm.mean, 1),
+            number(e.error_mm.median, 1),
+            number(e.error_mm.p95, 1),
+            number(e.error_mm.max, 1),
+        );
+    }
+    let header: String = s
+        .estimators
+        .iter()
+        .map(|e| format!(" {} |", e.estimator))
+        .collect();
+    let rule: String = s.estimators.iter().map(|_| "---|").collect();
+    let _ = writeln!(
+        out,
+        "\n### 3D error by depth of the true centre (colour camera z), median / p95 / max mm \
+         (matched/visible)\n\n| depth, m |{header}\n|---|{rule}"
+    );
+    let bins = s.estimators.first().map_or(0, |e| e.error_by_depth.len());
+    for b in 0..bins {
+        let mut row = format!("| {} |", s.estimators[0].error_by_depth[b].bin);
+        for e in &s.estimators {
+            let bin = &e.error_by_depth[b];
+            let _ = write!(
+                row,
+                " {} ({}/{}) |",
+                spread(&bin.error_mm, 1),
+                bin.matched,
+                bin.truth_visible
+            );
+        }
+        let _ = writeln!(out, "{row}");
+    }
+    let _ = writeln!(
+        out,
+        "\n### 3D error by visible fraction of the silhouette, median / p95 / max mm \
+         (matched/visible)\n\n| visible |{header}\n|---|{rule}"
+    );
+    let bins = s
+        .estimators
+        .first()
+        .map_or(0, |e| e.error_by_visibility.len());
+    for b in 0..bins {
+        let mut row = format!("| {} |", s.estimators[0].error_by_visibility[b].bin);
+        for e in &s.estimators {
+            let bin = &e.error_by_visibility[b];
+            let _ = write!(
+                row,
+                " {} ({}/{}) |",
+                spread(&bin.error_mm, 1),
+                bin.matched,
+                bin.truth_visible
+            );
+        }
+        let _ = writeln!(out, "{row}");
+    }
+    let _ = writeln!(
+        out,
+        "\n### 3D error by failure condition (from the world's ground truth; an apple can be in \
+         several), median / p95 / max mm (matched/visible)\n\n| condition |{header}\n|---|{rule}"
+    );
+    let conditions = s
+        .estimators
+        .first()
+        .map_or(0, |e| e.error_by_condition.len());
+    for c in 0..conditions {
+        let mut row = format!(
+            "| {} |",
+            s.estimators[0].error_by_condition[c].condition.name()
+        );
+        for e in &s.estimators {
+            let condition = &e.error_by_condition[c];
+            let _ = write!(
+                row,
+                " {} ({}/{}; >= 50 % visible {}/{}) |",
+                spread(&condition.error_mm, 1),
+                condition.matched,
+                condition.truth_visible,
+                condition.matched_half_visible,
+                condition.truth_half_visible
+            );
+        }
+        let _ = writeln!(out, "{row}");
+    }
+    let _ = writeln!(
+        out,
+        "\n### Processing time of `PerceptionNode::process`, one thread, ms (wall = elapsed, \
+         CPU = the thread's CPU time)\n\n| estimator | frames | wall median | wall p95 | CPU median \
+         | CPU p95 | CPU max | frames with 20+ apples | their CPU median | their CPU p95 |\n\
+         |---|---|---|---|---|---|---|---|---|---|"
+    );
+    for e in &s.estimators {
+        let wall = &e.timing.all_frames_ms;
+        let cpu = &e.timing.all_frames_cpu_ms;
+        let many = &e.timing.frames_20_plus_apples_cpu_ms;
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            name(e),
+            wall.count,
+            number(wall.median, 1),
+            number(wall.p95, 1),
+            number(cpu.median, 1),
+            number(cpu.p95, 1),
+            number(cpu.max, 1),
+            many.count,
+            number(many.median, 1),
+            number(many.p95, 1),
+        );
+    }
+    let _ = writeln!(
+        out,
+        "\n### Targets (reported, not asserted)\n\n| target | value | required | met |\n|---|---|---|---|"
+    );
+    for target in &s.targets {
+        let met = match target.met {
+            Some(true) => "yes",
+            Some(false) => "NO",
+            None => "-",
+        };
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} {} | {met} |",
+            target.target,
+            number(target.value, 3),
+            target.comparison,
+            target.threshold,
+        );
+    }
+    let _ = writeln!(out);
+}

@@ -1,0 +1,865 @@
+//! The vacuum supervisor's logic without any transport: [`VacuumNode`] owns the four valves of
+//! the shared vacuum (paper 003, section 2.3), infers each arm's attachment from the three
+//! pressure sensors, runs the coordination policy (section 3.3, eq. 7-12, or the 2023 / baseline
+//! policies of section 4.2) and **assigns the apples to the arms**.
+//!
+//! Assignment lives in the vacuum process, next to the policy, because dispatching a target is
+//! the policy's `StartApproach` decision (eq. 8, first clause: an arm may leave the drop-off only
+//! with an apple assigned; the baseline lets one arm out at a time). Each detection set is fed to
+//! an [`AssignmentPlanner`] (Algorithm 1 plus re-planning); when an arm is idle with apples in its
+//! queue and the policy grants `StartApproach`, the head of its queue is published on the arm's
+//! target channel. The node learns how the attempt went from the arm's `ArmState` (phase back to
+//! idle; `harvested_count` up or not) and tells the planner, which retries a failed apple when a
+//! later detection set still sees it. At most one target is dispatched per tick, so the arm that
+//! moves second always sees the first arm's motion in its clearance check.
+//!
+//! Per tick ([`VacuumNode::step`]):
+//! 1. the pressure sample goes through [`AttachmentInference`]; an arm counts as open for the
+//!    inference only once the board reports its inlet at the open end stop and its vent closed
+//!    (a gate takes up to a second to travel, section 2.3);
+//! 2. a new detection set re-plans the assignment;
+//! 3. attempts are tracked from the arms' states;
+//! 4. the policy's force-closes are applied (failure, release, out of workflow);
+//! 5. the arms' standing valve requests are answered: `Close` always, `OpenForAttach` once per
+//!    request (a request the policy closed again is not re-opened), oldest waiter first;
+//! 6. the policy is asked again for force-closes;
+//! 7. at most one target is dispatched.
+//!
+//! Emergency stop: every valve is commanded closed at once (`close_all`), open requests are
+//! refused, nothing is dispatched, and the attempts in progress are given up as failed.
+//!
+//! Pure logic: no clock reads, no I/O; the caller passes the time, the board readings and the
+//! received messages, and applies the outputs.
+
+use crate::arm_id::ArmId;
+use crate::arm_phase::ArmPhase;
+use crate::assignment::{Apple, AppleId};
+use crate::policy::{
+    ArmStatus, CloseReason, Decision, PairStatus, PolicyKind, RefuseReason, Request,
+    VacuumPolicy, ValveOrder, new_policy,
+};
+use crate::pressure::{
+    AttachmentChange, AttachmentInference, AttachmentState, PressureConfig, PressureConfigError,
+    PressureSample, PressureSampleError,
+};
+use crate::replan::{
+    AssignmentPlanner, AttemptResult, PlannerConfig, PlannerConfigError, ReplanSummary,
+};
+use harvest_ipc::Header;
+use harvest_ipc::payloads::{
+    AppleDetections, ArmPhase as PhaseCode, ArmState, ArmTarget, VacuumState, ValveGrant,
+    ValveRequest, ValveRequestKind,
+};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+use tracing::{debug, info, trace, warn};
+
+/// Refusal code sent in `ValveGrant::reason` while the emergency stop is engaged.
+pub const REFUSED_EMERGENCY_STOP: u8 = 20;
+/// Refusal code for an arm that does not take part (single-arm operation).
+pub const REFUSED_ARM_DISABLED: u8 = 21;
+/// Radius used when a detection carries none, m.
+const FALLBACK_RADIUS_M: f64 = 0.04;
+
+/// The wire code of a policy refusal (`ValveGrant::reason`; 0 = none).
+pub fn refuse_reason_code(reason: &RefuseReason) -> u8 {
+    match reason {
+        RefuseReason::NotReady { .. } => 1,
+        RefuseReason::NoAppleAssigned => 2,
+        RefuseReason::NotAtApple { .. } => 3,
+        RefuseReason::ValveAlreadyOpen => 4,
+        RefuseReason::OtherArmAttempting => 5,
+        RefuseReason::OtherArmFailing => 6,
+        RefuseReason::VacuumHeldByOther { .. } => 7,
+        RefuseReason::OtherArmActive { .. } => 8,
+    }
+}
+
+/// The policy code of `VacuumState::policy` (0 baseline, 1 2023, 2 2024).
+pub fn policy_code(kind: PolicyKind) -> u8 {
+    match kind {
+        PolicyKind::Baseline => 0,
+        PolicyKind::V2023 => 1,
+        PolicyKind::V2024 => 2,
+    }
+}
+
+/// The attachment code of `VacuumState::arm_attachment` (0 closed, 1 open, 2 sealed; a latched
+/// failure is open and unsealed).
+pub fn attachment_code(state: AttachmentState) -> u8 {
+    match state {
+        AttachmentState::Closed => 0,
+        AttachmentState::Sealed => 2,
+        AttachmentState::OpenToAtmosphere
+        | AttachmentState::AttachFailed
+        | AttachmentState::Dropped => 1,
+    }
+}
+
+/// Settings of the node.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VacuumNodeConfig {
+    /// Coordination policy.
+    pub policy: PolicyKind,
+    /// Attachment inference thresholds.
+    pub pressure: PressureConfig,
+    /// Assignment and re-planning.
+    pub planner: PlannerConfig,
+    /// Arms that take part, indexed by [`ArmId::index`] (single-arm operation: `[true,
+    /// false]`). A disabled arm gets no apple and its valve stays closed.
+    pub arms_enabled: [bool; 2],
+    /// A dispatched target that its arm has not taken up after this long is given up as a
+    /// failed attempt, s (default 3 s: longer than the arm's 2 s target age limit, so the arm
+    /// has dropped it by then).
+    pub dispatch_timeout_s: f64,
+}
+
+impl Default for VacuumNodeConfig {
+    fn default() -> Self {
+        Self {
+            policy: PolicyKind::V2024,
+            pressure: PressureConfig::default(),
+            planner: PlannerConfig::default(),
+            arms_enabled: [true, true],
+            dispatch_timeout_s: 3.0,
+        }
+    }
+}
+
+/// Why a [`VacuumNode`] could not be built.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum VacuumNodeError {
+    /// Invalid pressure thresholds.
+    #[error("vacuum node: {0}")]
+    Pressure(#[from] PressureConfigError),
+    /// Invalid planner settings.
+    #[error("vacuum node: {0}")]
+    Planner(#[from] PlannerConfigError),
+    /// `dispatch_timeout_s` is not a positive number of seconds.
+    #[error("vacuum node config `dispatch_timeout_s` = {0}: must be finite and > 0")]
+    DispatchTimeout(f64),
+}
+
+/// One report of the valve board (the `ValveBoard::valve_states` and `pressures` of a tick).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BoardReadings {
+    /// When the board was read, ns.
+    pub stamp_ns: u64,
+    /// Position each valve 1-4 was last commanded to, as the board reports it.
+    pub valve_open: [bool; 4],
+    /// True while a gate has not reached that position yet.
+    pub valve_in_transit: [bool; 4],
+    /// Vacuum inside arm 1, inside arm 2 and at the source, mmH2O.
+    pub pressure_mmh2o: [f32; 3],
+}
+
+/// Reachability of an apple by an arm: `(arm, apple centre in the robot frame m, radius m)`.
+/// Supplied by the caller from the arm kinematics (inverse of eq. 1 within Table 1's limits).
+pub type Reachability = Box<dyn Fn(ArmId, &[f64; 3], f64) -> bool + Send>;
+
+/// One tick's inputs.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct VacuumNodeInput<'a> {
+    /// Now, ns (stack clock).
+    pub now_ns: u64,
+    /// Each arm's latest state, indexed by [`ArmId::index`].
+    pub arm_states: [Option<&'a ArmState>; 2],
+    /// Each arm's latest (standing) valve request.
+    pub valve_requests: [Option<&'a ValveRequest>; 2],
+    /// This tick's board readings, if read.
+    pub readings: Option<BoardReadings>,
+    /// A detection set received this tick.
+    pub detections: Option<&'a AppleDetections>,
+    /// True while the emergency stop is engaged.
+    pub emergency_stop: bool,
+}
+
+/// Why a valve was closed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ValveCloseCause {
+    /// The arm asked (release at the drop-off, or it gave up the attempt).
+    ArmRequest,
+    /// The policy ordered it.
+    Policy(CloseReason),
+    /// Emergency stop.
+    EmergencyStop,
+}
+
+/// Something the node did or saw this tick.
+#[derive(Debug, Clone, PartialEq)]
+pub enum VacuumNodeEvent {
+    /// A detection set re-planned the assignment.
+    Replanned {
+        /// What changed.
+        summary: ReplanSummary,
+        /// Queue lengths after it, per arm.
+        queued: [usize; 2],
+        /// Detections dropped for a non-finite position.
+        invalid: usize,
+    },
+    /// The planner refused a detection set (nothing changed).
+    ReplanFailed {
+        /// The planner's message.
+        message: String,
+    },
+    /// A target was published for an arm.
+    TargetDispatched {
+        /// The arm.
+        arm: ArmId,
+        /// The target.
+        target: ArmTarget,
+    },
+    /// The policy kept an idle arm with apples at the drop-off (reported once per reason).
+    ApproachRefused {
+        /// The arm.
+        arm: ArmId,
+        /// Why.
+        reason: RefuseReason,
+    },
+    /// The arm took up its target.
+    AttemptStarted {
+        /// The arm.
+        arm: ArmId,
+        /// The apple.
+        apple: AppleId,
+    },
+    /// The arm did not take up its target in time; counted as a failed attempt.
+    DispatchTimedOut {
+        /// The arm.
+        arm: ArmId,
+        /// The apple.
+        apple: AppleId,
+    },
+    /// An attempt ended (the arm is idle again).
+    AttemptFinished {
+        /// The arm.
+        arm: ArmId,
+        /// The apple.
+        apple: AppleId,
+        /// Harvested or failed.
+        result: AttemptResult,
+    },
+    /// An arm's valve was opened on its request.
+    ValveOpened {
+        /// The arm.
+        arm: ArmId,
+    },
+    /// An arm's open request was refused (reported once per request and reason).
+    ValveRefused {
+        /// The arm.
+        arm: ArmId,
+        /// Why (`None`: emergency stop or disabled arm).
+        reason: Option<RefuseReason>,
+    },
+    /// An arm's valve was closed.
+    ValveClosed {
+        /// The arm.
+        arm: ArmId,
+        /// Why.
+        cause: ValveCloseCause,
+    },
+    /// The attachment inference of an arm changed.
+    Attachment(AttachmentChange),
+    /// A pressure sample was refused (state unchanged).
+    SampleRefused(PressureSampleError),
+    /// The emergency stop was engaged (true) or released (false).
+    EmergencyStop {
+        /// New state.
+        engaged: bool,
+    },
+}
+
+/// One tick's outputs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VacuumNodeOutput {
+    /// Commanded position of valves 1-4 (true = open); apply the ones that changed.
+    pub valve_commands: [bool; 4],
+    /// True on the tick the emergency stop engaged: use the board's `close_all`.
+    pub close_all: bool,
+    /// Answers to publish on `vacuum/valve_grant`, per arm.
+    pub grants: [Option<ValveGrant>; 2],
+    /// Targets to publish on `arm1/target` / `arm2/target`.
+    pub targets: [Option<ArmTarget>; 2],
+    /// The state to publish on `vacuum/state`.
+    pub state: VacuumState,
+    /// What happened.
+    pub events: Vec<VacuumNodeEvent>,
+}
+
+/// A target handed to an arm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Dispatch {
+    apple: Apple,
+    at_ns: u64,
+    harvested_before: u32,
+}
+
+/// What the node tracks per arm.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct ArmTrack {
+    /// Commanded: source valve open (valve 1 or 3 open, 2 or 4 closed).
+    valve_open: bool,
+    /// Dispatched, not yet taken up.
+    dispatched: Option<Dispatch>,
+    /// Taken up, running.
+    active: Option<Dispatch>,
+    /// The valve was granted during the current attempt.
+    opened_in_cycle: bool,
+    /// Request sequence of the last open granted (never granted twice).
+    granted_seq: Option<u32>,
+    /// Last refusal reported: (request seq, code).
+    refused: Option<(u32, u8)>,
+    /// Standing open request first seen at, ns (oldest waiter served first).
+    open_request_since_ns: Option<(u32, u64)>,
+    /// Last approach refusal reported.
+    approach_refusal: Option<u8>,
+    /// Last dispatch time, ns (dispatch fairness).
+    last_dispatch_ns: u64,
+}
+
+/// The vacuum supervisor's logic; see the module documentation.
+pub struct VacuumNode {
+    config: VacuumNodeConfig,
+    policy: Box<dyn VacuumPolicy + Send + Sync>,
+    inference: AttachmentInference,
+    planner: AssignmentPlanner,
+    reachable: Reachability,
+    arms: [ArmTrack; 2],
+    /// Latest detection set: (centre, radius) and its capture time.
+    last_set: Vec<([f64; 3], f64)>,
+    last_set_capture_ns: u64,
+    scratch_positions: Vec<[f64; 3]>,
+    stopped: bool,
+    target_seq: u64,
+    state_seq: u64,
+    grant_seq: u64,
+    last_readings: Option<BoardReadings>,
+    output: VacuumNodeOutput,
+}
+
+impl std::fmt::Debug for VacuumNode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("VacuumNode")
+            .field("config", &self.config)
+            .field("arms", &self.arms)
+            .field("stopped", &self.stopped)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The policy's view of an arm's phase from its published state. A missing or stopped arm is
+/// treated as away from the drop-off (it may be anywhere).
+fn policy_phase(state: Option<&ArmState>, track: &ArmTrack) -> ArmPhase {
+    if track.dispatched.is_some() {
+        return ArmPhase::Approaching;
+    }
+    match state.and_then(|s| PhaseCode::from_code(s.phase)) {
+        Some(PhaseCode::Idle) => ArmPhase::Ready,
+        Some(PhaseCode::Approach) => ArmPhase::Approaching,
+        Some(PhaseCode::AttachDetach) if track.valve_open => ArmPhase::Attaching,
+        // Closed again after the valve was granted: the attempt is over, the arm returns.
+        Some(PhaseCode::AttachDetach) if track.opened_in_cycle => ArmPhase::Retracting,
+        Some(PhaseCode::AttachDetach) => ArmPhase::AtApple,
+        Some(PhaseCode::Retract) => ArmPhase::Retracting,
+        Some(PhaseCode::Release) => ArmPhase::Releasing,
+        Some(PhaseCode::Stopped) | None => ArmPhase::Approaching,
+    }
+}
+
+impl VacuumNode {
+    /// A node with both valves closed and nothing assigned. `reachable` tells whether an arm
+    /// can reach an apple (see [`Reachability`]).
+    pub fn new(config: VacuumNodeConfig, reachable: Reachability) -> Result<Self, VacuumNodeError> {
+        config.pressure.validate()?;
+        if !(config.dispatch_timeout_s.is_finite() && config.dispatch_timeout_s > 0.0) {
+            return Err(VacuumNodeError::DispatchTimeout(config.dispatch_timeout_s));
+        }
+        let planner = AssignmentPlanner::new(config.planner)?;
+        Ok(Self {
+            policy: new_policy(config.policy),
+            inference: AttachmentInference::new(config.pressure),
+            planner,
+            reachable,
+            arms: [ArmTrack::default(); 2],
+            last_set: Vec::new(),
+            last_set_capture_ns: 0,
+            scratch_positions: Vec::new(),
+            stopped: false,
+            target_seq: 0,
+            state_seq: 0,
+            grant_seq: 0,
+            last_readings: None,
+            output: VacuumNodeOutput {
+                valve_commands: [false, true, false, true],
+                close_all: false,
+                grants: [None; 2],
+                targets: [None; 2],
+                state: VacuumState::default(),
+                events: Vec::with_capacity(8),
+            },
+            config,
+        })
+    }
+
+    /// The node's settings.
+    pub fn config(&self) -> &VacuumNodeConfig {
+        &self.config
+    }
+
+    /// The assignment planner (queues, attempts).
+    pub fn planner(&self) -> &AssignmentPlanner {
+        &self.planner
+    }
+
+    /// The inferred attachment of `arm`.
+    pub fn attachment(&self, arm: ArmId) -> AttachmentState {
+        self.inference.state(arm)
+    }
+
+    /// True when nothing is assigned, dispatched or running: no further target will be
+    /// dispatched until a detection set brings new apples.
+    pub fn is_idle(&self) -> bool {
+        ArmId::ALL.iter().all(|&arm| {
+            let track = &self.arms[arm.index()];
+            track.dispatched.is_none()
+                && track.active.is_none()
+                && self.planner.in_progress(arm).is_none()
+                && (!self.config.arms_enabled[arm.index()] || self.planner.queue(arm).is_empty())
+        })
+    }
+
+    /// One tick; see the module documentation. The outputs stay valid until the next call.
+    pub fn step(&mut self, input: &VacuumNodeInput<'_>) -> &VacuumNodeOutput {
+        self.output.events.clear();
+        self.output.grants = [None; 2];
+        self.output.targets = [None; 2];
+        self.output.close_all = false;
+        let now_ns = input.now_ns;
+        if let Some(readings) = input.readings {
+            self.infer(&readings);
+            self.last_readings = Some(readings);
+        }
+        if let Some(set) = input.detections {
+            self.replan(set);
+        }
+        self.track_attempts(input, now_ns);
+        if input.emergency_stop {
+            self.emergency_stop();
+        } else {
+            if self.stopped {
+                self.stopped = false;
+                info!("emergency stop released: vacuum supervisor resumes");
+                self.output
+                    .events
+                    .push(VacuumNodeEvent::EmergencyStop { engaged: false });
+            }
+            self.supervise(input);
+            self.answer_requests(input, now_ns);
+            self.supervise(input);
+            self.dispatch(input, now_ns);
+        }
+        self.output.valve_commands = [
+            self.arms[0].valve_open,
+            !self.arms[0].valve_open && !self.stopped,
+            self.arms[1].valve_open,
+            !self.arms[1].valve_open && !self.stopped,
+        ];
+        self.fill_state(now_ns);
+        &self.output
+    }
+
+    /// Step 1: the pressure sample through the inference.
+    fn infer(&mut self, readings: &BoardReadings) {
+        let settled_open = ArmId::ALL.map(|arm| {
+            let inlet = 2 * arm.index();
+            let vent = inlet + 1;
+            self.arms[arm.index()].valve_open
+                && readings.valve_open[inlet]
+                && !readings.valve_in_transit[inlet]
+                && !readings.valve_open[vent]
+                && !readings.valve_in_transit[vent]
+        });
+        let sample = PressureSample {
+            stamp_ns: readings.stamp_ns,
+            arm_vacuum_mmh2o: [readings.pressure_mmh2o[0], readings.pressure_mmh2o[1]],
+            source_vacuum_mmh2o: readings.pressure_mmh2o[2],
+        };
+        match self.inference.update(&sample, settled_open) {
+            Ok(changes) => {
+                for change in changes.into_iter().flatten() {
+                    self.output
+                        .events
+                        .push(VacuumNodeEvent::Attachment(change));
+                }
+            }
+            Err(error) => {
+                warn!(%error, "pressure sample refused");
+                self.output
+                    .events
+                    .push(VacuumNodeEvent::SampleRefused(error));
+            }
+        }
+    }
+
+    /// Step 2: a new detection set.
+    fn replan(&mut self, set: &AppleDetections) {
+        self.last_set.clear();
+        self.scratch_positions.clear();
+        let mut invalid = 0;
+        for d in set.apples.iter() {
+            let p = d.position_in_robot_m;
+            if p.iter().all(|c| c.is_finite()) {
+                let radius = if d.radius_m.is_finite() && d.radius_m > 0.0 {
+                    d.radius_m
+                } else {
+                    FALLBACK_RADIUS_M
+                };
+                self.last_set.push((p, radius));
+                self.scratch_positions.push(p);
+            } else {
+                invalid += 1;
+            }
+        }
+        self.last_set_capture_ns = set.source_capture_ns;
+        let enabled = self.config.arms_enabled;
+        let last_set = &self.last_set;
+        let reachable = &self.reachable;
+        let result = self.planner.replan(&self.scratch_positions, |arm, p| {
+            let radius = last_set
+                .iter()
+                .find(|(q, _)| q == p)
+                .map_or(FALLBACK_RADIUS_M, |(_, r)| *r);
+            enabled[arm.index()] && reachable(arm, p, radius)
+        });
+        match result {
+            Ok(summary) => {
+                let queued = ArmId::ALL.map(|arm| self.planner.queue(arm).len());
+                trace!(?summary, ?queued, "re-planned");
+                self.output.events.push(VacuumNodeEvent::Replanned {
+                    summary,
+                    queued,
+                    invalid,
+                });
+            }
+            Err(error) => {
+                warn!(%error, "detection set refused by the planner");
+                self.output.events.push(VacuumNodeEvent::ReplanFailed {
+                    message: error.to_string(),
+                });
+            }
+        }
+    }
+
+    /// Step 3: follow each arm's attempt from its published state.
+    fn track_attempts(&mut self, input: &VacuumNodeInput<'_>, now_ns: u64) {
+        let timeout_ns = (self.config.dispatch_timeout_s * 1e9) as u64;
+        for arm in ArmId::ALL {
+            let i = arm.index();
+            let state = input.arm_states[i];
+            let phase = state.and_then(|s| PhaseCode::from_code(s.phase));
+            if matches!(phase, Some(PhaseCode::Idle | PhaseCode::Approach)) {
+                self.arms[i].opened_in_cycle = false;
+            }
+            if let Some(d) = self.arms[i].dispatched {
+                let taken = state.is_some_and(|s| {
+                    s.apple_id == d.apple.id.0 && phase.is_some_and(|p| p != PhaseCode::Idle)
+                });
+                if taken {
+                    self.arms[i].dispatched = None;
+                    self.arms[i].active = Some(d);
+                    debug!(%arm, apple = d.apple.id.0, "attempt started");
+                    self.output.events.push(VacuumNodeEvent::AttemptStarted {
+                        arm,
+                        apple: d.apple.id,
+                    });
+                } else if now_ns.saturating_sub(d.at_ns) > timeout_ns {
+                    self.arms[i].dispatched = None;
+                    self.planner.finish(arm, AttemptResult::Failed);
+                    warn!(%arm, apple = d.apple.id.0, "target not taken up: given up");
+                    self.output.events.push(VacuumNodeEvent::DispatchTimedOut {
+                        arm,
+                        apple: d.apple.id,
+                    });
+                }
+            }
+            if let Some(d) = self.arms[i].active {
+                let over = state.is_none_or(|s| {
+                    s.apple_id != d.apple.id.0 || phase == Some(PhaseCode::Idle)
+                });
+                if over {
+                    let harvested =
+                        state.is_some_and(|s| s.harvested_count > d.harvested_before);
+                    let result = if harvested {
+                        AttemptResult::Harvested
+                    } else {
+                        AttemptResult::Failed
+                    };
+                    self.arms[i].active = None;
+                    self.planner.finish(arm, result);
+                    debug!(%arm, apple = d.apple.id.0, ?result, "attempt finished");
+                    self.output.events.push(VacuumNodeEvent::AttemptFinished {
+                        arm,
+                        apple: d.apple.id,
+                        result,
+                    });
+                }
+            }
+        }
+    }
+
+    fn emergency_stop(&mut self) {
+        if !self.stopped {
+            self.stopped = true;
+            self.output.close_all = true;
+            warn!("emergency stop: closing every valve");
+            self.output
+                .events
+                .push(VacuumNodeEvent::EmergencyStop { engaged: true });
+            for arm in ArmId::ALL {
+                let track = &mut self.arms[arm.index()];
+                if track.valve_open {
+                    track.valve_open = false;
+                    self.output.events.push(VacuumNodeEvent::ValveClosed {
+                        arm,
+                        cause: ValveCloseCause::EmergencyStop,
+                    });
+                }
+                let apple = track.dispatched.take().or(track.active.take());
+                if let Some(d) = apple {
+                    self.planner.finish(arm, AttemptResult::Failed);
+                    self.output.events.push(VacuumNodeEvent::AttemptFinished {
+                        arm,
+                        apple: d.apple.id,
+                        result: AttemptResult::Failed,
+                    });
+                }
+            }
+        }
+    }
+
+    fn pair(&self, input: &VacuumNodeInput<'_>) -> PairStatus {
+        PairStatus(ArmId::ALL.map(|arm| {
+            let i = arm.index();
+            let track = &self.arms[i];
+            ArmStatus {
+                phase: policy_phase(input.arm_states[i], track),
+                valve_open: track.valve_open,
+                attachment: self.inference.state(arm),
+                apple_assigned: self.config.arms_enabled[i]
+                    && (track.dispatched.is_some() || !self.planner.queue(arm).is_empty()),
+            }
+        }))
+    }
+
+    /// Steps 4 and 6: the policy's force-closes.
+    fn supervise(&mut self, input: &VacuumNodeInput<'_>) {
+        let orders = self.policy.supervise(&self.pair(input));
+        for arm in ArmId::ALL {
+            if let ValveOrder::ForceClose(reason) = orders[arm.index()]
+                && self.arms[arm.index()].valve_open
+            {
+                self.arms[arm.index()].valve_open = false;
+                debug!(%arm, %reason, "valve force-closed by the policy");
+                self.output.events.push(VacuumNodeEvent::ValveClosed {
+                    arm,
+                    cause: ValveCloseCause::Policy(reason),
+                });
+            }
+        }
+    }
+
+    /// Step 5: the arms' standing valve requests.
+    fn answer_requests(&mut self, input: &VacuumNodeInput<'_>, now_ns: u64) {
+        let mut order = ArmId::ALL;
+        for arm in ArmId::ALL {
+            let track = &mut self.arms[arm.index()];
+            match input.valve_requests[arm.index()] {
+                Some(r) if r.kind == ValveRequestKind::OpenForAttach as u8 => {
+                    if track.open_request_since_ns.map(|(seq, _)| seq) != Some(r.request_seq) {
+                        track.open_request_since_ns = Some((r.request_seq, now_ns));
+                    }
+                }
+                _ => track.open_request_since_ns = None,
+            }
+        }
+        let since = |track: &ArmTrack| track.open_request_since_ns.map_or(u64::MAX, |(_, t)| t);
+        if since(&self.arms[1]) < since(&self.arms[0]) {
+            order = [ArmId::Arm2, ArmId::Arm1];
+        }
+        for arm in order {
+            let i = arm.index();
+            let Some(request) = input.valve_requests[i] else {
+                continue;
+            };
+            if request.arm_id != arm.index() as u8 + 1 {
+                continue;
+            }
+            match ValveRequestKind::from_code(request.kind) {
+                Some(ValveRequestKind::Close) | None => {
+                    if self.arms[i].valve_open {
+                        self.arms[i].valve_open = false;
+                        debug!(%arm, "valve closed on the arm's request");
+                        self.output.events.push(VacuumNodeEvent::ValveClosed {
+                            arm,
+                            cause: ValveCloseCause::ArmRequest,
+                        });
+                    }
+                }
+                Some(ValveRequestKind::OpenForAttach) => self.answer_open(input, arm, request),
+            }
+        }
+    }
+
+    fn answer_open(&mut self, input: &VacuumNodeInput<'_>, arm: ArmId, request: &ValveRequest) {
+        let i = arm.index();
+        let track = self.arms[i];
+        if track.valve_open || track.granted_seq == Some(request.request_seq) {
+            return;
+        }
+        let (code, reason) = if !self.config.arms_enabled[i] {
+            (REFUSED_ARM_DISABLED, None)
+        } else {
+            match self.policy.decide(arm, Request::OpenValve, &self.pair(input)) {
+                Decision::Grant => {
+                    let track = &mut self.arms[i];
+                    track.valve_open = true;
+                    track.opened_in_cycle = true;
+                    track.granted_seq = Some(request.request_seq);
+                    track.refused = None;
+                    debug!(%arm, request_seq = request.request_seq, "valve opened");
+                    self.output
+                        .events
+                        .push(VacuumNodeEvent::ValveOpened { arm });
+                    self.output.grants[i] = Some(self.grant(input.now_ns, arm, request, 0));
+                    return;
+                }
+                Decision::Refuse(reason) => (refuse_reason_code(&reason), Some(reason)),
+            }
+        };
+        if self.arms[i].refused != Some((request.request_seq, code)) {
+            self.arms[i].refused = Some((request.request_seq, code));
+            debug!(%arm, code, ?reason, "valve request refused");
+            self.output
+                .events
+                .push(VacuumNodeEvent::ValveRefused { arm, reason });
+            self.output.grants[i] = Some(self.grant(input.now_ns, arm, request, code));
+        }
+    }
+
+    fn grant(&mut self, now_ns: u64, arm: ArmId, request: &ValveRequest, code: u8) -> ValveGrant {
+        self.grant_seq += 1;
+        ValveGrant {
+            header: Header {
+                msg_seq: self.grant_seq,
+                capture_ns: now_ns,
+                publish_ns: 0,
+            },
+            arm_id: arm.index() as u8 + 1,
+            granted: u8::from(code == 0),
+            reason: code,
+            _reserved: 0,
+            request_seq: request.request_seq,
+        }
+    }
+
+    /// Step 7: at most one target per tick, to the idle arm that got one least recently.
+    fn dispatch(&mut self, input: &VacuumNodeInput<'_>, now_ns: u64) {
+        let mut order = ArmId::ALL;
+        if self.arms[1].last_dispatch_ns < self.arms[0].last_dispatch_ns {
+            order = [ArmId::Arm2, ArmId::Arm1];
+        }
+        for arm in order {
+            let i = arm.index();
+            let Some(state) = input.arm_states[i] else {
+                continue;
+            };
+            let track = self.arms[i];
+            let idle = state.phase == PhaseCode::Idle as u8
+                && track.dispatched.is_none()
+                && track.active.is_none()
+                && self.planner.in_progress(arm).is_none();
+            if !self.config.arms_enabled[i] || !idle || self.planner.queue(arm).is_empty() {
+                continue;
+            }
+            match self
+                .policy
+                .decide(arm, Request::StartApproach, &self.pair(input))
+            {
+                Decision::Grant => {
+                    let Some(apple) = self.planner.start_next(arm) else {
+                        continue;
+                    };
+                    let radius_m = self
+                        .last_set
+                        .iter()
+                        .find(|(p, _)| *p == apple.position_m)
+                        .map_or(FALLBACK_RADIUS_M, |(_, r)| *r);
+                    self.target_seq += 1;
+                    let target = ArmTarget {
+                        header: Header {
+                            msg_seq: self.target_seq,
+                            capture_ns: now_ns,
+                            publish_ns: 0,
+                        },
+                        arm_id: i as u8 + 1,
+                        _reserved: [0; 3],
+                        apple_id: apple.id.0,
+                        position_in_robot_m: apple.position_m,
+                        radius_m,
+                        source_capture_ns: self.last_set_capture_ns,
+                    };
+                    let track = &mut self.arms[i];
+                    track.dispatched = Some(Dispatch {
+                        apple,
+                        at_ns: now_ns,
+                        harvested_before: state.harvested_count,
+                    });
+                    track.last_dispatch_ns = now_ns;
+                    track.approach_refusal = None;
+                    debug!(%arm, apple = apple.id.0, position_m = ?apple.position_m,
+                        "target dispatched");
+                    self.output.targets[i] = Some(target);
+                    self.output
+                        .events
+                        .push(VacuumNodeEvent::TargetDispatched { arm, target });
+                    return;
+                }
+                Decision::Refuse(reason) => {
+                    let code = refuse_reason_code(&reason);
+                    if self.arms[i].approach_refusal != Some(code) {
+                        self.arms[i].approach_refusal = Some(code);
+                        self.output
+                            .events
+                            .push(VacuumNodeEvent::ApproachRefused { arm, reason });
+                    }
+                }
+            }
+        }
+    }
+
+    fn fill_state(&mut self, now_ns: u64) {
+        self.state_seq += 1;
+        let readings = self.last_readings.unwrap_or_default();
+        self.output.state = VacuumState {
+            header: Header {
+                msg_seq: self.state_seq,
+                capture_ns: if self.last_readings.is_some() {
+                    readings.stamp_ns
+                } else {
+                    now_ns
+                },
+                publish_ns: 0,
+            },
+            valve_open: readings.valve_open.map(u8::from),
+            valve_in_transit: readings.valve_in_transit.map(u8::from),
+            pressure_mmh2o: readings.pressure_mmh2o,
+            arm_attachment: ArmId::ALL.map(|arm| attachment_code(self.inference.state(arm))),
+            policy: policy_code(self.config.policy),
+            _reserved: 0,
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests;
