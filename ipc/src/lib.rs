@@ -14,6 +14,7 @@ pub mod clock;
 pub mod codec;
 pub mod context;
 pub mod domain;
+pub mod duration;
 pub mod error;
 pub mod fixed_string;
 pub mod header;

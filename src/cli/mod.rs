@@ -1,6 +1,5 @@
 //! The `harvest` command line.
 
-mod duration;
 mod fixture;
 pub mod logging;
 
@@ -33,7 +32,7 @@ enum Command {
         #[arg(long)]
         launch: Option<PathBuf>,
         /// Stop by itself after this long (e.g. 10s, 2m).
-        #[arg(long, value_parser = duration::parse_duration)]
+        #[arg(long, value_parser = harvest_ipc::duration::parse_duration)]
         duration: Option<Duration>,
     },
     /// Simulated robot: the orchard world serving the hardware channels.

@@ -161,29 +161,7 @@ impl BenchPeerArgs {
     }
 }
 
-/// Parses `10s`, `500ms`, `2m`, `1.5s` or plain seconds.
-pub fn parse_duration(text: &str) -> Result<Duration, String> {
-    let text = text.trim();
-    let (number, scale_s) = if let Some(n) = text.strip_suffix("ms") {
-        (n, 1e-3)
-    } else if let Some(n) = text.strip_suffix('s') {
-        (n, 1.0)
-    } else if let Some(n) = text.strip_suffix('m') {
-        (n, 60.0)
-    } else {
-        (text, 1.0)
-    };
-    let value: f64 = number
-        .trim()
-        .parse()
-        .map_err(|_| format!("invalid duration {text:?}: use e.g. 2s, 500ms, 1m"))?;
-    if !value.is_finite() || value < 0.0 {
-        return Err(format!(
-            "invalid duration {text:?}: must be a non-negative number"
-        ));
-    }
-    Ok(Duration::from_secs_f64(value * scale_s))
-}
+pub use harvest_ipc::duration::parse_duration;
 
 /// Resolved settings of a run.
 #[derive(Debug, Clone, Serialize)]
@@ -351,9 +329,6 @@ mod tests {
 
     #[test]
     fn durations_parse_like_the_rest_of_the_cli() {
-        assert_eq!(parse_duration("250ms"), Ok(Duration::from_millis(250)));
-        assert_eq!(parse_duration("2"), Ok(Duration::from_secs(2)));
-        assert!(parse_duration("soon").is_err());
     }
 
     #[test]

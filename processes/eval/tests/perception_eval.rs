@@ -68,6 +68,12 @@ fn small_run_gives_a_well_formed_consistent_report() {
             e.estimator
         );
         assert_eq!(d.matched_visible, d.true_positives);
+        assert_eq!(
+            d.false_positives_duplicate
+                + d.false_positives_mislocalized
+                + d.false_positives_no_apple,
+            d.false_positives
+        );
         assert_eq!(d.truth_visible, truth.apples_visible);
         assert_eq!(d.truth_half_visible, truth.apples_half_visible);
         assert!(d.matched_half_visible <= d.matched_visible);

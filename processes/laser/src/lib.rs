@@ -13,6 +13,7 @@ pub mod calibration;
 pub mod candidate;
 pub mod cli;
 pub mod extraction;
+pub mod fusion;
 pub mod observed_unit;
 pub mod process;
 pub mod refinement;
@@ -25,7 +26,7 @@ pub use accuracy::{AccuracyConfig, AccuracyReport, evaluate_localization_accurac
 pub use candidate::{CandidateConfig, PositionCandidate, TargetHint};
 pub use cli::{CalibrateLaserArgs, CalibrateLaserError, run_calibrate_laser};
 pub use extraction::{ExtractionConfig, LaserLineExtractor, PixelRoi, StripePoint};
-pub use process::{LaserArgs, LaserProcessError, run};
+pub use process::{LaserArgs, LaserProcessError};
 pub use refinement::{EvalLaserArgs, EvalLaserError, RefinementReport, evaluate_refinement, run_eval_laser};
 pub use scan::{
     ProcessorConfig, ScanConfig, ScanError, ScanPlan, ScanPlanner, ScanProcessor, ScanResult,

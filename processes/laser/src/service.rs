@@ -4,6 +4,11 @@
 //! [`AlacsUnit`], and the refined centre and every candidate are written back into a
 //! [`LaserScanResult`] in the ToF colour-camera frame, the frame the request used.
 //!
+//! The refined centre is the sphere all the scan's stripe circles agree on ([`crate::fusion`])
+//! when at least three images gave consistent circles, else the selected candidate
+//! ([`crate::selection`]). A single candidate depends on the request's apple radius, which the
+//! ToF camera measures only to a few millimetres; the fused sphere measures the radius itself.
+//!
 //! Transport-free: the laser process calls it with the driver of the simulated device, and
 //! `harvest eval laser` with an in-process device.
 //!
@@ -18,7 +23,9 @@ use harvest_ipc::payloads::laser_scan::MAX_SCAN_CANDIDATES;
 use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
 
 use crate::candidate::TargetHint;
+use crate::candidate::PositionCandidate;
 use crate::extraction::{ExtractionError, PixelRoi};
+use crate::fusion::{FusedSphere, FusionConfig, fuse_slices};
 use crate::observed_unit::{ObservedUnit, ScanMotion};
 use crate::scan::{
     ProcessorConfig, ScanConfig, ScanError, ScanPlanError, ScanPlanner, ScanProcessor, ScanResult,
@@ -76,6 +83,9 @@ pub struct ScanService {
     rgb: Vec<u8>,
     motion: ScanMotion,
     slide_position_m: Option<f64>,
+    fusion: FusionConfig,
+    valid: Vec<PositionCandidate>,
+    fused: Option<FusedSphere>,
 }
 
 impl ScanService {
@@ -98,11 +108,19 @@ impl ScanService {
             rgb: Vec::new(),
             motion: ScanMotion::default(),
             slide_position_m: None,
+            fusion: FusionConfig::default(),
+            valid: Vec::new(),
+            fused: None,
         })
     }
 
     pub fn alacs_from_tof(&self) -> &RigidTransform {
         &self.alacs_from_tof
+    }
+
+    /// The sphere the last scan's circles agreed on, if they did.
+    pub fn last_fusion(&self) -> Option<&FusedSphere> {
+        self.fused.as_ref()
     }
 
     /// What the device did during the last scan.
@@ -149,9 +167,11 @@ impl ScanService {
     /// the selected image (else of the last image, else 0), positions are in the ToF
     /// colour-camera frame, `candidates_in_camera_m[..candidate_count]` are the images that gave
     /// a candidate in scan order with their predicted standard error (m, smaller is better) as
-    /// score, `selected` indexes them, and `position_in_camera_m` is the refined centre when
-    /// `status` is 0, else the request's rough position. `before_step` runs before every
-    /// device operation (heartbeats).
+    /// score, `selected` indexes the one the selection picked, and `position_in_camera_m` is the
+    /// refined centre when `status` is 0 (the fused sphere, else the selected candidate; the
+    /// returned [`ScanResult::centre_in_camera_m`] holds the same in the ALACS frame), else the
+    /// request's rough position. `before_step` runs before every device operation
+    /// (heartbeats).
     pub fn answer<U: AlacsUnit>(
         &mut self,
         unit: &mut U,
@@ -160,6 +180,8 @@ impl ScanService {
         before_step: &mut dyn FnMut(),
     ) -> Result<ScanResult, ScanRequestError<U::Error>> {
         let started = Instant::now();
+        self.motion.clear();
+        self.fused = None;
         let rough_in_alacs = self.alacs_from_tof.apply(request.rough_position_in_camera_m);
         let outcome = match self.hint(rough_in_alacs, request.rough_radius_m) {
             None => Err(ScanRequestError::NotInView {
@@ -180,7 +202,16 @@ impl ScanService {
                     &mut self.rgb,
                 );
                 self.slide_position_m = observed.slide_position_m();
-                result.map_err(ScanRequestError::from)
+                result.map_err(ScanRequestError::from).map(|mut result| {
+                    self.valid.clear();
+                    self.valid
+                        .extend(result.candidates.iter().filter_map(|c| c.as_ref().ok()));
+                    self.fused = fuse_slices(&self.valid, &self.planner.extrinsics, &self.fusion);
+                    if let Some(fused) = &self.fused {
+                        result.centre_in_camera_m = fused.centre_in_camera_m;
+                    }
+                    result
+                })
             }
         };
         self.write_result(request, &outcome, out);
@@ -303,9 +334,13 @@ mod tests {
             .sum::<f64>()
             .sqrt();
         assert!(error_m < 3e-3, "{error_m} m: {out:?}");
-        let selected = out.candidates_in_camera_m[usize::from(out.selected)];
-        assert_eq!(selected, out.position_in_camera_m);
-        assert_eq!(result.centre_in_camera_m, ALACS_FROM_TOF_CAMERA.apply(selected));
+        // Five clean circles: the fused sphere is the answer, and it measured the radius.
+        let fused = *service.last_fusion().expect("fused");
+        assert_eq!(fused.slices_used, 5);
+        assert!((fused.radius_m - 0.04).abs() < 1e-3, "{fused:?}");
+        let round_trip = ALACS_FROM_TOF_CAMERA.apply(out.position_in_camera_m);
+        assert!((0..3).all(|k| (round_trip[k] - result.centre_in_camera_m[k]).abs() < 1e-12));
+        assert_eq!(result.centre_in_camera_m, fused.centre_in_camera_m);
         // laser on + 5 x (move + capture) + laser off.
         assert_eq!(steps, 12);
         let motion = service.last_motion();

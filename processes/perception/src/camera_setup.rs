@@ -19,8 +19,8 @@ pub struct CameraSetup {
 /// A camera rig parameter that cannot be used.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum CameraSetupError {
-    /// Intrinsics with zero size, a non-positive or non-finite focal length, or a non-finite
-    /// principal point or distortion coefficient.
+    /// Intrinsics with zero or absurd size (over 64 Mpx), a non-positive or non-finite focal
+    /// length, or a non-finite principal point or distortion coefficient.
     #[error(
         "{camera} camera intrinsics are invalid: {width_px}x{height_px} px, fx={fx_px}, fy={fy_px}, cx={cx_px}, cy={cy_px}, distortion={distortion:?}"
     )]
@@ -70,9 +70,13 @@ impl CameraSetup {
     }
 }
 
+/// Largest accepted image (per-pixel tables are allocated from the intrinsics): 64 Mpx.
+const MAX_IMAGE_PIXELS: u64 = 1 << 26;
+
 fn check_intrinsics(camera: &'static str, k: &CameraIntrinsics) -> Result<(), CameraSetupError> {
     let valid = k.width_px > 0
         && k.height_px > 0
+        && u64::from(k.width_px) * u64::from(k.height_px) <= MAX_IMAGE_PIXELS
         && k.fx_px.is_finite()
         && k.fy_px.is_finite()
         && k.fx_px > 0.0
@@ -134,6 +138,17 @@ mod tests {
             nan_intrinsics.validate(),
             Err(CameraSetupError::InvalidIntrinsics {
                 camera: "depth",
+                ..
+            })
+        ));
+
+        let mut huge = setup;
+        huge.color.width_px = 100_000;
+        huge.color.height_px = 100_000;
+        assert!(matches!(
+            huge.validate(),
+            Err(CameraSetupError::InvalidIntrinsics {
+                camera: "colour",
                 ..
             })
         ));

@@ -284,23 +284,81 @@ impl std::fmt::Display for RecordingInfo {
         if !self.metadata.is_empty() {
             writeln!(f, "metadata:")?;
             for record in &self.metadata {
-                let keys: Vec<&str> = record.metadata.keys().map(String::as_str).collect();
-                let shown =
-                    if record.name == metadata::RECORDING || record.name == metadata::SCENARIO {
-                        let mut entries: Vec<String> = record
-                            .metadata
-                            .iter()
-                            .filter(|(key, _)| key.as_str() != "text" && key.as_str() != "topics")
-                            .map(|(key, value)| format!("{key}={value}"))
-                            .collect();
-                        entries.truncate(12);
-                        entries.join(", ")
-                    } else {
-                        keys.join(", ")
-                    };
-                writeln!(f, "  {}: {shown}", record.name)?;
+                writeln!(f, "  {}: {}", record.name, describe_metadata(record))?;
             }
         }
         Ok(())
+    }
+}
+
+/// One line summarizing a metadata record for `rec info`.
+fn describe_metadata(record: &Metadata) -> String {
+    let entries = &record.metadata;
+    let pick = |keys: &[&str]| -> String {
+        keys.iter()
+            .filter_map(|key| {
+                entries
+                    .get(*key)
+                    .filter(|value| !value.is_empty())
+                    .map(|value| format!("{key}={value}"))
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match record.name.as_str() {
+        metadata::RECORDING => pick(&[
+            "domain",
+            "recorder",
+            "host",
+            "segment",
+            "session_started_utc",
+            "compression",
+            "compression_level",
+            "layers",
+            "include",
+            "exclude",
+        ]),
+        metadata::CLOCK => pick(&["realtime_utc", "monotonic_ns"]),
+        metadata::DROPS => {
+            let mut lines = Vec::new();
+            let mut total = 0u64;
+            for (key, value) in entries {
+                let count: u64 = value.parse().unwrap_or(0);
+                if count > 0
+                    && (key.ends_with(".dropped_buffer") || key.ends_with(".dropped_queue"))
+                {
+                    total += count;
+                    lines.push(format!("{key}={count}"));
+                }
+                if key.ends_with(".not_recorded") {
+                    lines.push(format!("{key}: {value}"));
+                }
+            }
+            if lines.is_empty() {
+                "no message dropped".to_owned()
+            } else {
+                format!("{total} dropped: {}", lines.join(", "))
+            }
+        }
+        metadata::LAUNCH | metadata::CALIBRATION => {
+            let lines = entries
+                .get("text")
+                .map(|text| text.lines().count())
+                .unwrap_or(0);
+            format!("{} ({lines} line(s))", pick(&["path", "error"]))
+        }
+        metadata::SCENARIO => pick(&["scenario", "error"]),
+        _ => entries
+            .iter()
+            .map(|(key, value)| {
+                let mut value = value.clone();
+                if value.len() > 40 {
+                    value.truncate(value.floor_char_boundary(40));
+                    value.push_str("...");
+                }
+                format!("{key}={value}")
+            })
+            .collect::<Vec<_>>()
+            .join(", "),
     }
 }

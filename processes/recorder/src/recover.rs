@@ -71,7 +71,7 @@ impl std::fmt::Display for RecoverReport {
             writeln!(
                 f,
                 "  time span kept: {:.3} s (log_time {first} .. {last} ns)",
-                (last - first) as f64 * 1e-9
+                last.saturating_sub(first) as f64 * 1e-9
             )?;
         }
         for (topic, count) in &self.messages_per_topic {

@@ -358,9 +358,11 @@ pub fn run_replay_with(
                 break 'passes;
             }
         }
-        report.recorded_span_ns = report
-            .recorded_span_ns
-            .max(first_ns.map(|first| last_ns - first).unwrap_or(0));
+        report.recorded_span_ns = report.recorded_span_ns.max(
+            first_ns
+                .map(|first| last_ns.saturating_sub(first))
+                .unwrap_or(0),
+        );
         if !args.loop_playback || first_ns.is_none() {
             break;
         }
@@ -434,7 +436,8 @@ impl ReplayClock {
     /// Waits until the message at `offset_ns` (recorded time since the pass's first message) is
     /// due. `None`: publish it now; `Some(end)`: stop the replay.
     fn wait_for(&mut self, offset_ns: u64) -> Option<ReplayEnd> {
-        let offset = Duration::from_secs_f64(offset_ns as f64 * 1e-9 / self.rate);
+        let offset = Duration::try_from_secs_f64(offset_ns as f64 * 1e-9 / self.rate)
+            .unwrap_or(Duration::MAX);
         loop {
             if harvest_ipc::termination::requested() {
                 return Some(ReplayEnd::Signal);
@@ -462,11 +465,14 @@ impl ReplayClock {
                 continue;
             }
             let now = Instant::now();
-            let due = self.origin + offset;
+            // A due time beyond what Instant can hold (absurd stamps) waits in MAX_SLEEP steps.
             let wait = if self.fast {
                 Duration::ZERO
             } else {
-                due.saturating_duration_since(now)
+                match self.origin.checked_add(offset) {
+                    Some(due) => due.saturating_duration_since(now),
+                    None => MAX_SLEEP,
+                }
             };
             let key = match &self.keyboard {
                 Some(keyboard) if !wait.is_zero() => keyboard.next_key(wait.min(MAX_SLEEP)),

@@ -12,9 +12,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Chunk compression of a recording.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ChunkCompression {
-    /// zstd (default level 1: about LZ4's speed with a better ratio on sensor data).
+    /// zstd (level 1 by default): smaller files, slower than LZ4.
     Zstd,
-    /// LZ4 frame (fastest).
+    /// LZ4 frame: the fastest, the recorder's default.
     Lz4,
     /// Uncompressed chunks.
     None,

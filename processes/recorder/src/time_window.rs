@@ -10,7 +10,10 @@ use std::time::Duration;
 /// else from the first chunk or message in the file. `None` for a recording without messages.
 pub fn recording_start_ns(path: &Path) -> Result<Option<u64>, ReadError> {
     if let Ok(Some(summary)) = read_summary(path)
-        && let Some(stats) = summary.stats.as_ref().filter(|stats| stats.message_count > 0)
+        && let Some(stats) = summary
+            .stats
+            .as_ref()
+            .filter(|stats| stats.message_count > 0)
     {
         return Ok(Some(stats.message_start_time));
     }

@@ -10,6 +10,7 @@ mod common;
 use common::*;
 use harvest_ipc::payloads::ArmState;
 use harvest_ipc::{Context, Domain, Payload};
+use harvest_recorder::rec_cat::{CatOptions, cat};
 use harvest_recorder::rec_info::info;
 use harvest_recorder::recover::{RecoverError, recover};
 use harvest_recorder::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
@@ -28,14 +29,19 @@ const CHILD_DOMAIN_ENV: &str = "HARVEST_RECORDER_TEST_CHILD_DOMAIN";
 #[test]
 #[ignore = "child process of the crash tests"]
 fn recorder_child() {
-    let (Ok(dir), Ok(domain)) = (std::env::var(CHILD_DIR_ENV), std::env::var(CHILD_DOMAIN_ENV)) else {
+    let (Ok(dir), Ok(domain)) = (
+        std::env::var(CHILD_DIR_ENV),
+        std::env::var(CHILD_DOMAIN_ENV),
+    ) else {
         return;
     };
     let domain = Domain::new(&domain).expect("domain");
     let mut args = test_args(Path::new(&dir));
     args.include = vec!["arm1/state".into()];
     args.chunk_interval = Duration::from_millis(50);
-    let control = Arc::new(harvest_recorder::RecorderControl::new(Duration::from_millis(20)));
+    let control = Arc::new(harvest_recorder::RecorderControl::new(
+        Duration::from_millis(20),
+    ));
     let watcher_control = control.clone();
     std::thread::spawn(move || {
         while !watcher_control.ready.load(Ordering::SeqCst) {
@@ -43,14 +49,21 @@ fn recorder_child() {
         }
         println!("READY");
     });
-    let report = harvest_recorder::run_recorder_until(&args, &domain, "recorder-child", &control).expect("recorder");
+    let report = harvest_recorder::run_recorder_until(&args, &domain, "recorder-child", &control)
+        .expect("recorder");
     println!("ENDED {:?}", report.end);
 }
 
 /// Starts the child recorder and waits for its READY line.
 fn spawn_child(domain: &Domain, dir: &Path) -> Child {
     let mut child = Command::new(std::env::current_exe().expect("test binary"))
-        .args(["--ignored", "--exact", "recorder_child", "--nocapture", "--test-threads=1"])
+        .args([
+            "--ignored",
+            "--exact",
+            "recorder_child",
+            "--nocapture",
+            "--test-threads=1",
+        ])
         .env(CHILD_DIR_ENV, dir)
         .env(CHILD_DOMAIN_ENV, domain.name())
         .stdin(Stdio::null())
@@ -76,7 +89,8 @@ fn spawn_child(domain: &Domain, dir: &Path) -> Child {
 }
 
 fn signal(child: &Child, signal: nix::sys::signal::Signal) {
-    nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), signal).expect("signal child");
+    nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), signal)
+        .expect("signal child");
 }
 
 /// Arm-state sequence numbers found in a file by the scanner (valid part only).
@@ -93,7 +107,10 @@ fn recorded_sequences(path: &Path) -> Vec<u32> {
     sequences
 }
 
-fn publish_arm_states(publisher: &mut harvest_ipc::Publisher<ArmState>, range: std::ops::Range<u32>) {
+fn publish_arm_states(
+    publisher: &mut harvest_ipc::Publisher<ArmState>,
+    range: std::ops::Range<u32>,
+) {
     for index in range {
         publisher.publish(&arm_state(index)).expect("publish");
     }
@@ -105,11 +122,15 @@ fn sigkill_loses_at_most_the_open_chunk_and_recover_keeps_the_rest() {
     let dir = TempDir::new("kill");
     let mut child = spawn_child(&domain, dir.path());
     let context = Context::new(&domain, "publisher").expect("node");
-    let mut arm = context.publisher(harvest_ipc::catalogue::ARM_STATE[0]).expect("publisher");
+    let mut arm = context
+        .publisher(harvest_ipc::catalogue::ARM_STATE[0])
+        .expect("publisher");
     publish_arm_states(&mut arm, 0..30);
     let file = mcap_files(dir.path()).pop().expect("the recorder's file");
     // Wait until the recorder has closed the chunks holding the first 30 messages.
-    wait_until("30 messages in closed chunks", || recorded_sequences(&file).len() >= 30);
+    wait_until("30 messages in closed chunks", || {
+        recorded_sequences(&file).len() >= 30
+    });
     publish_arm_states(&mut arm, 30..40);
     signal(&child, nix::sys::signal::Signal::SIGKILL);
     let status = child.wait().expect("wait child");
@@ -121,8 +142,15 @@ fn sigkill_loses_at_most_the_open_chunk_and_recover_keeps_the_rest() {
 
     let out = dir.path().join("recovered.out.mcap");
     let report = recover(&file, &out, false).expect("recover");
-    let recovered = report.messages_per_topic.get("arm1/state").copied().unwrap_or(0);
-    assert!((30..=40).contains(&recovered), "recovered {recovered} of 40\n{report}");
+    let recovered = report
+        .messages_per_topic
+        .get("arm1/state")
+        .copied()
+        .unwrap_or(0);
+    assert!(
+        (30..=40).contains(&recovered),
+        "recovered {recovered} of 40\n{report}"
+    );
     assert!(matches!(report.end, ScanEnd::Truncated { .. }), "{report}");
     assert!(!report.has_drop_counts);
     let read = python_read(&out);
@@ -134,13 +162,32 @@ fn sigkill_loses_at_most_the_open_chunk_and_recover_keeps_the_rest() {
         .filter(|m| m["topic"] == "arm1/state")
         .map(|m| m["sequence"].as_u64().expect("sequence"))
         .collect();
-    assert_eq!(sequences, (1..=recovered).collect::<Vec<_>>(), "a contiguous prefix survives");
-    for message in read["messages"].as_array().expect("messages").iter().filter(|m| m["topic"] == "arm1/state") {
+    assert_eq!(
+        sequences,
+        (1..=recovered).collect::<Vec<_>>(),
+        "a contiguous prefix survives"
+    );
+    for message in read["messages"]
+        .as_array()
+        .expect("messages")
+        .iter()
+        .filter(|m| m["topic"] == "arm1/state")
+    {
         let mut state = ArmState::default();
-        ArmState::decode_into(&from_hex(message["data_hex"].as_str().expect("hex")), &mut state).expect("intact");
+        ArmState::decode_into(
+            &from_hex(message["data_hex"].as_str().expect("hex")),
+            &mut state,
+        )
+        .expect("intact");
         assert_eq!(state.apple_id, 1000 + state.header.msg_seq as u32 - 1);
     }
-    assert!(read["metadata"].as_array().expect("metadata").iter().any(|m| m["name"] == "harvest.recovery"));
+    assert!(
+        read["metadata"]
+            .as_array()
+            .expect("metadata")
+            .iter()
+            .any(|m| m["name"] == "harvest.recovery")
+    );
 }
 
 #[test]
@@ -149,18 +196,35 @@ fn sigterm_ends_the_recording_cleanly() {
     let dir = TempDir::new("term");
     let mut child = spawn_child(&domain, dir.path());
     let context = Context::new(&domain, "publisher").expect("node");
-    let mut arm = context.publisher(harvest_ipc::catalogue::ARM_STATE[0]).expect("publisher");
+    let mut arm = context
+        .publisher(harvest_ipc::catalogue::ARM_STATE[0])
+        .expect("publisher");
     publish_arm_states(&mut arm, 0..25);
     let file = mcap_files(dir.path()).pop().expect("the recorder's file");
-    wait_until("25 messages written", || recorded_sequences(&file).len() >= 25);
+    wait_until("25 messages written", || {
+        recorded_sequences(&file).len() >= 25
+    });
     signal(&child, nix::sys::signal::Signal::SIGTERM);
     let status = child.wait().expect("wait child");
-    assert!(status.success(), "the recorder exits normally on SIGTERM: {status}");
+    assert!(
+        status.success(),
+        "the recorder exits normally on SIGTERM: {status}"
+    );
     let read = python_read(&file);
     assert_eq!(read["has_summary"], true);
-    let count = read["messages"].as_array().expect("messages").iter().filter(|m| m["topic"] == "arm1/state").count();
+    let count = read["messages"]
+        .as_array()
+        .expect("messages")
+        .iter()
+        .filter(|m| m["topic"] == "arm1/state")
+        .count();
     assert_eq!(count, 25);
-    let drops = read["metadata"].as_array().expect("metadata").iter().find(|m| m["name"] == "harvest.drops").expect("drops");
+    let drops = read["metadata"]
+        .as_array()
+        .expect("metadata")
+        .iter()
+        .find(|m| m["name"] == "harvest.drops")
+        .expect("drops");
     assert_eq!(drops["metadata"]["arm1/state.received"], "25");
 }
 
@@ -174,7 +238,9 @@ fn small_chunk_recording(dir: &Path, count: u32) -> PathBuf {
     let recorder = RunningRecorder::start(&domain, args);
     recorder.wait_ready();
     let context = Context::new(&domain, "publisher").expect("node");
-    let mut arm = context.publisher(harvest_ipc::catalogue::ARM_STATE[0]).expect("publisher");
+    let mut arm = context
+        .publisher(harvest_ipc::catalogue::ARM_STATE[0])
+        .expect("publisher");
     publish_arm_states(&mut arm, 0..count);
     let report = recorder.stop().expect("recording");
     assert_eq!(report.messages_written(), u64::from(count));
@@ -205,7 +271,10 @@ fn recover_rewrites_a_file_cut_mid_chunk_or_without_index() {
     let dir = TempDir::new("cut");
     let original = small_chunk_recording(dir.path(), 60);
     let bytes = std::fs::read(&original).expect("read");
-    let chunks: Vec<_> = chunk_layout(&original).into_iter().filter(|chunk| chunk.2 > 0).collect();
+    let chunks: Vec<_> = chunk_layout(&original)
+        .into_iter()
+        .filter(|chunk| chunk.2 > 0)
+        .collect();
     assert!(chunks.len() >= 10, "many small chunks: {}", chunks.len());
     let cut_chunk = chunks.len() / 2;
     let (cut_offset, cut_length, _) = chunks[cut_chunk];
@@ -216,7 +285,11 @@ fn recover_rewrites_a_file_cut_mid_chunk_or_without_index() {
     std::fs::write(&cut, &bytes[..(cut_offset + cut_length / 2) as usize]).expect("write cut");
     let out = dir.path().join("cut-recovered.mcap");
     let report = recover(&cut, &out, false).expect("recover");
-    assert_eq!(report.messages_per_topic.get("arm1/state").copied(), Some(kept), "{report}");
+    assert_eq!(
+        report.messages_per_topic.get("arm1/state").copied(),
+        Some(kept),
+        "{report}"
+    );
     match &report.end {
         ScanEnd::Truncated { offset, reason } => {
             assert_eq!(*offset, cut_offset, "stops at the cut chunk");
@@ -228,18 +301,47 @@ fn recover_rewrites_a_file_cut_mid_chunk_or_without_index() {
     assert!(report.to_string().contains("LOST"));
     let read = python_read(&out);
     assert_eq!(read["has_summary"], true);
-    assert_eq!(read["messages"].as_array().expect("messages").len() as u64, kept);
+    assert_eq!(
+        read["messages"].as_array().expect("messages").len() as u64,
+        kept
+    );
     let fixed = info(&out).expect("info");
     assert!(fixed.indexed && fixed.problems.is_empty(), "{fixed}");
+
+    // A time window on the cut (summary-less) file: the chunks before the window deliver no
+    // messages but still define the channels.
+    let mut times = Vec::new();
+    scan_file(&cut, ScanOptions::default(), |item| {
+        if let ScanItem::Message(message) = item {
+            times.push(message.log_time);
+        }
+        ControlFlow::Continue(())
+    })
+    .expect("scan");
+    let skip = chunks[0].2 + chunks[1].2;
+    let start = Duration::from_nanos(times[skip as usize] - times[0]);
+    let mut lines = Vec::new();
+    let options = CatOptions {
+        start: Some(start),
+        ..CatOptions::default()
+    };
+    let report = cat(&cut, &options, &mut lines).expect("cat");
+    assert_eq!(report.printed, kept - skip);
+    assert!(report.incomplete.is_some());
 
     // Cut exactly at a chunk boundary: no partial record, but no index either.
     let indexless = dir.path().join("indexless.mcap");
     std::fs::write(&indexless, &bytes[..cut_offset as usize]).expect("write");
     let out = dir.path().join("indexless-recovered.mcap");
     let report = recover(&indexless, &out, false).expect("recover");
-    assert_eq!(report.messages_per_topic.get("arm1/state").copied(), Some(kept));
+    assert_eq!(
+        report.messages_per_topic.get("arm1/state").copied(),
+        Some(kept)
+    );
     assert_eq!(report.lost_tail_bytes(), 0);
-    assert!(matches!(&report.end, ScanEnd::Truncated { reason, .. } if reason.contains("data-end")));
+    assert!(
+        matches!(&report.end, ScanEnd::Truncated { reason, .. } if reason.contains("data-end"))
+    );
 
     // A complete file: nothing lost, every message and metadata record kept.
     let out = dir.path().join("complete-recovered.mcap");
@@ -249,6 +351,12 @@ fn recover_rewrites_a_file_cut_mid_chunk_or_without_index() {
     assert!(report.has_drop_counts);
 
     // Refusals: existing output, output = input.
-    assert!(matches!(recover(&original, &out, false), Err(RecoverError::OutputExists(_))));
-    assert!(matches!(recover(&original, &original, true), Err(RecoverError::SameFile(_))));
+    assert!(matches!(
+        recover(&original, &out, false),
+        Err(RecoverError::OutputExists(_))
+    ));
+    assert!(matches!(
+        recover(&original, &original, true),
+        Err(RecoverError::SameFile(_))
+    ));
 }

@@ -45,7 +45,8 @@ fn realistic_frame(seed: u32) -> Box<RgbdFrame> {
 fn raw_disk_bandwidth(dir: &Path, bytes: &[u8], count: u32) -> (f64, f64) {
     let path = dir.join("raw.bin");
     let started = Instant::now();
-    let mut file = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&path).expect("create"));
+    let mut file =
+        std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&path).expect("create"));
     for _ in 0..count {
         file.write_all(bytes).expect("write");
     }
@@ -69,13 +70,17 @@ fn measure_recording_and_replay_of_rgbd_frames() {
         "raw disk write of {FRAMES} x {:.1} MB: {buffered:.0} MB/s to page cache, {synced:.0} MB/s including fsync",
         frame_bytes.len() as f64 / 1e6
     );
-    println!("input at {RATE_HZ} Hz: {:.0} MB/s", frame_bytes.len() as f64 * RATE_HZ / 1e6);
+    println!(
+        "input at {RATE_HZ} Hz: {:.0} MB/s",
+        frame_bytes.len() as f64 * RATE_HZ / 1e6
+    );
     let mut last_file = None;
-    for (compression, level, threads) in [
-        (ChunkCompression::Lz4, 0, 0),
-        (ChunkCompression::Zstd, 1, 0),
-        (ChunkCompression::Zstd, 1, 1),
-        (ChunkCompression::None, 0, 0),
+    for (compression, level, threads, paced) in [
+        (ChunkCompression::Lz4, 0, 0, true),
+        (ChunkCompression::Zstd, 1, 0, true),
+        (ChunkCompression::Zstd, 1, 1, true),
+        (ChunkCompression::None, 0, 0, true),
+        (ChunkCompression::Lz4, 0, 0, false),
     ] {
         let out = dir.path().join(format!("{}-{threads}", compression.name()));
         let domain = unique_domain("meas");
@@ -95,7 +100,7 @@ fn measure_recording_and_replay_of_rgbd_frames() {
         let period = Duration::from_secs_f64(1.0 / RATE_HZ);
         for index in 0..FRAMES {
             let due = started + period * index;
-            if let Some(wait) = due.checked_duration_since(Instant::now()) {
+            if let Some(wait) = due.checked_duration_since(Instant::now()).filter(|_| paced) {
                 std::thread::sleep(wait);
             }
             let source = &frames[index as usize % frames.len()];
@@ -110,10 +115,15 @@ fn measure_recording_and_replay_of_rgbd_frames() {
         let publish_s = started.elapsed().as_secs_f64();
         let report = recorder.stop().expect("recording");
         let stop_s = started.elapsed().as_secs_f64();
-        let line = report.topics.iter().find(|t| t.topic == "camera/rgbd").expect("camera line");
+        let line = report
+            .topics
+            .iter()
+            .find(|t| t.topic == "camera/rgbd")
+            .expect("camera line");
         let input_mb = f64::from(FRAMES) * frame_bytes.len() as f64 / 1e6;
+        let pacing = if paced { "30 Hz" } else { "unpaced" };
         println!(
-            "{:>4} level {level} threads {threads}: {} of {FRAMES} frames written, dropped {} (buffer) + {} (queue); \
+            "{pacing:>7} {:>4} level {level} threads {threads}: {} of {FRAMES} frames written, dropped {} (buffer) + {} (queue); \
 input {:.0} MB/s over {publish_s:.2} s; file {:.0} MB ({:.0}% of input), all written {stop_s:.2} s after the first frame",
             compression.name(),
             line.written,
@@ -127,7 +137,10 @@ input {:.0} MB/s over {publish_s:.2} s; file {:.0} MB ({:.0}% of input), all wri
     }
     // Replay speed: the last recording, as fast as possible, into a domain nobody listens to.
     let file = last_file.expect("a recording");
-    let args = ReplayArgs { fast: true, ..ReplayArgs::for_files(vec![file]) };
+    let args = ReplayArgs {
+        fast: true,
+        ..ReplayArgs::for_files(vec![file])
+    };
     let report = run_replay_with(&args, &unique_domain("measrep"), |_| {}).expect("replay");
     println!(
         "replay --fast: {} frames, {:.2} s recorded in {:.2} s wall = {:.1}x real time",

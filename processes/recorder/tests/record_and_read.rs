@@ -34,15 +34,34 @@ fn records_every_message_and_an_independent_reader_agrees() {
     publishers.send(40, 5, 2);
     let report = recorder.stop().expect("recording");
 
-    let line = |topic: &str| report.topics.iter().find(|t| t.topic == topic).expect("topic in report").clone();
-    for (topic, count) in [("arm1/state", 40), ("vacuum/state", 5), ("safety/emergency_stop", 1), ("camera/rgbd", 2)] {
+    let line = |topic: &str| {
+        report
+            .topics
+            .iter()
+            .find(|t| t.topic == topic)
+            .expect("topic in report")
+            .clone()
+    };
+    for (topic, count) in [
+        ("arm1/state", 40),
+        ("vacuum/state", 5),
+        ("safety/emergency_stop", 1),
+        ("camera/rgbd", 2),
+    ] {
         let line = line(topic);
         assert_eq!(line.written, count, "{topic} written");
         assert_eq!(line.counts.received, count, "{topic} received");
-        assert_eq!(line.counts.dropped_by_transport + line.counts.dropped_by_queue, 0, "{topic} drops");
+        assert_eq!(
+            line.counts.dropped_by_transport + line.counts.dropped_by_queue,
+            0,
+            "{topic} drops"
+        );
     }
     assert!(report.unopened.is_empty(), "{:?}", report.unopened);
-    assert!(report.topics.iter().all(|t| !t.topic.starts_with("hw/")), "hardware layer excluded by default");
+    assert!(
+        report.topics.iter().all(|t| !t.topic.starts_with("hw/")),
+        "hardware layer excluded by default"
+    );
     assert_eq!(report.files.len(), 1);
 
     let read = python_read(&report.files[0]);
@@ -51,14 +70,21 @@ fn records_every_message_and_an_independent_reader_agrees() {
     assert_eq!(arms.len(), 40);
     for (index, message) in arms.iter().enumerate() {
         let mut decoded = ArmState::default();
-        ArmState::decode_into(&from_hex(message["data_hex"].as_str().expect("hex")), &mut decoded).expect("decode");
+        ArmState::decode_into(
+            &from_hex(message["data_hex"].as_str().expect("hex")),
+            &mut decoded,
+        )
+        .expect("decode");
         let mut expected = arm_state(index as u32);
         expected.header.msg_seq = index as u64 + 1;
         expected.header.publish_ns = decoded.header.publish_ns;
         assert_eq!(decoded, expected);
         assert_eq!(message["sequence"], index as u64 + 1);
         assert_eq!(message["publish_time"], decoded.header.publish_ns);
-        assert!(message["log_time"].as_u64() >= message["publish_time"].as_u64(), "received after published");
+        assert!(
+            message["log_time"].as_u64() >= message["publish_time"].as_u64(),
+            "received after published"
+        );
         assert_eq!(message["schema"], "harvest.ArmState.v1");
     }
     let frames = messages_of(&read, "camera/rgbd");
@@ -69,25 +95,62 @@ fn records_every_message_and_an_independent_reader_agrees() {
         expected.header.capture_ns = 5_000 + index as u64;
         let bytes = encoded(&*expected);
         assert_eq!(message["size"], bytes.len() as u64);
-        assert_eq!(message["crc32"], u64::from(crc32fast::hash(&bytes[24..])), "frame {index} pixels");
+        assert_eq!(
+            message["crc32"],
+            u64::from(crc32fast::hash(&bytes[24..])),
+            "frame {index} pixels"
+        );
         let head = from_hex(message["head_hex"].as_str().expect("head"));
-        assert_eq!(u64::from_le_bytes(head[8..16].try_into().expect("8 bytes")), 5_000 + index as u64, "capture_ns");
+        assert_eq!(
+            u64::from_le_bytes(head[8..16].try_into().expect("8 bytes")),
+            5_000 + index as u64,
+            "capture_ns"
+        );
     }
     assert_eq!(messages_of(&read, "safety/emergency_stop").len(), 1);
     assert_eq!(messages_of(&read, "vacuum/state").len(), 5);
 
     let schema = &read["schemas"]["harvest.RgbdFrame.v1"];
     assert_eq!(schema["encoding"], ENCODING);
-    assert!(schema["data"].as_str().expect("schema text").contains(RgbdFrame::SCHEMA));
-    assert_eq!(read["channels"]["camera/rgbd"]["message_encoding"], ENCODING);
-    assert_eq!(read["channels"]["camera/rgbd"]["metadata"]["type_name"], "harvest.RgbdFrame");
+    assert!(
+        schema["data"]
+            .as_str()
+            .expect("schema text")
+            .contains(RgbdFrame::SCHEMA)
+    );
+    assert_eq!(
+        read["channels"]["camera/rgbd"]["message_encoding"],
+        ENCODING
+    );
+    assert_eq!(
+        read["channels"]["camera/rgbd"]["metadata"]["type_name"],
+        "harvest.RgbdFrame"
+    );
 
     let metadata = read["metadata"].as_array().expect("metadata");
-    let record = |name: &str| metadata.iter().find(|m| m["name"] == name).unwrap_or_else(|| panic!("{name} record"));
-    assert_eq!(record("harvest.recording")["metadata"]["software_version"], env!("CARGO_PKG_VERSION"));
-    assert_eq!(record("harvest.recording")["metadata"]["domain"], domain.name());
+    let record = |name: &str| {
+        metadata
+            .iter()
+            .find(|m| m["name"] == name)
+            .unwrap_or_else(|| panic!("{name} record"))
+    };
+    assert_eq!(
+        record("harvest.recording")["metadata"]["software_version"],
+        env!("CARGO_PKG_VERSION")
+    );
+    assert_eq!(
+        record("harvest.recording")["metadata"]["domain"],
+        domain.name()
+    );
     let clock = &record("harvest.clock")["metadata"];
-    assert!(clock["realtime_ns"].as_str().expect("realtime").parse::<u64>().expect("number") > 1_600_000_000_000_000_000);
+    assert!(
+        clock["realtime_ns"]
+            .as_str()
+            .expect("realtime")
+            .parse::<u64>()
+            .expect("number")
+            > 1_600_000_000_000_000_000
+    );
     let drops = &record("harvest.drops")["metadata"];
     assert_eq!(drops["arm1/state.received"], "40");
     assert_eq!(drops["arm1/state.dropped_buffer"], "0");
@@ -110,11 +173,16 @@ fn a_channel_that_cannot_be_opened_yet_is_retried_until_it_can() {
     let recorder = RunningRecorder::start(&domain, args);
     wait_until("recording file", || !mcap_files(dir.path()).is_empty());
     std::thread::sleep(std::time::Duration::from_millis(150));
-    assert!(!recorder.control.ready.load(Ordering::SeqCst), "no free subscriber slot yet");
+    assert!(
+        !recorder.control.ready.load(Ordering::SeqCst),
+        "no free subscriber slot yet"
+    );
     drop(first);
     recorder.wait_ready();
     let mut frames = context.publisher(HW_CAMERA_RGBD).expect("publisher");
-    frames.publish_with(42, |frame| fill_frame(frame, 9)).expect("publish");
+    frames
+        .publish_with(42, |frame| fill_frame(frame, 9))
+        .expect("publish");
     drop(second);
     let report = recorder.stop().expect("recording");
     assert_eq!(report.topics.len(), 1, "{report}");
@@ -139,7 +207,11 @@ fn segments_split_by_size_and_the_oldest_go_first() {
     let mut publishers = TestPublishers::open(&context);
     publishers.send(3, 0, 3);
     let report = recorder.stop().expect("recording");
-    assert!(report.files.len() >= 4, "every message starts a new segment: {:?}", report.files);
+    assert!(
+        report.files.len() >= 4,
+        "every message starts a new segment: {:?}",
+        report.files
+    );
     let mut frames = 0;
     let mut arms = 0;
     for (index, file) in report.files.iter().enumerate() {
@@ -171,11 +243,20 @@ fn segments_split_by_size_and_the_oldest_go_first() {
     recorder.wait_ready();
     publishers.send(0, 0, 4);
     let report = recorder.stop().expect("recording");
-    assert!(!report.removed_files.is_empty(), "the bound removed old segments");
+    assert!(
+        !report.removed_files.is_empty(),
+        "the bound removed old segments"
+    );
     assert!(report.removed_files.iter().all(|file| !file.exists()));
     let remaining = mcap_files(bounded.path());
-    let sizes: Vec<u64> = remaining.iter().map(|f| std::fs::metadata(f).expect("size").len()).collect();
+    let sizes: Vec<u64> = remaining
+        .iter()
+        .map(|f| std::fs::metadata(f).expect("size").len())
+        .collect();
     let newest = report.files.last().expect("files");
     let newest_size = std::fs::metadata(newest).expect("newest").len();
-    assert!(sizes.iter().sum::<u64>() - newest_size <= bound_bytes, "sizes {sizes:?}");
+    assert!(
+        sizes.iter().sum::<u64>() - newest_size <= bound_bytes,
+        "sizes {sizes:?}"
+    );
 }

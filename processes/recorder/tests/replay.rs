@@ -4,7 +4,9 @@
 mod common;
 
 use common::*;
-use harvest_ipc::catalogue::{ARM_STATE, CAMERA_RGBD, EMERGENCY_STOP, PROCESS_HEALTH, VACUUM_STATE};
+use harvest_ipc::catalogue::{
+    ARM_STATE, CAMERA_RGBD, EMERGENCY_STOP, PROCESS_HEALTH, VACUUM_STATE,
+};
 use harvest_ipc::payloads::RgbdFrame;
 use harvest_ipc::{Context, Payload, Subscriber};
 use harvest_recorder::payload_codec::zeroed_box;
@@ -26,7 +28,9 @@ fn record(arms: u32, frames: u32) -> (TempDir, PathBuf) {
 }
 
 fn subscribe<T: Payload>(context: &Context, channel: harvest_ipc::Channel<T>) -> Subscriber<T> {
-    context.subscriber_with_buffer(channel, channel.spec.qos.subscriber_max_buffer_size).expect("subscriber")
+    context
+        .subscriber_with_buffer(channel, channel.spec.qos.subscriber_max_buffer_size)
+        .expect("subscriber")
 }
 
 /// A replay on another thread (its own node) into `domain`, which keeps its channels open
@@ -66,7 +70,10 @@ fn replayed_messages_are_identical_to_the_recorded_ones() {
     let frames = subscribe(&context, CAMERA_RGBD);
     let health = subscribe(&context, PROCESS_HEALTH);
 
-    let args = ReplayArgs { fast: true, ..ReplayArgs::for_files(vec![file.clone()]) };
+    let args = ReplayArgs {
+        fast: true,
+        ..ReplayArgs::for_files(vec![file.clone()])
+    };
     let replay = BackgroundReplay::start(args, &target);
     let mut arm_states = Vec::new();
     let mut frame_count = 0u32;
@@ -78,8 +85,14 @@ fn replayed_messages_are_identical_to_the_recorded_ones() {
         while let Some(frame) = frames.receive().expect("receive") {
             let mut expected = zeroed_box::<RgbdFrame>();
             fill_frame(&mut expected, frame_count);
-            assert!(frame.rgb[..] == expected.rgb[..], "frame {frame_count} colour");
-            assert!(frame.depth_mm[..] == expected.depth_mm[..], "frame {frame_count} depth");
+            assert!(
+                frame.rgb[..] == expected.rgb[..],
+                "frame {frame_count} colour"
+            );
+            assert!(
+                frame.depth_mm[..] == expected.depth_mm[..],
+                "frame {frame_count} depth"
+            );
             assert_eq!(frame.meta, expected.meta);
             assert_eq!(frame.header.capture_ns, 5_000 + u64::from(frame_count));
             frame_count += 1;
@@ -102,7 +115,10 @@ fn replayed_messages_are_identical_to_the_recorded_ones() {
     }
     assert_eq!(report.published.get("arm1/state"), Some(&20));
     assert_eq!(report.published.get("camera/rgbd"), Some(&2));
-    assert!(!report.published.contains_key("system/health"), "heartbeats are not replayed by default");
+    assert!(
+        !report.published.contains_key("system/health"),
+        "heartbeats are not replayed by default"
+    );
     assert!(health.receive().expect("receive").is_none());
     assert!(report.skipped.is_empty(), "{:?}", report.skipped);
     println!("{report}");
@@ -146,7 +162,14 @@ fn replay_selects_topics_and_a_time_window() {
         received.len() == 11
     });
     let report = replay.finish();
-    assert_eq!(received, (1010..=1020).collect::<Vec<u32>>(), "messages 10..=20 of the recording");
+    assert_eq!(
+        received,
+        (1010..=1020).collect::<Vec<u32>>(),
+        "messages 10..=20 of the recording"
+    );
     assert_eq!(report.published.get("arm1/state"), Some(&11));
-    assert!(vacuum.receive().expect("receive").is_none(), "vacuum/state excluded");
+    assert!(
+        vacuum.receive().expect("receive").is_none(),
+        "vacuum/state excluded"
+    );
 }

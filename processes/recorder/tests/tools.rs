@@ -5,7 +5,9 @@ mod common;
 use common::*;
 use harvest_ipc::Context;
 use harvest_ipc::payloads::RgbdFrame;
-use harvest_ipc::payloads::rgbd_frame::{DEPTH_HEIGHT_PX, DEPTH_WIDTH_PX, RGB_HEIGHT_PX, RGB_WIDTH_PX};
+use harvest_ipc::payloads::rgbd_frame::{
+    DEPTH_HEIGHT_PX, DEPTH_WIDTH_PX, RGB_HEIGHT_PX, RGB_WIDTH_PX,
+};
 use harvest_recorder::export::{ExportOptions, export};
 use harvest_recorder::payload_codec::zeroed_box;
 use harvest_recorder::rec_cat::{CatOptions, cat};
@@ -45,32 +47,72 @@ fn info_cat_and_export_describe_the_recording() {
 
     let summary = info(&file).expect("info");
     assert!(summary.indexed && summary.problems.is_empty(), "{summary}");
-    let channel = |topic: &str| summary.channels.iter().find(|c| c.topic == topic).expect("channel").clone();
+    let channel = |topic: &str| {
+        summary
+            .channels
+            .iter()
+            .find(|c| c.topic == topic)
+            .expect("channel")
+            .clone()
+    };
     assert_eq!(channel("arm1/state").messages, 10);
     assert_eq!(channel("arm1/state").schema, "harvest.ArmState.v1");
     assert_eq!(channel("camera/rgbd").messages, 2);
     assert!(channel("arm1/state").rate_hz > 0.0);
-    assert!(summary.compression.contains_key("zstd"));
+    assert!(
+        summary.compression.contains_key("lz4"),
+        "the default compression"
+    );
     assert_eq!(summary.software_version(), Some(env!("CARGO_PKG_VERSION")));
     let text = summary.to_string();
-    assert!(text.contains("arm1/state") && text.contains("complete"), "{text}");
+    assert!(
+        text.contains("arm1/state") && text.contains("complete"),
+        "{text}"
+    );
+
+    // The command-line entry point prints the same.
+    harvest_recorder::run_rec(&harvest_recorder::RecCommand::Info {
+        files: vec![file.clone()],
+    })
+    .expect("rec info");
 
     // cat: every message, decoded.
     let all = cat_lines(&file, &CatOptions::default());
-    let arms: Vec<_> = all.iter().filter(|line| line["topic"] == "arm1/state").collect();
+    let arms: Vec<_> = all
+        .iter()
+        .filter(|line| line["topic"] == "arm1/state")
+        .collect();
     assert_eq!(arms.len(), 10);
     for (index, line) in arms.iter().enumerate() {
         assert_eq!(line["message"]["apple_id"], 1000 + index as u64);
         assert_eq!(line["message"]["header"]["msg_seq"], index as u64 + 1);
         assert_eq!(line["schema"], "harvest.ArmState.v1");
     }
-    let frame_line = all.iter().find(|line| line["topic"] == "camera/rgbd").expect("frame line");
+    let frame_line = all
+        .iter()
+        .find(|line| line["topic"] == "camera/rgbd")
+        .expect("frame line");
+    let heartbeat = all
+        .iter()
+        .find(|line| line["topic"] == "system/health")
+        .expect("the recorder's heartbeat");
+    assert_eq!(heartbeat["message"]["process_name"], "recorder");
     assert_eq!(frame_line["message"]["rgb_bytes"], 1920 * 1080 * 3);
     // Topic filter.
-    let only_arms = cat_lines(&file, &CatOptions { topics: vec!["arm*".into()], ..CatOptions::default() });
+    let only_arms = cat_lines(
+        &file,
+        &CatOptions {
+            topics: vec!["arm*".into()],
+            ..CatOptions::default()
+        },
+    );
     assert_eq!(only_arms.len(), 10);
     // Time window from the 5th arm message on.
-    let first_ns = all.iter().map(|line| line["log_time_ns"].as_u64().expect("t")).min().expect("lines");
+    let first_ns = all
+        .iter()
+        .map(|line| line["log_time_ns"].as_u64().expect("t"))
+        .min()
+        .expect("lines");
     let cut_ns = arms[4]["log_time_ns"].as_u64().expect("t");
     let late = cat_lines(
         &file,
@@ -80,7 +122,10 @@ fn info_cat_and_export_describe_the_recording() {
             end: None,
         },
     );
-    let expected = arms.iter().filter(|line| line["log_time_ns"].as_u64() >= Some(cut_ns)).count();
+    let expected = arms
+        .iter()
+        .filter(|line| line["log_time_ns"].as_u64() >= Some(cut_ns))
+        .count();
     assert_eq!(late.len(), expected);
     let early = cat_lines(
         &file,
@@ -90,8 +135,18 @@ fn info_cat_and_export_describe_the_recording() {
             end: Some(Duration::from_nanos(cut_ns - first_ns)),
         },
     );
-    assert_eq!(early.len() + late.len(), 10 + 1, "the cut message is in both inclusive windows");
-    let none = cat_lines(&file, &CatOptions { start: Some(Duration::from_secs(3600)), ..CatOptions::default() });
+    assert_eq!(
+        early.len() + late.len(),
+        10 + 1,
+        "the cut message is in both inclusive windows"
+    );
+    let none = cat_lines(
+        &file,
+        &CatOptions {
+            start: Some(Duration::from_secs(3600)),
+            ..CatOptions::default()
+        },
+    );
     assert!(none.is_empty());
 
     // export: PNG frames and a Foxglove file.
@@ -99,7 +154,11 @@ fn info_cat_and_export_describe_the_recording() {
     let foxglove = dir.path().join("foxglove.mcap");
     let report = export(
         &file,
-        &ExportOptions { png_dir: Some(png_dir.clone()), foxglove: Some(foxglove.clone()), ..ExportOptions::default() },
+        &ExportOptions {
+            png_dir: Some(png_dir.clone()),
+            foxglove: Some(foxglove.clone()),
+            ..ExportOptions::default()
+        },
     )
     .expect("export");
     assert_eq!(report.png_frames, 2);
@@ -107,12 +166,28 @@ fn info_cat_and_export_describe_the_recording() {
     for index in 0..2u32 {
         let mut expected = zeroed_box::<RgbdFrame>();
         fill_frame(&mut expected, index);
-        let rgb = image::open(png_dir.join(format!("camera_rgbd-{index:06}-rgb.png"))).expect("rgb png").to_rgb8();
-        assert_eq!((rgb.width() as usize, rgb.height() as usize), (RGB_WIDTH_PX, RGB_HEIGHT_PX));
-        assert!(rgb.as_raw().as_slice() == &expected.rgb[..], "rgb pixels of frame {index}");
-        let depth = image::open(png_dir.join(format!("camera_rgbd-{index:06}-depth.png"))).expect("depth png").to_luma16();
-        assert_eq!((depth.width() as usize, depth.height() as usize), (DEPTH_WIDTH_PX, DEPTH_HEIGHT_PX));
-        assert!(depth.as_raw().as_slice() == &expected.depth_mm[..], "depth of frame {index}");
+        let rgb = image::open(png_dir.join(format!("camera_rgbd-{index:06}-rgb.png")))
+            .expect("rgb png")
+            .to_rgb8();
+        assert_eq!(
+            (rgb.width() as usize, rgb.height() as usize),
+            (RGB_WIDTH_PX, RGB_HEIGHT_PX)
+        );
+        assert!(
+            rgb.as_raw().as_slice() == &expected.rgb[..],
+            "rgb pixels of frame {index}"
+        );
+        let depth = image::open(png_dir.join(format!("camera_rgbd-{index:06}-depth.png")))
+            .expect("depth png")
+            .to_luma16();
+        assert_eq!(
+            (depth.width() as usize, depth.height() as usize),
+            (DEPTH_WIDTH_PX, DEPTH_HEIGHT_PX)
+        );
+        assert!(
+            depth.as_raw().as_slice() == &expected.depth_mm[..],
+            "depth of frame {index}"
+        );
     }
     let index = std::fs::read_to_string(png_dir.join("frames.csv")).expect("frames.csv");
     assert_eq!(index.lines().count(), 3);
@@ -138,27 +213,57 @@ with open(sys.argv[1], "rb") as f:
             entry["first"] = value
 print(json.dumps(out))
 "#;
-    let output = Command::new("python3").args(["-c", SCRIPT]).arg(&foxglove).output().expect("python3");
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let output = Command::new("python3")
+        .args(["-c", SCRIPT])
+        .arg(&foxglove)
+        .output()
+        .expect("python3");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     let read: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
     let arm = &read["topics"]["arm1/state"];
     assert_eq!(arm["count"], 10);
     assert_eq!(arm["encoding"], "json");
     assert_eq!(arm["schema_encoding"], "jsonschema");
     assert_eq!(arm["first"]["apple_id"], 1000);
-    assert!(arm["log_time"].as_u64().expect("log_time") > 1_600_000_000_000_000_000, "stamps converted to UTC");
-    assert_eq!(read["topics"]["camera/rgbd/rgb"]["schema"], "foxglove.RawImage");
-    assert_eq!(read["topics"]["camera/rgbd/rgb/calibration"]["schema"], "foxglove.CameraCalibration");
-    assert_eq!(read["topics"]["camera/rgbd/rgb/calibration"]["first"]["K"].as_array().map(Vec::len), Some(9));
+    assert!(
+        arm["log_time"].as_u64().expect("log_time") > 1_600_000_000_000_000_000,
+        "stamps converted to UTC"
+    );
+    assert_eq!(
+        read["topics"]["camera/rgbd/rgb"]["schema"],
+        "foxglove.RawImage"
+    );
+    assert_eq!(
+        read["topics"]["camera/rgbd/rgb/calibration"]["schema"],
+        "foxglove.CameraCalibration"
+    );
+    assert_eq!(
+        read["topics"]["camera/rgbd/rgb/calibration"]["first"]["K"]
+            .as_array()
+            .map(Vec::len),
+        Some(9)
+    );
     let images = read["images"].as_array().expect("images");
     assert_eq!(images.len(), 4);
     for image in images {
         let is_rgb = image["topic"] == "camera/rgbd/rgb";
-        let expected_size = if is_rgb { RGB_WIDTH_PX * RGB_HEIGHT_PX * 3 } else { DEPTH_WIDTH_PX * DEPTH_HEIGHT_PX * 2 };
+        let expected_size = if is_rgb {
+            RGB_WIDTH_PX * RGB_HEIGHT_PX * 3
+        } else {
+            DEPTH_WIDTH_PX * DEPTH_HEIGHT_PX * 2
+        };
         assert_eq!(image["size"], expected_size as u64);
         assert_eq!(image["encoding"], if is_rgb { "rgb8" } else { "16UC1" });
     }
     let mut first = zeroed_box::<RgbdFrame>();
     fill_frame(&mut first, 0);
-    assert_eq!(images[0]["crc32"], u64::from(crc32fast::hash(&first.rgb)), "base64 pixels round-trip");
+    assert_eq!(
+        images[0]["crc32"],
+        u64::from(crc32fast::hash(&first.rgb)),
+        "base64 pixels round-trip"
+    );
 }

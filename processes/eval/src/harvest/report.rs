@@ -17,6 +17,7 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
+use harvest_arm::node::ArmNodeConfig;
 use serde::Serialize;
 
 use super::args::{EvalHarvestArgs, PolicyArg, TimingArg};
@@ -270,7 +271,8 @@ pub fn run_eval_harvest(args: &EvalHarvestArgs) -> Result<HarvestReport, Harvest
         });
     }
     let mut scenario = harvest_sim::process::load_scenario(&args.scenario)?;
-    apply_timing(&mut scenario, args.timing);
+    let mut arm_node = ArmNodeConfig::default();
+    apply_timing(&mut scenario, &mut arm_node, args.timing);
     let mut outcomes = Vec::with_capacity(args.episodes as usize);
     for k in 0..args.episodes {
         let mut config = EpisodeConfig::new(
@@ -280,6 +282,7 @@ pub fn run_eval_harvest(args: &EvalHarvestArgs) -> Result<HarvestReport, Harvest
             args.seed + u64::from(k),
         );
         config.max_episode_s = args.max_episode_s;
+        config.arm_node = arm_node;
         config.detection = DetectionModel {
             noise_scale: args.detection_noise,
             ..DetectionModel::default()

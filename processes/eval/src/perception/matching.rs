@@ -92,6 +92,19 @@ impl OverlapTable {
     }
 }
 
+/// Why a reported apple is a false positive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FalsePositiveKind {
+    /// It is a candidate of a true apple that another reported apple matched (an unmerged
+    /// second detection of the same fruit).
+    Duplicate,
+    /// Its box overlaps a true apple enough, but its centre is beyond the 3D gate of every such
+    /// apple (the detector found a fruit, the estimator misplaced it).
+    Mislocalized,
+    /// Its box overlaps no true apple enough (leaves, wood, background).
+    NoApple,
+}
+
 /// Result of matching one frame.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Matching {
@@ -134,6 +147,43 @@ impl MatchRule {
         let distance = distance_m(reported.position_in_robot_m, truth.center_in_robot_m);
         (distance.is_finite() && distance <= self.max_distance_radii * truth.radius_m)
             .then_some(distance)
+    }
+
+    /// Classifies the unmatched reported apple `d` of a frame matched into `matching`; `None`
+    /// when `d` is matched.
+    pub fn false_positive_kind(
+        &self,
+        d: usize,
+        reported: &[ReportedApple],
+        truths: &[TrueApple],
+        overlap: &OverlapTable,
+        matching: &Matching,
+    ) -> Option<FalsePositiveKind> {
+        if matching
+            .truth_of_detection
+            .get(d)
+            .copied()
+            .flatten()
+            .is_some()
+        {
+            return None;
+        }
+        let detection = reported.get(d)?;
+        let overlapping = self.without_3d_gate();
+        let mut kind = FalsePositiveKind::NoApple;
+        for (t, truth) in truths.iter().enumerate() {
+            let overlap_px = overlap.get(d, t);
+            if self.candidate(detection, truth, overlap_px).is_some() {
+                return Some(FalsePositiveKind::Duplicate);
+            }
+            if overlapping
+                .candidate(detection, truth, overlap_px)
+                .is_some()
+            {
+                kind = FalsePositiveKind::Mislocalized;
+            }
+        }
+        Some(kind)
     }
 
     /// Matches `reported` to `truths` into `out` (allocations reused).
@@ -307,6 +357,37 @@ mod tests {
         rule.without_3d_gate()
             .match_frame(&far, &truths, &table, &mut out);
         assert_eq!(out.true_positives(), 1);
+    }
+
+    #[test]
+    fn false_positives_are_classified() {
+        let truths = [truth(1.0, 0.0, 700), truth(1.0, 0.3, 700)];
+        let reported = [
+            reported(1.005, 0.0, 900), // matches apple 0
+            reported(1.02, 0.0, 900),  // second detection of apple 0
+            reported(1.5, 0.3, 900),   // on apple 1 in 2D, 500 mm off in 3D
+            reported(1.0, 0.6, 900),   // on nothing
+        ];
+        let overlaps: [&[u64]; 4] = [&[600, 0], &[600, 0], &[0, 600], &[0, 0]];
+        let out = run(&reported, &truths, &overlaps);
+        let mut table = OverlapTable::default();
+        table.reset(reported.len(), truths.len());
+        for (d, row) in overlaps.iter().enumerate() {
+            table.row_mut(d).copy_from_slice(row);
+        }
+        let rule = MatchRule::default();
+        let kinds: Vec<Option<FalsePositiveKind>> = (0..reported.len())
+            .map(|d| rule.false_positive_kind(d, &reported, &truths, &table, &out))
+            .collect();
+        assert_eq!(
+            kinds,
+            vec![
+                None,
+                Some(FalsePositiveKind::Duplicate),
+                Some(FalsePositiveKind::Mislocalized),
+                Some(FalsePositiveKind::NoApple)
+            ]
+        );
     }
 
     #[test]

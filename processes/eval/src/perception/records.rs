@@ -55,6 +55,10 @@ pub struct EstimatorRecords {
     pub detections: usize,
     /// Reported apples not matched to a true apple.
     pub false_positives: usize,
+    /// False positives that are second detections of a matched apple.
+    pub false_positives_duplicate: usize,
+    /// False positives on a true apple in 2D but beyond the 3D gate.
+    pub false_positives_mislocalized: usize,
     /// One entry per visible true apple per frame.
     pub apples: Vec<AppleOutcome>,
     pub timings: Vec<FrameTiming>,
@@ -68,6 +72,8 @@ impl EstimatorRecords {
             kind,
             detections: 0,
             false_positives: 0,
+            false_positives_duplicate: 0,
+            false_positives_mislocalized: 0,
             apples: Vec::new(),
             timings: Vec::new(),
             empty_frame_detections: Vec::new(),

@@ -40,7 +40,10 @@ pub struct PerceptionReport {
 /// The evaluation of one scenario.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ScenarioReport {
+    /// The scenario's `name`.
     pub scenario: String,
+    /// The `--scenario` value it was loaded from (preset name or file path).
+    pub source: String,
     /// Where perception's `robot_from_camera` came from.
     pub calibration: &'static str,
     pub truth: TruthSummary,
@@ -93,6 +96,12 @@ pub struct DetectionReport {
     pub detections: usize,
     pub true_positives: usize,
     pub false_positives: usize,
+    /// False positives that are a second detection of a matched apple (not merged).
+    pub false_positives_duplicate: usize,
+    /// False positives whose box is on a true apple but whose centre is beyond the 3D gate.
+    pub false_positives_mislocalized: usize,
+    /// False positives on no apple: `false_positives - duplicate - mislocalized`.
+    pub false_positives_no_apple: usize,
     /// `true_positives / detections`; `None` without detections.
     pub precision: Option<f64>,
     pub truth_visible: usize,
@@ -257,6 +266,11 @@ impl EstimatorReport {
             detections: records.detections,
             true_positives,
             false_positives: records.false_positives,
+            false_positives_duplicate: records.false_positives_duplicate,
+            false_positives_mislocalized: records.false_positives_mislocalized,
+            false_positives_no_apple: records.false_positives
+                - records.false_positives_duplicate
+                - records.false_positives_mislocalized,
             precision: ratio(true_positives, records.detections),
             truth_visible: apples.len(),
             matched_visible,
@@ -356,6 +370,7 @@ impl ScenarioReport {
     /// The report of one scenario from its records (one per estimator, same frames).
     pub fn from_records(
         scenario: &str,
+        source: &str,
         calibration: &'static str,
         apples_generated: usize,
         records: &[EstimatorRecords],
@@ -395,6 +410,7 @@ impl ScenarioReport {
         let targets = targets(&estimators);
         Self {
             scenario: scenario.to_owned(),
+            source: source.to_owned(),
             calibration,
             truth,
             estimators,
@@ -471,6 +487,7 @@ mod tests {
         let mut records = EstimatorRecords::new(EstimatorKind::SphereFit);
         records.detections = 4;
         records.false_positives = 1;
+        records.false_positives_duplicate = 1;
         records.apples = vec![
             outcome(0.6, 1.0, Some(0.004)),
             outcome(1.2, 0.8, Some(0.010)),
@@ -494,6 +511,10 @@ mod tests {
         let report = EstimatorReport::from_records(&records);
         let d = &report.detection;
         assert_eq!((d.true_positives, d.false_positives), (3, 1));
+        assert_eq!(
+            (d.false_positives_duplicate, d.false_positives_no_apple),
+            (1, 0)
+        );
         assert_eq!(d.precision, Some(0.75));
         assert_eq!((d.truth_visible, d.matched_visible), (5, 3));
         assert_eq!((d.truth_half_visible, d.matched_half_visible), (3, 2));
@@ -548,7 +569,7 @@ mod tests {
         );
         assert_eq!(report.error_by_condition[1].truth_visible, 0);
 
-        let scenario = ScenarioReport::from_records("test", "truth", 7, &[records]);
+        let scenario = ScenarioReport::from_records("test", "test.toml", "truth", 7, &[records]);
         assert_eq!(scenario.truth.apples_visible, 5);
         assert_eq!(scenario.truth.frames_with_20_plus_apples, 1);
         let empty_target = scenario

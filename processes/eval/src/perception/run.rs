@@ -15,7 +15,9 @@ use tracing::{info, trace, warn};
 use crate::perception::args::EvalPerceptionArgs;
 use crate::perception::error::EvalError;
 use crate::perception::frame::{FrameRenderer, zeroed_frame};
-use crate::perception::matching::{MatchRule, Matching, OverlapTable, ReportedApple, TrueApple};
+use crate::perception::matching::{
+    FalsePositiveKind, MatchRule, Matching, OverlapTable, ReportedApple, TrueApple,
+};
 use crate::perception::records::{AppleOutcome, EstimatorRecords, FrameTiming};
 use crate::perception::report::{PerceptionReport, ScenarioReport};
 use crate::perception::tables::render_tables;
@@ -259,6 +261,7 @@ impl ScenarioRun<'_> {
             }
         }
         Ok(ScenarioReport::from_records(
+            &self.scenario.name,
             self.name,
             CALIBRATION_SOURCE,
             apples_generated,
@@ -321,6 +324,19 @@ impl ScenarioRun<'_> {
         );
         record.detections += apples.len();
         record.false_positives += scratch.matching.false_positives();
+        for d in 0..apples.len() {
+            match self.rule.false_positive_kind(
+                d,
+                &scratch.reported,
+                &scratch.true_apples,
+                &scratch.overlap,
+                &scratch.matching,
+            ) {
+                Some(FalsePositiveKind::Duplicate) => record.false_positives_duplicate += 1,
+                Some(FalsePositiveKind::Mislocalized) => record.false_positives_mislocalized += 1,
+                Some(FalsePositiveKind::NoApple) | None => {}
+            }
+        }
         let matching = &scratch.matching;
         for (t, apple) in scratch.truth.iter().enumerate() {
             if apple.visible_px == 0 {

@@ -13,6 +13,12 @@ fn fraction(value: Option<f64>, numerator: usize, denominator: usize) -> String 
     format!("{} ({numerator}/{denominator})", number(value, 3))
 }
 
+/// A threshold without trailing zeros (`33`, `0.9`, `38.318`).
+fn compact(value: f64) -> String {
+    let text = format!("{value:.3}");
+    text.trim_end_matches('0').trim_end_matches('.').to_owned()
+}
+
 /// `median / p95 / max` of a summary.
 fn spread(summary: &Summary, decimals: usize) -> String {
     format!(
@@ -56,10 +62,11 @@ fn render_scenario(out: &mut String, s: &ScenarioReport) {
     let t = &s.truth;
     let _ = writeln!(
         out,
-        "## Scenario `{}`\n\n{} frames: {} apples generated, {} visible (>= 1 pixel), {} at least \
+        "## Scenario `{}` (`--scenario {}`)\n\n{} frames: {} apples generated, {} visible (>= 1 pixel), {} at least \
          50 % visible; {} frames with 20+ visible apples; {} frames without apples. \
          Calibration: {}.\n",
         s.scenario,
+        s.source,
         t.frames,
         t.apples_generated,
         t.apples_visible,
@@ -70,7 +77,7 @@ fn render_scenario(out: &mut String, s: &ScenarioReport) {
     );
     let _ = writeln!(
         out,
-        "### Detection\n\n| estimator | reported | true pos. | false pos. | precision | recall \
+        "### Detection\n\n| estimator | reported | true pos. | false pos. (duplicate / mislocalized / no apple) | precision | recall \
          (visible) | recall (>= 50 % visible) | same, not over-exposed | found in 2D (>= 50 % \
          visible) | reported on empty frames |\n|---|---|---|---|---|---|---|---|---|---|"
     );
@@ -78,11 +85,14 @@ fn render_scenario(out: &mut String, s: &ScenarioReport) {
         let d = &e.detection;
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({} of {} frames) |",
+            "| {} | {} | {} | {} ({} / {} / {}) | {} | {} | {} | {} | {} | {} ({} of {} frames) |",
             name(e),
             d.detections,
             d.true_positives,
             d.false_positives,
+            d.false_positives_duplicate,
+            d.false_positives_mislocalized,
+            d.false_positives_no_apple,
             number(d.precision, 3),
             fraction(d.recall, d.matched_visible, d.truth_visible),
             fraction(
@@ -236,7 +246,7 @@ fn render_scenario(out: &mut String, s: &ScenarioReport) {
             target.target,
             number(target.value, 3),
             target.comparison,
-            target.threshold,
+            compact(target.threshold),
         );
     }
     let _ = writeln!(out);

@@ -50,13 +50,14 @@ pub(crate) fn close(
 }
 
 /// Separable 3x3 min/max filter: a horizontal pass into `scratch`, a vertical pass into `dst`.
-fn filter3x3(
+/// Generic over `op` so it inlines and vectorizes.
+fn filter3x3<F: Fn(u8, u8) -> u8 + Copy>(
     src: &[u8],
     width: usize,
     height: usize,
     scratch: &mut Vec<u8>,
     dst: &mut Vec<u8>,
-    op: fn(u8, u8) -> u8,
+    op: F,
 ) {
     let n = width * height;
     scratch.clear();
@@ -70,28 +71,36 @@ fn filter3x3(
         .chunks_exact(width)
         .zip(scratch.chunks_exact_mut(width))
     {
-        for x in 0..width {
-            let mut value = row_in[x];
-            if x > 0 {
-                value = op(value, row_in[x - 1]);
-            }
-            if x + 1 < width {
-                value = op(value, row_in[x + 1]);
-            }
-            row_out[x] = value;
+        if width == 1 {
+            row_out[0] = row_in[0];
+            continue;
         }
+        row_out[0] = op(row_in[0], row_in[1]);
+        for (out, window) in row_out[1..width - 1].iter_mut().zip(row_in.windows(3)) {
+            *out = op(op(window[0], window[1]), window[2]);
+        }
+        row_out[width - 1] = op(row_in[width - 2], row_in[width - 1]);
     }
     for y in 0..height {
         let row = y * width;
-        for x in 0..width {
-            let mut value = scratch[row + x];
-            if y > 0 {
-                value = op(value, scratch[row - width + x]);
-            }
-            if y + 1 < height {
-                value = op(value, scratch[row + width + x]);
-            }
-            dst[row + x] = value;
+        let current = &scratch[row..row + width];
+        let above = if y > 0 {
+            &scratch[row - width..row]
+        } else {
+            current
+        };
+        let below = if y + 1 < height {
+            &scratch[row + width..row + 2 * width]
+        } else {
+            current
+        };
+        for (((out, &c), &a), &b) in dst[row..row + width]
+            .iter_mut()
+            .zip(current)
+            .zip(above)
+            .zip(below)
+        {
+            *out = op(op(a, c), b);
         }
     }
 }

@@ -7,7 +7,7 @@
 use harvest_ipc::catalogue::{ARM_STATE, CAMERA_RGBD, EMERGENCY_STOP, VACUUM_STATE};
 use harvest_ipc::payloads::rgbd_frame::{DEPTH_PIXELS, RGB_BYTES};
 use harvest_ipc::payloads::{ArmState, EmergencyStop, RgbdFrame, VacuumState};
-use harvest_ipc::{Context, Domain, FixedString, Payload, Publisher};
+use harvest_ipc::{Context, Domain, FixedString, Header, Payload, Publisher};
 use harvest_recorder::{RecorderArgs, RecorderControl, RecorderError, RecordingReport};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -83,7 +83,9 @@ impl RunningRecorder {
 
     /// Waits until every channel is tapped (fails the test after 20 s).
     pub fn wait_ready(&self) {
-        wait_until("recorder ready", || self.control.ready.load(Ordering::SeqCst));
+        wait_until("recorder ready", || {
+            self.control.ready.load(Ordering::SeqCst)
+        });
     }
 
     pub fn stop(self) -> Result<RecordingReport, RecorderError> {
@@ -104,29 +106,41 @@ pub fn wait_until(what: &str, mut condition: impl FnMut() -> bool) {
 
 /// The arm state a test sends as message `index`.
 pub fn arm_state(index: u32) -> ArmState {
-    let mut state = ArmState::default();
-    state.arm_id = 1;
-    state.phase = (index % 6) as u8;
-    state.apple_id = 1000 + index;
-    state.harvested_count = index;
-    state.joint_position = [0.1 * index as f64, -0.2, 0.3, f64::from(index).sin()];
-    state.control_period_ns = 5_000_000;
-    state.header.capture_ns = 1_000_000 + u64::from(index);
-    state
+    ArmState {
+        header: Header {
+            capture_ns: 1_000_000 + u64::from(index),
+            ..Header::default()
+        },
+        arm_id: 1,
+        phase: (index % 6) as u8,
+        apple_id: 1000 + index,
+        harvested_count: index,
+        joint_position: [0.1 * index as f64, -0.2, 0.3, f64::from(index).sin()],
+        control_period_ns: 5_000_000,
+        ..ArmState::default()
+    }
 }
 
 pub fn vacuum_state(index: u32) -> VacuumState {
-    let mut state = VacuumState::default();
-    state.header.capture_ns = 2_000_000 + u64::from(index);
-    state
+    VacuumState {
+        header: Header {
+            capture_ns: 2_000_000 + u64::from(index),
+            ..Header::default()
+        },
+        ..VacuumState::default()
+    }
 }
 
 pub fn emergency_stop() -> EmergencyStop {
-    let mut stop = EmergencyStop::default();
-    stop.engaged = 1;
-    stop.reason = FixedString::new("test stop");
-    stop.header.capture_ns = 77;
-    stop
+    EmergencyStop {
+        header: Header {
+            capture_ns: 77,
+            ..Header::default()
+        },
+        engaged: 1,
+        reason: FixedString::new("test stop"),
+        ..EmergencyStop::default()
+    }
 }
 
 /// Fills a frame with a deterministic pattern of `seed` (random-looking bytes, so the
@@ -172,7 +186,9 @@ impl TestPublishers {
             self.arm.publish(&arm_state(index)).expect("publish arm");
         }
         for index in 0..vacuums {
-            self.vacuum.publish(&vacuum_state(index)).expect("publish vacuum");
+            self.vacuum
+                .publish(&vacuum_state(index))
+                .expect("publish vacuum");
         }
         self.stop.publish(&emergency_stop()).expect("publish stop");
         for index in 0..frames {
@@ -200,9 +216,14 @@ pub fn ensure_python_mcap() {
             .unwrap_or(false)
     };
     if !available(()) {
-        let _ = Command::new("python3").args(["-m", "pip", "install", "--quiet", "mcap"]).status();
+        let _ = Command::new("python3")
+            .args(["-m", "pip", "install", "--quiet", "mcap"])
+            .status();
     }
-    assert!(available(()), "python3 with the `mcap` package is required (python3 -m pip install mcap)");
+    assert!(
+        available(()),
+        "python3 with the `mcap` package is required (python3 -m pip install mcap)"
+    );
 }
 
 /// Reads `path` with the Python `mcap` reader and returns its JSON description: schemas,

@@ -1,4 +1,5 @@
-//! Parsing durations given on the command line: `10s`, `500ms`, `2m`, `1.5s`, or plain seconds.
+//! Parsing durations given on command lines and in options of every tool of the stack: `10s`,
+//! `500ms`, `2m`, `1h`, `1.5s`, or plain seconds.
 
 use std::time::Duration;
 

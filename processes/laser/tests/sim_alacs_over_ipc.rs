@@ -1,0 +1,199 @@
+//! The simulated ALACS unit end to end over the hardware channels: the simulator's
+//! `AlacsDeviceServer` serves `hw/alacs/command` -> `hw/alacs/image` on its own thread with its
+//! own node (as the sim process does), and the laser process's driver `SimAlacsUnit` talks to it
+//! from the test thread, in a domain no other test uses.
+//!
+//! Checks: the driver passes the ALACS conformance checks; a full scan request of a known apple
+//! (the `ideal` scenario: no leaves) comes back within a few millimetres of the true centre.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use harvest_hw::alacs::{
+    ALACS_FROM_TOF_CAMERA, AlacsExtrinsics, SimAlacsUnit, alacs_camera_intrinsics, conformance,
+};
+use harvest_ipc::catalogue::{HW_ALACS_COMMAND, HW_ALACS_IMAGE};
+use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
+use harvest_ipc::{Context, Domain, Flow, Waiter};
+use harvest_laser::service::STATUS_OK;
+use harvest_laser::{ScanConfig, ScanPlanner, ScanService};
+use harvest_sim::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer, robot_from_tof_color};
+use harvest_sim::{Scenario, World};
+
+/// Longest wait for one device answer: generous, a debug-build render of 1440x1080 takes a while.
+const DEVICE_TIMEOUT: Duration = Duration::from_secs(30);
+
+fn unique_domain(tag: &str) -> Domain {
+    static COUNTER: AtomicU32 = AtomicU32::new(0);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    let name = format!(
+        "l{tag}{}{}{:x}",
+        std::process::id() % 10_000,
+        COUNTER.fetch_add(1, Ordering::SeqCst),
+        nanos % 0xfff
+    );
+    Domain::new(&name[..name.len().min(24)]).expect("valid domain")
+}
+
+fn ideal_world() -> World {
+    World::generate(&Scenario::preset("ideal").expect("preset"), 5).expect("world")
+}
+
+/// The simulator's ALACS device on its own thread; stops (and is joined) on drop.
+struct Device {
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Result<u64, String>>>,
+}
+
+impl Device {
+    fn start(domain: &Domain) -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let (ready_tx, ready_rx) = mpsc::channel();
+        let thread = {
+            let (domain, stop) = (domain.clone(), Arc::clone(&stop));
+            std::thread::spawn(move || serve(&domain, &stop, &ready_tx))
+        };
+        ready_rx
+            .recv_timeout(Duration::from_secs(30))
+            .expect("device thread ready");
+        Self {
+            stop,
+            thread: Some(thread),
+        }
+    }
+
+    /// Stops the device and returns the number of commands it answered.
+    fn finish(mut self) -> u64 {
+        self.stop.store(true, Ordering::SeqCst);
+        let thread = self.thread.take().expect("running");
+        thread.join().expect("device thread").expect("device loop")
+    }
+}
+
+impl Drop for Device {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+    }
+}
+
+/// What the sim process does for the ALACS: answer every command with one loaned image.
+fn serve(domain: &Domain, stop: &AtomicBool, ready: &mpsc::Sender<()>) -> Result<u64, String> {
+    let world = ideal_world();
+    let mut server =
+        AlacsDeviceServer::new(AlacsDeviceConfig::default()).map_err(|e| e.to_string())?;
+    let context = Context::new(domain, "sim_alacs").map_err(|e| e.to_string())?;
+    let commands = context
+        .subscriber(HW_ALACS_COMMAND)
+        .map_err(|e| e.to_string())?;
+    let mut images = context
+        .publisher(HW_ALACS_IMAGE)
+        .map_err(|e| e.to_string())?;
+    let waiter = Waiter::new().map_err(|e| e.to_string())?;
+    let command_guard = waiter
+        .attach_listener(commands.listener())
+        .map_err(|e| e.to_string())?;
+    let stop_check = waiter
+        .attach_interval(Duration::from_millis(20))
+        .map_err(|e| e.to_string())?;
+    ready.send(()).map_err(|e| e.to_string())?;
+    let mut answered = 0;
+    waiter
+        .run(|attachment| -> Result<Flow, String> {
+            if attachment.has_event_from(&command_guard) {
+                while let Some(command) = commands.receive().map_err(|e| e.to_string())? {
+                    let mut image = images.loan().map_err(|e| e.to_string())?;
+                    server.handle(&world, &command, &mut image);
+                    images.send(image).map_err(|e| e.to_string())?;
+                    answered += 1;
+                }
+            }
+            if attachment.has_event_from(&stop_check) && stop.load(Ordering::SeqCst) {
+                return Ok(Flow::Stop);
+            }
+            Ok(Flow::Continue)
+        })
+        .map_err(|e| e.to_string())?;
+    Ok(answered)
+}
+
+#[test]
+fn sim_driver_conforms_over_ipc() {
+    let domain = unique_domain("conf");
+    let device = Device::start(&domain);
+    let context = Context::new(&domain, "laser").expect("context");
+    let mut unit =
+        SimAlacsUnit::connect(&context, alacs_camera_intrinsics(), DEVICE_TIMEOUT).expect("driver");
+    conformance::check_all(&mut unit).expect("conformance");
+    // 4 moves + 1 capture (stroke check) + 1 move + 2 x (laser + capture) + laser off; the
+    // refused targets never reach the device.
+    assert_eq!(device.finish(), 12);
+}
+
+#[test]
+fn scan_of_a_known_apple_over_ipc_lands_within_a_few_millimetres() {
+    let world = ideal_world();
+    let tof_from_robot = robot_from_tof_color(&world).inverse();
+    let planner = ScanPlanner {
+        extrinsics: AlacsExtrinsics::paper_table1(),
+        config: ScanConfig::default(),
+    };
+    // The first apple the slide can sweep.
+    let apple = world
+        .apples()
+        .iter()
+        .find(|apple| {
+            let in_alacs = ALACS_FROM_TOF_CAMERA.apply(tof_from_robot.apply(apple.center_in_robot_m));
+            planner.plan(in_alacs).is_ok()
+        })
+        .expect("an apple in the ALACS's reach");
+    let truth_in_tof = tof_from_robot.apply(apple.center_in_robot_m);
+
+    let domain = unique_domain("scan");
+    let device = Device::start(&domain);
+    let context = Context::new(&domain, "laser").expect("context");
+    let intrinsics = alacs_camera_intrinsics();
+    let mut unit = SimAlacsUnit::connect(&context, intrinsics, DEVICE_TIMEOUT).expect("driver");
+    let mut service = ScanService::new(
+        AlacsExtrinsics::paper_table1(),
+        intrinsics,
+        ALACS_FROM_TOF_CAMERA,
+    )
+    .expect("service");
+    // A ToF-like rough estimate: 15 mm too deep, a few mm off sideways.
+    let request = LaserScanRequest {
+        request_seq: 1,
+        apple_id: apple.id.0,
+        rough_position_in_camera_m: [
+            truth_in_tof[0] + 0.004,
+            truth_in_tof[1] - 0.003,
+            truth_in_tof[2] + 0.015,
+        ],
+        rough_radius_m: apple.radius_m,
+        ..LaserScanRequest::default()
+    };
+    let mut result = LaserScanResult::default();
+    let scan = service
+        .answer(&mut unit, &request, &mut result, &mut || {})
+        .expect("scan");
+    assert_eq!(result.status, STATUS_OK);
+    assert_eq!(result.candidate_count, 5, "{scan:?}");
+    let error_m = (0..3)
+        .map(|k| (result.position_in_camera_m[k] - truth_in_tof[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let rough_error_m = (0.004_f64.powi(2) + 0.003_f64.powi(2) + 0.015_f64.powi(2)).sqrt();
+    assert!(error_m < 3e-3, "laser error {error_m} m, {result:?}");
+    assert!(error_m < rough_error_m / 4.0);
+    // Every capture's stamp came from the device; the result carries the selected one's.
+    let stamps = &service.last_motion().capture_stamps_ns;
+    assert_eq!(stamps.len(), 5);
+    assert_eq!(result.header.capture_ns, stamps[scan.selected]);
+    // laser on, 5 x (move + capture), laser off.
+    assert_eq!(device.finish(), 12);
+}
