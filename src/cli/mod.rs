@@ -50,6 +50,9 @@ enum Command {
     /// The sending process of one benchmark case (started by `harvest bench ipc`).
     #[command(name = "bench-peer", hide = true)]
     BenchPeer(harvest_bench::BenchPeerArgs),
+    /// Evaluations against the simulator's ground truth.
+    #[command(subcommand)]
+    Eval(EvalCommand),
     /// Remove stale iceoryx2 resources of dead processes in the domain.
     Clean {
         /// Only list this domain's files still present; exit 1 if any.
@@ -79,6 +82,12 @@ enum BenchCommand {
     Ipc(harvest_bench::BenchIpcArgs),
 }
 
+#[derive(Debug, Subcommand)]
+enum EvalCommand {
+    /// Detection precision/recall, 3D error and processing time per estimator, on rendered frames.
+    Perception(harvest_eval::EvalPerceptionArgs),
+}
+
 impl Cli {
     /// The name this process runs under: given by the supervisor, else the subcommand's name.
     pub fn process_name(&self) -> String {
@@ -94,6 +103,7 @@ impl Cli {
             Command::Perception(_) => "perception",
             Command::Calibrate(_) => "calibrate",
             Command::Bench(_) => "bench",
+            Command::Eval(_) => "eval",
             Command::BenchPeer(_) => "bench-peer",
             Command::Clean { .. } => "clean",
             Command::Channels => "channels",
@@ -126,6 +136,10 @@ impl Cli {
             Command::Bench(BenchCommand::Ipc(args)) => {
                 let report = harvest_bench::run_bench_ipc(&args).context("ipc benchmark")?;
                 print!("{}", report.table());
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Eval(EvalCommand::Perception(args)) => {
+                harvest_eval::run_eval_perception(&args).context("perception evaluation")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::BenchPeer(args) => {

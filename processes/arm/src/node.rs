@@ -620,7 +620,16 @@ impl ArmNode {
             return;
         }
         self.last_target_seq = Some(target.header.msg_seq);
+        if self.attempt.is_some_and(|a| a.apple_id == target.apple_id) {
+            // A re-publication of the apple this arm is already picking.
+            return;
+        }
+        let refresh = self.pending.is_some_and(|p| p.apple_id == target.apple_id);
         self.pending = Some(*target);
+        if refresh {
+            // The same apple re-published (fresher detection): keep the refusal history.
+            return;
+        }
         self.last_rejection = None;
         self.deferred = false;
         debug!(arm = %self.arm, apple_id = target.apple_id, "target received");

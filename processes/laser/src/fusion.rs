@@ -107,7 +107,8 @@ pub fn fuse_slices(
         let count = slices.len() as f64;
         let foot: [f64; 3] =
             std::array::from_fn(|k| slices.iter().map(|(p, _, _)| p[k]).sum::<f64>() / count);
-        let rms_residual_m = (slices.iter().map(|s| residual(s).powi(2)).sum::<f64>() / count).sqrt();
+        let rms_residual_m =
+            (slices.iter().map(|s| residual(s).powi(2)).sum::<f64>() / count).sqrt();
         return Some(FusedSphere {
             centre_in_camera_m: std::array::from_fn(|k| foot[k] + s_m * normal[k]),
             radius_m,
@@ -172,14 +173,21 @@ mod tests {
         }
     }
 
-    fn scan_slices(extrinsics: &AlacsExtrinsics, centre: [f64; 3], radius_m: f64) -> Vec<PositionCandidate> {
+    fn scan_slices(
+        extrinsics: &AlacsExtrinsics,
+        centre: [f64; 3],
+        radius_m: f64,
+    ) -> Vec<PositionCandidate> {
         // First plane 2 cm left of the centre, then 1 cm steps (the interval scan).
         let normal_length = dot(
             extrinsics.laser_plane_in_camera(0.0).normal,
             extrinsics.laser_plane_in_camera(0.0).normal,
         )
         .sqrt();
-        let first_m = extrinsics.laser_plane_in_camera(0.0).signed_distance_m(centre) * normal_length
+        let first_m = extrinsics
+            .laser_plane_in_camera(0.0)
+            .signed_distance_m(centre)
+            * normal_length
             - 0.02 * normal_length;
         (0..5)
             .map(|k| exact_slice(extrinsics, centre, radius_m, first_m + 0.01 * k as f64))
@@ -195,7 +203,10 @@ mod tests {
         assert_eq!(fused.slices_used, 5);
         assert!((fused.radius_m - 0.036).abs() < 1e-9, "{fused:?}");
         for k in 0..3 {
-            assert!((fused.centre_in_camera_m[k] - centre[k]).abs() < 1e-9, "{fused:?}");
+            assert!(
+                (fused.centre_in_camera_m[k] - centre[k]).abs() < 1e-9,
+                "{fused:?}"
+            );
         }
         // Any three circles are enough; two are refused.
         assert!(fuse_slices(&slices[1..4], &extrinsics, &FusionConfig::default()).is_some());

@@ -27,7 +27,9 @@ pub use candidate::{CandidateConfig, PositionCandidate, TargetHint};
 pub use cli::{CalibrateLaserArgs, CalibrateLaserError, run_calibrate_laser};
 pub use extraction::{ExtractionConfig, LaserLineExtractor, PixelRoi, StripePoint};
 pub use process::{LaserArgs, LaserProcessError};
-pub use refinement::{EvalLaserArgs, EvalLaserError, RefinementReport, evaluate_refinement, run_eval_laser};
+pub use refinement::{
+    EvalLaserArgs, EvalLaserError, RefinementReport, evaluate_refinement, run_eval_laser,
+};
 pub use scan::{
     ProcessorConfig, ScanConfig, ScanError, ScanPlan, ScanPlanner, ScanProcessor, ScanResult,
     run_scan,

@@ -112,9 +112,12 @@ mod tests {
     #[test]
     fn records_travel_captures_and_hook_calls() {
         let intrinsics = CameraIntrinsics::from_horizontal_fov(64, 48, 45.0);
-        let mut unit =
-            RenderedAlacs::new(intrinsics, RenderedAlacsConfig::default(), AlacsScene::default())
-                .expect("unit");
+        let mut unit = RenderedAlacs::new(
+            intrinsics,
+            RenderedAlacsConfig::default(),
+            AlacsScene::default(),
+        )
+        .expect("unit");
         let mut motion = ScanMotion::default();
         let mut steps = 0;
         let mut hook = || steps += 1;
@@ -125,9 +128,11 @@ mod tests {
             observed.move_slide(target_m).expect("move");
             observed.capture_rgb(&mut rgb).expect("capture");
         }
-        assert!(observed
-            .slide_position_m()
-            .is_some_and(|d| (d - 0.06).abs() < 1e-12));
+        assert!(
+            observed
+                .slide_position_m()
+                .is_some_and(|d| (d - 0.06).abs() < 1e-12)
+        );
         drop(observed);
         assert_eq!(steps, 7);
         assert_eq!((motion.moves, motion.captures), (3, 3));

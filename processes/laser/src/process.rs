@@ -44,7 +44,9 @@ pub enum LaserProcessError {
     #[error(transparent)]
     Calibration(#[from] CalibrationFileError),
     /// `--device-timeout-ms` is outside what the supervisor tolerates.
-    #[error("--device-timeout-ms {value} is invalid: use 1-2900 ms (the supervisor's hang timeout is 3 s)")]
+    #[error(
+        "--device-timeout-ms {value} is invalid: use 1-2900 ms (the supervisor's hang timeout is 3 s)"
+    )]
     InvalidTimeout { value: u64 },
     /// The scan pipeline could not be configured.
     #[error("scan pipeline: {0}")]

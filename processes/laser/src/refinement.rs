@@ -208,6 +208,9 @@ pub struct RefinementReport {
     pub selected_candidate_error_mm: Summary,
     /// Refined apples whose answer is the fused sphere.
     pub fused: usize,
+    /// The answer's error split by how it was found, mm.
+    pub laser_error_fused_mm: Summary,
+    pub laser_error_unfused_mm: Summary,
     /// |ToF radius - true| and |fused radius - true| over the fused apples, mm.
     pub tof_radius_error_mm: Summary,
     pub fused_radius_error_mm: Summary,
@@ -251,7 +254,8 @@ pub fn evaluate_refinement(args: &EvalLaserArgs) -> Result<RefinementReport, Eva
     let worlds = (0..u64::from(args.worlds))
         .map(|k| {
             let seed = args.seed + k;
-            World::generate(&scenario, seed).map_err(|source| EvalLaserError::World { seed, source })
+            World::generate(&scenario, seed)
+                .map_err(|source| EvalLaserError::World { seed, source })
         })
         .collect::<Result<Vec<_>, _>>()?;
     let timing = TimingModel {
@@ -371,7 +375,10 @@ fn check_args(args: &EvalLaserArgs) -> Result<(), EvalLaserError> {
             "must be a positive speed",
         );
     }
-    for (name, value) in [("settle-ms", args.settle_ms), ("capture-ms", args.capture_ms)] {
+    for (name, value) in [
+        ("settle-ms", args.settle_ms),
+        ("capture-ms", args.capture_ms),
+    ] {
         if !(value.is_finite() && value >= 0.0) {
             return invalid(name, value.to_string(), "must be a non-negative time");
         }
@@ -414,7 +421,11 @@ impl TofPath {
     }
 
     /// Renders the ToF frame of `world` and localises its apples (colour-camera frame).
-    fn localise(&mut self, world: &World, frame_seq: u64) -> Result<&[AppleEstimate], EvalLaserError> {
+    fn localise(
+        &mut self,
+        world: &World,
+        frame_seq: u64,
+    ) -> Result<&[AppleEstimate], EvalLaserError> {
         self.renderer.render_color(world, &mut self.rgb)?;
         self.renderer
             .render_depth(world, frame_seq, &mut self.depth_mm)?;
@@ -465,10 +476,7 @@ fn pair_with_truth(world: &World, estimates: &[AppleEstimate]) -> Vec<(AppleEsti
     }
     // Scan in perception's order, as a harvest cycle would ask.
     paired.sort_unstable();
-    paired
-        .into_iter()
-        .map(|(e, a)| (estimates[e], a))
-        .collect()
+    paired.into_iter().map(|(e, a)| (estimates[e], a)).collect()
 }
 
 fn summarise(
@@ -481,13 +489,10 @@ fn summarise(
     let count_status = |status| apples.iter().filter(|r| r.status == status).count();
     let scanned = || apples.iter().filter(|r| r.captures > 0);
     let mean_axis = |axis: fn(&AppleRecord) -> [f64; 3]| -> [f64; 3] {
-        std::array::from_fn(|k| {
-            Summary::of(refined.iter().map(|r| axis(r)[k])).mean
-        })
+        std::array::from_fn(|k| Summary::of(refined.iter().map(|r| axis(r)[k])).mean)
     };
-    let max_axis: [f64; 3] = std::array::from_fn(|k| {
-        Summary::of(refined.iter().map(|r| r.axis_error_after_mm[k])).max
-    });
+    let max_axis: [f64; 3] =
+        std::array::from_fn(|k| Summary::of(refined.iter().map(|r| r.axis_error_after_mm[k])).max);
     RefinementReport {
         scenario: args.scenario.clone(),
         first_seed: args.seed,
@@ -503,8 +508,25 @@ fn summarise(
         tof_error_all_mm: Summary::of(apples.iter().map(|r| r.error_before_mm)),
         tof_error_mm: Summary::of(refined.iter().map(|r| r.error_before_mm)),
         laser_error_mm: Summary::of(refined.iter().filter_map(|r| r.error_after_mm)),
-        selected_candidate_error_mm: Summary::of(refined.iter().filter_map(|r| r.selected_error_mm)),
-        fused: refined.iter().filter(|r| r.fused_radius_error_mm.is_some()).count(),
+        selected_candidate_error_mm: Summary::of(
+            refined.iter().filter_map(|r| r.selected_error_mm),
+        ),
+        fused: refined
+            .iter()
+            .filter(|r| r.fused_radius_error_mm.is_some())
+            .count(),
+        laser_error_fused_mm: Summary::of(
+            refined
+                .iter()
+                .filter(|r| r.fused_radius_error_mm.is_some())
+                .filter_map(|r| r.error_after_mm),
+        ),
+        laser_error_unfused_mm: Summary::of(
+            refined
+                .iter()
+                .filter(|r| r.fused_radius_error_mm.is_none())
+                .filter_map(|r| r.error_after_mm),
+        ),
         tof_radius_error_mm: Summary::of(
             refined
                 .iter()
@@ -521,13 +543,14 @@ fn summarise(
         laser_max_axis_error_mm: max_axis,
         improved: refined
             .iter()
-            .filter(|r| r.error_after_mm.is_some_and(|after| after < r.error_before_mm))
+            .filter(|r| {
+                r.error_after_mm
+                    .is_some_and(|after| after < r.error_before_mm)
+            })
             .count(),
         within_paper_bounds: refined
             .iter()
-            .filter(|r| {
-                (0..3).all(|k| r.axis_error_after_mm[k] <= PAPER_MAX_ERROR_MM[k])
-            })
+            .filter(|r| (0..3).all(|k| r.axis_error_after_mm[k] <= PAPER_MAX_ERROR_MM[k]))
             .count(),
         modelled_scan_ms: Summary::of(scanned().map(|r| r.modelled_scan_ms)),
         processing_ms: Summary::of(scanned().map(|r| r.processing_ms)),
@@ -565,13 +588,38 @@ pub fn render_report(report: &RefinementReport) -> String {
         report.out_of_reach,
         report.device_errors,
     );
-    let _ = writeln!(out, "3D error, mm                       n     mean   median      p95      max");
-    let _ = writeln!(out, "ToF, all paired apples        {}", line(&report.tof_error_all_mm));
-    let _ = writeln!(out, "ToF, refined apples           {}", line(&report.tof_error_mm));
-    let _ = writeln!(out, "laser answer, refined apples  {}", line(&report.laser_error_mm));
     let _ = writeln!(
         out,
-        "  selected candidate only     {}",
+        "3D error, mm                       n     mean   median      p95      max"
+    );
+    let _ = writeln!(
+        out,
+        "ToF, all paired apples        {}",
+        line(&report.tof_error_all_mm)
+    );
+    let _ = writeln!(
+        out,
+        "ToF, refined apples           {}",
+        line(&report.tof_error_mm)
+    );
+    let _ = writeln!(
+        out,
+        "laser answer, refined apples  {}",
+        line(&report.laser_error_mm)
+    );
+    let _ = writeln!(
+        out,
+        "  fused sphere (>= 3 circles) {}",
+        line(&report.laser_error_fused_mm)
+    );
+    let _ = writeln!(
+        out,
+        "  fewer circles: candidate   {}",
+        line(&report.laser_error_unfused_mm)
+    );
+    let _ = writeln!(
+        out,
+        "selected candidate, all      {}",
         line(&report.selected_candidate_error_mm)
     );
     let _ = writeln!(
@@ -602,11 +650,30 @@ pub fn render_report(report: &RefinementReport) -> String {
          processing.",
         t.slide_speed_m_s, t.settle_ms, t.capture_ms
     );
-    let _ = writeln!(out, "per scan                           n     mean   median      p95      max");
-    let _ = writeln!(out, "modelled scan time, ms        {}", line(&report.modelled_scan_ms));
-    let _ = writeln!(out, "  of which processing, ms     {}", line(&report.processing_ms));
-    let _ = writeln!(out, "slide travel, mm              {}", line(&report.slide_travel_mm));
-    let _ = writeln!(out, "simulator render (not robot)  {}", line(&report.simulator_ms));
+    let _ = writeln!(
+        out,
+        "per scan                           n     mean   median      p95      max"
+    );
+    let _ = writeln!(
+        out,
+        "modelled scan time, ms        {}",
+        line(&report.modelled_scan_ms)
+    );
+    let _ = writeln!(
+        out,
+        "  of which processing, ms     {}",
+        line(&report.processing_ms)
+    );
+    let _ = writeln!(
+        out,
+        "slide travel, mm              {}",
+        line(&report.slide_travel_mm)
+    );
+    let _ = writeln!(
+        out,
+        "simulator render (not robot)  {}",
+        line(&report.simulator_ms)
+    );
     out
 }
 

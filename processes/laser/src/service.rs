@@ -22,8 +22,8 @@ use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
 use harvest_ipc::payloads::laser_scan::MAX_SCAN_CANDIDATES;
 use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
 
-use crate::candidate::TargetHint;
 use crate::candidate::PositionCandidate;
+use crate::candidate::TargetHint;
 use crate::extraction::{ExtractionError, PixelRoi};
 use crate::fusion::{FusedSphere, FusionConfig, fuse_slices};
 use crate::observed_unit::{ObservedUnit, ScanMotion};
@@ -148,9 +148,11 @@ impl ScanService {
             .sum::<f64>()
             .sqrt();
         // Apparent radius of a sphere: its silhouette's half-angle is asin(R / distance).
-        let radius_px =
-            0.5 * (intrinsics.fx_px + intrinsics.fy_px) * (radius_m / distance_m).min(0.99).asin().tan();
-        let corner = |centre_px: f64, sign: f64| (centre_px + sign * radius_px).round().max(0.0) as usize;
+        let radius_px = 0.5
+            * (intrinsics.fx_px + intrinsics.fy_px)
+            * (radius_m / distance_m).min(0.99).asin().tan();
+        let corner =
+            |centre_px: f64, sign: f64| (centre_px + sign * radius_px).round().max(0.0) as usize;
         Some(TargetHint {
             bbox_px: PixelRoi {
                 u_min_px: corner(u_px, -1.0),
@@ -182,18 +184,16 @@ impl ScanService {
         let started = Instant::now();
         self.motion.clear();
         self.fused = None;
-        let rough_in_alacs = self.alacs_from_tof.apply(request.rough_position_in_camera_m);
+        let rough_in_alacs = self
+            .alacs_from_tof
+            .apply(request.rough_position_in_camera_m);
         let outcome = match self.hint(rough_in_alacs, request.rough_radius_m) {
             None => Err(ScanRequestError::NotInView {
                 centre_in_alacs_m: rough_in_alacs,
             }),
             Some(hint) => {
-                let mut observed = ObservedUnit::new(
-                    unit,
-                    self.slide_position_m,
-                    before_step,
-                    &mut self.motion,
-                );
+                let mut observed =
+                    ObservedUnit::new(unit, self.slide_position_m, before_step, &mut self.motion);
                 let result = run_scan(
                     &mut observed,
                     &self.planner,
@@ -288,7 +288,8 @@ mod tests {
         let intrinsics = alacs_camera_intrinsics();
         let centre = [0.05, -0.02, 0.9];
         let hint = service.hint(centre, 0.04).expect("in view");
-        let expected_px = intrinsics.fx_px * (0.04_f64 / 0.9_f64.hypot(0.05).hypot(0.02)).asin().tan();
+        let expected_px =
+            intrinsics.fx_px * (0.04_f64 / 0.9_f64.hypot(0.05).hypot(0.02)).asin().tan();
         assert!((hint.radius_px() - expected_px).abs() <= 0.5, "{hint:?}");
         assert_eq!(hint.rough_centre_in_camera_m, centre);
         assert!(service.hint([2.0, 0.0, 0.9], 0.04).is_none());
@@ -317,8 +318,11 @@ mod tests {
             request_seq: 11,
             apple_id: 4,
             // 1.2 cm off in depth along the ToF camera's axis, as a ToF estimate would be.
-            rough_position_in_camera_m: tof_from_alacs
-                .apply([truth_in_alacs[0] + 0.003, truth_in_alacs[1], truth_in_alacs[2] + 0.012]),
+            rough_position_in_camera_m: tof_from_alacs.apply([
+                truth_in_alacs[0] + 0.003,
+                truth_in_alacs[1],
+                truth_in_alacs[2] + 0.012,
+            ]),
             rough_radius_m: 0.04,
             ..LaserScanRequest::default()
         };
@@ -327,8 +331,14 @@ mod tests {
         let result = service
             .answer(&mut unit, &request, &mut out, &mut || steps += 1)
             .expect("scan");
-        assert_eq!((out.request_seq, out.apple_id, out.status), (11, 4, STATUS_OK));
-        assert!(out.candidate_count >= 4 && out.selected < out.candidate_count, "{out:?}");
+        assert_eq!(
+            (out.request_seq, out.apple_id, out.status),
+            (11, 4, STATUS_OK)
+        );
+        assert!(
+            out.candidate_count >= 4 && out.selected < out.candidate_count,
+            "{out:?}"
+        );
         let error_m = (0..3)
             .map(|k| (out.position_in_camera_m[k] - truth_in_tof[k]).powi(2))
             .sum::<f64>()
@@ -345,15 +355,21 @@ mod tests {
         assert_eq!(steps, 12);
         let motion = service.last_motion();
         assert_eq!((motion.moves, motion.captures), (5, 5));
-        assert_eq!(out.header.capture_ns, motion.capture_stamps_ns[result.selected]);
+        assert_eq!(
+            out.header.capture_ns,
+            motion.capture_stamps_ns[result.selected]
+        );
     }
 
     #[test]
     fn apples_out_of_view_or_reach_get_status_two() {
         let intrinsics = alacs_camera_intrinsics();
-        let mut unit =
-            RenderedAlacs::new(intrinsics, RenderedAlacsConfig::default(), AlacsScene::default())
-                .expect("unit");
+        let mut unit = RenderedAlacs::new(
+            intrinsics,
+            RenderedAlacsConfig::default(),
+            AlacsScene::default(),
+        )
+        .expect("unit");
         let mut service = service();
         let tof_from_alacs = ALACS_FROM_TOF_CAMERA.inverse();
         let mut out = LaserScanResult::default();

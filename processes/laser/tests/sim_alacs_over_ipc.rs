@@ -148,7 +148,8 @@ fn scan_of_a_known_apple_over_ipc_lands_within_a_few_millimetres() {
         .apples()
         .iter()
         .find(|apple| {
-            let in_alacs = ALACS_FROM_TOF_CAMERA.apply(tof_from_robot.apply(apple.center_in_robot_m));
+            let in_alacs =
+                ALACS_FROM_TOF_CAMERA.apply(tof_from_robot.apply(apple.center_in_robot_m));
             planner.plan(in_alacs).is_ok()
         })
         .expect("an apple in the ALACS's reach");

@@ -135,6 +135,8 @@ fn sigkill_loses_at_most_the_open_chunk_and_recover_keeps_the_rest() {
     signal(&child, nix::sys::signal::Signal::SIGKILL);
     let status = child.wait().expect("wait child");
     assert!(!status.success(), "killed");
+    // What the killed node left in shared memory.
+    harvest_ipc::cleanup::remove_dead_nodes(&domain).expect("cleanup");
 
     let summary = info(&file).expect("info on a killed recording");
     assert!(!summary.indexed);

@@ -260,3 +260,34 @@ fn segments_split_by_size_and_the_oldest_go_first() {
         "sizes {sizes:?}"
     );
 }
+
+#[test]
+fn segments_split_by_duration() {
+    let domain = unique_domain("dur");
+    let dir = TempDir::new("dur");
+    let args = harvest_recorder::RecorderArgs {
+        include: vec!["arm1/state".into()],
+        split_size: 0,
+        split_duration: Some(std::time::Duration::from_millis(1)),
+        ..test_args(dir.path())
+    };
+    let recorder = RunningRecorder::start(&domain, args);
+    recorder.wait_ready();
+    let context = Context::new(&domain, "publisher").expect("node");
+    let mut arm = context
+        .publisher(harvest_ipc::catalogue::ARM_STATE[0])
+        .expect("publisher");
+    arm.publish(&arm_state(0)).expect("publish");
+    wait_until("second segment", || mcap_files(dir.path()).len() >= 2);
+    arm.publish(&arm_state(1)).expect("publish");
+    wait_until("third segment", || mcap_files(dir.path()).len() >= 3);
+    let report = recorder.stop().expect("recording");
+    assert!(report.files.len() >= 3, "{report}");
+    let per_file: Vec<usize> = report
+        .files
+        .iter()
+        .map(|file| messages_of(&python_read(file), "arm1/state").len())
+        .collect();
+    assert_eq!(per_file.iter().sum::<usize>(), 2, "{per_file:?}");
+    assert_eq!(&per_file[..2], &[1, 1], "one message per segment");
+}

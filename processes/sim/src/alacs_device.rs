@@ -401,7 +401,7 @@ pub fn fill_scene(
     for leaf in world.leaves() {
         let centre = alacs_from_robot.apply(leaf.center_in_robot_m);
         let radius_m = (leaf.half_length_m * leaf.half_width_m).sqrt();
-        if !(radius_m > 0.0) || !in_range(centre, radius_m) {
+        if radius_m.is_nan() || radius_m <= 0.0 || !in_range(centre, radius_m) {
             continue;
         }
         scene.leaves.push(LeafDisc {

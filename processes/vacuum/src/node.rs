@@ -113,6 +113,11 @@ pub struct VacuumNodeConfig {
     /// failed attempt, s (default 3 s: longer than the arm's 2 s target age limit, so the arm
     /// has dropped it by then).
     pub dispatch_timeout_s: f64,
+    /// Radius of the give-up list, m (default 0.05 m: below the 7-8 cm between the centres of
+    /// two touching apples, above the 3 cm identity match of the planner). A detection within
+    /// it of a spot where `planner.max_attempts` attempts failed is ignored, so an apple that
+    /// perception re-identifies as new after each failure is not tried forever.
+    pub give_up_radius_m: f64,
 }
 
 impl Default for VacuumNodeConfig {
@@ -123,6 +128,7 @@ impl Default for VacuumNodeConfig {
             planner: PlannerConfig::default(),
             arms_enabled: [true, true],
             dispatch_timeout_s: 3.0,
+            give_up_radius_m: 0.05,
         }
     }
 }
@@ -139,6 +145,9 @@ pub enum VacuumNodeError {
     /// `dispatch_timeout_s` is not a positive number of seconds.
     #[error("vacuum node config `dispatch_timeout_s` = {0}: must be finite and > 0")]
     DispatchTimeout(f64),
+    /// `give_up_radius_m` is not a positive distance.
+    #[error("vacuum node config `give_up_radius_m` = {0}: must be finite and > 0")]
+    GiveUpRadius(f64),
 }
 
 /// One report of the valve board (the `ValveBoard::valve_states` and `pressures` of a tick).
@@ -197,6 +206,17 @@ pub enum VacuumNodeEvent {
         queued: [usize; 2],
         /// Detections dropped for a non-finite position.
         invalid: usize,
+        /// Detections ignored because they lie on the give-up list.
+        given_up: usize,
+    },
+    /// A dispatched target not taken up yet was published again with the capture time of a
+    /// detection set that still sees the apple (so it does not go stale while its arm waits
+    /// for the other arm's path to clear).
+    TargetRefreshed {
+        /// The arm.
+        arm: ArmId,
+        /// The target.
+        target: ArmTarget,
     },
     /// The planner refused a detection set (nothing changed).
     ReplanFailed {
@@ -316,6 +336,8 @@ struct ArmTrack {
     approach_refusal: Option<u8>,
     /// Last dispatch time, ns (dispatch fairness).
     last_dispatch_ns: u64,
+    /// The last target published for this arm.
+    last_target: Option<ArmTarget>,
 }
 
 /// The vacuum supervisor's logic; see the module documentation.
@@ -330,6 +352,8 @@ pub struct VacuumNode {
     last_set: Vec<([f64; 3], f64)>,
     last_set_capture_ns: u64,
     scratch_positions: Vec<[f64; 3]>,
+    /// Where attempts failed, and how many times (the give-up list).
+    failed_spots: Vec<([f64; 3], u32)>,
     stopped: bool,
     target_seq: u64,
     state_seq: u64,
@@ -375,6 +399,9 @@ impl VacuumNode {
         if !(config.dispatch_timeout_s.is_finite() && config.dispatch_timeout_s > 0.0) {
             return Err(VacuumNodeError::DispatchTimeout(config.dispatch_timeout_s));
         }
+        if !(config.give_up_radius_m.is_finite() && config.give_up_radius_m > 0.0) {
+            return Err(VacuumNodeError::GiveUpRadius(config.give_up_radius_m));
+        }
         let planner = AssignmentPlanner::new(config.planner)?;
         Ok(Self {
             policy: new_policy(config.policy),
@@ -385,6 +412,7 @@ impl VacuumNode {
             last_set: Vec::new(),
             last_set_capture_ns: 0,
             scratch_positions: Vec::new(),
+            failed_spots: Vec::new(),
             stopped: false,
             target_seq: 0,
             state_seq: 0,
@@ -507,9 +535,12 @@ impl VacuumNode {
         self.last_set.clear();
         self.scratch_positions.clear();
         let mut invalid = 0;
+        let mut given_up = 0;
         for d in set.apples.iter() {
             let p = d.position_in_robot_m;
-            if p.iter().all(|c| c.is_finite()) {
+            if self.given_up(&p) {
+                given_up += 1;
+            } else if p.iter().all(|c| c.is_finite()) {
                 let radius = if d.radius_m.is_finite() && d.radius_m > 0.0 {
                     d.radius_m
                 } else {
@@ -540,7 +571,9 @@ impl VacuumNode {
                     summary,
                     queued,
                     invalid,
+                    given_up,
                 });
+                self.refresh_dispatched();
             }
             Err(error) => {
                 warn!(%error, "detection set refused by the planner");
@@ -563,7 +596,7 @@ impl VacuumNode {
             }
             if let Some(d) = self.arms[i].dispatched {
                 let taken = state.is_some_and(|s| {
-                    s.apple_id == d.apple.id.0 && phase.is_some_and(|p| p != PhaseCode::Idle)
+                    s.apple_id == wire_id(d.apple.id) && phase.is_some_and(|p| p != PhaseCode::Idle)
                 });
                 if taken {
                     self.arms[i].dispatched = None;
@@ -576,6 +609,7 @@ impl VacuumNode {
                 } else if now_ns.saturating_sub(d.at_ns) > timeout_ns {
                     self.arms[i].dispatched = None;
                     self.planner.finish(arm, AttemptResult::Failed);
+                    self.remember(&d.apple.position_m, AttemptResult::Failed);
                     warn!(%arm, apple = d.apple.id.0, "target not taken up: given up");
                     self.output.events.push(VacuumNodeEvent::DispatchTimedOut {
                         arm,
@@ -585,7 +619,7 @@ impl VacuumNode {
             }
             if let Some(d) = self.arms[i].active {
                 let over = state.is_none_or(|s| {
-                    s.apple_id != d.apple.id.0 || phase == Some(PhaseCode::Idle)
+                    s.apple_id != wire_id(d.apple.id) || phase == Some(PhaseCode::Idle)
                 });
                 if over {
                     let harvested =
@@ -597,6 +631,7 @@ impl VacuumNode {
                     };
                     self.arms[i].active = None;
                     self.planner.finish(arm, result);
+                    self.remember(&d.apple.position_m, result);
                     debug!(%arm, apple = d.apple.id.0, ?result, "attempt finished");
                     self.output.events.push(VacuumNodeEvent::AttemptFinished {
                         arm,
@@ -605,6 +640,66 @@ impl VacuumNode {
                     });
                 }
             }
+        }
+    }
+
+    /// True when `position_m` lies on the give-up list.
+    fn given_up(&self, position_m: &[f64; 3]) -> bool {
+        let r2 = self.config.give_up_radius_m.powi(2);
+        let limit = self.config.planner.max_attempts;
+        self.failed_spots
+            .iter()
+            .any(|(p, failures)| *failures >= limit && squared_distance(p, position_m) <= r2)
+    }
+
+    /// Updates the give-up list with an attempt's result at `position_m`.
+    fn remember(&mut self, position_m: &[f64; 3], result: AttemptResult) {
+        let r2 = self.config.give_up_radius_m.powi(2);
+        match result {
+            AttemptResult::Harvested => self
+                .failed_spots
+                .retain(|(p, _)| squared_distance(p, position_m) > r2),
+            AttemptResult::Failed => {
+                match self
+                    .failed_spots
+                    .iter_mut()
+                    .find(|(p, _)| squared_distance(p, position_m) <= r2)
+                {
+                    Some((_, failures)) => *failures += 1,
+                    None => self.failed_spots.push((*position_m, 1)),
+                }
+            }
+        }
+    }
+
+    /// Re-publishes the targets dispatched but not taken up yet when the new set still sees
+    /// their apple (within the planner's match radius).
+    fn refresh_dispatched(&mut self) {
+        let r2 = self.config.planner.match_radius_m.powi(2);
+        for arm in ArmId::ALL {
+            let i = arm.index();
+            let Some(d) = self.arms[i].dispatched else {
+                continue;
+            };
+            let seen = self
+                .last_set
+                .iter()
+                .any(|(p, _)| squared_distance(p, &d.apple.position_m) <= r2);
+            if !seen {
+                continue;
+            }
+            let Some(mut target) = self.output.targets[i].or(self.arms[i].last_target) else {
+                continue;
+            };
+            self.target_seq += 1;
+            target.header.msg_seq = self.target_seq;
+            target.source_capture_ns = self.last_set_capture_ns;
+            self.arms[i].last_target = Some(target);
+            self.output.targets[i] = Some(target);
+            trace!(%arm, apple = d.apple.id.0, "dispatched target refreshed");
+            self.output
+                .events
+                .push(VacuumNodeEvent::TargetRefreshed { arm, target });
         }
     }
 
@@ -804,7 +899,7 @@ impl VacuumNode {
                         },
                         arm_id: i as u8 + 1,
                         _reserved: [0; 3],
-                        apple_id: apple.id.0,
+                        apple_id: wire_id(apple.id),
                         position_in_robot_m: apple.position_m,
                         radius_m,
                         source_capture_ns: self.last_set_capture_ns,
@@ -816,6 +911,7 @@ impl VacuumNode {
                         harvested_before: state.harvested_count,
                     });
                     track.last_dispatch_ns = now_ns;
+                    track.last_target = Some(target);
                     track.approach_refusal = None;
                     debug!(%arm, apple = apple.id.0, position_m = ?apple.position_m,
                         "target dispatched");
@@ -859,6 +955,16 @@ impl VacuumNode {
             _reserved: 0,
         };
     }
+}
+
+/// The apple id on the wire (`ArmTarget::apple_id`, `ArmState::apple_id`): the planner's id
+/// plus one, so that 0 keeps meaning "no apple".
+pub fn wire_id(id: AppleId) -> u32 {
+    id.0.wrapping_add(1)
+}
+
+fn squared_distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum()
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ fn scratch() {
         .with_env_filter(std::env::var("RUST_LOG").unwrap_or_default())
         .try_init();
     let env = |k: &str, d: &str| std::env::var(k).unwrap_or(d.to_owned());
-    for policy in [PolicyArg::Baseline, PolicyArg::V2023, PolicyArg::V2024] {
+    for policy in [PolicyArg::Baseline, PolicyArg::V2023, PolicyArg::V2024].into_iter().filter(|p| env("POL", "all") == "all" || format!("{p:?}") == env("POL", "")) {
         let args = EvalHarvestArgs {
             policy,
             scenario: env("SCEN", "ideal"),
