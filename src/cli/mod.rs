@@ -53,6 +53,15 @@ enum Command {
     /// Evaluations against the simulator's ground truth.
     #[command(subcommand)]
     Eval(EvalCommand),
+    /// Recorder process: every channel of the domain -> MCAP files.
+    Recorder(harvest_recorder::RecorderArgs),
+    /// Republish a recording into the channels at recorded timing.
+    Replay(harvest_recorder::ReplayArgs),
+    /// Recording tools: info, cat, export, recover.
+    Rec {
+        #[command(subcommand)]
+        command: harvest_recorder::RecCommand,
+    },
     /// Remove stale iceoryx2 resources of dead processes in the domain.
     Clean {
         /// Only list this domain's files still present; exit 1 if any.
@@ -104,6 +113,9 @@ impl Cli {
             Command::Calibrate(_) => "calibrate",
             Command::Bench(_) => "bench",
             Command::Eval(_) => "eval",
+            Command::Recorder(_) => "recorder",
+            Command::Replay(_) => "replay",
+            Command::Rec { .. } => "rec",
             Command::BenchPeer(_) => "bench-peer",
             Command::Clean { .. } => "clean",
             Command::Channels => "channels",
@@ -140,6 +152,20 @@ impl Cli {
             }
             Command::Eval(EvalCommand::Perception(args)) => {
                 harvest_eval::run_eval_perception(&args).context("perception evaluation")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Recorder(args) => {
+                harvest_recorder::run_recorder(&args, &domain, process_name)
+                    .context("recorder process")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Replay(args) => {
+                let report = harvest_recorder::run_replay(&args, &domain).context("replay")?;
+                eprint!("{report}");
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Rec { command } => {
+                harvest_recorder::run_rec(&command).context("harvest rec")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::BenchPeer(args) => {

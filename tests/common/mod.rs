@@ -47,10 +47,19 @@ impl Drop for TempDir {
     }
 }
 
+/// The working directory of a test's `harvest` processes (recordings land here, not in the
+/// checkout); removed by [`leftover_files`].
+pub fn run_dir(domain: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("harvest-run-{domain}"));
+    std::fs::create_dir_all(&dir).expect("create run dir");
+    dir
+}
+
 /// Starts `harvest <args>` in `domain` with stderr captured.
 pub fn spawn_harvest(domain: &str, args: &[&str]) -> Child {
     Command::new(HARVEST)
         .args(args)
+        .current_dir(run_dir(domain))
         .env("HARVEST_DOMAIN", domain)
         .env("RUST_LOG", "info")
         .stdin(Stdio::null())
@@ -97,8 +106,10 @@ pub fn run_harvest(domain: &str, args: &[&str], limit: Duration) -> (ExitStatus,
     wait_with_watchdog(spawn_harvest(domain, args), limit)
 }
 
-/// The domain's iceoryx2 files still present (must be none after a clean exit).
+/// The domain's iceoryx2 files still present (must be none after a clean exit). Also removes
+/// the test's run directory.
 pub fn leftover_files(domain: &str) -> String {
+    let _ = std::fs::remove_dir_all(run_dir(domain));
     let output = Command::new(HARVEST)
         .args(["clean", "--check"])
         .env("HARVEST_DOMAIN", domain)

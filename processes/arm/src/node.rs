@@ -26,8 +26,8 @@
 //!   is the vacuum supervisor's debounced pressure inference (`arm_attachment == 2`).
 //! - **Emergency stop.** While engaged: the drives brake, the valve request is `Close`, the
 //!   phase is `Stopped`, any running cycle is abandoned (its attempt ends with cause
-//!   [`AttemptFailure::EmergencyStop`]) and no target is taken. After release the arm is idle
-//!   where it stopped; the next target starts from there.
+//!   [`AttemptFailure::EmergencyStop`]) and targets received meanwhile are dropped. After
+//!   release the arm is idle where it stopped; the next target starts from there.
 //!
 //! Pure logic: no clock reads, no I/O. Per-tick work allocates nothing after the first ticks
 //! (the event buffer is reused).
@@ -45,8 +45,8 @@ use crate::joint::{JointPosition, JointVelocity};
 use crate::kinematics::{forward, inverse};
 use crate::params::{ArmId, ArmParams};
 use crate::picking_cycle::{
-    CycleConfig, CycleConfigError, CycleEvent, CycleInput, CyclePhase, OtherArmState,
-    PickingCycle, TargetDecision, TargetRejection, TargetRequest, ValveRequest as CycleValve,
+    CycleConfig, CycleConfigError, CycleEvent, CycleInput, CyclePhase, OtherArmState, PickingCycle,
+    TargetDecision, TargetRejection, TargetRequest, ValveRequest as CycleValve,
 };
 
 /// Radius assumed when a target carries none (not finite or <= 0), m (choice: a medium apple,
@@ -520,13 +520,7 @@ impl ArmNode {
             .target
             .filter(|t| t.apple_id == state.apple_id)
             .filter(|_| matches!(phase, CyclePhase::Approach | CyclePhase::Attach))
-            .map(|t| {
-                picking_point_m(
-                    t.position_in_robot_m,
-                    t.radius_m,
-                    self.config.contact_gap_m,
-                )
-            });
+            .map(|t| picking_point_m(t.position_in_robot_m, t.radius_m, self.config.contact_gap_m));
         OtherArmState {
             phase,
             end_effector_m: state.end_effector_in_robot_m,
@@ -544,7 +538,9 @@ impl ArmNode {
             Some(_) => 0.0,
             None => self.config.cycle.nominal_period_s,
         };
-        let period_ns = self.last_now_ns.map_or(0, |last| now_ns.saturating_sub(last));
+        let period_ns = self
+            .last_now_ns
+            .map_or(0, |last| now_ns.saturating_sub(last));
         self.last_now_ns = Some(now_ns);
         if let Some(f) = input.feedback {
             self.last_joints = Some((f.position, f.velocity, f.capture_ns));
@@ -852,27 +848,26 @@ impl ArmNode {
             {
                 self.cycle = cycle;
             }
-            self.pending = None;
         }
+        // Targets received while stopped are dropped: the supervisor dispatches again.
+        self.pending = None;
         self.setpoint = None;
         self.last_rate = [0.0; 4];
         self.set_phase(PhaseCode::Stopped);
         self.set_valve(ValveRequestKind::Close);
         self.output.servo = ServoOrder::Hold;
         self.output.goal_m = None;
-        let ee = self
-            .last_joints
-            .map_or([f64::NAN; 3], |(q, _, _)| {
-                forward(&self.params.links, &JointPosition::from_array(q))
-            });
+        let ee = self.last_joints.map_or([f64::NAN; 3], |(q, _, _)| {
+            forward(&self.params.links, &JointPosition::from_array(q))
+        });
         self.fill_state(ee, false, period_ns);
     }
 
     fn fill_state(&mut self, end_effector_m: [f64; 3], holding: bool, period_ns: u64) {
         self.state_seq += 1;
-        let (position, velocity, capture_ns) = self
-            .last_joints
-            .unwrap_or(([f64::NAN; 4], [f64::NAN; 4], 0));
+        let (position, velocity, capture_ns) =
+            self.last_joints
+                .unwrap_or(([f64::NAN; 4], [f64::NAN; 4], 0));
         let apple_id = match self.attempt {
             Some(a) => a.apple_id,
             None => 0,

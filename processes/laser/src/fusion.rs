@@ -202,11 +202,8 @@ mod tests {
         let fused = fuse_slices(&slices, &extrinsics, &FusionConfig::default()).expect("fused");
         assert_eq!(fused.slices_used, 5);
         assert!((fused.radius_m - 0.036).abs() < 1e-9, "{fused:?}");
-        for k in 0..3 {
-            assert!(
-                (fused.centre_in_camera_m[k] - centre[k]).abs() < 1e-9,
-                "{fused:?}"
-            );
+        for (got, want) in fused.centre_in_camera_m.iter().zip(centre) {
+            assert!((got - want).abs() < 1e-9, "{fused:?}");
         }
         // Any three circles are enough; two are refused.
         assert!(fuse_slices(&slices[1..4], &extrinsics, &FusionConfig::default()).is_some());

@@ -133,7 +133,6 @@ mod tests {
                 .slide_position_m()
                 .is_some_and(|d| (d - 0.06).abs() < 1e-12)
         );
-        drop(observed);
         assert_eq!(steps, 7);
         assert_eq!((motion.moves, motion.captures), (3, 3));
         // 0.05 -> 0.07 -> 0.08 -> 0.06: 2 + 1 + 2 cm.

@@ -10,6 +10,7 @@
 //! the same frame (see [`crate::service`]).
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use harvest_hw::alacs::{
@@ -82,6 +83,17 @@ pub fn load_extrinsics(args: &LaserArgs) -> Result<AlacsExtrinsics, CalibrationF
 
 /// Runs until SIGINT/SIGTERM.
 pub fn run(args: &LaserArgs, domain: &Domain, process_name: &str) -> Result<(), LaserProcessError> {
+    run_until(args, domain, process_name, &AtomicBool::new(false))
+}
+
+/// [`run`] that also stops once `stop` is set (checked at each heartbeat, so within
+/// [`HEARTBEAT_PERIOD`] of setting it when no scan is running): tests run the process on a thread.
+pub fn run_until(
+    args: &LaserArgs,
+    domain: &Domain,
+    process_name: &str,
+    stop: &AtomicBool,
+) -> Result<(), LaserProcessError> {
     if !(1..=2900).contains(&args.device_timeout_ms) {
         return Err(LaserProcessError::InvalidTimeout {
             value: args.device_timeout_ms,
@@ -170,6 +182,9 @@ pub fn run(args: &LaserArgs, domain: &Domain, process_name: &str) -> Result<(), 
                     "last_scan_ms",
                     scans.last_scan_ns / 1_000_000,
                 )?;
+                if stop.load(Ordering::Relaxed) {
+                    return Ok(Flow::Stop);
+                }
             }
             Ok(Flow::Continue)
         })

@@ -90,7 +90,7 @@ pub enum EvalLaserError {
     Scenario {
         scenario: String,
         #[source]
-        source: ScenarioError,
+        source: Box<ScenarioError>,
     },
     #[error("world of seed {seed}: {source}")]
     World {
@@ -249,7 +249,7 @@ pub fn evaluate_refinement(args: &EvalLaserArgs) -> Result<RefinementReport, Eva
     check_args(args)?;
     let scenario = load_scenario(&args.scenario).map_err(|source| EvalLaserError::Scenario {
         scenario: args.scenario.clone(),
-        source,
+        source: Box::new(source),
     })?;
     let worlds = (0..u64::from(args.worlds))
         .map(|k| {

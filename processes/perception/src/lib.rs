@@ -18,6 +18,7 @@ pub mod calibration;
 pub mod camera_setup;
 pub mod dbscan;
 pub mod detector;
+pub mod estimate_checks;
 pub mod estimator;
 pub mod frame;
 pub mod node;

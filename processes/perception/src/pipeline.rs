@@ -12,11 +12,16 @@
 //!    that are non-finite or outside the camera's working range are dropped.
 //!    An estimator may find several fruit in one mask (fruit hidden behind fruit); each then gets
 //!    the box of its sphere's image and a share of the mask's visible pixels.
+//!    Over-exposed blob detections (no colour evidence) are kept only when depth confirms them
+//!    ([`crate::estimate_checks::SaturatedBlobCheck`]); an estimate whose centre disagrees with its
+//!    mask's median depth ([`crate::estimate_checks::depth_agrees`]) is dropped.
 //! 5. Estimates of one fruit split by an occluder into several detections (the paper's
 //!    over-detection, 4.3) are merged when their centres are closer than
-//!    `duplicate_distance_radii` times the sum of their radii, and re-estimated from the union of
-//!    their points.
-//! 6. Each apple is reported in the colour camera frame and, via `robot_from_camera`, in the robot
+//!    `duplicate_distance_radii` times the sum of their radii (each at least
+//!    `duplicate_min_radius_m`), and re-estimated from the union of their points.
+//! 6. Apples whose confidence (mask confidence times position confidence) is below
+//!    `min_output_confidence` are dropped: these are mostly fallback estimates from few points.
+//! 7. Each apple is reported in the colour camera frame and, via `robot_from_camera`, in the robot
 //!    frame (the LiDAR-camera paper's eq. 20).
 
 use std::time::Instant;
@@ -29,7 +34,8 @@ use crate::camera_setup::{CameraSetup, CameraSetupError};
 use crate::detector::color_segmentation::{
     ColorSegmentation, ColorSegmentationConfig, ColorSegmentationConfigError,
 };
-use crate::detector::{Detection, Detector, PixelBox};
+use crate::detector::{Detection, DetectionSource, Detector, PixelBox};
+use crate::estimate_checks::{SaturatedBlobCheck, depth_agrees, median_depth_m};
 use crate::estimator::{
     Estimator, EstimatorConfig, EstimatorConfigError, EstimatorContext, EstimatorInput,
     EstimatorKind, PositionEstimate, make_estimator,
@@ -62,6 +68,20 @@ pub struct PerceptionConfig {
     pub duplicate_distance_radii: f64,
     /// Detections with fewer registered depth samples are dropped.
     pub min_points_per_apple: u32,
+    /// Lower bound of each radius in the duplicate test, metres (the paper's cluster depth
+    /// measures small radii on fragments, which would keep their duplicates apart).
+    pub duplicate_min_radius_m: f64,
+    /// Apples whose confidence is below this are not reported.
+    pub min_output_confidence: f32,
+    /// Tolerance of the depth-agreement check, in depth-noise sigmas at the median depth.
+    pub depth_agreement_sigmas: f64,
+    /// An over-exposed blob needs this fraction of its expected depth samples.
+    pub saturated_blob_min_depth_coverage: f64,
+    /// Physical radius range of a depth-confirmed over-exposed blob, metres.
+    pub saturated_blob_radius_m: [f64; 2],
+    /// Position confidence of a confirmed blob's median-depth fallback: the blob is centred on
+    /// the fruit, so its centre ray is reliable.
+    pub saturated_blob_fallback_confidence: f32,
 }
 
 impl Default for PerceptionConfig {
@@ -75,6 +95,12 @@ impl Default for PerceptionConfig {
             merge_duplicates: true,
             duplicate_distance_radii: 0.5,
             min_points_per_apple: 3,
+            duplicate_min_radius_m: 0.035,
+            min_output_confidence: 0.25,
+            depth_agreement_sigmas: 3.0,
+            saturated_blob_min_depth_coverage: 0.25,
+            saturated_blob_radius_m: [0.025, 0.07],
+            saturated_blob_fallback_confidence: 0.6,
         }
     }
 }
@@ -166,6 +192,8 @@ pub struct Perception {
     /// Detection indices of each pending estimate (`pending_members[k]` lists detections).
     pending_members: Vec<Vec<usize>>,
     accepted: Vec<usize>,
+    depth_scratch: Vec<f32>,
+    blob_check: SaturatedBlobCheck,
     last: FrameStats,
     totals: PerceptionStats,
 }
@@ -219,6 +247,48 @@ impl Perception {
                 1.0,
                 1e6,
             ),
+            (
+                "duplicate_min_radius_m",
+                config.duplicate_min_radius_m,
+                0.0,
+                0.5,
+            ),
+            (
+                "min_output_confidence",
+                f64::from(config.min_output_confidence),
+                0.0,
+                1.0,
+            ),
+            (
+                "depth_agreement_sigmas",
+                config.depth_agreement_sigmas,
+                0.0,
+                1e3,
+            ),
+            (
+                "saturated_blob_min_depth_coverage",
+                config.saturated_blob_min_depth_coverage,
+                0.0,
+                1.0,
+            ),
+            (
+                "saturated_blob_radius_m[0]",
+                config.saturated_blob_radius_m[0],
+                0.0,
+                config.saturated_blob_radius_m[1],
+            ),
+            (
+                "saturated_blob_radius_m[1]",
+                config.saturated_blob_radius_m[1],
+                config.saturated_blob_radius_m[0],
+                1.0,
+            ),
+            (
+                "saturated_blob_fallback_confidence",
+                f64::from(config.saturated_blob_fallback_confidence),
+                0.0,
+                1.0,
+            ),
         ];
         for (key, value, min, max) in checks {
             if !value.is_finite() || value < min || value > max {
@@ -262,6 +332,14 @@ impl Perception {
             pending: Vec::new(),
             pending_members: Vec::new(),
             accepted: Vec::new(),
+            depth_scratch: Vec::new(),
+            blob_check: SaturatedBlobCheck {
+                depth_samples_per_color_px: (cameras.depth.fx_px * cameras.depth.fy_px)
+                    / (cameras.color.fx_px * cameras.color.fy_px),
+                color_focal_px: 0.5 * (cameras.color.fx_px + cameras.color.fy_px),
+                min_depth_coverage: config.saturated_blob_min_depth_coverage,
+                radius_range_m: config.saturated_blob_radius_m,
+            },
             last: FrameStats::default(),
             totals: PerceptionStats::default(),
         })
@@ -383,13 +461,18 @@ impl Perception {
         let kind = self.estimator.kind();
         for &k in &self.accepted {
             let p = &self.pending[k];
+            let confidence = p.mask_confidence * p.estimate.confidence;
+            if !(confidence >= self.config.min_output_confidence) {
+                stats.estimates_below_confidence += 1;
+                continue;
+            }
             stats.estimates_fallback += u32::from(p.estimate.fallback);
             apples.push(AppleEstimate {
                 pixel_box: p.pixel_box,
                 visible_px: p.visible_px,
                 mask_confidence: p.mask_confidence,
                 position_confidence: p.estimate.confidence,
-                confidence: p.mask_confidence * p.estimate.confidence,
+                confidence,
                 position_in_camera_m: p.estimate.position_in_camera_m,
                 position_in_robot_m: robot_from_camera.apply(p.estimate.position_in_camera_m),
                 radius_m: p.estimate.radius_m,
@@ -540,6 +623,16 @@ impl Perception {
                 continue;
             }
             let detection = &self.detections[index];
+            let blob = detection.source == DetectionSource::SaturatedBlob;
+            if blob
+                && self
+                    .blob_check
+                    .depth_coverage(points.len(), detection.visible_px)
+                    < self.blob_check.min_depth_coverage
+            {
+                stats.saturated_blobs_rejected += 1;
+                continue;
+            }
             let input = EstimatorInput {
                 points_in_camera_m: points,
                 box_center_ray: self.box_center_ray(&detection.pixel_box),
@@ -549,11 +642,44 @@ impl Perception {
                 stats.estimates_failed += 1;
                 continue;
             }
+            let Some(median_m) = median_depth_m(points, &mut self.depth_scratch) else {
+                stats.estimates_failed += 1;
+                continue;
+            };
+            if blob {
+                // Only the best-supported fruit of a blob; its size must be an apple's.
+                estimates.truncate(1);
+                if !self
+                    .blob_check
+                    .confirms(points.len(), detection.visible_px, &estimates[0])
+                {
+                    stats.saturated_blobs_rejected += 1;
+                    continue;
+                }
+                stats.saturated_blobs_confirmed += 1;
+                if estimates[0].fallback {
+                    estimates[0].confidence = estimates[0]
+                        .confidence
+                        .max(self.config.saturated_blob_fallback_confidence);
+                }
+            }
             let several = estimates.len() > 1;
             let support: f64 = estimates.iter().map(|e| f64::from(e.points_used)).sum();
-            for estimate in &estimates {
+            for (rank, estimate) in estimates.iter().enumerate() {
                 if !self.plausible(estimate) {
                     stats.estimates_rejected += 1;
+                    continue;
+                }
+                // Further fruit lie behind the first by construction; the first is checked.
+                if rank == 0
+                    && !depth_agrees(
+                        estimate,
+                        median_m,
+                        &self.config.noise,
+                        self.config.depth_agreement_sigmas,
+                    )
+                {
+                    stats.estimates_inconsistent += 1;
                     continue;
                 }
                 let (pixel_box, visible_px) = if several {
@@ -601,7 +727,10 @@ impl Perception {
                 let c = &candidate.estimate;
                 let distance =
                     squared_distance(kept.position_in_camera_m, c.position_in_camera_m).sqrt();
-                distance < self.config.duplicate_distance_radii * (kept.radius_m + c.radius_m)
+                let floor = self.config.duplicate_min_radius_m;
+                distance
+                    < self.config.duplicate_distance_radii
+                        * (kept.radius_m.max(floor) + c.radius_m.max(floor))
             });
             let Some(a) = duplicate_of else {
                 self.accepted.push(k);
@@ -837,6 +966,102 @@ mod tests {
         );
         assert!(errors.len() * 4 >= scene.apples.len() * 3);
         assert!(false_positives <= 1);
+    }
+
+    /// Blows out a disc of the colour image to white, like direct sun on a fruit: the disc's
+    /// centre is the projection of `centre_m` and its radius that of a `radius_m` sphere.
+    fn blow_out(frame: &mut SyntheticFrame, centre_m: [f64; 3], radius_m: f64) {
+        let color = cameras().color;
+        let (cu, cv) = color.project(centre_m).expect("in front of the camera");
+        let radius_px = 1.05 * color.fx_px * radius_m / centre_m[2];
+        let w = frame.rgb_width_px as usize;
+        for v in 0..frame.rgb_height_px as usize {
+            for u in 0..w {
+                if (u as f64 - cu).powi(2) + (v as f64 - cv).powi(2) <= radius_px * radius_px {
+                    frame.rgb[(v * w + u) * 3..(v * w + u) * 3 + 3].fill(255);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn blown_out_apple_is_found_by_depth_confirmation() {
+        let (scene, mut frame) = scene_and_frame(6, 7);
+        // The apple farthest from the others, so its white disc touches no red.
+        let target = (0..scene.apples.len())
+            .max_by(|&a, &b| {
+                let gap = |i: usize| {
+                    scene
+                        .apples
+                        .iter()
+                        .enumerate()
+                        .filter(|(j, _)| *j != i)
+                        .map(|(_, o)| {
+                            distance(o.center_in_camera_m, scene.apples[i].center_in_camera_m)
+                        })
+                        .fold(f64::INFINITY, f64::min)
+                };
+                gap(a).total_cmp(&gap(b))
+            })
+            .expect("apples");
+        let apple = scene.apples[target];
+        blow_out(&mut frame, apple.center_in_camera_m, apple.radius_m);
+        for kind in [EstimatorKind::SphereFit, EstimatorKind::ClusterDepth] {
+            let mut pipeline = perception(kind);
+            let apples = pipeline.process(&frame.rgb_view(), &frame.depth_view());
+            let stats = pipeline.last_frame_stats().clone();
+            assert!(stats.saturated_blobs_confirmed >= 1, "{kind:?}: {stats:?}");
+            let nearest = apples
+                .iter()
+                .map(|a| distance(a.position_in_camera_m, apple.center_in_camera_m))
+                .fold(f64::INFINITY, f64::min);
+            // cluster_depth carries the paper's front-surface bias (about 2/3 r).
+            assert!(nearest < 0.04, "{kind:?}: nearest estimate {nearest} m");
+            let (_, false_positives) = match_apples(&scene, &apples);
+            assert!(false_positives <= 1, "{kind:?}: {false_positives}");
+        }
+    }
+
+    #[test]
+    fn white_disc_without_depth_or_of_wrong_size_is_not_an_apple() {
+        let (scene, frame) = scene_and_frame(4, 8);
+        let mut baseline = perception(EstimatorKind::SphereFit);
+        let expected = baseline
+            .process(&frame.rgb_view(), &frame.depth_view())
+            .len();
+        // An apple-sized white disc (as seen at 1.2 m) in the sky band at the top of the image
+        // (no ToF return), and one on the foliage wall at the bottom-left, 2.3 m away.
+        let color = cameras().color;
+        assert!(scene.background_depth_m > 2.0);
+        for (u_px, v_px, label) in [(960.0, 90.0, "sky"), (200.0, 960.0, "background wall")] {
+            let mut frame = frame.clone();
+            blow_out(&mut frame, color.unproject(u_px, v_px, 1.2), 0.04);
+            let mut pipeline = perception(EstimatorKind::SphereFit);
+            let apples = pipeline.process(&frame.rgb_view(), &frame.depth_view());
+            let stats = pipeline.last_frame_stats().clone();
+            assert_eq!(stats.saturated_blobs_confirmed, 0, "{label}: {stats:?}");
+            assert!(stats.saturated_blobs_rejected >= 1, "{label}: {stats:?}");
+            assert_eq!(apples.len(), expected, "{label}");
+        }
+    }
+
+    #[test]
+    fn low_confidence_estimates_are_filtered_by_the_output_threshold() {
+        let (_, frame) = scene_and_frame(12, 9);
+        let mut open = PerceptionConfig::default();
+        open.min_output_confidence = 0.0;
+        let mut all = Perception::new(open, cameras()).expect("valid");
+        let every = all.process(&frame.rgb_view(), &frame.depth_view());
+        let mut strict = perception(EstimatorKind::SphereFit);
+        let kept = strict.process(&frame.rgb_view(), &frame.depth_view());
+        let threshold = PerceptionConfig::default().min_output_confidence;
+        assert!(kept.iter().all(|a| a.confidence >= threshold));
+        let above = every.iter().filter(|a| a.confidence >= threshold).count();
+        assert_eq!(kept.len(), above);
+        assert_eq!(
+            strict.last_frame_stats().estimates_below_confidence as usize,
+            every.len() - above
+        );
     }
 
     #[test]

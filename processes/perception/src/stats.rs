@@ -42,6 +42,14 @@ pub struct FrameStats {
     pub duplicates_merged: u32,
     /// Further fruit found inside a detection's mask (fruit hidden behind fruit).
     pub extra_fruit_in_detections: u32,
+    /// Over-exposed blob detections that the depth did not confirm as an apple (dropped).
+    pub saturated_blobs_rejected: u32,
+    /// Over-exposed blob detections confirmed by depth.
+    pub saturated_blobs_confirmed: u32,
+    /// Estimates whose centre disagrees with the median depth of their mask (dropped).
+    pub estimates_inconsistent: u32,
+    /// Estimates below `min_output_confidence` (dropped).
+    pub estimates_below_confidence: u32,
     /// Apples reported.
     pub apples: u32,
     pub timings: StageTimings,
@@ -67,6 +75,10 @@ pub struct PerceptionStats {
     pub estimates_fallback: u64,
     pub duplicates_merged: u64,
     pub extra_fruit_in_detections: u64,
+    pub saturated_blobs_rejected: u64,
+    pub saturated_blobs_confirmed: u64,
+    pub estimates_inconsistent: u64,
+    pub estimates_below_confidence: u64,
     pub apples: u64,
 }
 
@@ -98,6 +110,10 @@ impl PerceptionStats {
         self.estimates_fallback += u64::from(frame.estimates_fallback);
         self.duplicates_merged += u64::from(frame.duplicates_merged);
         self.extra_fruit_in_detections += u64::from(frame.extra_fruit_in_detections);
+        self.saturated_blobs_rejected += u64::from(frame.saturated_blobs_rejected);
+        self.saturated_blobs_confirmed += u64::from(frame.saturated_blobs_confirmed);
+        self.estimates_inconsistent += u64::from(frame.estimates_inconsistent);
+        self.estimates_below_confidence += u64::from(frame.estimates_below_confidence);
         self.apples += u64::from(frame.apples);
     }
 }

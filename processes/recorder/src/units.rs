@@ -1,7 +1,6 @@
 //! Command-line quantities: byte sizes (`512MiB`, `2GB`, `1G`) and durations (`10s`, `500ms`,
 //! `2m`, `1.5h`, plain seconds).
 
-use std::time::Duration;
 
 /// Parses a byte size. Decimal units `kB`/`MB`/`GB`/`TB` are powers of 1000; binary units
 /// `KiB`/`MiB`/`GiB`/`TiB` and the bare letters `K`/`M`/`G`/`T` are powers of 1024; no unit (or
@@ -38,32 +37,7 @@ pub fn parse_size_bytes(text: &str) -> Result<u64, String> {
     Ok(bytes.round() as u64)
 }
 
-/// Parses a duration: `500ms`, `10s`, `2m`, `1h`, or plain seconds; fractions allowed.
-pub fn parse_duration(text: &str) -> Result<Duration, String> {
-    let trimmed = text.trim();
-    let (number, scale_s) = if let Some(n) = trimmed.strip_suffix("ms") {
-        (n, 1e-3)
-    } else if let Some(n) = trimmed.strip_suffix('s') {
-        (n, 1.0)
-    } else if let Some(n) = trimmed.strip_suffix('m') {
-        (n, 60.0)
-    } else if let Some(n) = trimmed.strip_suffix('h') {
-        (n, 3600.0)
-    } else {
-        (trimmed, 1.0)
-    };
-    let value: f64 = number
-        .trim()
-        .parse()
-        .map_err(|_| format!("invalid duration {text:?}: use e.g. 10s, 500ms, 2m"))?;
-    let seconds = value * scale_s;
-    if !seconds.is_finite() || !(0.0..=1e12).contains(&seconds) {
-        return Err(format!(
-            "invalid duration {text:?}: must be a non-negative number"
-        ));
-    }
-    Ok(Duration::from_secs_f64(seconds))
-}
+pub use harvest_ipc::duration::parse_duration;
 
 /// Formats a byte count for humans (`6.8 MB`), decimal units.
 pub fn format_bytes(bytes: u64) -> String {
@@ -84,6 +58,7 @@ pub fn format_bytes(bytes: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Duration;
 
     #[test]
     fn sizes_in_decimal_and_binary_units() {

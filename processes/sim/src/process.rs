@@ -18,10 +18,10 @@ use harvest_ipc::catalogue::{
     HW_ARM_ENCODERS, HW_ARM_SERVO, HW_CAMERA_RGBD, HW_VALVE_COMMAND, HW_VALVE_READINGS,
     SIM_GROUND_TRUTH,
 };
-use harvest_ipc::payloads::{ProcessRunState, TrueApple};
 use harvest_ipc::payloads::{
     EncoderFeedback, GroundTruth, ServoSetpoint, ValveBoardCommand, ValveBoardReadings,
 };
+use harvest_ipc::payloads::{ProcessRunState, TrueApple};
 use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Publisher, Subscriber,
     Waiter,
@@ -127,7 +127,10 @@ fn publish_device_state(
     Ok(())
 }
 
-fn publish_ground_truth(robot: &SimRobot, truth_out: &mut Publisher<GroundTruth>) -> Result<(), SimError> {
+fn publish_ground_truth(
+    robot: &SimRobot,
+    truth_out: &mut Publisher<GroundTruth>,
+) -> Result<(), SimError> {
     let truth = robot.world().ground_truth();
     truth_out.publish_with(MonotonicClock::read_ns(), |message| {
         message.apples.clear();
@@ -226,7 +229,10 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
             }
             if attachment.has_event_from(&physics_tick) {
                 let now = Instant::now();
-                let dt_s = now.duration_since(last_physics).as_secs_f64().clamp(1e-4, 0.05);
+                let dt_s = now
+                    .duration_since(last_physics)
+                    .as_secs_f64()
+                    .clamp(1e-4, 0.05);
                 last_physics = now;
                 step_devices(&mut robot, &servo_in, &valves_in, dt_s)?;
                 publish_device_state(&robot, &mut encoders_out, &mut valves_out)?;
@@ -236,7 +242,9 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
             }
             if attachment.has_event_from(&heartbeat_tick) {
                 let frames = camera_out.last_seq();
-                let mean_render_us = render_ns_total.checked_div(frames).map_or(0, |ns| ns / 1000);
+                let mean_render_us = render_ns_total
+                    .checked_div(frames)
+                    .map_or(0, |ns| ns / 1000);
                 health.report(
                     ProcessRunState::Running,
                     frames,

@@ -155,12 +155,8 @@ impl SimArm {
             max_position: hi[j],
             max_velocity: rate[j],
         });
-        let servo = ServoModel::new(
-            limits,
-            config.servo_time_constant_s,
-            params.home.to_array(),
-        )
-        .map_err(|source| SimRobotError::Servo { arm, source })?;
+        let servo = ServoModel::new(limits, config.servo_time_constant_s, params.home.to_array())
+            .map_err(|source| SimRobotError::Servo { arm, source })?;
         Ok(Self {
             params,
             servo,
@@ -281,7 +277,10 @@ impl SimRobot {
                     })?;
             }
             let inputs = StepInputs {
-                end_effector_in_robot_m: [self.arms[0].end_effector_m(), self.arms[1].end_effector_m()],
+                end_effector_in_robot_m: [
+                    self.arms[0].end_effector_m(),
+                    self.arms[1].end_effector_m(),
+                ],
                 end_effector_twist_rad: [
                     self.arms[0].servo.positions()[3],
                     self.arms[1].servo.positions()[3],
@@ -640,12 +639,7 @@ mod tests {
             let mut robot = SimRobot::new(&scenario, seed).expect("robot");
             robot.set_valves(StepInputs::valves_for_arms([true, true]));
             let mut all = run(&mut robot, 0.5);
-            all.extend(move_to(
-                &mut robot,
-                Arm::Two,
-                [0.2, 0.1, 0.05, 0.0],
-                1.0,
-            ));
+            all.extend(move_to(&mut robot, Arm::Two, [0.2, 0.1, 0.05, 0.0], 1.0));
             (all, robot.encoders(Arm::Two), robot.valve_readings())
         };
         assert_eq!(trace(4), trace(4));

@@ -35,8 +35,8 @@ use crate::arm_id::ArmId;
 use crate::arm_phase::ArmPhase;
 use crate::assignment::{Apple, AppleId};
 use crate::policy::{
-    ArmStatus, CloseReason, Decision, PairStatus, PolicyKind, RefuseReason, Request,
-    VacuumPolicy, ValveOrder, new_policy,
+    ArmStatus, CloseReason, Decision, PairStatus, PolicyKind, RefuseReason, Request, VacuumPolicy,
+    ValveOrder, new_policy,
 };
 use crate::pressure::{
     AttachmentChange, AttachmentInference, AttachmentState, PressureConfig, PressureConfigError,
@@ -516,9 +516,7 @@ impl VacuumNode {
         match self.inference.update(&sample, settled_open) {
             Ok(changes) => {
                 for change in changes.into_iter().flatten() {
-                    self.output
-                        .events
-                        .push(VacuumNodeEvent::Attachment(change));
+                    self.output.events.push(VacuumNodeEvent::Attachment(change));
                 }
             }
             Err(error) => {
@@ -622,8 +620,7 @@ impl VacuumNode {
                     s.apple_id != wire_id(d.apple.id) || phase == Some(PhaseCode::Idle)
                 });
                 if over {
-                    let harvested =
-                        state.is_some_and(|s| s.harvested_count > d.harvested_before);
+                    let harvested = state.is_some_and(|s| s.harvested_count > d.harvested_before);
                     let result = if harvested {
                         AttemptResult::Harvested
                     } else {
@@ -652,7 +649,10 @@ impl VacuumNode {
             .any(|(p, failures)| *failures >= limit && squared_distance(p, position_m) <= r2)
     }
 
-    /// Updates the give-up list with an attempt's result at `position_m`.
+    /// Updates the give-up list with an attempt's result at `position_m`. A failure joins the
+    /// nearest spot within twice the give-up radius (its position becomes the mean of the
+    /// failed targets, which averages the localization noise out) or starts a new one; a
+    /// harvest clears the spots within the radius.
     fn remember(&mut self, position_m: &[f64; 3], result: AttemptResult) {
         let r2 = self.config.give_up_radius_m.powi(2);
         match result {
@@ -660,12 +660,21 @@ impl VacuumNode {
                 .failed_spots
                 .retain(|(p, _)| squared_distance(p, position_m) > r2),
             AttemptResult::Failed => {
-                match self
+                let join2 = 4.0 * r2;
+                let nearest = self
                     .failed_spots
                     .iter_mut()
-                    .find(|(p, _)| squared_distance(p, position_m) <= r2)
-                {
-                    Some((_, failures)) => *failures += 1,
+                    .map(|spot| (squared_distance(&spot.0, position_m), spot))
+                    .filter(|(d2, _)| *d2 <= join2)
+                    .min_by(|a, b| a.0.total_cmp(&b.0));
+                match nearest {
+                    Some((_, (p, failures))) => {
+                        let n = f64::from(*failures);
+                        for (c, new) in p.iter_mut().zip(position_m) {
+                            *c = (*c * n + new) / (n + 1.0);
+                        }
+                        *failures += 1;
+                    }
                     None => self.failed_spots.push((*position_m, 1)),
                 }
             }
@@ -815,7 +824,10 @@ impl VacuumNode {
         let (code, reason) = if !self.config.arms_enabled[i] {
             (REFUSED_ARM_DISABLED, None)
         } else {
-            match self.policy.decide(arm, Request::OpenValve, &self.pair(input)) {
+            match self
+                .policy
+                .decide(arm, Request::OpenValve, &self.pair(input))
+            {
                 Decision::Grant => {
                     let track = &mut self.arms[i];
                     track.valve_open = true;

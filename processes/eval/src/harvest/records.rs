@@ -246,7 +246,7 @@ impl Recorder {
                     r.arm_failure = *failure;
                     // The arm believes it released an apple; the simulator decides whether it
                     // landed on the module (see `on_world_event`).
-                    if !*harvested && r.cause.is_none() {
+                    if !*harvested && !r.harvested && r.cause.is_none() {
                         r.cause = Some(classify(r, *failure));
                     }
                 }
@@ -346,11 +346,12 @@ impl Recorder {
         );
     }
 
-    /// Classifies every failed attempt not classified yet (an apple that fell after its arm
-    /// went idle is judged here). Call once at the end of the episode.
+    /// Classifies every ended, failed attempt not classified yet (an apple that fell after its
+    /// arm went idle is judged here); attempts cut by the end of the episode stay without a
+    /// cause. Call once at the end of the episode.
     pub fn finalize(&mut self) {
         for r in &mut self.attempts {
-            if !r.harvested && r.cause.is_none() {
+            if !r.harvested && r.cause.is_none() && r.ended_s.is_some() {
                 r.cause = Some(classify(r, r.arm_failure));
             }
         }

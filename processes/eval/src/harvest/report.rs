@@ -18,6 +18,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use harvest_arm::node::ArmNodeConfig;
+use harvest_vacuum::pressure::PressureConfig;
 use serde::Serialize;
 
 use super::args::{EvalHarvestArgs, PolicyArg, TimingArg};
@@ -67,6 +68,9 @@ pub struct HarvestSummary {
     pub seconds_per_attempt: Option<f64>,
     /// Mean interval between consecutive releases within an episode, s.
     pub release_interval_s: Option<f64>,
+    /// The same, counting only the releases up to the end of the last attempt of the arm that
+    /// finished first (both arms busy: Fig. 12's steady state), s.
+    pub steady_release_interval_s: Option<f64>,
     /// Mean phase durations, s.
     pub mean_phase: PhaseMeans,
     /// Episodes cut by the time limit.
@@ -83,6 +87,8 @@ impl HarvestSummary {
         let mut s = HarvestSummary::default();
         let mut release_span_s = 0.0;
         let mut release_gaps = 0u32;
+        let mut steady_span_s = 0.0;
+        let mut steady_gaps = 0u32;
         let mut phase_sum = [0.0; 4];
         let mut phase_n = [0u32; 4];
         for o in outcomes {
@@ -114,6 +120,24 @@ impl HarvestSummary {
                 release_span_s += r[r.len() - 1] - r[0];
                 release_gaps += r.len() as u32 - 1;
             }
+            let window_end_s = [1u8, 2]
+                .iter()
+                .filter_map(|arm| {
+                    o.recorder
+                        .attempts
+                        .iter()
+                        .filter(|a| a.arm == *arm)
+                        .filter_map(|a| a.ended_s)
+                        .reduce(f64::max)
+                })
+                .reduce(f64::min);
+            if let Some(end_s) = window_end_s {
+                let steady: Vec<f64> = r.iter().copied().filter(|t| *t <= end_s).collect();
+                if steady.len() >= 2 {
+                    steady_span_s += steady[steady.len() - 1] - steady[0];
+                    steady_gaps += steady.len() as u32 - 1;
+                }
+            }
             s.truncated_episodes += u32::from(o.truncated);
             s.safety_violations += o.violations.len() as u32;
             s.trace_events += o.trace_events;
@@ -124,6 +148,8 @@ impl HarvestSummary {
             (s.apples_harvested > 0).then(|| s.duration_s / f64::from(s.apples_harvested));
         s.seconds_per_attempt = (s.attempts > 0).then(|| s.duration_s / f64::from(s.attempts));
         s.release_interval_s = (release_gaps > 0).then(|| release_span_s / f64::from(release_gaps));
+        s.steady_release_interval_s =
+            (steady_gaps > 0).then(|| steady_span_s / f64::from(steady_gaps));
         let mean = |k: usize| (phase_n[k] > 0).then(|| phase_sum[k] / f64::from(phase_n[k]));
         s.mean_phase = PhaseMeans {
             approach_s: mean(0),
@@ -220,12 +246,14 @@ impl HarvestReport {
         );
         let _ = writeln!(
             out,
-            "  attempts: {}; time {:.1} s: {} s/apple, {} s/attempt, release interval {} s",
+            "  attempts: {}; time {:.1} s: {} s/apple, {} s/attempt; release interval {} s \
+             (both arms busy: {} s)",
             s.attempts,
             s.duration_s,
             opt(s.seconds_per_apple, 2),
             opt(s.seconds_per_attempt, 2),
-            opt(s.release_interval_s, 2)
+            opt(s.release_interval_s, 2),
+            opt(s.steady_release_interval_s, 2)
         );
         let p = &s.mean_phase;
         let _ = writeln!(
@@ -272,7 +300,8 @@ pub fn run_eval_harvest(args: &EvalHarvestArgs) -> Result<HarvestReport, Harvest
     }
     let mut scenario = harvest_sim::process::load_scenario(&args.scenario)?;
     let mut arm_node = ArmNodeConfig::default();
-    apply_timing(&mut scenario, &mut arm_node, args.timing);
+    let mut pressure = PressureConfig::default();
+    apply_timing(&mut scenario, &mut arm_node, &mut pressure, args.timing);
     let mut outcomes = Vec::with_capacity(args.episodes as usize);
     for k in 0..args.episodes {
         let mut config = EpisodeConfig::new(
@@ -283,6 +312,7 @@ pub fn run_eval_harvest(args: &EvalHarvestArgs) -> Result<HarvestReport, Harvest
         );
         config.max_episode_s = args.max_episode_s;
         config.arm_node = arm_node;
+        config.pressure = pressure;
         config.detection = DetectionModel {
             noise_scale: args.detection_noise,
             ..DetectionModel::default()

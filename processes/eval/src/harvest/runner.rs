@@ -41,6 +41,7 @@ use harvest_vacuum::node::{
     BoardReadings, VacuumNode, VacuumNodeConfig, VacuumNodeEvent, VacuumNodeInput,
 };
 use harvest_vacuum::policy::PolicyKind;
+use harvest_vacuum::pressure::PressureConfig;
 use harvest_vacuum::safety_monitor::Violation;
 use rand::SeedableRng;
 use rand::rngs::SmallRng;
@@ -83,6 +84,8 @@ pub struct EpisodeConfig {
     pub emergency_stop_at_s: Option<f64>,
     /// Arm node settings.
     pub arm_node: ArmNodeConfig,
+    /// The vacuum supervisor's attachment inference.
+    pub pressure: PressureConfig,
 }
 
 impl EpisodeConfig {
@@ -99,6 +102,7 @@ impl EpisodeConfig {
             check_safety: true,
             emergency_stop_at_s: None,
             arm_node: ArmNodeConfig::default(),
+            pressure: PressureConfig::default(),
         }
     }
 }
@@ -228,6 +232,7 @@ impl Episode {
         let vacuum = VacuumNode::new(
             VacuumNodeConfig {
                 policy: config.policy,
+                pressure: config.pressure,
                 arms_enabled: [true, config.arms >= 2],
                 ..VacuumNodeConfig::default()
             },

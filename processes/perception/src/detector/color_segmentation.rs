@@ -10,8 +10,11 @@
 //!    threshold falls linearly from `min_red_excess` at `bright_knee` to `bright_red_excess` at
 //!    255 (the adaptive brightness term). Cells darker than a floor proportional to the frame's
 //!    mean brightness carry no reliable colour and count as background.
-//! 3. Over-exposed cells without usable colour (specular highlights) are unknown; they join an
-//!    apple region when it reaches them within `highlight_fill_iterations` cells.
+//! 3. Over-exposed cells without usable colour are unknown. Their connected blobs are sorted by
+//!    [`super::saturated_blobs`]: a blob ringed by apple colour is a highlight and joins the fruit;
+//!    a disc-shaped, apple-sized blob without a red ring (a wholly blown-out fruit) becomes a
+//!    [`DetectionSource::SaturatedBlob`] candidate for depth confirmation; the rest join an apple
+//!    region only when it reaches them within `highlight_fill_iterations` cells.
 //! 4. Opening then closing with a 3x3 square removes specks and bridges one-cell gaps.
 //! 5. 8-connected components; each is split into apples by [`super::touching_split`].
 //! 6. Per apple: box, mask, visible pixels and a confidence combining colour margin, roundness,
@@ -24,8 +27,10 @@ use tracing::trace;
 use super::components::Components;
 use super::distance_transform::chamfer_distance;
 use super::morphology;
+use super::saturated_blobs::class::{APPLE, BACKGROUND, UNKNOWN};
+use super::saturated_blobs::{BlobParams, SaturatedBlobs};
 use super::touching_split::{Seed, SplitParams, find_seeds, nearest_seed};
-use super::{Detection, DetectionMask, Detector, DetectorFrameInfo, PixelBox};
+use super::{Detection, DetectionMask, DetectionSource, Detector, DetectorFrameInfo, PixelBox};
 use crate::frame::{FrameError, RgbView};
 
 /// Parameters of [`ColorSegmentation`].
@@ -68,6 +73,19 @@ pub struct ColorSegmentationConfig {
     pub saddle_ratio: f32,
     /// Maximum apples per connected region.
     pub max_seeds_per_region: u32,
+    /// Report disc-shaped over-exposed blobs as candidates for depth confirmation.
+    pub detect_saturated_blobs: bool,
+    /// An over-exposed blob whose outer ring holds at least this fraction of apple cells is a
+    /// highlight of that fruit and joins it.
+    pub highlight_ring_fraction: f32,
+    /// Largest inscribed radius of a saturated-blob candidate, cells (the nearest, largest
+    /// apple: 50 mm at 0.5 m is 160 px = 40 cells with the TL460 colour lens).
+    pub max_blob_radius_cells: f32,
+    /// Largest fill ratio `area / (pi r_in^2)` of a saturated-blob candidate (1 for a disc).
+    pub max_blob_fill_ratio: f32,
+    /// Detection confidence of a saturated-blob candidate of ideal shape and size, before depth
+    /// confirmation (colour gives no evidence).
+    pub blob_confidence: f32,
 }
 
 impl Default for ColorSegmentationConfig {
@@ -90,6 +108,11 @@ impl Default for ColorSegmentationConfig {
             seed_separation_factor: 0.9,
             saddle_ratio: 0.9,
             max_seeds_per_region: 12,
+            detect_saturated_blobs: true,
+            highlight_ring_fraction: 0.5,
+            max_blob_radius_cells: 48.0,
+            max_blob_fill_ratio: 2.0,
+            blob_confidence: 0.6,
         }
     }
 }
@@ -137,7 +160,7 @@ impl ColorSegmentationConfig {
                 value: self.max_seeds_per_region,
             });
         }
-        let checks: [(&'static str, f32, f32, f32); 11] = [
+        let checks: [(&'static str, f32, f32, f32); 15] = [
             ("min_red_excess", self.min_red_excess, -1.0, 1.0),
             ("bright_red_excess", self.bright_red_excess, -1.0, 1.0),
             ("bright_knee", self.bright_knee, 0.0, 254.0),
@@ -169,6 +192,20 @@ impl ColorSegmentationConfig {
                 2.0,
             ),
             ("saddle_ratio", self.saddle_ratio, 0.0, 1.0),
+            (
+                "highlight_ring_fraction",
+                self.highlight_ring_fraction,
+                0.0,
+                1.0,
+            ),
+            (
+                "max_blob_radius_cells",
+                self.max_blob_radius_cells,
+                self.min_seed_radius_cells,
+                1000.0,
+            ),
+            ("max_blob_fill_ratio", self.max_blob_fill_ratio, 1.0, 100.0),
+            ("blob_confidence", self.blob_confidence, 0.0, 1.0),
         ];
         for (key, value, min, max) in checks {
             if !value.is_finite() || value < min || value > max {
@@ -183,11 +220,6 @@ impl ColorSegmentationConfig {
         Ok(())
     }
 }
-
-const BACKGROUND: u8 = 0;
-const APPLE: u8 = 1;
-/// Over-exposed without usable colour.
-const UNKNOWN: u8 = 2;
 
 /// The classical colour-segmentation detector. Holds its scratch buffers between frames.
 #[derive(Debug)]
@@ -207,6 +239,8 @@ pub struct ColorSegmentation {
     seeds: Vec<Seed>,
     assignment: Vec<u8>,
     regions: Vec<RegionSums>,
+    blobs: SaturatedBlobs,
+    blob_mask: Vec<u8>,
 }
 
 /// Running sums of one apple region.
@@ -253,6 +287,8 @@ impl ColorSegmentation {
             seeds: Vec::new(),
             assignment: Vec::new(),
             regions: Vec::new(),
+            blobs: SaturatedBlobs::default(),
+            blob_mask: Vec::new(),
         })
     }
 
@@ -397,6 +433,7 @@ impl ColorSegmentation {
         grid_w: usize,
         grid_h: usize,
         image: (u32, u32),
+        source: DetectionSource,
         detections: &mut Vec<Detection>,
     ) -> bool {
         let params = SplitParams {
@@ -470,12 +507,17 @@ impl ColorSegmentation {
             }
             let area = region.area_cells as f32;
             let saturated_fraction = region.overexposed_cells as f32 / area;
-            let confidence = region_confidence(
-                region.margin_sum / area,
-                area,
-                seed.radius_cells,
-                saturated_fraction,
-            );
+            let confidence = match source {
+                DetectionSource::Colour => region_confidence(
+                    region.margin_sum / area,
+                    area,
+                    seed.radius_cells,
+                    saturated_fraction,
+                ),
+                DetectionSource::SaturatedBlob => {
+                    self.config.blob_confidence * shape_size_factor(area, seed.radius_cells)
+                }
+            };
             detections.push(Detection {
                 pixel_box: PixelBox {
                     u_min_px: region.x_min as u32 * s,
@@ -487,6 +529,7 @@ impl ColorSegmentation {
                 visible_px: region.area_cells * s * s,
                 confidence,
                 saturated_fraction,
+                source,
             });
         }
         self.seeds.len() > 1
@@ -498,12 +541,18 @@ impl ColorSegmentation {
 /// inscribed radius of 3 cells) and exposure (clipped cells halve their share).
 fn region_confidence(mean_margin: f32, area_cells: f32, radius_cells: f32, saturated: f32) -> f32 {
     let colour = (0.4 + 2.0 * mean_margin).clamp(0.0, 1.0);
+    let exposure = 1.0 - 0.5 * saturated.clamp(0.0, 1.0);
+    (colour * shape_size_factor(area_cells, radius_cells) * exposure).clamp(0.0, 1.0)
+}
+
+/// Shape and size part of the confidence: roundness (area over the inscribed-circle area) times
+/// size (full from an inscribed radius of 3 cells), in [0, 1].
+fn shape_size_factor(area_cells: f32, radius_cells: f32) -> f32 {
     let disc_area = std::f32::consts::PI * radius_cells * radius_cells;
     let fill = area_cells / disc_area.max(1.0);
     let shape = (1.3 / fill.max(1e-3)).min(1.0);
     let size = (radius_cells / 3.0).min(1.0);
-    let exposure = 1.0 - 0.5 * saturated.clamp(0.0, 1.0);
-    (colour * shape * size * exposure).clamp(0.0, 1.0)
+    (shape * size).clamp(0.0, 1.0)
 }
 
 impl Detector for ColorSegmentation {
@@ -526,6 +575,25 @@ impl Detector for ColorSegmentation {
         }
         self.downsample(rgb, grid_w, grid_h);
         let overexposed_cells = self.classify();
+        let blob_counts = if self.config.detect_saturated_blobs {
+            let params = BlobParams {
+                min_area_cells: self.config.min_area_cells,
+                min_radius_cells: self.config.min_seed_radius_cells,
+                max_radius_cells: self.config.max_blob_radius_cells,
+                max_fill_ratio: self.config.max_blob_fill_ratio,
+                highlight_ring_fraction: self.config.highlight_ring_fraction,
+            };
+            self.blobs.sort(
+                &mut self.class,
+                &mut self.mask,
+                &mut self.blob_mask,
+                grid_w,
+                grid_h,
+                &params,
+            )
+        } else {
+            Default::default()
+        };
         self.absorb_highlights(grid_w, grid_h);
         morphology::open(
             &mut self.mask,
@@ -551,9 +619,26 @@ impl Detector for ColorSegmentation {
                 grid_w,
                 grid_h,
                 (rgb.width_px, rgb.height_px),
+                DetectionSource::Colour,
                 detections,
             );
             split_regions += u32::from(split);
+        }
+        if blob_counts.candidates > 0 {
+            // Blown-out fruit: the same seeds and split on the candidate blobs.
+            chamfer_distance(&self.blob_mask, grid_w, grid_h, &mut self.distance);
+            self.components.label(&self.blob_mask, grid_w, grid_h);
+            for component in 0..self.components.count() {
+                let split = self.extract_component(
+                    component,
+                    grid_w,
+                    grid_h,
+                    (rgb.width_px, rgb.height_px),
+                    DetectionSource::SaturatedBlob,
+                    detections,
+                );
+                split_regions += u32::from(split);
+            }
         }
         let saturated_fraction = overexposed_cells as f32 / (grid_w * grid_h) as f32;
         trace!(
@@ -567,6 +652,8 @@ impl Detector for ColorSegmentation {
             saturated_fraction,
             candidate_regions,
             split_regions,
+            highlights_filled: blob_counts.highlights,
+            saturated_blobs: blob_counts.candidates,
         })
     }
 }
@@ -759,6 +846,68 @@ mod tests {
                 assert!(detections[hits[0]].mask.contains_px(188, 186));
             }
         }
+    }
+
+    /// Whites out a disc, like sunlight saturating a whole fruit and the leaves around it.
+    fn blow_out(image: &mut [u8], cx: f32, cy: f32, radius: f32) {
+        for y in 0..H {
+            for x in 0..W {
+                if (x as f32 - cx).powi(2) + (y as f32 - cy).powi(2) <= radius * radius {
+                    image[(y * W + x) * 3..(y * W + x) * 3 + 3].fill(255);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn wholly_blown_out_apple_is_a_saturated_blob_candidate() {
+        let mut image = background();
+        draw_apple(&mut image, 200.0, 250.0, 40.0, 1.0);
+        blow_out(&mut image, 200.0, 250.0, 42.0);
+        draw_apple(&mut image, 450.0, 300.0, 35.0, 1.0);
+        let (detections, info) = detect(&image);
+        assert_eq!(info.saturated_blobs, 1, "{info:?}");
+        let hits = covering(&detections, 200.0, 250.0);
+        assert_eq!(hits.len(), 1, "{detections:?}");
+        let blob = &detections[hits[0]];
+        assert_eq!(blob.source, DetectionSource::SaturatedBlob);
+        assert!(blob.saturated_fraction > 0.9);
+        let (u, v) = blob.pixel_box.center_px();
+        assert!((u - 200.0).abs() < 6.0 && (v - 250.0).abs() < 6.0, "{blob:?}");
+        let disc_px = std::f32::consts::PI * 42.0 * 42.0;
+        assert!((blob.visible_px as f32 / disc_px - 1.0).abs() < 0.3);
+        // The ordinary apple is still a colour detection.
+        let red = covering(&detections, 450.0, 300.0);
+        assert_eq!(red.len(), 1);
+        assert_eq!(detections[red[0]].source, DetectionSource::Colour);
+    }
+
+    #[test]
+    fn blown_out_centre_ringed_by_red_stays_one_colour_apple() {
+        let mut image = background();
+        draw_apple(&mut image, 300.0, 250.0, 60.0, 1.0);
+        blow_out(&mut image, 300.0, 250.0, 35.0);
+        let (detections, info) = detect(&image);
+        assert_eq!(info.highlights_filled, 1, "{info:?}");
+        assert_eq!(info.saturated_blobs, 0);
+        let hits = covering(&detections, 300.0, 250.0);
+        assert_eq!(hits.len(), 1, "{detections:?}");
+        let apple = &detections[hits[0]];
+        assert_eq!(apple.source, DetectionSource::Colour);
+        assert!(apple.mask.contains_px(300, 250), "the highlight is part of the fruit");
+    }
+
+    #[test]
+    fn white_background_alone_is_not_an_apple() {
+        // White sky over the top quarter, and a white frame.
+        let mut image = background();
+        image[..W * 120 * 3].fill(255);
+        let (detections, info) = detect(&image);
+        assert!(detections.iter().all(|d| d.confidence < 0.3), "{detections:?}");
+        assert_eq!(info.saturated_blobs, 0);
+        let (white, info) = detect(&vec![255_u8; W * H * 3]);
+        assert!(white.is_empty());
+        assert_eq!(info.saturated_blobs, 0);
     }
 
     #[test]

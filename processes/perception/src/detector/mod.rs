@@ -10,6 +10,7 @@ pub mod color_segmentation;
 mod components;
 mod distance_transform;
 mod morphology;
+mod saturated_blobs;
 mod touching_split;
 
 use serde::Serialize;
@@ -132,6 +133,18 @@ impl DetectionMask {
     }
 }
 
+/// What image evidence a detection rests on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DetectionSource {
+    /// An apple-coloured region (possibly with absorbed highlights).
+    Colour,
+    /// A disc-shaped, over-exposed region without usable colour (a blown-out fruit). Colour
+    /// cannot tell it from white sky or a bright object, so the pipeline keeps it only when the
+    /// registered depth confirms a solid, apple-sized object there.
+    SaturatedBlob,
+}
+
 /// One apple seen in the colour image.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Detection {
@@ -144,6 +157,8 @@ pub struct Detection {
     pub confidence: f32,
     /// Fraction of the mask that was over-exposed (clipped colour), in [0, 1].
     pub saturated_fraction: f32,
+    /// The evidence behind the detection.
+    pub source: DetectionSource,
 }
 
 /// Frame-level information a detector reports besides its detections.
@@ -155,6 +170,10 @@ pub struct DetectorFrameInfo {
     pub candidate_regions: u32,
     /// Regions split into several apples (touching fruit).
     pub split_regions: u32,
+    /// Over-exposed blobs ringed by apple colour, filled into the fruit around them.
+    pub highlights_filled: u32,
+    /// Disc-shaped over-exposed blobs reported as [`DetectionSource::SaturatedBlob`] candidates.
+    pub saturated_blobs: u32,
 }
 
 /// A 2D apple detector.

@@ -1,1 +1,491 @@
 use super::*;
+use harvest_ipc::payloads::AppleDetection;
+
+const MS: u64 = 1_000_000;
+const LEFT: [f64; 3] = [1.3, 0.15, 0.3];
+const RIGHT: [f64; 3] = [1.3, -0.15, 0.3];
+
+/// Arm 1 reaches y >= -0.1, arm 2 y <= 0.1 (robot frame, arm 1 on +y).
+fn reach() -> Reachability {
+    Box::new(|arm, p, _radius| match arm {
+        ArmId::Arm1 => p[1] >= -0.1,
+        ArmId::Arm2 => p[1] <= 0.1,
+    })
+}
+
+fn node(policy: PolicyKind) -> VacuumNode {
+    VacuumNode::new(
+        VacuumNodeConfig {
+            policy,
+            ..VacuumNodeConfig::default()
+        },
+        reach(),
+    )
+    .expect("node")
+}
+
+fn detections(capture_ns: u64, positions: &[[f64; 3]]) -> AppleDetections {
+    let mut set = AppleDetections {
+        source_capture_ns: capture_ns,
+        ..AppleDetections::default()
+    };
+    for (k, p) in positions.iter().enumerate() {
+        let pushed = set.apples.push(AppleDetection {
+            apple_id: k as u32,
+            position_in_robot_m: *p,
+            radius_m: 0.035,
+            ..AppleDetection::default()
+        });
+        assert!(pushed.is_ok());
+    }
+    set
+}
+
+/// Both arms, the board and the clock, driven by hand.
+struct Bench {
+    node: VacuumNode,
+    now_ns: u64,
+    states: [ArmState; 2],
+    requests: [ValveRequest; 2],
+    /// Board: commanded valves (from the node's outputs) and when each changed.
+    valves: [bool; 4],
+    changed_ns: [u64; 4],
+    travel_ns: u64,
+    /// Arm tube vacuum, mmH2O (set by the test), and the source.
+    pressure: [f32; 3],
+    estop: bool,
+    events: Vec<VacuumNodeEvent>,
+}
+
+impl Bench {
+    fn new(policy: PolicyKind) -> Self {
+        let state = |arm_id| ArmState {
+            arm_id,
+            phase: PhaseCode::Idle as u8,
+            ..ArmState::default()
+        };
+        let request = |arm_id| ValveRequest {
+            arm_id,
+            kind: ValveRequestKind::Close as u8,
+            ..ValveRequest::default()
+        };
+        Self {
+            node: node(policy),
+            now_ns: 1_000 * MS,
+            states: [state(1), state(2)],
+            requests: [request(1), request(2)],
+            valves: [false, true, false, true],
+            changed_ns: [0; 4],
+            travel_ns: 50 * MS,
+            pressure: [0.0, 0.0, 2400.0],
+            estop: false,
+            events: Vec::new(),
+        }
+    }
+
+    fn readings(&self) -> BoardReadings {
+        BoardReadings {
+            stamp_ns: self.now_ns,
+            valve_open: self.valves,
+            valve_in_transit: std::array::from_fn(|i| {
+                self.now_ns - self.changed_ns[i] < self.travel_ns
+            }),
+            pressure_mmh2o: self.pressure,
+        }
+    }
+
+    fn tick_with(&mut self, set: Option<&AppleDetections>) -> VacuumNodeOutput {
+        let input = VacuumNodeInput {
+            now_ns: self.now_ns,
+            arm_states: [Some(&self.states[0]), Some(&self.states[1])],
+            valve_requests: [Some(&self.requests[0]), Some(&self.requests[1])],
+            readings: Some(self.readings()),
+            detections: set,
+            emergency_stop: self.estop,
+        };
+        let out = self.node.step(&input).clone();
+        for (i, open) in out.valve_commands.iter().enumerate() {
+            if *open != self.valves[i] {
+                self.valves[i] = *open;
+                self.changed_ns[i] = self.now_ns;
+            }
+        }
+        self.events.extend(out.events.iter().cloned());
+        self.now_ns += 5 * MS;
+        out
+    }
+
+    fn tick(&mut self) -> VacuumNodeOutput {
+        self.tick_with(None)
+    }
+
+    fn ticks(&mut self, n: usize) {
+        for _ in 0..n {
+            self.tick();
+        }
+    }
+
+    fn set_phase(&mut self, arm: usize, phase: PhaseCode, apple_id: u32) {
+        self.states[arm].phase = phase as u8;
+        self.states[arm].apple_id = apple_id;
+    }
+
+    fn request(&mut self, arm: usize, kind: ValveRequestKind) {
+        self.requests[arm].kind = kind as u8;
+        self.requests[arm].request_seq += 1;
+    }
+
+    fn count(&self, f: impl Fn(&VacuumNodeEvent) -> bool) -> usize {
+        self.events.iter().filter(|e| f(e)).count()
+    }
+}
+
+#[test]
+fn apples_are_dispatched_one_per_tick_with_wire_ids_and_radius() {
+    let mut b = Bench::new(PolicyKind::V2024);
+    let set = detections(b.now_ns - 100 * MS, &[LEFT, RIGHT]);
+    let first = b.tick_with(Some(&set));
+    let second = b.tick();
+    let dispatched: Vec<ArmTarget> = first
+        .targets
+        .iter()
+        .chain(second.targets.iter())
+        .flatten()
+        .copied()
+        .collect();
+    assert_eq!(dispatched.len(), 2);
+    assert_eq!(first.targets.iter().flatten().count(), 1);
+    for t in &dispatched {
+        let expected = if t.arm_id == 1 { LEFT } else { RIGHT };
+        assert_eq!(t.position_in_robot_m, expected);
+        assert_eq!(t.radius_m, 0.035);
+        assert_eq!(t.source_capture_ns, set.source_capture_ns);
+        assert!(t.apple_id >= 1, "wire ids start at 1");
+    }
+    assert_ne!(dispatched[0].header.msg_seq, dispatched[1].header.msg_seq);
+    // Nothing more to dispatch.
+    assert!(b.tick().targets.iter().all(Option::is_none));
+}
+
+#[test]
+fn the_baseline_lets_one_arm_out_at_a_time() {
+    let mut b = Bench::new(PolicyKind::Baseline);
+    let set = detections(b.now_ns, &[LEFT, RIGHT]);
+    let out = b.tick_with(Some(&set));
+    let target = out.targets[0].expect("arm 1 first");
+    b.ticks(3);
+    assert_eq!(
+        b.count(|e| matches!(
+            e,
+            VacuumNodeEvent::ApproachRefused {
+                arm: ArmId::Arm2,
+                reason: RefuseReason::OtherArmActive { .. }
+            }
+        )),
+        1
+    );
+    // Arm 1 runs its cycle and ends it with a harvest; then arm 2 goes.
+    b.set_phase(0, PhaseCode::Approach, target.apple_id);
+    b.tick();
+    assert_eq!(
+        b.count(|e| matches!(
+            e,
+            VacuumNodeEvent::AttemptStarted {
+                arm: ArmId::Arm1,
+                ..
+            }
+        )),
+        1
+    );
+    b.set_phase(0, PhaseCode::Idle, 0);
+    b.states[0].harvested_count = 1;
+    let out = b.tick();
+    assert!(b.events.iter().any(|e| matches!(
+        e,
+        VacuumNodeEvent::AttemptFinished {
+            arm: ArmId::Arm1,
+            result: AttemptResult::Harvested,
+            ..
+        }
+    )));
+    assert!(out.targets[1].is_some());
+    assert!(b.node.planner().queue(ArmId::Arm1).is_empty());
+}
+
+#[test]
+fn a_target_not_taken_up_is_refreshed_then_given_up() {
+    let mut b = Bench::new(PolicyKind::V2024);
+    let set = detections(b.now_ns, &[LEFT]);
+    let first = b.tick_with(Some(&set)).targets[0].expect("dispatched");
+    b.ticks(10);
+    let fresh = detections(b.now_ns, &[[LEFT[0] + 0.005, LEFT[1], LEFT[2]]]);
+    let out = b.tick_with(Some(&fresh));
+    let refreshed = out.targets[0].expect("refreshed");
+    assert_eq!(refreshed.apple_id, first.apple_id);
+    assert_eq!(refreshed.position_in_robot_m, first.position_in_robot_m);
+    assert!(refreshed.header.msg_seq > first.header.msg_seq);
+    assert_eq!(refreshed.source_capture_ns, fresh.source_capture_ns);
+    b.ticks(600);
+    assert_eq!(
+        b.count(|e| matches!(
+            e,
+            VacuumNodeEvent::DispatchTimedOut {
+                arm: ArmId::Arm1,
+                ..
+            }
+        )),
+        1
+    );
+}
+
+#[test]
+fn failure_aware_policy_staggers_attempts_and_closes_a_failure_in_the_same_tick() {
+    let mut b = Bench::new(PolicyKind::V2024);
+    // Both arms at their apples asking for the vacuum.
+    b.set_phase(0, PhaseCode::AttachDetach, 1);
+    b.set_phase(1, PhaseCode::AttachDetach, 2);
+    b.request(0, ValveRequestKind::OpenForAttach);
+    b.request(1, ValveRequestKind::OpenForAttach);
+    let out = b.tick();
+    assert_eq!(out.valve_commands, [true, false, false, true]);
+    assert_eq!(out.grants[0].map(|g| g.granted), Some(1));
+    let refusal = out.grants[1].expect("answer to arm 2");
+    assert_eq!((refusal.granted, refusal.reason), (0, 5));
+    // The gate travels; then arm 1 seals (its tube reaches the source).
+    b.ticks(10);
+    b.pressure = [2350.0, 0.0, 2400.0];
+    b.ticks(3);
+    assert_eq!(
+        b.node.attachment(ArmId::Arm1),
+        AttachmentState::OpenToAtmosphere
+    );
+    b.ticks(5);
+    assert_eq!(b.node.attachment(ArmId::Arm1), AttachmentState::Sealed);
+    // Arm 2 is granted once arm 1 is sealed; the refusal was reported once.
+    assert!(b.valves[2]);
+    assert_eq!(
+        b.count(|e| matches!(
+            e,
+            VacuumNodeEvent::ValveRefused {
+                arm: ArmId::Arm2,
+                ..
+            }
+        )),
+        1
+    );
+    // Arm 2's cup never seals: 250 ms after its gate arrived the failure closes it at once.
+    b.pressure = [2350.0, 700.0, 2000.0];
+    let mut closed_with_failure = false;
+    for _ in 0..100 {
+        let out = b.tick();
+        let failed = out.events.iter().any(|e| {
+            matches!(e, VacuumNodeEvent::Attachment(c) if c.arm == ArmId::Arm2
+                && c.to == AttachmentState::AttachFailed)
+        });
+        if failed {
+            assert!(!out.valve_commands[2], "closed in the tick of the failure");
+            assert!(out.events.iter().any(|e| matches!(
+                e,
+                VacuumNodeEvent::ValveClosed {
+                    arm: ArmId::Arm2,
+                    cause: ValveCloseCause::Policy(CloseReason::AttachFailed)
+                }
+            )));
+            closed_with_failure = true;
+            break;
+        }
+    }
+    assert!(closed_with_failure);
+    // The standing request is not granted a second time.
+    b.ticks(50);
+    assert!(!b.valves[2]);
+    assert_eq!(
+        b.count(|e| matches!(e, VacuumNodeEvent::ValveOpened { arm: ArmId::Arm2 })),
+        1
+    );
+    // Arm 1 reaches the drop-off and asks to close: released.
+    b.set_phase(0, PhaseCode::Release, 1);
+    b.request(0, ValveRequestKind::Close);
+    let out = b.tick();
+    assert!(!out.valve_commands[0] && out.valve_commands[1]);
+}
+
+#[test]
+fn the_2023_policy_holds_the_vacuum_until_the_other_release_is_done() {
+    let mut b = Bench::new(PolicyKind::V2023);
+    b.set_phase(0, PhaseCode::Retract, 1);
+    b.set_phase(1, PhaseCode::AttachDetach, 2);
+    b.request(1, ValveRequestKind::OpenForAttach);
+    let out = b.tick();
+    assert_eq!(out.grants[1].map(|g| (g.granted, g.reason)), Some((0, 7)));
+    b.set_phase(0, PhaseCode::Release, 1);
+    b.ticks(5);
+    assert!(!b.valves[2]);
+    b.set_phase(0, PhaseCode::Idle, 0);
+    let out = b.tick();
+    assert!(out.valve_commands[2]);
+    assert_eq!(out.grants[1].map(|g| g.granted), Some(1));
+}
+
+#[test]
+fn emergency_stop_closes_every_valve_and_stops_dispatching() {
+    let mut b = Bench::new(PolicyKind::V2024);
+    b.set_phase(0, PhaseCode::AttachDetach, 1);
+    b.request(0, ValveRequestKind::OpenForAttach);
+    b.tick();
+    assert!(b.valves[0]);
+    b.estop = true;
+    let out = b.tick();
+    assert!(out.close_all);
+    assert_eq!(out.valve_commands, [false; 4]);
+    assert!(
+        out.events
+            .contains(&VacuumNodeEvent::EmergencyStop { engaged: true })
+    );
+    assert!(out.events.contains(&VacuumNodeEvent::ValveClosed {
+        arm: ArmId::Arm1,
+        cause: ValveCloseCause::EmergencyStop
+    }));
+    // Engaged: no valve opens, no apple is dispatched.
+    b.request(0, ValveRequestKind::OpenForAttach);
+    b.set_phase(1, PhaseCode::Idle, 0);
+    let set = detections(b.now_ns, &[RIGHT]);
+    let out = b.tick_with(Some(&set));
+    assert!(!out.close_all, "close_all only on the engaging tick");
+    assert_eq!(out.valve_commands, [false; 4]);
+    assert!(out.targets.iter().all(Option::is_none));
+    b.estop = false;
+    b.set_phase(0, PhaseCode::Idle, 0);
+    let out = b.tick();
+    assert!(
+        out.events
+            .contains(&VacuumNodeEvent::EmergencyStop { engaged: false })
+    );
+    assert_eq!(out.valve_commands, [false, true, false, true]);
+    assert!(out.targets[1].is_some());
+}
+
+#[test]
+fn an_apple_failed_max_attempts_times_is_given_up_even_under_new_ids() {
+    let mut b = Bench::new(PolicyKind::V2024);
+    let max = VacuumNodeConfig::default().planner.max_attempts;
+    for attempt in 0..max {
+        // Each set sees the apple up to 4 cm off: the planner loses its identity (3 cm match).
+        let offset = if attempt % 2 == 0 { 0.02 } else { -0.02 };
+        let p = [LEFT[0] + offset, LEFT[1], LEFT[2]];
+        b.tick_with(Some(&detections(b.now_ns, &[])));
+        let out = b.tick_with(Some(&detections(b.now_ns, &[p])));
+        let target = out.targets[0].expect("dispatched");
+        b.set_phase(0, PhaseCode::Approach, target.apple_id);
+        b.tick();
+        b.set_phase(0, PhaseCode::Idle, 0);
+        b.tick();
+    }
+    assert_eq!(
+        b.count(|e| matches!(
+            e,
+            VacuumNodeEvent::AttemptFinished {
+                result: AttemptResult::Failed,
+                ..
+            }
+        )),
+        max as usize
+    );
+    let out = b.tick_with(Some(&detections(
+        b.now_ns,
+        &[[LEFT[0] + 0.03, LEFT[1], LEFT[2]]],
+    )));
+    assert!(out.targets.iter().all(Option::is_none));
+    assert!(
+        out.events
+            .iter()
+            .any(|e| matches!(e, VacuumNodeEvent::Replanned { given_up: 1, .. }))
+    );
+    assert!(b.node.is_idle());
+}
+
+#[test]
+fn a_disabled_arm_gets_no_apple_and_no_vacuum() {
+    let mut node = VacuumNode::new(
+        VacuumNodeConfig {
+            arms_enabled: [true, false],
+            ..VacuumNodeConfig::default()
+        },
+        reach(),
+    )
+    .expect("node");
+    let idle = |arm_id| ArmState {
+        arm_id,
+        ..ArmState::default()
+    };
+    let (s1, s2) = (idle(1), idle(2));
+    let open2 = ValveRequest {
+        arm_id: 2,
+        kind: ValveRequestKind::OpenForAttach as u8,
+        request_seq: 1,
+        ..ValveRequest::default()
+    };
+    let set = detections(0, &[RIGHT, [1.3, -0.3, 0.3]]);
+    let out = node
+        .step(&VacuumNodeInput {
+            now_ns: 5 * MS,
+            arm_states: [Some(&s1), Some(&s2)],
+            valve_requests: [None, Some(&open2)],
+            readings: None,
+            detections: Some(&set),
+            emergency_stop: false,
+        })
+        .clone();
+    assert!(out.targets.iter().all(Option::is_none));
+    assert_eq!(
+        out.grants[1].map(|g| (g.granted, g.reason)),
+        Some((0, REFUSED_ARM_DISABLED))
+    );
+    assert_eq!(out.valve_commands, [false, true, false, true]);
+    assert!(node.planner().queue(ArmId::Arm2).is_empty());
+    assert!(node.is_idle());
+}
+
+#[test]
+fn the_published_state_mirrors_the_board_and_the_inference() {
+    let mut b = Bench::new(PolicyKind::V2023);
+    let out = b.tick();
+    assert_eq!(out.state.policy, 1);
+    assert_eq!(out.state.valve_open, [0, 1, 0, 1]);
+    assert_eq!(out.state.pressure_mmh2o, [0.0, 0.0, 2400.0]);
+    assert_eq!(out.state.arm_attachment, [0, 0]);
+    b.set_phase(0, PhaseCode::AttachDetach, 1);
+    b.request(0, ValveRequestKind::OpenForAttach);
+    b.tick();
+    let out = b.tick();
+    // The board reports the gate moving; the inference waits for it.
+    assert_eq!(out.state.valve_open, [1, 0, 0, 1]);
+    assert_eq!(out.state.valve_in_transit, [1, 1, 0, 0]);
+    assert_eq!(out.state.arm_attachment, [0, 0]);
+    b.pressure = [2350.0, 0.0, 2400.0];
+    b.ticks(20);
+    let out = b.tick();
+    assert_eq!(out.state.arm_attachment, [2, 0]);
+    assert_eq!(policy_code(PolicyKind::V2024), 2);
+    assert_eq!(attachment_code(AttachmentState::Dropped), 1);
+}
+
+#[test]
+fn config_is_checked() {
+    let bad = VacuumNodeConfig {
+        dispatch_timeout_s: 0.0,
+        ..VacuumNodeConfig::default()
+    };
+    assert!(matches!(
+        VacuumNode::new(bad, reach()),
+        Err(VacuumNodeError::DispatchTimeout(_))
+    ));
+    let bad = VacuumNodeConfig {
+        give_up_radius_m: f64::NAN,
+        ..VacuumNodeConfig::default()
+    };
+    assert!(matches!(
+        VacuumNode::new(bad, reach()),
+        Err(VacuumNodeError::GiveUpRadius(_))
+    ));
+}

@@ -1,0 +1,114 @@
+//! Helpers of the ALACS-over-IPC tests: unique domains and the simulator's ALACS device served
+//! on its own thread with its own node, exactly as the sim process serves it.
+
+#![allow(dead_code)]
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use harvest_ipc::catalogue::{HW_ALACS_COMMAND, HW_ALACS_IMAGE};
+use harvest_ipc::{Context, Domain, Flow, Waiter};
+use harvest_sim::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer};
+use harvest_sim::{Scenario, World};
+
+/// A domain no other test (or concurrent run) uses.
+pub fn unique_domain(tag: &str) -> Domain {
+    static COUNTER: AtomicU32 = AtomicU32::new(0);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    let name = format!(
+        "l{tag}{}{}{:x}",
+        std::process::id() % 10_000,
+        COUNTER.fetch_add(1, Ordering::SeqCst),
+        nanos % 0xfff
+    );
+    Domain::new(&name[..name.len().min(24)]).expect("valid domain")
+}
+
+/// The world the device shows: the `ideal` scenario (a grid of apples, no leaves), seed 5.
+pub fn ideal_world() -> World {
+    World::generate(&Scenario::preset("ideal").expect("preset"), 5).expect("world")
+}
+
+/// The simulator's ALACS device on its own thread; stops on drop.
+pub struct Device {
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Result<u64, String>>>,
+}
+
+impl Device {
+    /// Starts serving [`ideal_world`] in `domain` and returns once its ports exist.
+    pub fn start(domain: &Domain) -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let (ready_tx, ready_rx) = mpsc::channel();
+        let thread = {
+            let (domain, stop) = (domain.clone(), Arc::clone(&stop));
+            std::thread::spawn(move || serve(&domain, &stop, &ready_tx))
+        };
+        ready_rx
+            .recv_timeout(Duration::from_secs(30))
+            .expect("device thread ready");
+        Self {
+            stop,
+            thread: Some(thread),
+        }
+    }
+
+    /// Stops the device and returns the number of commands it answered.
+    pub fn finish(mut self) -> u64 {
+        self.stop.store(true, Ordering::SeqCst);
+        let thread = self.thread.take().expect("running");
+        thread.join().expect("device thread").expect("device loop")
+    }
+}
+
+impl Drop for Device {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+    }
+}
+
+/// What the sim process does for the ALACS: answer every command with one loaned image.
+fn serve(domain: &Domain, stop: &AtomicBool, ready: &mpsc::Sender<()>) -> Result<u64, String> {
+    let world = ideal_world();
+    let mut server =
+        AlacsDeviceServer::new(AlacsDeviceConfig::default()).map_err(|e| e.to_string())?;
+    let context = Context::new(domain, "sim_alacs").map_err(|e| e.to_string())?;
+    let commands = context
+        .subscriber(HW_ALACS_COMMAND)
+        .map_err(|e| e.to_string())?;
+    let mut images = context
+        .publisher(HW_ALACS_IMAGE)
+        .map_err(|e| e.to_string())?;
+    let waiter = Waiter::new().map_err(|e| e.to_string())?;
+    let command_guard = waiter
+        .attach_listener(commands.listener())
+        .map_err(|e| e.to_string())?;
+    let stop_check = waiter
+        .attach_interval(Duration::from_millis(20))
+        .map_err(|e| e.to_string())?;
+    ready.send(()).map_err(|e| e.to_string())?;
+    let mut answered = 0;
+    waiter
+        .run(|attachment| -> Result<Flow, String> {
+            if attachment.has_event_from(&command_guard) {
+                while let Some(command) = commands.receive().map_err(|e| e.to_string())? {
+                    let mut image = images.loan().map_err(|e| e.to_string())?;
+                    server.handle(&world, &command, &mut image);
+                    images.send(image).map_err(|e| e.to_string())?;
+                    answered += 1;
+                }
+            }
+            if attachment.has_event_from(&stop_check) && stop.load(Ordering::SeqCst) {
+                return Ok(Flow::Stop);
+            }
+            Ok(Flow::Continue)
+        })
+        .map_err(|e| e.to_string())?;
+    Ok(answered)
+}

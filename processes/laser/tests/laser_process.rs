@@ -1,0 +1,134 @@
+//! The `laser` process loop (`process::run_until`) on a thread with its own node, the
+//! simulator's ALACS device on another, and the test acting as perception: it waits for the
+//! process's heartbeat, sends scan requests on `laser/scan_request` and reads the answers on
+//! `laser/scan_result`.
+//!
+//! Checks: a known apple's request is answered with status 0 within a few millimetres of the
+//! truth (ToF colour-camera frame, as requested) and echoes the request's ids; an apple out of
+//! the slide's reach gets status 2 without moving the device; the loop stops cleanly.
+
+mod common;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use common::{Device, ideal_world, unique_domain};
+use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsExtrinsics};
+use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT, PROCESS_HEALTH};
+use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
+use harvest_ipc::{Context, Payload, Subscriber};
+use harvest_laser::process::{LaserArgs, run_until};
+use harvest_laser::service::{STATUS_OK, STATUS_OUT_OF_REACH};
+use harvest_laser::{ScanConfig, ScanPlanner};
+use harvest_sim::alacs_device::robot_from_tof_color;
+
+/// Watchdog on every wait of the test.
+const WATCHDOG: Duration = Duration::from_secs(60);
+
+/// Waits (event-driven, bounded by the watchdog) for the first message `accept` takes.
+fn wait_for<T: Payload + Copy>(subscriber: &Subscriber<T>, accept: impl Fn(&T) -> bool) -> T {
+    let deadline = Instant::now() + WATCHDOG;
+    loop {
+        while let Some(message) = subscriber.receive().expect("receive") {
+            if accept(&message) {
+                return *message;
+            }
+        }
+        let remaining = deadline.saturating_duration_since(Instant::now());
+        assert!(
+            !remaining.is_zero(),
+            "watchdog: nothing on {:?}",
+            subscriber.channel()
+        );
+        let _ = subscriber.listener().timed_wait(|_| {}, remaining);
+    }
+}
+
+#[test]
+fn laser_process_answers_scan_requests() {
+    let world = ideal_world();
+    let tof_from_robot = robot_from_tof_color(&world).inverse();
+    let planner = ScanPlanner {
+        extrinsics: AlacsExtrinsics::paper_table1(),
+        config: ScanConfig::default(),
+    };
+    let in_alacs = |apple: &harvest_sim::Apple| {
+        ALACS_FROM_TOF_CAMERA.apply(tof_from_robot.apply(apple.center_in_robot_m))
+    };
+    let reachable = world
+        .apples()
+        .iter()
+        .find(|apple| planner.plan(in_alacs(apple)).is_ok())
+        .expect("an apple in reach");
+    let unreachable = world
+        .apples()
+        .iter()
+        .find(|apple| planner.plan(in_alacs(apple)).is_err())
+        .expect("an apple out of reach");
+
+    let domain = unique_domain("proc");
+    let device = Device::start(&domain);
+    let stop = Arc::new(AtomicBool::new(false));
+    let laser = {
+        let (domain, stop) = (domain.clone(), Arc::clone(&stop));
+        std::thread::spawn(move || {
+            let args = LaserArgs {
+                calibration: None,
+                device_timeout_ms: 2900,
+            };
+            run_until(&args, &domain, "laser", &stop).map_err(|e| e.to_string())
+        })
+    };
+
+    let context = Context::new(&domain, "perception_test").expect("context");
+    let health = context.subscriber(PROCESS_HEALTH).expect("health");
+    let mut requests = context.publisher(LASER_SCAN_REQUEST).expect("requests");
+    let results = context.subscriber(LASER_SCAN_RESULT).expect("results");
+    // The first heartbeat comes from the running loop: the request subscriber exists by then.
+    wait_for(&health, |beat| beat.process_name.as_str() == "laser");
+
+    for (request_seq, apple) in [(1, reachable), (2, unreachable)] {
+        let truth_in_tof = tof_from_robot.apply(apple.center_in_robot_m);
+        let request = LaserScanRequest {
+            request_seq,
+            apple_id: apple.id.0,
+            rough_position_in_camera_m: [
+                truth_in_tof[0] - 0.003,
+                truth_in_tof[1] + 0.002,
+                truth_in_tof[2] + 0.012,
+            ],
+            rough_radius_m: apple.radius_m + 0.003,
+            ..LaserScanRequest::default()
+        };
+        requests.publish(&request).expect("publish request");
+        let result: LaserScanResult = wait_for(&results, |r| r.request_seq == request_seq);
+        assert_eq!(result.apple_id, apple.id.0);
+        if request_seq == 1 {
+            assert_eq!(result.status, STATUS_OK, "{result:?}");
+            let error_m = (0..3)
+                .map(|k| (result.position_in_camera_m[k] - truth_in_tof[k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(error_m < 3e-3, "error {error_m} m: {result:?}");
+            assert!(result.candidate_count >= 3, "{result:?}");
+            assert!(result.scan_duration_ns > 0);
+        } else {
+            assert_eq!(result.status, STATUS_OUT_OF_REACH, "{result:?}");
+            assert_eq!(result.candidate_count, 0);
+            assert_eq!(
+                result.position_in_camera_m,
+                request.rough_position_in_camera_m
+            );
+        }
+    }
+
+    stop.store(true, Ordering::SeqCst);
+    laser
+        .join()
+        .expect("laser thread")
+        .expect("laser loop ends cleanly");
+    // One scan: laser on, 5 x (move + capture), laser off; the unreachable apple never reached
+    // the device.
+    assert_eq!(device.finish(), 12);
+}

@@ -1,0 +1,130 @@
+//! Consistency checks between a 3D estimate and the detection it came from.
+//!
+//! - [`depth_agrees`]: the camera sees the fruit's front surface, so the median depth `z_med` of
+//!   a mask's points lies between the fruit's nearest point and its centre. A centre `z_c` with
+//!   `z_c - z_med` outside `[-t, r + t]`, `t = k sigma(z_med)` (TL460 depth noise), is a fit that
+//!   jumped to another surface (e.g. the next tree row 2 m behind a small fragment).
+//! - [`SaturatedBlobCheck`]: an over-exposed blob carries no colour evidence, so depth must
+//!   confirm it: enough of its area returns depth (white sky returns none), and the blob's image
+//!   radius at the estimated depth is an apple's radius (pinhole: `r = rho_px z / f_px`).
+
+use crate::estimator::PositionEstimate;
+use crate::noise_model::DepthNoiseModel;
+
+/// Median depth (z, metres) of `points`; `scratch` is reused. `None` when there are no points.
+pub fn median_depth_m(points: &[[f32; 3]], scratch: &mut Vec<f32>) -> Option<f64> {
+    scratch.clear();
+    scratch.extend(points.iter().map(|p| p[2]).filter(|z| z.is_finite()));
+    if scratch.is_empty() {
+        return None;
+    }
+    let middle = scratch.len() / 2;
+    let (_, value, _) = scratch.select_nth_unstable_by(middle, f32::total_cmp);
+    Some(f64::from(*value))
+}
+
+/// True when the estimate's centre depth is consistent with the median depth of its mask points:
+/// `-t <= z_c - z_med <= r + t` with `t = sigmas * sigma(z_med)`.
+pub fn depth_agrees(
+    estimate: &PositionEstimate,
+    median_depth_m: f64,
+    noise: &DepthNoiseModel,
+    sigmas: f64,
+) -> bool {
+    let tolerance_m = sigmas * noise.sigma_m(median_depth_m);
+    let offset_m = estimate.position_in_camera_m[2] - median_depth_m;
+    offset_m >= -tolerance_m && offset_m <= estimate.radius_m + tolerance_m
+}
+
+/// Depth confirmation of an over-exposed blob detection.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SaturatedBlobCheck {
+    /// Depth samples expected per colour pixel: `(fx_d fy_d) / (fx_c fy_c)`.
+    pub depth_samples_per_color_px: f64,
+    /// Colour focal length (mean of fx and fy), pixels.
+    pub color_focal_px: f64,
+    /// Minimum fraction of the blob's expected depth samples that must be present.
+    pub min_depth_coverage: f64,
+    /// Accepted physical radius of the blob, metres `[min, max]`.
+    pub radius_range_m: [f64; 2],
+}
+
+impl SaturatedBlobCheck {
+    /// Fraction of the expected depth samples of a blob of `visible_px` colour pixels that
+    /// `points` samples represent.
+    pub fn depth_coverage(&self, points: usize, visible_px: u32) -> f64 {
+        let expected = f64::from(visible_px) * self.depth_samples_per_color_px;
+        if expected <= 0.0 {
+            return 0.0;
+        }
+        points as f64 / expected
+    }
+
+    /// Physical radius of a blob of `visible_px` colour pixels seen at `depth_m`, metres.
+    pub fn blob_radius_m(&self, visible_px: u32, depth_m: f64) -> f64 {
+        let radius_px = (f64::from(visible_px) / std::f64::consts::PI).sqrt();
+        radius_px * depth_m / self.color_focal_px
+    }
+
+    /// True when the depth confirms an apple: enough coverage, and the blob's radius at the
+    /// estimate's centre depth in the accepted range.
+    pub fn confirms(&self, points: usize, visible_px: u32, estimate: &PositionEstimate) -> bool {
+        let radius_m = self.blob_radius_m(visible_px, estimate.position_in_camera_m[2]);
+        self.depth_coverage(points, visible_px) >= self.min_depth_coverage
+            && radius_m >= self.radius_range_m[0]
+            && radius_m <= self.radius_range_m[1]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn estimate(z_m: f64) -> PositionEstimate {
+        PositionEstimate {
+            position_in_camera_m: [0.0, 0.0, z_m],
+            radius_m: 0.04,
+            confidence: 1.0,
+            points_used: 100,
+            fallback: false,
+        }
+    }
+
+    #[test]
+    fn median_depth_is_the_middle_value() {
+        let points = [[0.0, 0.0, 3.0], [0.0, 0.0, 1.0], [0.0, 0.0, 2.0]];
+        let mut scratch = Vec::new();
+        assert_eq!(median_depth_m(&points, &mut scratch), Some(2.0));
+        assert_eq!(median_depth_m(&[], &mut scratch), None);
+    }
+
+    #[test]
+    fn centre_behind_the_surface_by_up_to_a_radius_agrees() {
+        let noise = DepthNoiseModel::TL460;
+        // Front surface median 1.20 m; sigma(1.2 m) = 7 mm, tolerance 21 mm.
+        assert!(depth_agrees(&estimate(1.227), 1.2, &noise, 3.0));
+        assert!(depth_agrees(&estimate(1.19), 1.2, &noise, 3.0));
+        assert!(!depth_agrees(&estimate(1.17), 1.2, &noise, 3.0));
+        assert!(!depth_agrees(&estimate(1.27), 1.2, &noise, 3.0));
+        // A fragment's fit jumped to the next row.
+        assert!(!depth_agrees(&estimate(3.5), 1.2, &noise, 3.0));
+    }
+
+    #[test]
+    fn blob_needs_depth_coverage_and_apple_size() {
+        let check = SaturatedBlobCheck {
+            depth_samples_per_color_px: 0.1,
+            color_focal_px: 1600.0,
+            min_depth_coverage: 0.25,
+            radius_range_m: [0.025, 0.07],
+        };
+        // A 40 mm fruit at 1.6 m: 40 px radius, 5027 px, 503 depth samples expected.
+        let visible_px = (std::f64::consts::PI * 40.0 * 40.0) as u32;
+        assert!((check.blob_radius_m(visible_px, 1.6) - 0.04).abs() < 1e-3);
+        assert!(check.confirms(300, visible_px, &estimate(1.6)));
+        // White sky: no depth.
+        assert!(!check.confirms(10, visible_px, &estimate(1.6)));
+        // The same blob on the next row 5 m away would be a 125 mm object.
+        assert!(!check.confirms(300, visible_px, &estimate(5.0)));
+    }
+}
