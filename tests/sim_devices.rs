@@ -58,14 +58,19 @@ fn simulated_servos_follow_a_setpoint() {
     let deadline = Instant::now() + Duration::from_secs(30);
     let target_twist_rad = 0.5;
     loop {
-        servos.command([0.0, 0.0, 0.0, target_twist_rad], [0.0; 4]).expect("command");
+        servos
+            .command([0.0, 0.0, 0.0, target_twist_rad], [0.0; 4])
+            .expect("command");
         if let Some(feedback) = servos.feedback().expect("feedback") {
             if (feedback.position[3] - target_twist_rad).abs() < 0.01 {
                 assert!(feedback.capture_ns > 0);
                 break;
             }
         }
-        assert!(Instant::now() < deadline, "servo never reached the set-point");
+        assert!(
+            Instant::now() < deadline,
+            "servo never reached the set-point"
+        );
         std::thread::sleep(Duration::from_millis(5));
     }
 }

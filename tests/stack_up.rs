@@ -27,6 +27,7 @@ fn child_pids(pid: u32, needle: &str) -> Vec<i32> {
 
 #[test]
 fn default_stack_runs_frames_flow_and_shutdown_is_clean() {
+    let _stack = one_stack_at_a_time();
     let domain = unique_domain("up");
     let (status, _, stderr) = run_harvest(
         &domain,
@@ -37,9 +38,10 @@ fn default_stack_runs_frames_flow_and_shutdown_is_clean() {
     assert!(stderr.contains("--duration 10s elapsed"), "{stderr}");
     let frames = summary_messages(&stderr, "camera").expect("camera summary line");
     let received = summary_messages(&stderr, "perception").expect("perception summary line");
-    // 30 Hz for ~10 s minus start-up; generous floor for a loaded 2-core machine.
+    // 30 Hz nominal for ~10 s; the floor only proves frames flow on a loaded 2-core machine
+    // (rates are measured by `harvest bench pipeline`, never asserted).
     assert!(
-        frames >= 60,
+        frames >= 30,
         "camera published only {frames} frames:\n{stderr}"
     );
     assert!(
@@ -56,6 +58,7 @@ fn default_stack_runs_frames_flow_and_shutdown_is_clean() {
 
 #[test]
 fn sigint_stops_every_process_cleanly() {
+    let _stack = one_stack_at_a_time();
     let domain = unique_domain("int");
     let child = spawn_harvest(&domain, &["up"]);
     let supervisor_pid = child.id();
@@ -87,6 +90,7 @@ fn sigint_stops_every_process_cleanly() {
 
 #[test]
 fn killed_child_is_restarted_and_frames_flow_again() {
+    let _stack = one_stack_at_a_time();
     let domain = unique_domain("kill");
     let child = spawn_harvest(&domain, &["up", "--duration", "14s"]);
     let supervisor_pid = child.id();
@@ -119,6 +123,7 @@ fn killed_child_is_restarted_and_frames_flow_again() {
 
 #[test]
 fn two_domains_do_not_cross_talk() {
+    let _stack = one_stack_at_a_time();
     let dir = TempDir::new("domains");
     // Domain B has a camera and perception but no simulated robot: if it saw domain A's
     // hardware channel it would publish frames.

@@ -259,12 +259,32 @@ pub const HW_CAMERA_RGBD: Channel<RgbdFrame> = Channel::in_layer(
 );
 
 pub const HW_ARM_SERVO: [Channel<ServoSetpoint>; 2] = [
-    Channel::in_layer(Layer::Hardware, "hw/arm1/servo", Qos::SMALL, "servo set-points to arm 1, 200 Hz"),
-    Channel::in_layer(Layer::Hardware, "hw/arm2/servo", Qos::SMALL, "servo set-points to arm 2, 200 Hz"),
+    Channel::in_layer(
+        Layer::Hardware,
+        "hw/arm1/servo",
+        Qos::SMALL,
+        "servo set-points to arm 1, 200 Hz",
+    ),
+    Channel::in_layer(
+        Layer::Hardware,
+        "hw/arm2/servo",
+        Qos::SMALL,
+        "servo set-points to arm 2, 200 Hz",
+    ),
 ];
 pub const HW_ARM_ENCODERS: [Channel<EncoderFeedback>; 2] = [
-    Channel::in_layer(Layer::Hardware, "hw/arm1/encoders", Qos::STATE, "arm 1 encoder feedback, 200 Hz"),
-    Channel::in_layer(Layer::Hardware, "hw/arm2/encoders", Qos::STATE, "arm 2 encoder feedback, 200 Hz"),
+    Channel::in_layer(
+        Layer::Hardware,
+        "hw/arm1/encoders",
+        Qos::STATE,
+        "arm 1 encoder feedback, 200 Hz",
+    ),
+    Channel::in_layer(
+        Layer::Hardware,
+        "hw/arm2/encoders",
+        Qos::STATE,
+        "arm 2 encoder feedback, 200 Hz",
+    ),
 ];
 pub const HW_VALVE_COMMAND: Channel<ValveBoardCommand> = Channel::in_layer(
     Layer::Hardware,
@@ -287,7 +307,10 @@ pub const HW_ALACS_COMMAND: Channel<AlacsCommand> = Channel::in_layer(
 pub const HW_ALACS_IMAGE: Channel<AlacsImage> = Channel::in_layer(
     Layer::Hardware,
     "hw/alacs/image",
-    Qos { max_subscribers: 2, ..Qos::FRAMES },
+    Qos {
+        max_subscribers: 2,
+        ..Qos::FRAMES
+    },
     "ALACS device answers with the 1440x1080 RGB image",
 );
 pub const SIM_GROUND_TRUTH: Channel<GroundTruth> = Channel::in_layer(

@@ -9,6 +9,13 @@ use std::time::{Duration, Instant};
 
 pub const HARVEST: &str = env!("CARGO_BIN_EXE_harvest");
 
+/// Whole stacks render full-resolution frames: tests that run one take this lock so they do
+/// not run at once on a 2-core machine (cargo runs a file's tests in parallel threads).
+pub fn one_stack_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
 /// A domain no other test (or concurrent CI run) uses.
 pub fn unique_domain(tag: &str) -> String {
     let nanos = std::time::SystemTime::now()

@@ -31,7 +31,11 @@ pub trait ArmServos {
 
     /// Sends position set-points with feed-forward velocities. Fails with kind `InvalidRequest`
     /// (nothing sent) for non-finite values or positions outside the joint limits.
-    fn command(&mut self, position: [f64; JOINT_COUNT], velocity: [f64; JOINT_COUNT]) -> Result<(), Self::Error>;
+    fn command(
+        &mut self,
+        position: [f64; JOINT_COUNT],
+        velocity: [f64; JOINT_COUNT],
+    ) -> Result<(), Self::Error>;
 
     /// Brake: hold the current position.
     fn hold(&mut self) -> Result<(), Self::Error>;

@@ -12,7 +12,12 @@ use harvest_ipc::{ArmId, Context, MonotonicClock, Publisher, Subscriber};
 pub enum SimServoError {
     /// A set-point was not finite or outside the joint's limits; nothing was sent.
     #[error("joint {joint} set-point {value} outside [{min}, {max}] or not finite")]
-    OutOfLimits { joint: usize, value: f64, min: f64, max: f64 },
+    OutOfLimits {
+        joint: usize,
+        value: f64,
+        min: f64,
+        max: f64,
+    },
     #[error("simulated servo link: {0}")]
     Link(String),
 }
@@ -36,17 +41,29 @@ pub struct SimArmServos {
 }
 
 impl SimArmServos {
-    pub fn connect(context: &Context, arm: ArmId, limits: [[f64; 2]; JOINT_COUNT]) -> Result<Self, SimServoError> {
-        let link = |error: harvest_ipc::error::OpenChannelError| SimServoError::Link(error.to_string());
+    pub fn connect(
+        context: &Context,
+        arm: ArmId,
+        limits: [[f64; 2]; JOINT_COUNT],
+    ) -> Result<Self, SimServoError> {
+        let link =
+            |error: harvest_ipc::error::OpenChannelError| SimServoError::Link(error.to_string());
         Ok(Self {
             setpoints: context.publisher(HW_ARM_SERVO[arm.index()]).map_err(link)?,
-            encoders: context.subscriber(HW_ARM_ENCODERS[arm.index()]).map_err(link)?,
+            encoders: context
+                .subscriber(HW_ARM_ENCODERS[arm.index()])
+                .map_err(link)?,
             limits,
             latest: None,
         })
     }
 
-    fn send(&mut self, hold: bool, position: [f64; JOINT_COUNT], velocity: [f64; JOINT_COUNT]) -> Result<(), SimServoError> {
+    fn send(
+        &mut self,
+        hold: bool,
+        position: [f64; JOINT_COUNT],
+        velocity: [f64; JOINT_COUNT],
+    ) -> Result<(), SimServoError> {
         self.setpoints
             .publish_with(MonotonicClock::read_ns(), |setpoint| {
                 setpoint.hold = u8::from(hold);
@@ -62,17 +79,29 @@ impl SimArmServos {
 impl ArmServos for SimArmServos {
     type Error = SimServoError;
 
-    fn command(&mut self, position: [f64; JOINT_COUNT], velocity: [f64; JOINT_COUNT]) -> Result<(), Self::Error> {
+    fn command(
+        &mut self,
+        position: [f64; JOINT_COUNT],
+        velocity: [f64; JOINT_COUNT],
+    ) -> Result<(), Self::Error> {
         for (joint, (&value, [min, max])) in position.iter().zip(self.limits).enumerate() {
             if !value.is_finite() || value < min || value > max || !velocity[joint].is_finite() {
-                return Err(SimServoError::OutOfLimits { joint, value, min, max });
+                return Err(SimServoError::OutOfLimits {
+                    joint,
+                    value,
+                    min,
+                    max,
+                });
             }
         }
         self.send(false, position, velocity)
     }
 
     fn hold(&mut self) -> Result<(), Self::Error> {
-        let position = self.latest.map(|feedback| feedback.position).unwrap_or_default();
+        let position = self
+            .latest
+            .map(|feedback| feedback.position)
+            .unwrap_or_default();
         self.send(true, position, [0.0; JOINT_COUNT])
     }
 

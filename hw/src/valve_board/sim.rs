@@ -2,7 +2,7 @@
 //! board's readings (valve positions, in-transit flags, 3 pressures) come back on
 //! `hw/valves/readings`, served by the simulator at its physics rate.
 
-use super::types::{Heartbeat, PressureReadings, ValveId, ValveState, ValveStates, VALVE_COUNT};
+use super::types::{Heartbeat, PressureReadings, VALVE_COUNT, ValveId, ValveState, ValveStates};
 use super::{BoardFault, ValveBoard};
 use crate::error_kind::{DeviceError, ErrorKind};
 use harvest_ipc::catalogue::{HW_VALVE_COMMAND, HW_VALVE_READINGS};
@@ -17,7 +17,9 @@ pub enum SimValveBoardError {
     #[error("invalid valve id {0} (valves are 1..=4)")]
     InvalidValve(u8),
     /// The simulated board has not answered within the timeout.
-    #[error("simulated valve board did not report within {timeout_ms} ms (is the sim process running?)")]
+    #[error(
+        "simulated valve board did not report within {timeout_ms} ms (is the sim process running?)"
+    )]
     Silent { timeout_ms: u64 },
     /// The hardware channel failed.
     #[error("simulated valve board link: {0}")]
@@ -47,7 +49,9 @@ pub struct SimValveBoard {
 impl SimValveBoard {
     /// Connects; requests wait up to `timeout` for the board's first reading.
     pub fn connect(context: &Context, timeout: Duration) -> Result<Self, SimValveBoardError> {
-        let link = |error: harvest_ipc::error::OpenChannelError| SimValveBoardError::Link(error.to_string());
+        let link = |error: harvest_ipc::error::OpenChannelError| {
+            SimValveBoardError::Link(error.to_string())
+        };
         Ok(Self {
             commands: context.publisher(HW_VALVE_COMMAND).map_err(link)?,
             readings: context.subscriber(HW_VALVE_READINGS).map_err(link)?,
@@ -84,10 +88,11 @@ impl SimValveBoard {
             let _ = self.readings.listener().timed_wait(|_| {}, self.timeout);
             self.latest = receive(&self.readings)?;
         }
-        let reading = self
-            .latest
-            .ok_or(SimValveBoardError::Silent { timeout_ms: self.timeout.as_millis() as u64 })?;
-        self.first_reading_ns.get_or_insert(reading.header.capture_ns);
+        let reading = self.latest.ok_or(SimValveBoardError::Silent {
+            timeout_ms: self.timeout.as_millis() as u64,
+        })?;
+        self.first_reading_ns
+            .get_or_insert(reading.header.capture_ns);
         Ok(reading)
     }
 }
@@ -96,7 +101,9 @@ impl ValveBoard for SimValveBoard {
     type Error = SimValveBoardError;
 
     fn set_valve(&mut self, valve: ValveId, open: bool) -> Result<(), Self::Error> {
-        let index = valve.index().ok_or(SimValveBoardError::InvalidValve(valve.0))?;
+        let index = valve
+            .index()
+            .ok_or(SimValveBoardError::InvalidValve(valve.0))?;
         self.commanded_open[index] = open;
         self.send_commands()
     }
@@ -130,8 +137,13 @@ impl ValveBoard for SimValveBoard {
 
     fn ping(&mut self) -> Result<Heartbeat, Self::Error> {
         let reading = self.refresh()?;
-        let since_first_ns = reading.header.capture_ns.saturating_sub(self.first_reading_ns.unwrap_or(0));
-        Ok(Heartbeat { board_uptime_ms: (since_first_ns / 1_000_000) as u32 })
+        let since_first_ns = reading
+            .header
+            .capture_ns
+            .saturating_sub(self.first_reading_ns.unwrap_or(0));
+        Ok(Heartbeat {
+            board_uptime_ms: (since_first_ns / 1_000_000) as u32,
+        })
     }
 
     fn take_faults(&mut self) -> Vec<BoardFault> {

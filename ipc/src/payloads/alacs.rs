@@ -110,7 +110,10 @@ distortion:[f64;5]}; then rgb: 4665600 raw bytes (RGB8 1440x1080 row-major)";
         let (meta, used): (AlacsImageMeta, usize) = codec::decode_prefix(bytes)?;
         let expected = used + ALACS_RGB_BYTES;
         if bytes.len() != expected {
-            return Err(CodecError::Length { expected, actual: bytes.len() });
+            return Err(CodecError::Length {
+                expected,
+                actual: bytes.len(),
+            });
         }
         dst.header = meta.header;
         dst.request_seq = meta.request_seq;

@@ -328,8 +328,7 @@ mod tests {
     }
 
     #[test]
-    fn durations_parse_like_the_rest_of_the_cli() {
-    }
+    fn durations_parse_like_the_rest_of_the_cli() {}
 
     #[test]
     fn peer_command_line_parses_back() {

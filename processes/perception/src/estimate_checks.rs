@@ -4,6 +4,9 @@
 //!   a mask's points lies between the fruit's nearest point and its centre. A centre `z_c` with
 //!   `z_c - z_med` outside `[-t, r + t]`, `t = k sigma(z_med)` (TL460 depth noise), is a fit that
 //!   jumped to another surface (e.g. the next tree row 2 m behind a small fragment).
+//! - [`visible_fraction`]: the share of the fitted sphere's image disc (`pi (f r / z)^2` pixels)
+//!   that the mask covers. Fragments of mostly hidden fruit constrain the centre poorly: in the
+//!   evaluation their errors are several times those of fruit more than half visible.
 //! - [`SaturatedBlobCheck`]: an over-exposed blob carries no colour evidence, so depth must
 //!   confirm it: enough of its area returns depth (white sky returns none), and the blob's image
 //!   radius at the estimated depth is an apple's radius (pinhole: `r = rho_px z / f_px`).
@@ -34,6 +37,17 @@ pub fn depth_agrees(
     let tolerance_m = sigmas * noise.sigma_m(median_depth_m);
     let offset_m = estimate.position_in_camera_m[2] - median_depth_m;
     offset_m >= -tolerance_m && offset_m <= estimate.radius_m + tolerance_m
+}
+
+/// Fraction of the image disc of a sphere of `radius_m` centred at depth `depth_m` (pinhole,
+/// focal `focal_px`) that `visible_px` pixels represent; 0 for a degenerate sphere.
+pub fn visible_fraction(visible_px: u32, radius_m: f64, depth_m: f64, focal_px: f64) -> f64 {
+    let radius_px = focal_px * radius_m / depth_m;
+    let disc_px = std::f64::consts::PI * radius_px * radius_px;
+    if !(disc_px > 0.0) || !disc_px.is_finite() {
+        return 0.0;
+    }
+    f64::from(visible_px) / disc_px
 }
 
 /// Depth confirmation of an over-exposed blob detection.
@@ -108,6 +122,15 @@ mod tests {
         assert!(!depth_agrees(&estimate(1.27), 1.2, &noise, 3.0));
         // A fragment's fit jumped to the next row.
         assert!(!depth_agrees(&estimate(3.5), 1.2, &noise, 3.0));
+    }
+
+    #[test]
+    fn visible_fraction_of_a_known_disc() {
+        // 40 mm at 1.6 m with f = 1600 px: a 40 px radius disc of 5027 px.
+        let disc_px = std::f64::consts::PI * 1600.0;
+        let half = (0.5 * disc_px) as u32;
+        assert!((visible_fraction(half, 0.04, 1.6, 1600.0) - 0.5).abs() < 1e-3);
+        assert_eq!(visible_fraction(100, 0.0, 1.6, 1600.0), 0.0);
     }
 
     #[test]

@@ -35,7 +35,7 @@ use crate::detector::color_segmentation::{
     ColorSegmentation, ColorSegmentationConfig, ColorSegmentationConfigError,
 };
 use crate::detector::{Detection, DetectionSource, Detector, PixelBox};
-use crate::estimate_checks::{SaturatedBlobCheck, depth_agrees, median_depth_m};
+use crate::estimate_checks::{SaturatedBlobCheck, depth_agrees, median_depth_m, visible_fraction};
 use crate::estimator::{
     Estimator, EstimatorConfig, EstimatorConfigError, EstimatorContext, EstimatorInput,
     EstimatorKind, PositionEstimate, make_estimator,
@@ -73,15 +73,19 @@ pub struct PerceptionConfig {
     pub duplicate_min_radius_m: f64,
     /// Apples whose confidence is below this are not reported.
     pub min_output_confidence: f32,
+    /// Colour detections whose mask covers less than this fraction of their fitted fruit's
+    /// image disc are dropped (fragments of mostly hidden fruit).
+    pub min_visible_fraction: f64,
     /// Tolerance of the depth-agreement check, in depth-noise sigmas at the median depth.
     pub depth_agreement_sigmas: f64,
     /// An over-exposed blob needs this fraction of its expected depth samples.
     pub saturated_blob_min_depth_coverage: f64,
     /// Physical radius range of a depth-confirmed over-exposed blob, metres.
     pub saturated_blob_radius_m: [f64; 2],
-    /// Position confidence of a confirmed blob's median-depth fallback: the blob is centred on
-    /// the fruit, so its centre ray is reliable.
-    pub saturated_blob_fallback_confidence: f32,
+    /// Position confidence of a confirmed blob's median-depth estimate (see `blob_estimate`).
+    pub saturated_blob_position_confidence: f32,
+    /// Centre depth of a blob's fruit behind the median surface depth, in prior radii.
+    pub saturated_blob_depth_offset_radii: f64,
 }
 
 impl Default for PerceptionConfig {
@@ -97,10 +101,12 @@ impl Default for PerceptionConfig {
             min_points_per_apple: 3,
             duplicate_min_radius_m: 0.035,
             min_output_confidence: 0.25,
+            min_visible_fraction: 0.25,
             depth_agreement_sigmas: 3.0,
             saturated_blob_min_depth_coverage: 0.25,
             saturated_blob_radius_m: [0.025, 0.07],
-            saturated_blob_fallback_confidence: 0.6,
+            saturated_blob_position_confidence: 0.8,
+            saturated_blob_depth_offset_radii: std::f64::consts::FRAC_1_SQRT_2,
         }
     }
 }
@@ -170,6 +176,8 @@ struct Pending {
     mask_confidence: f32,
     estimate: PositionEstimate,
     detections_merged: u32,
+    /// Evidence of the (first) detection.
+    source: DetectionSource,
 }
 
 /// The perception pipeline with its scratch buffers. Not thread-safe by itself; one instance per
@@ -260,6 +268,12 @@ impl Perception {
                 1.0,
             ),
             (
+                "min_visible_fraction",
+                config.min_visible_fraction,
+                0.0,
+                1.0,
+            ),
+            (
                 "depth_agreement_sigmas",
                 config.depth_agreement_sigmas,
                 0.0,
@@ -284,8 +298,14 @@ impl Perception {
                 1.0,
             ),
             (
-                "saturated_blob_fallback_confidence",
-                f64::from(config.saturated_blob_fallback_confidence),
+                "saturated_blob_position_confidence",
+                f64::from(config.saturated_blob_position_confidence),
+                0.0,
+                1.0,
+            ),
+            (
+                "saturated_blob_depth_offset_radii",
+                config.saturated_blob_depth_offset_radii,
                 0.0,
                 1.0,
             ),
@@ -461,6 +481,17 @@ impl Perception {
         let kind = self.estimator.kind();
         for &k in &self.accepted {
             let p = &self.pending[k];
+            let hidden = p.source == DetectionSource::Colour
+                && visible_fraction(
+                    p.visible_px,
+                    p.estimate.radius_m,
+                    p.estimate.position_in_camera_m[2],
+                    self.blob_check.color_focal_px,
+                ) < self.config.min_visible_fraction;
+            if hidden {
+                stats.estimates_mostly_hidden += 1;
+                continue;
+            }
             let confidence = p.mask_confidence * p.estimate.confidence;
             if !(confidence >= self.config.min_output_confidence) {
                 stats.estimates_below_confidence += 1;
@@ -607,6 +638,33 @@ impl Perception {
         (pixel_box.width_px() > 0 && pixel_box.height_px() > 0).then_some(pixel_box)
     }
 
+    /// Position of a depth-confirmed over-exposed blob. Its ToF depth is several times noisier
+    /// than elsewhere (sunlight) and partly missing, which defeats a sphere fit; but the blob is
+    /// the fruit's image, centred on it. The centre lies on the blob-centre ray at the median
+    /// surface depth plus `saturated_blob_depth_offset_radii` prior radii: for a sphere seen
+    /// uniformly over its image disc, the front-surface depth `z_c - r sqrt(1 - rho^2)` has its
+    /// median at `z_c - r / sqrt(2)`.
+    fn blob_estimate(
+        &self,
+        ray: [f64; 3],
+        median_m: f64,
+        points: usize,
+    ) -> Option<PositionEstimate> {
+        if !(ray[2] > 0.0) {
+            return None;
+        }
+        let radius_m = self.config.estimator.sphere_fit.radius_prior_m;
+        let depth_m = median_m + self.config.saturated_blob_depth_offset_radii * radius_m;
+        let scale = depth_m / ray[2];
+        Some(PositionEstimate {
+            position_in_camera_m: [ray[0] * scale, ray[1] * scale, depth_m],
+            radius_m,
+            confidence: self.config.saturated_blob_position_confidence,
+            points_used: points as u32,
+            fallback: false,
+        })
+    }
+
     /// Estimates per active detection with enough points (several when the estimator finds
     /// several fruit in one mask).
     fn estimate_detections(&mut self, stats: &mut FrameStats) {
@@ -633,19 +691,25 @@ impl Perception {
                 stats.saturated_blobs_rejected += 1;
                 continue;
             }
-            let input = EstimatorInput {
-                points_in_camera_m: points,
-                box_center_ray: self.box_center_ray(&detection.pixel_box),
+            let Some(median_m) = median_depth_m(points, &mut self.depth_scratch) else {
+                stats.detections_without_depth += 1;
+                continue;
             };
-            self.estimator.estimate_all(&input, &mut estimates);
+            let box_center_ray = self.box_center_ray(&detection.pixel_box);
+            if blob && self.estimator.kind() != EstimatorKind::ClusterDepth {
+                estimates.clear();
+                estimates.extend(self.blob_estimate(box_center_ray, median_m, points.len()));
+            } else {
+                let input = EstimatorInput {
+                    points_in_camera_m: points,
+                    box_center_ray,
+                };
+                self.estimator.estimate_all(&input, &mut estimates);
+            }
             if estimates.is_empty() {
                 stats.estimates_failed += 1;
                 continue;
             }
-            let Some(median_m) = median_depth_m(points, &mut self.depth_scratch) else {
-                stats.estimates_failed += 1;
-                continue;
-            };
             if blob {
                 // Only the best-supported fruit of a blob; its size must be an apple's.
                 estimates.truncate(1);
@@ -657,11 +721,6 @@ impl Perception {
                     continue;
                 }
                 stats.saturated_blobs_confirmed += 1;
-                if estimates[0].fallback {
-                    estimates[0].confidence = estimates[0]
-                        .confidence
-                        .max(self.config.saturated_blob_fallback_confidence);
-                }
             }
             let several = estimates.len() > 1;
             let support: f64 = estimates.iter().map(|e| f64::from(e.points_used)).sum();
@@ -691,6 +750,7 @@ impl Perception {
                 } else {
                     (detection.pixel_box, detection.visible_px)
                 };
+
                 let k = self.pending.len();
                 self.pending.push(Pending {
                     pixel_box,
@@ -698,6 +758,7 @@ impl Perception {
                     mask_confidence: detection.confidence,
                     estimate: *estimate,
                     detections_merged: 1,
+                    source: detection.source,
                 });
                 if self.pending_members.len() <= k {
                     self.pending_members.push(Vec::new());

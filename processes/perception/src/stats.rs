@@ -50,6 +50,8 @@ pub struct FrameStats {
     pub estimates_inconsistent: u32,
     /// Estimates below `min_output_confidence` (dropped).
     pub estimates_below_confidence: u32,
+    /// Estimates whose mask covers less than `min_visible_fraction` of their fruit (dropped).
+    pub estimates_mostly_hidden: u32,
     /// Apples reported.
     pub apples: u32,
     pub timings: StageTimings,
@@ -79,6 +81,7 @@ pub struct PerceptionStats {
     pub saturated_blobs_confirmed: u64,
     pub estimates_inconsistent: u64,
     pub estimates_below_confidence: u64,
+    pub estimates_mostly_hidden: u64,
     pub apples: u64,
 }
 
@@ -114,6 +117,7 @@ impl PerceptionStats {
         self.saturated_blobs_confirmed += u64::from(frame.saturated_blobs_confirmed);
         self.estimates_inconsistent += u64::from(frame.estimates_inconsistent);
         self.estimates_below_confidence += u64::from(frame.estimates_below_confidence);
+        self.estimates_mostly_hidden += u64::from(frame.estimates_mostly_hidden);
         self.apples += u64::from(frame.apples);
     }
 }

@@ -1,7 +1,6 @@
 //! Command-line quantities: byte sizes (`512MiB`, `2GB`, `1G`) and durations (`10s`, `500ms`,
 //! `2m`, `1.5h`, plain seconds).
 
-
 /// Parses a byte size. Decimal units `kB`/`MB`/`GB`/`TB` are powers of 1000; binary units
 /// `KiB`/`MiB`/`GiB`/`TiB` and the bare letters `K`/`M`/`G`/`T` are powers of 1024; no unit (or
 /// `B`) means bytes. Case-insensitive; fractions allowed (`1.5GiB`).

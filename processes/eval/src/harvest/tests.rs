@@ -354,7 +354,10 @@ fn report_numbers() {
             config.emergency_stop_at_s = Some(0.5 + 0.0371 * k as f64);
             let outcome = run_episode(&config).expect("episode");
             let m = outcome.emergency_stop.expect("measured");
-            for (w, v) in worst.iter_mut().zip([m.commanded_s, m.valves_closed_s, m.arms_stopped_s]) {
+            for (w, v) in worst
+                .iter_mut()
+                .zip([m.commanded_s, m.valves_closed_s, m.arms_stopped_s])
+            {
                 *w = w.max(v.unwrap_or(f64::INFINITY));
             }
         }
@@ -362,6 +365,36 @@ fn report_numbers() {
             "emergency stop ({timing:?}), worst of 200: commands {:.4} s, valves closed {:.3} s, \
              arms stopped {:.3} s",
             worst[0], worst[1], worst[2]
+        );
+    }
+}
+
+#[test]
+#[ignore]
+fn scratch_debug() {
+    let seed: u64 = std::env::var("SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
+    let config = episode(
+        "default",
+        TimingArg::Scenario,
+        PolicyKind::V2024,
+        2,
+        seed,
+        1.0,
+    );
+    let outcome = run_episode(&config).expect("episode");
+    for a in &outcome.recorder.attempts {
+        println!(
+            "{} {:?} {:?} {:.1} {:?} {:?} {:?}",
+            a.arm,
+            a.apple,
+            a.target_error_m.map(|e| (e * 1000.0).round()),
+            a.dispatched_s,
+            a.cause,
+            a.arm_failure,
+            a.world
         );
     }
 }

@@ -873,7 +873,10 @@ mod tests {
         assert_eq!(blob.source, DetectionSource::SaturatedBlob);
         assert!(blob.saturated_fraction > 0.9);
         let (u, v) = blob.pixel_box.center_px();
-        assert!((u - 200.0).abs() < 6.0 && (v - 250.0).abs() < 6.0, "{blob:?}");
+        assert!(
+            (u - 200.0).abs() < 6.0 && (v - 250.0).abs() < 6.0,
+            "{blob:?}"
+        );
         let disc_px = std::f32::consts::PI * 42.0 * 42.0;
         assert!((blob.visible_px as f32 / disc_px - 1.0).abs() < 0.3);
         // The ordinary apple is still a colour detection.
@@ -894,7 +897,10 @@ mod tests {
         assert_eq!(hits.len(), 1, "{detections:?}");
         let apple = &detections[hits[0]];
         assert_eq!(apple.source, DetectionSource::Colour);
-        assert!(apple.mask.contains_px(300, 250), "the highlight is part of the fruit");
+        assert!(
+            apple.mask.contains_px(300, 250),
+            "the highlight is part of the fruit"
+        );
     }
 
     #[test]
@@ -903,7 +909,10 @@ mod tests {
         let mut image = background();
         image[..W * 120 * 3].fill(255);
         let (detections, info) = detect(&image);
-        assert!(detections.iter().all(|d| d.confidence < 0.3), "{detections:?}");
+        assert!(
+            detections.iter().all(|d| d.confidence < 0.3),
+            "{detections:?}"
+        );
         assert_eq!(info.saturated_blobs, 0);
         let (white, info) = detect(&vec![255_u8; W * H * 3]);
         assert!(white.is_empty());
