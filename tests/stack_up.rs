@@ -39,7 +39,7 @@ fn default_stack_runs_frames_flow_and_shutdown_is_clean() {
     let frames = summary_messages(&stderr, "camera").expect("camera summary line");
     let received = summary_messages(&stderr, "perception").expect("perception summary line");
     // 30 Hz nominal for ~10 s; the floor only proves frames flow on a loaded 2-core machine
-    // (rates are measured by `harvest bench pipeline`, never asserted).
+    // (rates are shown by the live status and benchmarks, never asserted).
     assert!(
         frames >= 30,
         "camera published only {frames} frames:\n{stderr}"
