@@ -53,6 +53,8 @@ enum Command {
     /// Evaluations against the simulator's ground truth.
     #[command(subcommand)]
     Eval(EvalCommand),
+    /// Laser process: answers scan requests with the ALACS unit.
+    Laser(harvest_laser::LaserArgs),
     /// Recorder process: every channel of the domain -> MCAP files.
     Recorder(harvest_recorder::RecorderArgs),
     /// Republish a recording into the channels at recorded timing.
@@ -95,6 +97,8 @@ enum BenchCommand {
 enum EvalCommand {
     /// Detection precision/recall, 3D error and processing time per estimator, on rendered frames.
     Perception(harvest_eval::EvalPerceptionArgs),
+    /// Laser refinement of ToF apple positions: error before/after and the time a scan costs.
+    Laser(harvest_laser::EvalLaserArgs),
 }
 
 impl Cli {
@@ -114,6 +118,7 @@ impl Cli {
             Command::Bench(_) => "bench",
             Command::Eval(_) => "eval",
             Command::Recorder(_) => "recorder",
+            Command::Laser(_) => "laser",
             Command::Replay(_) => "replay",
             Command::Rec { .. } => "rec",
             Command::BenchPeer(_) => "bench-peer",
@@ -152,6 +157,14 @@ impl Cli {
             }
             Command::Eval(EvalCommand::Perception(args)) => {
                 harvest_eval::run_eval_perception(&args).context("perception evaluation")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Laser(args) => {
+                harvest_laser::process::run(&args, &domain, process_name).context("laser process")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Eval(EvalCommand::Laser(args)) => {
+                harvest_laser::run_eval_laser(&args).context("laser evaluation")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Recorder(args) => {

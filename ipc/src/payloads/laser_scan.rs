@@ -14,7 +14,7 @@ pub struct LaserScanRequest {
     pub header: Header,
     pub request_seq: u32,
     pub apple_id: u32,
-    /// Rough target position (from the ToF camera) in the ALACS camera frame.
+    /// Rough target position from the ToF camera, in the ToF colour-camera frame (metres).
     pub rough_position_in_camera_m: [f64; 3],
     pub rough_radius_m: f64,
 }
@@ -34,14 +34,18 @@ pub struct LaserScanResult {
     pub header: Header,
     pub request_seq: u32,
     pub apple_id: u32,
-    /// 0 ok, 1 no laser line found, 2 target out of the slide's reach, 3 device error.
+    /// 0 ok, 1 no laser line found, 2 target out of the slide's view or reach, 3 device error.
     pub status: u8,
     pub candidate_count: u8,
-    /// Index of the selected candidate.
+    /// Index (into the candidates listed) of the candidate the paper's selection picks.
     pub selected: u8,
     pub _reserved: [u8; 5],
+    /// Final position in the ToF colour-camera frame: the sphere fitted to all stripes when at
+    /// least 3 agree, else the selected candidate; the request's rough position on failure.
     pub position_in_camera_m: [f64; 3],
+    /// Per-image candidates that produced a position, in scan order (`candidate_count` valid).
     pub candidates_in_camera_m: [[f64; 3]; MAX_SCAN_CANDIDATES],
+    /// Each candidate's predicted standard error, metres.
     pub candidate_scores: [f64; MAX_SCAN_CANDIDATES],
     pub scan_duration_ns: u64,
 }

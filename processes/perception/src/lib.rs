@@ -14,6 +14,7 @@
 //! "Camera frame" in this crate always means the colour (RGB) camera frame: x right, y down,
 //! z forward, metres.
 
+pub mod blob_localization;
 pub mod calibration;
 pub mod camera_setup;
 pub mod dbscan;

@@ -30,6 +30,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use tracing::{debug, trace};
 
+use crate::blob_localization::{BlobLocalizer, BlobLocalizerParams};
 use crate::camera_setup::{CameraSetup, CameraSetupError};
 use crate::detector::color_segmentation::{
     ColorSegmentation, ColorSegmentationConfig, ColorSegmentationConfigError,
@@ -44,6 +45,14 @@ use crate::frame::{DepthView, RgbView};
 use crate::noise_model::DepthNoiseModel;
 use crate::registration::{DepthRange, DepthRangeError, DepthRegistration};
 use crate::stats::{FrameStats, PerceptionStats};
+
+/// Blob radius over fruit radius: the simulator's and the sun's saturated disc slightly exceeds
+/// the fruit.
+const BLOB_OVER_FRUIT_RADIUS: f64 = 1.02;
+/// Half width of a blob's depth-vote window, in nominal depth-noise sigmas.
+const BLOB_VOTE_WINDOW_SIGMAS: f64 = 3.0;
+/// Lower bound of the half width of a blob's depth-vote window, metres.
+const BLOB_VOTE_MIN_HALF_WINDOW_M: f64 = 0.015;
 
 /// Side of a label-image cell in colour pixels.
 const LABEL_CELL_PX: u32 = 2;
@@ -84,8 +93,6 @@ pub struct PerceptionConfig {
     pub saturated_blob_radius_m: [f64; 2],
     /// Position confidence of a confirmed blob's median-depth estimate (see `blob_estimate`).
     pub saturated_blob_position_confidence: f32,
-    /// Centre depth of a blob's fruit behind the median surface depth, in prior radii.
-    pub saturated_blob_depth_offset_radii: f64,
 }
 
 impl Default for PerceptionConfig {
@@ -106,7 +113,6 @@ impl Default for PerceptionConfig {
             saturated_blob_min_depth_coverage: 0.25,
             saturated_blob_radius_m: [0.025, 0.07],
             saturated_blob_position_confidence: 0.8,
-            saturated_blob_depth_offset_radii: std::f64::consts::FRAC_1_SQRT_2,
         }
     }
 }
@@ -201,6 +207,7 @@ pub struct Perception {
     pending_members: Vec<Vec<usize>>,
     accepted: Vec<usize>,
     depth_scratch: Vec<f32>,
+    blob_localizer: BlobLocalizer,
     blob_check: SaturatedBlobCheck,
     last: FrameStats,
     totals: PerceptionStats,
@@ -303,12 +310,6 @@ impl Perception {
                 0.0,
                 1.0,
             ),
-            (
-                "saturated_blob_depth_offset_radii",
-                config.saturated_blob_depth_offset_radii,
-                0.0,
-                1.0,
-            ),
         ];
         for (key, value, min, max) in checks {
             if !value.is_finite() || value < min || value > max {
@@ -353,6 +354,7 @@ impl Perception {
             pending_members: Vec::new(),
             accepted: Vec::new(),
             depth_scratch: Vec::new(),
+            blob_localizer: BlobLocalizer::default(),
             blob_check: SaturatedBlobCheck {
                 depth_samples_per_color_px: (cameras.depth.fx_px * cameras.depth.fy_px)
                     / (cameras.color.fx_px * cameras.color.fy_px),
@@ -638,33 +640,6 @@ impl Perception {
         (pixel_box.width_px() > 0 && pixel_box.height_px() > 0).then_some(pixel_box)
     }
 
-    /// Position of a depth-confirmed over-exposed blob. Its ToF depth is several times noisier
-    /// than elsewhere (sunlight) and partly missing, which defeats a sphere fit; but the blob is
-    /// the fruit's image, centred on it. The centre lies on the blob-centre ray at the median
-    /// surface depth plus `saturated_blob_depth_offset_radii` prior radii: for a sphere seen
-    /// uniformly over its image disc, the front-surface depth `z_c - r sqrt(1 - rho^2)` has its
-    /// median at `z_c - r / sqrt(2)`.
-    fn blob_estimate(
-        &self,
-        ray: [f64; 3],
-        median_m: f64,
-        points: usize,
-    ) -> Option<PositionEstimate> {
-        if !(ray[2] > 0.0) {
-            return None;
-        }
-        let radius_m = self.config.estimator.sphere_fit.radius_prior_m;
-        let depth_m = median_m + self.config.saturated_blob_depth_offset_radii * radius_m;
-        let scale = depth_m / ray[2];
-        Some(PositionEstimate {
-            position_in_camera_m: [ray[0] * scale, ray[1] * scale, depth_m],
-            radius_m,
-            confidence: self.config.saturated_blob_position_confidence,
-            points_used: points as u32,
-            fallback: false,
-        })
-    }
-
     /// Estimates per active detection with enough points (several when the estimator finds
     /// several fruit in one mask).
     fn estimate_detections(&mut self, stats: &mut FrameStats) {
@@ -698,7 +673,14 @@ impl Perception {
             let box_center_ray = self.box_center_ray(&detection.pixel_box);
             if blob && self.estimator.kind() != EstimatorKind::ClusterDepth {
                 estimates.clear();
-                estimates.extend(self.blob_estimate(box_center_ray, median_m, points.len()));
+                estimates.extend(blob_estimate(
+                    &mut self.blob_localizer,
+                    &self.config,
+                    self.blob_check.color_focal_px,
+                    points,
+                    box_center_ray,
+                    detection.visible_px,
+                ));
             } else {
                 let input = EstimatorInput {
                     points_in_camera_m: points,
@@ -828,6 +810,35 @@ impl Perception {
             }
         }
     }
+}
+
+/// Position of a depth-confirmed over-exposed blob ([`BlobLocalizer`]).
+fn blob_estimate(
+    localizer: &mut BlobLocalizer,
+    config: &PerceptionConfig,
+    color_focal_px: f64,
+    points: &[[f32; 3]],
+    ray: [f64; 3],
+    visible_px: u32,
+) -> Option<PositionEstimate> {
+    let fit = &config.estimator.sphere_fit;
+    let params = BlobLocalizerParams {
+        radius_range_m: [fit.radius_min_m, fit.radius_max_m],
+        radius_prior_m: fit.radius_prior_m,
+        blob_over_fruit_radius: BLOB_OVER_FRUIT_RADIUS,
+        window_sigmas: BLOB_VOTE_WINDOW_SIGMAS,
+        min_half_window_m: BLOB_VOTE_MIN_HALF_WINDOW_M,
+        noise: config.noise,
+    };
+    let blob_radius_px = (f64::from(visible_px) / std::f64::consts::PI).sqrt();
+    let location = localizer.locate(points, ray, blob_radius_px, color_focal_px, &params)?;
+    Some(PositionEstimate {
+        position_in_camera_m: location.centre_m,
+        radius_m: location.radius_m,
+        confidence: config.saturated_blob_position_confidence,
+        points_used: location.votes,
+        fallback: false,
+    })
 }
 
 #[cfg(test)]

@@ -3,6 +3,7 @@
 //! - the ToF camera's frames on `hw/camera/rgbd` at the camera's frame rate;
 //! - each arm's servo set-points (`hw/armN/servo`) in, encoder feedback (`hw/armN/encoders`) out;
 //! - the valve board's commands (`hw/valves/command`) in, readings (`hw/valves/readings`) out;
+//! - the ALACS unit's commands (`hw/alacs/command`) in, its images (`hw/alacs/image`) out;
 //! - the true apples on `sim/ground_truth` (evaluation only).
 //!
 //! The loop is one wait set: each device has an interval at its own period (the simulated
@@ -14,8 +15,9 @@ use crate::physics::Arm;
 use crate::render_rgbd::RgbdRenderer;
 use crate::robot::SimRobot;
 use crate::scenario::Scenario;
+use crate::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer};
 use harvest_ipc::catalogue::{
-    HW_ARM_ENCODERS, HW_ARM_SERVO, HW_CAMERA_RGBD, HW_VALVE_COMMAND, HW_VALVE_READINGS,
+    HW_ALACS_COMMAND, HW_ALACS_IMAGE, HW_ARM_ENCODERS, HW_ARM_SERVO, HW_CAMERA_RGBD, HW_VALVE_COMMAND, HW_VALVE_READINGS,
     SIM_GROUND_TRUTH,
 };
 use harvest_ipc::payloads::{
@@ -54,6 +56,8 @@ pub enum SimError {
     Robot(#[from] crate::robot::SimRobotError),
     #[error(transparent)]
     Receive(#[from] harvest_ipc::error::ReceiveError),
+    #[error(transparent)]
+    Alacs(#[from] harvest_hw::alacs::AlacsError),
     #[error(transparent)]
     Node(#[from] harvest_ipc::error::NodeError),
     #[error(transparent)]
@@ -177,6 +181,9 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
     let mut renderer = RgbdRenderer::new(&scenario.camera)?;
     let context = Context::new(domain, process_name)?;
     let mut camera_out = context.publisher(HW_CAMERA_RGBD)?;
+    let mut alacs = AlacsDeviceServer::new(AlacsDeviceConfig::default())?;
+    let alacs_commands = context.subscriber(HW_ALACS_COMMAND)?;
+    let mut alacs_images = context.publisher(HW_ALACS_IMAGE)?;
     let servo_in = [
         context.subscriber(HW_ARM_SERVO[0])?,
         context.subscriber(HW_ARM_SERVO[1])?,
@@ -192,6 +199,7 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
     let waiter = Waiter::new()?;
     let camera_tick = waiter.attach_interval(Duration::from_secs_f64(1.0 / args.camera_rate_hz))?;
     let heartbeat_tick = waiter.attach_interval(HEARTBEAT_PERIOD)?;
+    let alacs_guard = waiter.attach_listener(alacs_commands.listener())?;
     let physics_tick = waiter.attach_interval(PHYSICS_PERIOD)?;
     let truth_tick = waiter.attach_interval(GROUND_TRUTH_PERIOD)?;
     let mut last_physics = Instant::now();
@@ -236,6 +244,15 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
                 last_physics = now;
                 step_devices(&mut robot, &servo_in, &valves_in, dt_s)?;
                 publish_device_state(&robot, &mut encoders_out, &mut valves_out)?;
+            }
+            if attachment.has_event_from(&alacs_guard) {
+                // The ALACS device answers each command; a capture renders its camera image
+                // (about 0.3 s here, during which the other simulated devices wait).
+                while let Some(command) = alacs_commands.receive()? {
+                    let mut image = alacs_images.loan()?;
+                    alacs.handle(robot.world(), &command, &mut image);
+                    alacs_images.send(image)?;
+                }
             }
             if attachment.has_event_from(&truth_tick) {
                 publish_ground_truth(&robot, &mut truth_out)?;

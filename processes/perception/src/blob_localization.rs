@@ -1,0 +1,209 @@
+//! Position of a blown-out fruit from its over-exposed blob and the blob's depth samples.
+//!
+//! Sunlight that saturates a fruit in the colour image also degrades its ToF depth (several
+//! times the usual noise, many dropouts), which defeats a free sphere fit. But the blob is the
+//! fruit's image, so the centre lies on the blob-centre ray `d = (x/z, y/z, 1)` and only its depth
+//! `z_c` is unknown. With the radius `r` known (from the blob's size, clamped to the apple prior),
+//! a depth sample `p` at lateral distance `rho` from the ray lies on the sphere's front surface
+//! when `p_z = z_c - sqrt(r^2 - rho^2)`, so every sample inside the silhouette votes
+//! `z_c = p_z + sqrt(r^2 - rho^2)`. Occluding leaves vote too near, background seen past the rim
+//! too far, and their votes spread out, while the fruit's votes pile up: the estimate is the
+//! median of the densest window of votes of width `2 w`, `w = max(window_sigmas * sigma(z),
+//! min_half_window_m)`. Two passes: the second uses the radius the blob implies at the first
+//! depth.
+
+use crate::noise_model::DepthNoiseModel;
+
+/// Parameters of [`BlobLocalizer`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BlobLocalizerParams {
+    /// Apple radius range, metres (the estimate's radius is clamped to it).
+    pub radius_range_m: [f64; 2],
+    /// Radius used before the depth is known, metres.
+    pub radius_prior_m: f64,
+    /// Blob radius over fruit radius (the saturated disc slightly exceeds the fruit).
+    pub blob_over_fruit_radius: f64,
+    /// Half width of the vote window, in (un-degraded) depth-noise sigmas.
+    pub window_sigmas: f64,
+    /// Lower bound of the half width of the vote window, metres.
+    pub min_half_window_m: f64,
+    pub noise: DepthNoiseModel,
+}
+
+/// Result of [`BlobLocalizer::locate`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BlobLocation {
+    /// Fruit centre in the colour camera frame, metres.
+    pub centre_m: [f64; 3],
+    pub radius_m: f64,
+    /// Votes in the winning window.
+    pub votes: u32,
+    /// Samples inside the silhouette (all votes).
+    pub samples: u32,
+}
+
+/// Scratch buffer of the vote.
+#[derive(Debug, Default)]
+pub struct BlobLocalizer {
+    votes: Vec<f64>,
+}
+
+impl BlobLocalizer {
+    /// Locates the fruit of a blob of radius `blob_radius_px` (colour pixels, focal `focal_px`)
+    /// whose centre ray is `ray` (unit z), from its depth samples. `None` without votes.
+    pub fn locate(
+        &mut self,
+        points: &[[f32; 3]],
+        ray: [f64; 3],
+        blob_radius_px: f64,
+        focal_px: f64,
+        params: &BlobLocalizerParams,
+    ) -> Option<BlobLocation> {
+        if !(ray[2] > 0.0) || !(focal_px > 0.0) {
+            return None;
+        }
+        let [r_min, r_max] = params.radius_range_m;
+        let mut radius_m = params.radius_prior_m.clamp(r_min, r_max);
+        let mut result = None;
+        for _pass in 0..2 {
+            let (depth_m, votes) = self.vote(points, ray, radius_m, params)?;
+            let samples = self.votes.len() as u32;
+            let blob_radius_m = blob_radius_px * depth_m / focal_px;
+            result = Some(BlobLocation {
+                centre_m: [
+                    ray[0] / ray[2] * depth_m,
+                    ray[1] / ray[2] * depth_m,
+                    depth_m,
+                ],
+                radius_m,
+                votes,
+                samples,
+            });
+            radius_m = (blob_radius_m / params.blob_over_fruit_radius).clamp(r_min, r_max);
+        }
+        result
+    }
+
+    /// One vote with radius `radius_m`: `(centre depth, votes in the winning window)`.
+    fn vote(
+        &mut self,
+        points: &[[f32; 3]],
+        ray: [f64; 3],
+        radius_m: f64,
+        params: &BlobLocalizerParams,
+    ) -> Option<(f64, u32)> {
+        let (ax, ay) = (ray[0] / ray[2], ray[1] / ray[2]);
+        let r_sq = radius_m * radius_m;
+        self.votes.clear();
+        for p in points {
+            let z = f64::from(p[2]);
+            let dx = f64::from(p[0]) - ax * z;
+            let dy = f64::from(p[1]) - ay * z;
+            let rho_sq = dx * dx + dy * dy;
+            if rho_sq < r_sq && z.is_finite() {
+                self.votes.push(z + (r_sq - rho_sq).sqrt());
+            }
+        }
+        if self.votes.is_empty() {
+            return None;
+        }
+        self.votes.sort_unstable_by(f64::total_cmp);
+        let mut middle = self.votes.len() / 2;
+        let half = (params.window_sigmas * params.noise.sigma_m(self.votes[middle]))
+            .max(params.min_half_window_m);
+        // Densest window [v_i, v_i + 2 half]: two pointers over the sorted votes.
+        let (mut best_start, mut best_count) = (0, 0);
+        let mut end = 0;
+        for start in 0..self.votes.len() {
+            end = end.max(start);
+            while end < self.votes.len() && self.votes[end] <= self.votes[start] + 2.0 * half {
+                end += 1;
+            }
+            if end - start > best_count {
+                (best_start, best_count) = (start, end - start);
+            }
+        }
+        middle = best_start + best_count / 2;
+        Some((self.votes[middle], best_count as u32))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> BlobLocalizerParams {
+        BlobLocalizerParams {
+            radius_range_m: [0.035, 0.05],
+            radius_prior_m: 0.0425,
+            blob_over_fruit_radius: 1.0,
+            window_sigmas: 3.0,
+            min_half_window_m: 0.015,
+            noise: DepthNoiseModel::TL460,
+        }
+    }
+
+    /// Front-surface samples of a sphere on a 2 mm lateral grid, plus occluder samples.
+    fn sphere_samples(centre: [f64; 3], radius: f64, leaf_depth: Option<f64>) -> Vec<[f32; 3]> {
+        let mut points = Vec::new();
+        let steps = (radius / 0.002) as i32;
+        for i in -steps..=steps {
+            for j in -steps..=steps {
+                let (dx, dy) = (f64::from(i) * 0.002, f64::from(j) * 0.002);
+                let rho_sq = dx * dx + dy * dy;
+                if rho_sq >= radius * radius {
+                    continue;
+                }
+                let z = match leaf_depth {
+                    // A leaf covers the left 40 % of the fruit.
+                    Some(leaf) if dx < -0.2 * radius => leaf,
+                    _ => centre[2] - (radius * radius - rho_sq).sqrt(),
+                };
+                let scale = z / centre[2];
+                points.push([
+                    ((centre[0] + dx) * scale) as f32,
+                    ((centre[1] + dy) * scale) as f32,
+                    z as f32,
+                ]);
+            }
+        }
+        points
+    }
+
+    #[test]
+    fn sphere_centre_depth_and_radius_are_recovered() {
+        let centre = [0.1, -0.05, 1.5];
+        let radius = 0.045;
+        let points = sphere_samples(centre, radius, None);
+        let ray = [centre[0] / centre[2], centre[1] / centre[2], 1.0];
+        let focal = 1600.0;
+        let blob_px = focal * radius / centre[2];
+        let found = BlobLocalizer::default()
+            .locate(&points, ray, blob_px, focal, &params())
+            .expect("votes");
+        assert!((found.centre_m[2] - 1.5).abs() < 0.004, "{found:?}");
+        assert!((found.radius_m - radius).abs() < 0.002, "{found:?}");
+    }
+
+    #[test]
+    fn occluding_leaf_does_not_pull_the_centre_forward() {
+        let centre = [0.0, 0.0, 1.2];
+        let points = sphere_samples(centre, 0.04, Some(1.1));
+        let ray = [0.0, 0.0, 1.0];
+        let found = BlobLocalizer::default()
+            .locate(&points, ray, 1600.0 * 0.04 / 1.2, 1600.0, &params())
+            .expect("votes");
+        assert!((found.centre_m[2] - 1.2).abs() < 0.006, "{found:?}");
+        assert!(found.votes < found.samples);
+    }
+
+    #[test]
+    fn no_samples_inside_the_silhouette_is_none() {
+        let points = [[0.5_f32, 0.5, 1.0]];
+        assert!(
+            BlobLocalizer::default()
+                .locate(&points, [0.0, 0.0, 1.0], 50.0, 1600.0, &params())
+                .is_none()
+        );
+    }
+}
