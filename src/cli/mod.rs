@@ -160,7 +160,8 @@ impl Cli {
                 Ok(ExitCode::SUCCESS)
             }
             Command::Laser(args) => {
-                harvest_laser::process::run(&args, &domain, process_name).context("laser process")?;
+                harvest_laser::process::run(&args, &domain, process_name)
+                    .context("laser process")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Eval(EvalCommand::Laser(args)) => {

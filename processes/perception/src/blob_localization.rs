@@ -11,7 +11,13 @@
 //! median of the densest window of votes of width `2 w`, `w = max(window_sigmas * sigma(z),
 //! min_half_window_m)`. Two passes: the second uses the radius the blob implies at the first
 //! depth.
+//!
+//! A leaf covering most of the blob also piles its votes up (at its own depth plus about `r`),
+//! but its samples are flat: over the samples of the winning window, the ratio of the mean
+//! squared sphere residual `(|p - c| - r)^2` to the mean squared distance from their
+//! least-squares plane (`flatness`) is well below 1 for a fruit and near or above 1 for a leaf.
 
+use crate::estimator::sphere_model::plane_rms;
 use crate::noise_model::DepthNoiseModel;
 
 /// Parameters of [`BlobLocalizer`].
@@ -40,12 +46,17 @@ pub struct BlobLocation {
     pub votes: u32,
     /// Samples inside the silhouette (all votes).
     pub samples: u32,
+    /// Mean squared sphere residual over mean squared plane residual of the winning window's
+    /// samples: well below 1 for a curved fruit, about 1 or more for a flat occluder.
+    pub flatness: f64,
 }
 
 /// Scratch buffer of the vote.
 #[derive(Debug, Default)]
 pub struct BlobLocalizer {
-    votes: Vec<f64>,
+    /// `(vote, sample index)`.
+    votes: Vec<(f64, u32)>,
+    window: Vec<[f64; 3]>,
 }
 
 impl BlobLocalizer {
@@ -65,23 +76,66 @@ impl BlobLocalizer {
         let [r_min, r_max] = params.radius_range_m;
         let mut radius_m = params.radius_prior_m.clamp(r_min, r_max);
         let mut result = None;
-        for _pass in 0..2 {
-            let (depth_m, votes) = self.vote(points, ray, radius_m, params)?;
-            let samples = self.votes.len() as u32;
-            let blob_radius_m = blob_radius_px * depth_m / focal_px;
+        for pass in 0..2 {
+            let (depth_m, window) = self.vote(points, ray, radius_m, params)?;
+            let centre_m = [
+                ray[0] / ray[2] * depth_m,
+                ray[1] / ray[2] * depth_m,
+                depth_m,
+            ];
+            let flatness = if pass == 1 {
+                self.flatness(points, window, centre_m, radius_m)
+            } else {
+                f64::INFINITY
+            };
             result = Some(BlobLocation {
-                centre_m: [
-                    ray[0] / ray[2] * depth_m,
-                    ray[1] / ray[2] * depth_m,
-                    depth_m,
-                ],
+                centre_m,
                 radius_m,
-                votes,
-                samples,
+                votes: (window.1 - window.0) as u32,
+                samples: self.votes.len() as u32,
+                flatness,
             });
+            let blob_radius_m = blob_radius_px * depth_m / focal_px;
             radius_m = (blob_radius_m / params.blob_over_fruit_radius).clamp(r_min, r_max);
         }
         result
+    }
+
+    /// Sphere over plane mean squared residual of the samples of `window` (vote index range).
+    fn flatness(
+        &mut self,
+        points: &[[f32; 3]],
+        window: (usize, usize),
+        centre_m: [f64; 3],
+        radius_m: f64,
+    ) -> f64 {
+        self.window.clear();
+        let members = self.votes.get(window.0..window.1).unwrap_or(&[]);
+        self.window.extend(members.iter().filter_map(|&(_, i)| {
+            points
+                .get(i as usize)
+                .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
+        }));
+        let Some(plane) = plane_rms(&self.window) else {
+            return f64::INFINITY;
+        };
+        let sphere_ms = self
+            .window
+            .iter()
+            .map(|p| {
+                let d = ((p[0] - centre_m[0]).powi(2)
+                    + (p[1] - centre_m[1]).powi(2)
+                    + (p[2] - centre_m[2]).powi(2))
+                .sqrt();
+                (d - radius_m).powi(2)
+            })
+            .sum::<f64>()
+            / self.window.len() as f64;
+        if plane > 0.0 {
+            sphere_ms / (plane * plane)
+        } else {
+            f64::INFINITY
+        }
     }
 
     /// One vote with radius `radius_m`: `(centre depth, votes in the winning window)`.
@@ -91,32 +145,32 @@ impl BlobLocalizer {
         ray: [f64; 3],
         radius_m: f64,
         params: &BlobLocalizerParams,
-    ) -> Option<(f64, u32)> {
+    ) -> Option<(f64, (usize, usize))> {
         let (ax, ay) = (ray[0] / ray[2], ray[1] / ray[2]);
         let r_sq = radius_m * radius_m;
         self.votes.clear();
-        for p in points {
+        for (i, p) in points.iter().enumerate() {
             let z = f64::from(p[2]);
             let dx = f64::from(p[0]) - ax * z;
             let dy = f64::from(p[1]) - ay * z;
             let rho_sq = dx * dx + dy * dy;
             if rho_sq < r_sq && z.is_finite() {
-                self.votes.push(z + (r_sq - rho_sq).sqrt());
+                self.votes.push((z + (r_sq - rho_sq).sqrt(), i as u32));
             }
         }
         if self.votes.is_empty() {
             return None;
         }
-        self.votes.sort_unstable_by(f64::total_cmp);
+        self.votes.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         let mut middle = self.votes.len() / 2;
-        let half = (params.window_sigmas * params.noise.sigma_m(self.votes[middle]))
+        let half = (params.window_sigmas * params.noise.sigma_m(self.votes[middle].0))
             .max(params.min_half_window_m);
         // Densest window [v_i, v_i + 2 half]: two pointers over the sorted votes.
         let (mut best_start, mut best_count) = (0, 0);
         let mut end = 0;
         for start in 0..self.votes.len() {
             end = end.max(start);
-            while end < self.votes.len() && self.votes[end] <= self.votes[start] + 2.0 * half {
+            while end < self.votes.len() && self.votes[end].0 <= self.votes[start].0 + 2.0 * half {
                 end += 1;
             }
             if end - start > best_count {
@@ -124,7 +178,7 @@ impl BlobLocalizer {
             }
         }
         middle = best_start + best_count / 2;
-        Some((self.votes[middle], best_count as u32))
+        Some((self.votes[middle].0, (best_start, best_start + best_count)))
     }
 }
 
@@ -183,6 +237,7 @@ mod tests {
             .expect("votes");
         assert!((found.centre_m[2] - 1.5).abs() < 0.004, "{found:?}");
         assert!((found.radius_m - radius).abs() < 0.002, "{found:?}");
+        assert!(found.flatness < 0.2, "{found:?}");
     }
 
     #[test]
@@ -195,6 +250,34 @@ mod tests {
             .expect("votes");
         assert!((found.centre_m[2] - 1.2).abs() < 0.006, "{found:?}");
         assert!(found.votes < found.samples);
+    }
+
+    #[test]
+    fn a_flat_leaf_over_the_whole_blob_is_flat() {
+        let centre = [0.0, 0.0, 1.2];
+        let radius = 0.04;
+        // The leaf: all samples at 1.1 m.
+        let points: Vec<[f32; 3]> = sphere_samples(centre, radius, None)
+            .into_iter()
+            .map(|p| {
+                let s = 1.1 / f64::from(p[2]);
+                [
+                    (f64::from(p[0]) * s) as f32,
+                    (f64::from(p[1]) * s) as f32,
+                    1.1,
+                ]
+            })
+            .collect();
+        let found = BlobLocalizer::default()
+            .locate(
+                &points,
+                [0.0, 0.0, 1.0],
+                1600.0 * radius / 1.2,
+                1600.0,
+                &params(),
+            )
+            .expect("votes");
+        assert!(found.flatness > 1.0, "{found:?}");
     }
 
     #[test]

@@ -91,7 +91,13 @@ pub struct PerceptionConfig {
     pub saturated_blob_min_depth_coverage: f64,
     /// Physical radius range of a depth-confirmed over-exposed blob, metres.
     pub saturated_blob_radius_m: [f64; 2],
-    /// Position confidence of a confirmed blob's median-depth estimate (see `blob_estimate`).
+    /// A blob whose depth samples are this flat or flatter (sphere over plane mean squared
+    /// residual, see [`crate::blob_localization`]) is an occluder, not a fruit.
+    pub saturated_blob_max_flatness: f64,
+    /// A blob estimate closer than this times the sum of the radii to an apple found by colour
+    /// is dropped (it located the fruit in front of the blown-out one).
+    pub saturated_blob_exclusion_radii: f64,
+    /// Position confidence of a confirmed blob's estimate (see `blob_estimate`).
     pub saturated_blob_position_confidence: f32,
 }
 
@@ -112,6 +118,8 @@ impl Default for PerceptionConfig {
             depth_agreement_sigmas: 3.0,
             saturated_blob_min_depth_coverage: 0.25,
             saturated_blob_radius_m: [0.025, 0.07],
+            saturated_blob_max_flatness: 0.9,
+            saturated_blob_exclusion_radii: 0.9,
             saturated_blob_position_confidence: 0.8,
         }
     }
@@ -303,6 +311,18 @@ impl Perception {
                 config.saturated_blob_radius_m[1],
                 config.saturated_blob_radius_m[0],
                 1.0,
+            ),
+            (
+                "saturated_blob_max_flatness",
+                config.saturated_blob_max_flatness,
+                0.0,
+                1e3,
+            ),
+            (
+                "saturated_blob_exclusion_radii",
+                config.saturated_blob_exclusion_radii,
+                0.0,
+                2.0,
             ),
             (
                 "saturated_blob_position_confidence",
@@ -755,16 +775,38 @@ impl Perception {
     /// Greedy merging of estimates of the same fruit, best-supported first.
     fn merge_duplicates(&mut self, stats: &mut FrameStats) {
         let mut order: Vec<usize> = (0..self.pending.len()).collect();
+        // Colour detections first: an over-exposed blob is only kept where no colour detection
+        // already explains its fruit.
         order.sort_by(|&a, &b| {
-            self.pending[b]
-                .estimate
-                .points_used
-                .cmp(&self.pending[a].estimate.points_used)
+            let blob = |k: usize| self.pending[k].source == DetectionSource::SaturatedBlob;
+            blob(a)
+                .cmp(&blob(b))
+                .then(
+                    self.pending[b]
+                        .estimate
+                        .points_used
+                        .cmp(&self.pending[a].estimate.points_used),
+                )
                 .then(a.cmp(&b))
         });
         self.accepted.clear();
         for k in order {
             let candidate = self.pending[k];
+            if candidate.source == DetectionSource::SaturatedBlob {
+                // A blob that includes part of a fruit in front locates that fruit: drop it.
+                let shadowed = self.accepted.iter().any(|&a| {
+                    let kept = &self.pending[a].estimate;
+                    let c = &candidate.estimate;
+                    let distance =
+                        squared_distance(kept.position_in_camera_m, c.position_in_camera_m).sqrt();
+                    distance
+                        < self.config.saturated_blob_exclusion_radii * (kept.radius_m + c.radius_m)
+                });
+                if shadowed {
+                    stats.saturated_blobs_rejected += 1;
+                    continue;
+                }
+            }
             let duplicate_of = self.accepted.iter().copied().find(|&a| {
                 let kept = &self.pending[a].estimate;
                 let c = &candidate.estimate;
@@ -832,6 +874,16 @@ fn blob_estimate(
     };
     let blob_radius_px = (f64::from(visible_px) / std::f64::consts::PI).sqrt();
     let location = localizer.locate(points, ray, blob_radius_px, color_focal_px, &params)?;
+    trace!(
+        flatness = location.flatness,
+        votes = location.votes,
+        samples = location.samples,
+        depth_m = location.centre_m[2],
+        "over-exposed blob located"
+    );
+    if !(location.flatness <= config.saturated_blob_max_flatness) {
+        return None;
+    }
     Some(PositionEstimate {
         position_in_camera_m: location.centre_m,
         radius_m: location.radius_m,

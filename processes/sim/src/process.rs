@@ -10,15 +10,15 @@
 //! device's clock: physics and servos at 200 Hz, camera at its frame rate, ground truth at
 //! 10 Hz) and the loop sleeps in between. Simulated time advances with the host clock.
 
+use crate::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer};
 use crate::orchard::AppleState;
 use crate::physics::Arm;
 use crate::render_rgbd::RgbdRenderer;
 use crate::robot::SimRobot;
 use crate::scenario::Scenario;
-use crate::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer};
 use harvest_ipc::catalogue::{
-    HW_ALACS_COMMAND, HW_ALACS_IMAGE, HW_ARM_ENCODERS, HW_ARM_SERVO, HW_CAMERA_RGBD, HW_VALVE_COMMAND, HW_VALVE_READINGS,
-    SIM_GROUND_TRUTH,
+    HW_ALACS_COMMAND, HW_ALACS_IMAGE, HW_ARM_ENCODERS, HW_ARM_SERVO, HW_CAMERA_RGBD,
+    HW_VALVE_COMMAND, HW_VALVE_READINGS, SIM_GROUND_TRUTH,
 };
 use harvest_ipc::payloads::{
     EncoderFeedback, GroundTruth, ServoSetpoint, ValveBoardCommand, ValveBoardReadings,

@@ -15,8 +15,10 @@
 //! - [`runner`]: one episode, tick by tick; also measures the emergency-stop reaction.
 //! - [`records`]: event log, attempts, per-apple records, failure causes.
 //! - [`timing`]: the hardware timing profiles (scenario constants, or Fig. 12's phase times).
+//! - [`calibration`]: the pressure thresholds calibrated to the simulated valve box.
 
 pub mod args;
+pub mod calibration;
 pub mod detections;
 pub mod devices;
 pub mod error;

@@ -22,6 +22,7 @@ use harvest_vacuum::pressure::PressureConfig;
 use serde::Serialize;
 
 use super::args::{EvalHarvestArgs, PolicyArg, TimingArg};
+use super::calibration::calibrated_pressure;
 use super::detections::DetectionModel;
 use super::error::HarvestEvalError;
 use super::records::{AppleRecord, AttemptRecord, HarvestEvent};
@@ -302,6 +303,7 @@ pub fn run_eval_harvest(args: &EvalHarvestArgs) -> Result<HarvestReport, Harvest
     let mut arm_node = ArmNodeConfig::default();
     let mut pressure = PressureConfig::default();
     apply_timing(&mut scenario, &mut arm_node, &mut pressure, args.timing);
+    let pressure = calibrated_pressure(&scenario.vacuum, pressure);
     let mut outcomes = Vec::with_capacity(args.episodes as usize);
     for k in 0..args.episodes {
         let mut config = EpisodeConfig::new(

@@ -1,6 +1,7 @@
 //! End-to-end tests of the in-process harvesting loop. All times are simulated (deterministic
 //! for a seed); nothing here measures or asserts wall-clock time.
 
+use super::calibration::calibrated_pressure;
 use super::detections::DetectionModel;
 use super::records::FailureCause;
 use super::report::HarvestSummary;
@@ -27,6 +28,7 @@ fn episode(
     let mut arm_node = ArmNodeConfig::default();
     let mut pressure = PressureConfig::default();
     apply_timing(&mut scenario, &mut arm_node, &mut pressure, timing);
+    let pressure = calibrated_pressure(&scenario.vacuum, pressure);
     let mut config = EpisodeConfig::new(scenario, policy, arms, seed);
     config.arm_node = arm_node;
     config.pressure = pressure;

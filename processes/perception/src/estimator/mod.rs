@@ -11,7 +11,7 @@
 pub mod cluster_depth;
 mod point_clustering;
 pub mod sphere_fit;
-mod sphere_model;
+pub(crate) mod sphere_model;
 pub mod zscore_centroid;
 
 use serde::{Deserialize, Serialize};
