@@ -61,11 +61,11 @@ fn simulated_servos_follow_a_setpoint() {
         servos
             .command([0.0, 0.0, 0.0, target_twist_rad], [0.0; 4])
             .expect("command");
-        if let Some(feedback) = servos.feedback().expect("feedback") {
-            if (feedback.position[3] - target_twist_rad).abs() < 0.01 {
-                assert!(feedback.capture_ns > 0);
-                break;
-            }
+        if let Some(feedback) = servos.feedback().expect("feedback")
+            && (feedback.position[3] - target_twist_rad).abs() < 0.01
+        {
+            assert!(feedback.capture_ns > 0);
+            break;
         }
         assert!(
             Instant::now() < deadline,

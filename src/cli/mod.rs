@@ -104,10 +104,10 @@ enum EvalCommand {
 impl Cli {
     /// The name this process runs under: given by the supervisor, else the subcommand's name.
     pub fn process_name(&self) -> String {
-        if let Ok(name) = std::env::var(harvest_supervisor::child::PROCESS_NAME_ENV) {
-            if !name.is_empty() {
-                return name;
-            }
+        if let Ok(name) = std::env::var(harvest_supervisor::child::PROCESS_NAME_ENV)
+            && !name.is_empty()
+        {
+            return name;
         }
         match &self.command {
             Command::Up { .. } => "supervisor",

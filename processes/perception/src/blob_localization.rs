@@ -16,6 +16,10 @@
 //! but its samples are flat: over the samples of the winning window, the ratio of the mean
 //! squared sphere residual `(|p - c| - r)^2` to the mean squared distance from their
 //! least-squares plane (`flatness`) is well below 1 for a fruit and near or above 1 for a leaf.
+//! A fruit seen whole supports its window from all around the ray; the lateral centroid of the
+//! supporting samples, in radii (`asymmetry`), is near 0 for it and about `4 / (3 pi) = 0.42`
+//! for a half-visible one; a fruit in front of the blown-out one, or a small fragment, scores
+//! higher.
 
 use crate::estimator::sphere_model::plane_rms;
 use crate::noise_model::DepthNoiseModel;
@@ -49,6 +53,8 @@ pub struct BlobLocation {
     /// Mean squared sphere residual over mean squared plane residual of the winning window's
     /// samples: well below 1 for a curved fruit, about 1 or more for a flat occluder.
     pub flatness: f64,
+    /// Distance of the supporting samples' lateral centroid from the ray, in radii.
+    pub asymmetry: f64,
 }
 
 /// Scratch buffer of the vote.
@@ -70,7 +76,7 @@ impl BlobLocalizer {
         focal_px: f64,
         params: &BlobLocalizerParams,
     ) -> Option<BlobLocation> {
-        if !(ray[2] > 0.0) || !(focal_px > 0.0) {
+        if ray[2].is_nan() || ray[2] <= 0.0 || focal_px.is_nan() || focal_px <= 0.0 {
             return None;
         }
         let [r_min, r_max] = params.radius_range_m;
@@ -83,10 +89,10 @@ impl BlobLocalizer {
                 ray[1] / ray[2] * depth_m,
                 depth_m,
             ];
-            let flatness = if pass == 1 {
-                self.flatness(points, window, centre_m, radius_m)
+            let (flatness, asymmetry) = if pass == 1 {
+                self.shape(points, window, ray, centre_m, radius_m)
             } else {
-                f64::INFINITY
+                (f64::INFINITY, f64::INFINITY)
             };
             result = Some(BlobLocation {
                 centre_m,
@@ -94,6 +100,7 @@ impl BlobLocalizer {
                 votes: (window.1 - window.0) as u32,
                 samples: self.votes.len() as u32,
                 flatness,
+                asymmetry,
             });
             let blob_radius_m = blob_radius_px * depth_m / focal_px;
             radius_m = (blob_radius_m / params.blob_over_fruit_radius).clamp(r_min, r_max);
@@ -101,14 +108,16 @@ impl BlobLocalizer {
         result
     }
 
-    /// Sphere over plane mean squared residual of the samples of `window` (vote index range).
-    fn flatness(
+    /// `(flatness, asymmetry)` of the samples of `window` (vote index range): sphere over plane
+    /// mean squared residual, and lateral centroid distance from the ray in radii.
+    fn shape(
         &mut self,
         points: &[[f32; 3]],
         window: (usize, usize),
+        ray: [f64; 3],
         centre_m: [f64; 3],
         radius_m: f64,
-    ) -> f64 {
+    ) -> (f64, f64) {
         self.window.clear();
         let members = self.votes.get(window.0..window.1).unwrap_or(&[]);
         self.window.extend(members.iter().filter_map(|&(_, i)| {
@@ -116,8 +125,16 @@ impl BlobLocalizer {
                 .get(i as usize)
                 .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
         }));
+        let (ax, ay) = (ray[0] / ray[2], ray[1] / ray[2]);
+        let mut lateral = [0.0, 0.0];
+        for p in &self.window {
+            lateral[0] += p[0] - ax * p[2];
+            lateral[1] += p[1] - ay * p[2];
+        }
+        let n = self.window.len().max(1) as f64;
+        let asymmetry = (lateral[0].hypot(lateral[1]) / n) / radius_m;
         let Some(plane) = plane_rms(&self.window) else {
-            return f64::INFINITY;
+            return (f64::INFINITY, asymmetry);
         };
         let sphere_ms = self
             .window
@@ -131,11 +148,12 @@ impl BlobLocalizer {
             })
             .sum::<f64>()
             / self.window.len() as f64;
-        if plane > 0.0 {
+        let flatness = if plane > 0.0 {
             sphere_ms / (plane * plane)
         } else {
             f64::INFINITY
-        }
+        };
+        (flatness, asymmetry)
     }
 
     /// One vote with radius `radius_m`: `(centre depth, votes in the winning window)`.
@@ -238,6 +256,7 @@ mod tests {
         assert!((found.centre_m[2] - 1.5).abs() < 0.004, "{found:?}");
         assert!((found.radius_m - radius).abs() < 0.002, "{found:?}");
         assert!(found.flatness < 0.2, "{found:?}");
+        assert!(found.asymmetry < 0.05, "{found:?}");
     }
 
     #[test]
@@ -250,6 +269,8 @@ mod tests {
             .expect("votes");
         assert!((found.centre_m[2] - 1.2).abs() < 0.006, "{found:?}");
         assert!(found.votes < found.samples);
+        // The leaf hides the left 40 %: the support is the right part.
+        assert!(found.asymmetry > 0.2, "{found:?}");
     }
 
     #[test]

@@ -44,7 +44,7 @@ pub fn depth_agrees(
 pub fn visible_fraction(visible_px: u32, radius_m: f64, depth_m: f64, focal_px: f64) -> f64 {
     let radius_px = focal_px * radius_m / depth_m;
     let disc_px = std::f64::consts::PI * radius_px * radius_px;
-    if !(disc_px > 0.0) || !disc_px.is_finite() {
+    if !disc_px.is_finite() || disc_px <= 0.0 {
         return 0.0;
     }
     f64::from(visible_px) / disc_px

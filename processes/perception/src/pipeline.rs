@@ -12,15 +12,20 @@
 //!    that are non-finite or outside the camera's working range are dropped.
 //!    An estimator may find several fruit in one mask (fruit hidden behind fruit); each then gets
 //!    the box of its sphere's image and a share of the mask's visible pixels.
-//!    Over-exposed blob detections (no colour evidence) are kept only when depth confirms them
-//!    ([`crate::estimate_checks::SaturatedBlobCheck`]); an estimate whose centre disagrees with its
-//!    mask's median depth ([`crate::estimate_checks::depth_agrees`]) is dropped.
+//!    Over-exposed blob detections (no colour evidence) are located by
+//!    [`crate::blob_localization`] (not by the sphere fit: sunlight degrades their depth) except
+//!    under the paper's estimator, and kept only when depth confirms an apple-sized, curved,
+//!    centred object ([`crate::estimate_checks::SaturatedBlobCheck`]). An estimate whose centre
+//!    disagrees with its mask's median depth ([`crate::estimate_checks::depth_agrees`]) is
+//!    dropped.
 //! 5. Estimates of one fruit split by an occluder into several detections (the paper's
 //!    over-detection, 4.3) are merged when their centres are closer than
 //!    `duplicate_distance_radii` times the sum of their radii (each at least
 //!    `duplicate_min_radius_m`), and re-estimated from the union of their points.
-//! 6. Apples whose confidence (mask confidence times position confidence) is below
-//!    `min_output_confidence` are dropped: these are mostly fallback estimates from few points.
+//! 6. Colour detections whose mask covers less than `min_visible_fraction` of their fitted
+//!    fruit's image disc are dropped (fragments of mostly hidden fruit localize poorly), and so
+//!    are apples whose confidence (mask confidence times position confidence) is below
+//!    `min_output_confidence` (mostly fallback estimates from few points).
 //! 7. Each apple is reported in the colour camera frame and, via `robot_from_camera`, in the robot
 //!    frame (the LiDAR-camera paper's eq. 20).
 
@@ -94,9 +99,10 @@ pub struct PerceptionConfig {
     /// A blob whose depth samples are this flat or flatter (sphere over plane mean squared
     /// residual, see [`crate::blob_localization`]) is an occluder, not a fruit.
     pub saturated_blob_max_flatness: f64,
-    /// A blob estimate closer than this times the sum of the radii to an apple found by colour
-    /// is dropped (it located the fruit in front of the blown-out one).
-    pub saturated_blob_exclusion_radii: f64,
+    /// A blob whose supporting samples' lateral centroid lies further than this many radii from
+    /// the blob-centre ray is dropped: the samples are a fruit or fragment off the blob's centre
+    /// (a fruit in front of the blown-out one, or a mostly hidden fruit).
+    pub saturated_blob_max_asymmetry: f64,
     /// Position confidence of a confirmed blob's estimate (see `blob_estimate`).
     pub saturated_blob_position_confidence: f32,
 }
@@ -119,7 +125,7 @@ impl Default for PerceptionConfig {
             saturated_blob_min_depth_coverage: 0.25,
             saturated_blob_radius_m: [0.025, 0.07],
             saturated_blob_max_flatness: 0.9,
-            saturated_blob_exclusion_radii: 0.9,
+            saturated_blob_max_asymmetry: 0.4,
             saturated_blob_position_confidence: 0.8,
         }
     }
@@ -319,10 +325,10 @@ impl Perception {
                 1e3,
             ),
             (
-                "saturated_blob_exclusion_radii",
-                config.saturated_blob_exclusion_radii,
+                "saturated_blob_max_asymmetry",
+                config.saturated_blob_max_asymmetry,
                 0.0,
-                2.0,
+                1e3,
             ),
             (
                 "saturated_blob_position_confidence",
@@ -515,7 +521,7 @@ impl Perception {
                 continue;
             }
             let confidence = p.mask_confidence * p.estimate.confidence;
-            if !(confidence >= self.config.min_output_confidence) {
+            if confidence.is_nan() || confidence < self.config.min_output_confidence {
                 stats.estimates_below_confidence += 1;
                 continue;
             }
@@ -671,12 +677,17 @@ impl Perception {
         for i in 0..self.active.len() {
             let index = self.active[i];
             let points = &self.points[index];
-            if points.len() < self.config.min_points_per_apple as usize {
-                stats.detections_without_depth += 1;
-                continue;
-            }
             let detection = &self.detections[index];
             let blob = detection.source == DetectionSource::SaturatedBlob;
+            if points.len() < self.config.min_points_per_apple as usize {
+                if blob {
+                    // White without depth: sky, not a fruit.
+                    stats.saturated_blobs_rejected += 1;
+                } else {
+                    stats.detections_without_depth += 1;
+                }
+                continue;
+            }
             if blob
                 && self
                     .blob_check
@@ -709,7 +720,11 @@ impl Perception {
                 self.estimator.estimate_all(&input, &mut estimates);
             }
             if estimates.is_empty() {
-                stats.estimates_failed += 1;
+                if blob {
+                    stats.saturated_blobs_rejected += 1;
+                } else {
+                    stats.estimates_failed += 1;
+                }
                 continue;
             }
             if blob {
@@ -792,21 +807,6 @@ impl Perception {
         self.accepted.clear();
         for k in order {
             let candidate = self.pending[k];
-            if candidate.source == DetectionSource::SaturatedBlob {
-                // A blob that includes part of a fruit in front locates that fruit: drop it.
-                let shadowed = self.accepted.iter().any(|&a| {
-                    let kept = &self.pending[a].estimate;
-                    let c = &candidate.estimate;
-                    let distance =
-                        squared_distance(kept.position_in_camera_m, c.position_in_camera_m).sqrt();
-                    distance
-                        < self.config.saturated_blob_exclusion_radii * (kept.radius_m + c.radius_m)
-                });
-                if shadowed {
-                    stats.saturated_blobs_rejected += 1;
-                    continue;
-                }
-            }
             let duplicate_of = self.accepted.iter().copied().find(|&a| {
                 let kept = &self.pending[a].estimate;
                 let c = &candidate.estimate;
@@ -876,12 +876,15 @@ fn blob_estimate(
     let location = localizer.locate(points, ray, blob_radius_px, color_focal_px, &params)?;
     trace!(
         flatness = location.flatness,
+        asymmetry = location.asymmetry,
         votes = location.votes,
         samples = location.samples,
         depth_m = location.centre_m[2],
         "over-exposed blob located"
     );
-    if !(location.flatness <= config.saturated_blob_max_flatness) {
+    let curved = location.flatness <= config.saturated_blob_max_flatness;
+    let centred = location.asymmetry <= config.saturated_blob_max_asymmetry;
+    if !(curved && centred) {
         return None;
     }
     Some(PositionEstimate {
@@ -1172,8 +1175,10 @@ mod tests {
     #[test]
     fn low_confidence_estimates_are_filtered_by_the_output_threshold() {
         let (_, frame) = scene_and_frame(12, 9);
-        let mut open = PerceptionConfig::default();
-        open.min_output_confidence = 0.0;
+        let open = PerceptionConfig {
+            min_output_confidence: 0.0,
+            ..PerceptionConfig::default()
+        };
         let mut all = Perception::new(open, cameras()).expect("valid");
         let every = all.process(&frame.rgb_view(), &frame.depth_view());
         let mut strict = perception(EstimatorKind::SphereFit);

@@ -26,7 +26,7 @@
 
 use harvest_arm::joint::JointPosition;
 use harvest_arm::kinematics::forward;
-use harvest_arm::params::{ArmId, ArmParams};
+use harvest_arm::params::ArmParams;
 
 use crate::orchard::{OrchardError, World};
 use crate::physics::servo::{JointCommand, JointLimits, ServoError, ServoModel};
@@ -208,13 +208,6 @@ pub struct SimRobot {
     config: SimRobotConfig,
 }
 
-fn arm_id(arm: Arm) -> ArmId {
-    match arm {
-        Arm::One => ArmId::Arm1,
-        Arm::Two => ArmId::Arm2,
-    }
-}
-
 impl SimRobot {
     /// The robot in the world of `scenario` generated from `seed`, both arms at rest at their
     /// home pose, every inlet valve closed and every vent open, time zero.
@@ -389,11 +382,6 @@ impl SimRobot {
     /// Simulated time since creation, ns (exact sum of the steps).
     pub fn time_ns(&self) -> u64 {
         self.time_ns
-    }
-
-    /// Which arm crate id a simulator arm corresponds to.
-    pub fn arm_id(arm: Arm) -> ArmId {
-        arm_id(arm)
     }
 }
 

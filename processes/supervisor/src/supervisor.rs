@@ -157,50 +157,68 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         if attachment.has_event_from(&health_guard) {
             while let Ok(Some(beat)) = health.receive() {
                 let name = beat.process_name.as_str();
-                if let Some(process) = processes.iter_mut().find(|p| p.spec.name == name) {
-                    if process.child.as_ref().map(|c| c.id()) == Some(beat.pid) {
-                        process.last_heartbeat = Some(now);
-                        process.status.main_channel_count = beat.main_channel_count;
-                        process.status.detail = beat.detail.as_str().to_owned();
-                        process.status.detail_value = beat.detail_value;
-                    }
+                // Only the current instance's beats count (not a killed predecessor's).
+                if let Some(process) = processes.iter_mut().find(|p| {
+                    p.spec.name == name && p.child.as_ref().map(|c| c.id()) == Some(beat.pid)
+                }) {
+                    process.last_heartbeat = Some(now);
+                    process.status.main_channel_count = beat.main_channel_count;
+                    process.status.detail = beat.detail.as_str().to_owned();
+                    process.status.detail_value = beat.detail_value;
                 }
             }
         }
         if !attachment.has_event_from(&tick_guard) {
             return Ok(Flow::Continue);
         }
-        for index in 0..processes.len() {
-            let process = &mut processes[index];
+        for process in processes.iter_mut() {
             match process.status.phase.clone() {
                 ProcessPhase::WaitingToRestart { until } if now >= until => {
                     start(process, &options, now);
                 }
                 ProcessPhase::Running { .. } => {
-                    let exited = process.child.as_mut().and_then(|child| child.try_wait().ok().flatten());
+                    let exited = process
+                        .child
+                        .as_mut()
+                        .and_then(|child| child.try_wait().ok().flatten());
                     if let Some(exit_status) = exited {
                         process.child = None;
-                        on_exit(process, describe_exit(exit_status), !exit_status.success(), now, domain);
+                        let failed = !exit_status.success();
+                        on_exit(process, describe_exit(exit_status), failed, now, domain);
                     } else if is_hung(process, now, hang_timeout, startup_grace) {
-                        tracing::warn!(process = %process.spec.name, timeout_ms = stack.hang_timeout_ms, "no heartbeat: killing hung process");
+                        tracing::warn!(
+                            process = %process.spec.name,
+                            timeout_ms = stack.hang_timeout_ms,
+                            "no heartbeat: killing hung process"
+                        );
                         if let Some(mut child) = process.child.take() {
                             child::signal_group(&child, Signal::SIGKILL);
                             let _ = child.wait();
                         }
-                        on_exit(process, format!("hung (no heartbeat for {} ms), killed", stack.hang_timeout_ms), true, now, domain);
+                        let reason = format!(
+                            "hung (no heartbeat for {} ms), killed",
+                            stack.hang_timeout_ms
+                        );
+                        on_exit(process, reason, true, now, domain);
                     } else if now.duration_since(process.started_at) > STABLE_AFTER {
                         process.tracker.mark_stable();
                     }
                 }
                 _ => {}
             }
-            if let ProcessPhase::FailedForGood { reason } = &processes[index].status.phase {
-                failure = Some(format!("process {:?} failed for good: {reason}", processes[index].spec.name));
+            if let ProcessPhase::FailedForGood { reason } = &process.status.phase {
+                failure = Some(format!(
+                    "process {:?} failed for good: {reason}",
+                    process.spec.name
+                ));
                 ended_by = "a process failed for good".to_owned();
                 return Ok(Flow::Stop);
             }
         }
-        if processes.iter().all(|p| p.status.phase == ProcessPhase::Finished) {
+        if processes
+            .iter()
+            .all(|p| p.status.phase == ProcessPhase::Finished)
+        {
             ended_by = "all processes finished".to_owned();
             return Ok(Flow::Stop);
         }
@@ -226,11 +244,11 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                 eprint!("{text}");
             }
         }
-        if let Some(duration) = options.duration {
-            if now.duration_since(started) >= duration {
-                ended_by = format!("--duration {}s elapsed", duration.as_secs_f64());
-                return Ok(Flow::Stop);
-            }
+        if let Some(duration) = options.duration
+            && now.duration_since(started) >= duration
+        {
+            ended_by = format!("--duration {}s elapsed", duration.as_secs_f64());
+            return Ok(Flow::Stop);
         }
         Ok(Flow::Continue)
     });

@@ -115,8 +115,9 @@ pub struct VacuumNodeConfig {
     pub dispatch_timeout_s: f64,
     /// Radius of the give-up list, m (default 0.05 m: below the 7-8 cm between the centres of
     /// two touching apples, above the 3 cm identity match of the planner). A detection within
-    /// it of a spot where `planner.max_attempts` attempts failed is ignored, so an apple that
-    /// perception re-identifies as new after each failure is not tried forever.
+    /// it of a spot where `planner.max_attempts` attempts were made is ignored, so an apple
+    /// that perception re-identifies as new after each attempt, or that the robot wrongly
+    /// believes harvested, is not tried forever.
     pub give_up_radius_m: f64,
 }
 
@@ -352,8 +353,8 @@ pub struct VacuumNode {
     last_set: Vec<([f64; 3], f64)>,
     last_set_capture_ns: u64,
     scratch_positions: Vec<[f64; 3]>,
-    /// Where attempts failed, and how many times (the give-up list).
-    failed_spots: Vec<([f64; 3], u32)>,
+    /// Where attempts were made, and how many (the give-up list).
+    attempt_spots: Vec<([f64; 3], u32)>,
     stopped: bool,
     target_seq: u64,
     state_seq: u64,
@@ -412,7 +413,7 @@ impl VacuumNode {
             last_set: Vec::new(),
             last_set_capture_ns: 0,
             scratch_positions: Vec::new(),
-            failed_spots: Vec::new(),
+            attempt_spots: Vec::new(),
             stopped: false,
             target_seq: 0,
             state_seq: 0,
@@ -607,7 +608,7 @@ impl VacuumNode {
                 } else if now_ns.saturating_sub(d.at_ns) > timeout_ns {
                     self.arms[i].dispatched = None;
                     self.planner.finish(arm, AttemptResult::Failed);
-                    self.remember(&d.apple.position_m, AttemptResult::Failed);
+                    self.remember(&d.apple.position_m);
                     warn!(%arm, apple = d.apple.id.0, "target not taken up: given up");
                     self.output.events.push(VacuumNodeEvent::DispatchTimedOut {
                         arm,
@@ -628,7 +629,7 @@ impl VacuumNode {
                     };
                     self.arms[i].active = None;
                     self.planner.finish(arm, result);
-                    self.remember(&d.apple.position_m, result);
+                    self.remember(&d.apple.position_m);
                     debug!(%arm, apple = d.apple.id.0, ?result, "attempt finished");
                     self.output.events.push(VacuumNodeEvent::AttemptFinished {
                         arm,
@@ -644,40 +645,35 @@ impl VacuumNode {
     fn given_up(&self, position_m: &[f64; 3]) -> bool {
         let r2 = self.config.give_up_radius_m.powi(2);
         let limit = self.config.planner.max_attempts;
-        self.failed_spots
+        self.attempt_spots
             .iter()
-            .any(|(p, failures)| *failures >= limit && squared_distance(p, position_m) <= r2)
+            .any(|(p, attempts)| *attempts >= limit && squared_distance(p, position_m) <= r2)
     }
 
-    /// Updates the give-up list with an attempt's result at `position_m`. A failure joins the
-    /// nearest spot within twice the give-up radius (its position becomes the mean of the
-    /// failed targets, which averages the localization noise out) or starts a new one; a
-    /// harvest clears the spots within the radius.
-    fn remember(&mut self, position_m: &[f64; 3], result: AttemptResult) {
+    /// Counts an attempt at `position_m` on the give-up list, whatever its result: it joins
+    /// the nearest spot within the give-up radius (whose position becomes the mean of its
+    /// attempts' targets, averaging the localization noise out) or starts a new one. A
+    /// harvested apple is gone from later detection sets, so its spot never masks anything;
+    /// an apple the robot only believes harvested (it slipped off unnoticed and sprang back
+    /// to its stem) is seen again at the same spot and stops being tried after
+    /// `max_attempts`.
+    fn remember(&mut self, position_m: &[f64; 3]) {
         let r2 = self.config.give_up_radius_m.powi(2);
-        match result {
-            AttemptResult::Harvested => self
-                .failed_spots
-                .retain(|(p, _)| squared_distance(p, position_m) > r2),
-            AttemptResult::Failed => {
-                let join2 = 4.0 * r2;
-                let nearest = self
-                    .failed_spots
-                    .iter_mut()
-                    .map(|spot| (squared_distance(&spot.0, position_m), spot))
-                    .filter(|(d2, _)| *d2 <= join2)
-                    .min_by(|a, b| a.0.total_cmp(&b.0));
-                match nearest {
-                    Some((_, (p, failures))) => {
-                        let n = f64::from(*failures);
-                        for (c, new) in p.iter_mut().zip(position_m) {
-                            *c = (*c * n + new) / (n + 1.0);
-                        }
-                        *failures += 1;
-                    }
-                    None => self.failed_spots.push((*position_m, 1)),
+        let nearest = self
+            .attempt_spots
+            .iter_mut()
+            .map(|spot| (squared_distance(&spot.0, position_m), spot))
+            .filter(|(d2, _)| *d2 <= r2)
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        match nearest {
+            Some((_, (p, attempts))) => {
+                let n = f64::from(*attempts);
+                for (c, new) in p.iter_mut().zip(position_m) {
+                    *c = (*c * n + new) / (n + 1.0);
                 }
+                *attempts += 1;
             }
+            None => self.attempt_spots.push((*position_m, 1)),
         }
     }
 

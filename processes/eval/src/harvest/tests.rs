@@ -370,33 +370,3 @@ fn report_numbers() {
         );
     }
 }
-
-#[test]
-#[ignore]
-fn scratch_debug() {
-    let seed: u64 = std::env::var("SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1);
-    let config = episode(
-        "default",
-        TimingArg::Scenario,
-        PolicyKind::V2024,
-        2,
-        seed,
-        1.0,
-    );
-    let outcome = run_episode(&config).expect("episode");
-    for a in &outcome.recorder.attempts {
-        println!(
-            "{} {:?} {:?} {:.1} {:?} {:?} {:?}",
-            a.arm,
-            a.apple,
-            a.target_error_m.map(|e| (e * 1000.0).round()),
-            a.dispatched_s,
-            a.cause,
-            a.arm_failure,
-            a.world
-        );
-    }
-}
