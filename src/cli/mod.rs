@@ -97,6 +97,9 @@ enum BenchCommand {
 enum EvalCommand {
     /// Detection precision/recall, 3D error and processing time per estimator, on rendered frames.
     Perception(harvest_eval::EvalPerceptionArgs),
+    /// Complete harvests in the simulator (arm, vacuum and assignment logic under a simulated
+    /// clock): cycle times per apple and per attempt, success, per-apple events.
+    Harvest(harvest_eval::harvest::EvalHarvestArgs),
     /// Laser refinement of ToF apple positions: error before/after and the time a scan costs.
     Laser(harvest_laser::EvalLaserArgs),
 }
@@ -162,6 +165,12 @@ impl Cli {
             Command::Laser(args) => {
                 harvest_laser::process::run(&args, &domain, process_name)
                     .context("laser process")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Eval(EvalCommand::Harvest(args)) => {
+                let report =
+                    harvest_eval::harvest::run_eval_harvest(&args).context("harvest evaluation")?;
+                print!("{}", report.render_text());
                 Ok(ExitCode::SUCCESS)
             }
             Command::Eval(EvalCommand::Laser(args)) => {
