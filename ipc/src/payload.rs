@@ -66,3 +66,24 @@ macro_rules! serde_payload {
         }
     };
 }
+
+/// A zero-filled `T` on the heap, for the few places that hold a payload outside shared memory
+/// (tests, evaluation, decoding recordings): multi-megabyte payloads never live on the stack.
+pub fn boxed_zeroed<T: Payload>() -> Box<T> {
+    let layout = std::alloc::Layout::new::<T>();
+    if layout.size() == 0 {
+        // Every payload holds a header, so this does not happen in practice.
+        // SAFETY: for a zero-sized T any non-null aligned pointer is a valid Box<T>.
+        return unsafe { Box::from_raw(std::ptr::NonNull::<T>::dangling().as_ptr()) };
+    }
+    // SAFETY: the layout is not zero-sized; all-zero bytes are a valid `T` by the `Payload`
+    // contract; the pointer comes from the global allocator with `T`'s layout, as
+    // `Box::from_raw` requires.
+    unsafe {
+        let pointer = std::alloc::alloc_zeroed(layout).cast::<T>();
+        if pointer.is_null() {
+            std::alloc::handle_alloc_error(layout);
+        }
+        Box::from_raw(pointer)
+    }
+}

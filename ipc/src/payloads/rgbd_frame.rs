@@ -147,14 +147,7 @@ mod tests {
     use super::*;
 
     fn boxed_frame() -> Box<RgbdFrame> {
-        // Tests build frames on the heap, zeroed: every bit pattern is valid (see Payload).
-        let layout = std::alloc::Layout::new::<RgbdFrame>();
-        // SAFETY: layout is non-zero-sized; zeroed memory is a valid RgbdFrame.
-        unsafe {
-            let ptr = std::alloc::alloc_zeroed(layout) as *mut RgbdFrame;
-            assert!(!ptr.is_null());
-            Box::from_raw(ptr)
-        }
+        crate::payload::boxed_zeroed()
     }
 
     #[test]

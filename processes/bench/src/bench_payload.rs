@@ -86,17 +86,7 @@ length - 32)";
 
 /// A heap-allocated, zero-filled `T` (large payloads never live on the stack).
 pub fn zeroed_box<T: Payload>() -> Box<T> {
-    let layout = std::alloc::Layout::new::<T>();
-    // SAFETY: `T` starts with a Header, so the layout is not zero-sized; `T: Payload` guarantees
-    // that all-zero bytes are a valid `T`, and the pointer comes from the global allocator with
-    // `T`'s layout, as `Box::from_raw` requires.
-    unsafe {
-        let ptr = std::alloc::alloc_zeroed(layout).cast::<T>();
-        if ptr.is_null() {
-            std::alloc::handle_alloc_error(layout);
-        }
-        Box::from_raw(ptr)
-    }
+    harvest_ipc::payload::boxed_zeroed()
 }
 
 #[cfg(test)]

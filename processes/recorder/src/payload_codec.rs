@@ -7,23 +7,7 @@ use harvest_ipc::{Channel, ChannelVisitor, Payload, catalogue};
 /// A heap value of `T` with every byte zero, which the [`Payload`] contract makes a valid
 /// value: large payloads (6.8 MB frames) are decoded into it without touching the stack.
 pub fn zeroed_box<T: Payload>() -> Box<T> {
-    let layout = std::alloc::Layout::new::<T>();
-    if layout.size() == 0 {
-        // Every payload holds a header, so this is unreachable in practice; a dangling,
-        // well-aligned pointer is the valid Box for a zero-sized type.
-        // SAFETY: zero-sized T: any non-null aligned pointer is a valid Box<T>.
-        return unsafe { Box::from_raw(std::ptr::NonNull::<T>::dangling().as_ptr()) };
-    }
-    // SAFETY: the layout has non-zero size; zeroed memory is a valid T by the Payload contract
-    // (every bit pattern is valid); ownership of the allocation passes to the Box, which frees
-    // it with the same layout.
-    unsafe {
-        let pointer = std::alloc::alloc_zeroed(layout) as *mut T;
-        if pointer.is_null() {
-            std::alloc::handle_alloc_error(layout);
-        }
-        Box::from_raw(pointer)
-    }
+    harvest_ipc::payload::boxed_zeroed()
 }
 
 /// Decodes one payload type to its JSON view, reusing one heap value across messages.

@@ -521,18 +521,7 @@ impl AlacsUnit for LocalAlacsUnit<'_> {
 
 /// A zeroed [`AlacsImage`] on the heap (4.7 MB: too large for the stack).
 pub fn zeroed_image() -> Box<AlacsImage> {
-    let layout = std::alloc::Layout::new::<AlacsImage>();
-    // SAFETY: the layout is not zero-sized; `AlacsImage` is `#[repr(C)]` and made only of
-    // integers, floats and arrays of those, so all-zero bytes are a valid value (the contract of
-    // `harvest_ipc::Payload`); the pointer comes from the global allocator with this layout, as
-    // `Box::from_raw` requires.
-    unsafe {
-        let ptr = std::alloc::alloc_zeroed(layout).cast::<AlacsImage>();
-        if ptr.is_null() {
-            std::alloc::handle_alloc_error(layout);
-        }
-        Box::from_raw(ptr)
-    }
+    harvest_ipc::payload::boxed_zeroed()
 }
 
 #[cfg(test)]

@@ -13,18 +13,7 @@ const FRAME_PERIOD_NS: u64 = 33_333_333;
 
 /// A zeroed [`RgbdFrame`] on the heap (6.8 MB: too large for the stack).
 pub fn zeroed_frame() -> Box<RgbdFrame> {
-    let layout = std::alloc::Layout::new::<RgbdFrame>();
-    // SAFETY: the layout is non-zero-sized; `RgbdFrame` is `#[repr(C)]` and made only of
-    // integers, floats and arrays of those, so all-zero bytes are a valid value (the contract of
-    // `harvest_ipc::Payload`), and the pointer comes from the global allocator with this layout
-    // as `Box` requires.
-    unsafe {
-        let ptr = std::alloc::alloc_zeroed(layout).cast::<RgbdFrame>();
-        if ptr.is_null() {
-            std::alloc::handle_alloc_error(layout);
-        }
-        Box::from_raw(ptr)
-    }
+    harvest_ipc::payload::boxed_zeroed()
 }
 
 /// The simulator's RGB-D renderer plus the frame metadata the simulated camera sends.
