@@ -86,6 +86,20 @@ impl CameraIntrinsics {
         self.undistort(x_d, y_d)
     }
 
+    /// Undistorted normalized coordinates `(x/z, y/z)` of every pixel centre, row-major: the
+    /// per-pixel ray table renderers and evaluators build once per camera.
+    pub fn pixel_ray_table(&self) -> Vec<[f32; 2]> {
+        let (width, height) = (self.width_px as usize, self.height_px as usize);
+        let mut rays = Vec::with_capacity(width * height);
+        for v in 0..height {
+            for u in 0..width {
+                let (x, y) = self.normalize(u as f64, v as f64);
+                rays.push([x as f32, y as f32]);
+            }
+        }
+        rays
+    }
+
     /// Undistorted normalized coordinates -> pixel.
     pub fn denormalize(&self, x: f64, y: f64) -> (f64, f64) {
         let (x_d, y_d) = self.distort(x, y);

@@ -148,13 +148,7 @@ impl RasterCamera {
     fn new(intrinsics: CameraIntrinsics, robot_from_camera: RigidTransform) -> Self {
         let width = intrinsics.width_px as usize;
         let height = intrinsics.height_px as usize;
-        let mut rays = Vec::with_capacity(width * height);
-        for v in 0..height {
-            for u in 0..width {
-                let (x, y) = intrinsics.normalize(u as f64, v as f64);
-                rays.push([x as f32, y as f32]);
-            }
-        }
+        let rays = intrinsics.pixel_ray_table();
         Self {
             intrinsics,
             camera_from_robot: robot_from_camera.inverse(),
