@@ -54,6 +54,30 @@ impl Domain {
         }
     }
 
+    /// A domain no other caller on this host uses at the same time: `tag` (its lowercase
+    /// letters and digits, at most 6) followed by the process id, a per-process counter and
+    /// the clock's nanoseconds, cut to the 24-character limit. For tests and benchmarks that
+    /// start their own stack beside any running one.
+    pub fn unique(tag: &str) -> Self {
+        static COUNTER: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        let tag: String = tag
+            .chars()
+            .filter(|c| c.is_ascii_lowercase() || c.is_ascii_digit())
+            .take(6)
+            .collect();
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |elapsed| elapsed.subsec_nanos());
+        let counter = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let mut name = format!(
+            "{tag}-{}-{counter}-{:x}",
+            std::process::id() % 1_000_000,
+            nanos % 0xffff
+        );
+        name.truncate(MAX_DOMAIN_LEN);
+        Self(name)
+    }
+
     pub fn name(&self) -> &str {
         &self.0
     }
@@ -97,5 +121,16 @@ mod tests {
             domain.iceoryx2_config().global.prefix.as_bytes(),
             b"hv_abc_"
         );
+    }
+
+    #[test]
+    fn unique_domains_are_valid_and_distinct() {
+        let first = Domain::unique("Tag With Spaces And/Slashes");
+        let second = Domain::unique("Tag With Spaces And/Slashes");
+        assert_ne!(first, second);
+        for domain in [first, second] {
+            assert!(domain.name().starts_with("agithp-"), "{domain}");
+            assert!(Domain::new(domain.name()).is_ok(), "{domain}");
+        }
     }
 }

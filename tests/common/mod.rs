@@ -16,18 +16,9 @@ pub fn one_stack_at_a_time() -> std::sync::MutexGuard<'static, ()> {
     LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// A domain no other test (or concurrent CI run) uses.
+/// A domain no other test (or concurrent run) uses.
 pub fn unique_domain(tag: &str) -> String {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.subsec_nanos())
-        .unwrap_or(0);
-    format!(
-        "t{}-{}-{:x}",
-        tag,
-        std::process::id() % 100_000,
-        nanos % 0xffff
-    )
+    harvest_ipc::Domain::unique(tag).name().to_owned()
 }
 
 /// A scratch directory removed on drop.

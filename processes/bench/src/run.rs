@@ -17,7 +17,7 @@ use std::path::Path;
 pub fn run_bench_ipc(args: &BenchIpcArgs) -> Result<BenchReport, BenchError> {
     let cpus = std::thread::available_parallelism().map_or(1, usize::from);
     let settings = Settings::resolve(args, cpus)?;
-    let domain = unique_domain()?;
+    let domain = Domain::unique("bench");
     let _remove_domain = DomainRemoval(&domain);
     let _pinned = match settings.pin_cpus {
         Some((receiver, _)) => Some(AffinityRestore::pin(receiver)?),
@@ -117,15 +117,6 @@ constructor is private): measured on scan-request, detections and rgbd only"
 }
 
 /// A domain no other run uses: `bench-<pid>-<microseconds mod 10^6>`.
-fn unique_domain() -> Result<Domain, BenchError> {
-    let micros = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |elapsed| elapsed.as_micros() % 1_000_000);
-    Ok(Domain::new(&format!(
-        "bench-{}-{micros}",
-        std::process::id()
-    ))?)
-}
 
 /// Removes what a failed peer left in the domain (nothing after a clean case).
 fn clean_domain(domain: &Domain) {

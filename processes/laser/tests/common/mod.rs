@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -16,18 +16,7 @@ use harvest_sim::{Scenario, World};
 
 /// A domain no other test (or concurrent run) uses.
 pub fn unique_domain(tag: &str) -> Domain {
-    static COUNTER: AtomicU32 = AtomicU32::new(0);
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.subsec_nanos())
-        .unwrap_or(0);
-    let name = format!(
-        "l{tag}{}{}{:x}",
-        std::process::id() % 10_000,
-        COUNTER.fetch_add(1, Ordering::SeqCst),
-        nanos % 0xfff
-    );
-    Domain::new(&name[..name.len().min(24)]).expect("valid domain")
+    Domain::unique(tag)
 }
 
 /// The world the device shows: the `ideal` scenario (a grid of apples, no leaves), seed 5.

@@ -12,24 +12,13 @@ use harvest_recorder::{RecorderArgs, RecorderControl, RecorderError, RecordingRe
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 /// A domain no other test (or concurrent run) uses.
 pub fn unique_domain(tag: &str) -> Domain {
-    static COUNTER: AtomicU32 = AtomicU32::new(0);
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.subsec_nanos())
-        .unwrap_or(0);
-    let name = format!(
-        "r{tag}{}{}{:x}",
-        std::process::id() % 10_000,
-        COUNTER.fetch_add(1, Ordering::SeqCst),
-        nanos % 0xfff
-    );
-    Domain::new(&name[..name.len().min(24)]).expect("valid domain")
+    Domain::unique(tag)
 }
 
 /// A scratch directory removed on drop.
