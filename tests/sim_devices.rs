@@ -1,23 +1,54 @@
 //! Device drivers against the simulated robot running as its own process (`harvest sim`), over
-//! real shared memory: the valve board passes the same conformance suite as the serial driver,
-//! and an arm's servos follow a set-point.
+//! real shared memory: each simulated device passes the conformance suite written once for its
+//! trait. The other implementations run the same suites elsewhere: the serial valve board
+//! against the fake board (`hw/tests/valve_board_serial.rs`), the in-process platform stages
+//! (sim crate), and here the evaluation's in-process servos.
 
 mod common;
 
 use common::*;
-use harvest_hw::arm_servos::ArmServos;
+use harvest_eval::harvest::devices::{InProcessDeviceError, InProcessServos, SharedRobot};
+use harvest_hw::arm_servos::conformance::{
+    ServoConformanceConfig, conformance_suite as servo_suite,
+};
 use harvest_hw::arm_servos::sim::SimArmServos;
-use harvest_hw::valve_board::conformance::conformance_suite;
+use harvest_hw::arm_servos::{ArmServos, JOINT_COUNT, JointFeedback};
+use harvest_hw::conformance::{ConformanceReport, TestWatchdog};
+use harvest_hw::platform::conformance::{
+    PlatformConformanceConfig, conformance_suite as platform_suite,
+};
+use harvest_hw::platform::sim::SimPlatform;
+use harvest_hw::platform::{Platform, PlatformTravel};
+use harvest_hw::rgbd_camera::conformance::{
+    CameraConformanceConfig, conformance_suite as camera_suite,
+};
+use harvest_hw::rgbd_camera::sim::SimRgbdCamera;
+use harvest_hw::valve_board::conformance::conformance_suite as valve_suite;
 use harvest_hw::valve_board::sim::SimValveBoard;
-use harvest_ipc::{ArmId, Context, Domain};
+use harvest_hw::{DeviceError, ErrorKind};
+use harvest_ipc::{ArmId, Context, Domain, ManualClock};
+use harvest_sim::physics::Arm;
+use harvest_sim::robot::SimRobot;
+use harvest_sim::scenario::Scenario;
+use std::cell::RefCell;
 use std::process::Child;
-use std::time::{Duration, Instant};
+use std::rc::Rc;
+use std::time::Duration;
+use std::time::Instant;
+
+/// Every test here aborts if it runs longer than this (a hung device exchange).
+const WATCHDOG: Duration = Duration::from_secs(180);
+/// The scenario the sim process runs (its camera and arms are what the drivers declare).
+const SCENARIO: &str = "default";
 
 struct SimProcess(Child);
 
 impl SimProcess {
     fn start(domain: &str) -> Self {
-        Self(spawn_harvest(domain, &["sim", "--camera-rate-hz", "2"]))
+        Self(spawn_harvest(
+            domain,
+            &["sim", "--scenario", SCENARIO, "--camera-rate-hz", "2"],
+        ))
     }
 }
 
@@ -31,46 +62,184 @@ impl Drop for SimProcess {
     }
 }
 
-#[test]
-fn simulated_valve_board_passes_the_conformance_suite() {
-    let domain_name = unique_domain("valves");
-    let _sim = SimProcess::start(&domain_name);
-    let domain = Domain::new(&domain_name).expect("domain");
-    let context = Context::new(&domain, "valve-test").expect("node");
-    let report = conformance_suite(|| {
-        SimValveBoard::connect(&context, Duration::from_secs(20)).expect("connect sim valve board")
-    })
-    .expect("conformance suite");
-    assert_eq!(report.checks_passed.len(), 7, "{report:?}");
+/// A running `harvest sim` in a domain of its own, and a node of the test in that domain.
+struct SimDevices {
+    context: Context,
+    _sim: SimProcess,
+    _domain: Domain,
+}
+
+impl SimDevices {
+    fn start(tag: &str) -> Self {
+        let domain_name = unique_domain(tag);
+        let sim = SimProcess::start(&domain_name);
+        let domain = Domain::new(&domain_name).expect("domain");
+        let context = Context::new(&domain, &format!("{tag}-test")).expect("node");
+        Self {
+            context,
+            _sim: sim,
+            _domain: domain,
+        }
+    }
+}
+
+fn assert_all_passed(report: &ConformanceReport, expected: usize) {
+    assert_eq!(report.checks_passed.len(), expected, "{report:?}");
 }
 
 #[test]
-fn simulated_servos_follow_a_setpoint() {
-    let domain_name = unique_domain("servo");
-    let _sim = SimProcess::start(&domain_name);
-    let domain = Domain::new(&domain_name).expect("domain");
-    let context = Context::new(&domain, "servo-test").expect("node");
-    let limits = [[-1.0, 1.0], [-3.2, 3.2], [-3.2, 3.2], [-3.2, 3.2]];
-    let mut servos = SimArmServos::connect(&context, ArmId::One, limits).expect("connect");
-    // Out-of-limit and NaN set-points are refused before reaching the device.
-    assert!(servos.command([5.0, 0.0, 0.0, 0.0], [0.0; 4]).is_err());
-    assert!(servos.command([f64::NAN, 0.0, 0.0, 0.0], [0.0; 4]).is_err());
-    let deadline = Instant::now() + Duration::from_secs(30);
-    let target_twist_rad = 0.5;
-    loop {
-        servos
-            .command([0.0, 0.0, 0.0, target_twist_rad], [0.0; 4])
-            .expect("command");
-        if let Some(feedback) = servos.feedback().expect("feedback")
-            && (feedback.position[3] - target_twist_rad).abs() < 0.01
-        {
-            assert!(feedback.capture_ns > 0);
-            break;
-        }
-        assert!(
-            Instant::now() < deadline,
-            "servo never reached the set-point"
-        );
-        std::thread::sleep(Duration::from_millis(5));
+fn simulated_valve_board_passes_the_conformance_suite() {
+    let _watchdog = TestWatchdog::arm("valve board", WATCHDOG);
+    let sim = SimDevices::start("valves");
+    let report = valve_suite(|| {
+        SimValveBoard::connect(&sim.context, Duration::from_secs(20))
+            .expect("connect sim valve board")
+    })
+    .expect("conformance suite");
+    assert_all_passed(&report, 7);
+}
+
+/// The joint limits the simulated arms enforce (paper 003 Table 1, from the arm parameters).
+fn declared_limits(arm: Arm) -> [[f64; 2]; 4] {
+    let scenario = Scenario::preset(SCENARIO).expect("scenario");
+    let robot = SimRobot::new(&scenario, 1).expect("robot");
+    let limits = robot.arm_params(arm).position_limits;
+    let (min, max) = (limits.min.to_array(), limits.max.to_array());
+    std::array::from_fn(|j| [min[j], max[j]])
+}
+
+#[test]
+fn simulated_servos_of_both_arms_pass_the_conformance_suite() {
+    let _watchdog = TestWatchdog::arm("servos", WATCHDOG);
+    let sim = SimDevices::start("servo");
+    for (arm_id, arm) in [(ArmId::One, Arm::One), (ArmId::Two, Arm::Two)] {
+        let limits = declared_limits(arm);
+        let config = ServoConformanceConfig::with_limits(limits);
+        let report = servo_suite(&config, || {
+            SimArmServos::connect(&sim.context, arm_id, limits).expect("connect sim servos")
+        })
+        .unwrap_or_else(|error| panic!("arm {arm_id:?}: {error}"));
+        assert_all_passed(&report, 4);
+    }
+}
+
+#[test]
+fn simulated_camera_passes_the_conformance_suite() {
+    let _watchdog = TestWatchdog::arm("camera", WATCHDOG);
+    let sim = SimDevices::start("camera");
+    // The silent camera: the same driver in a domain where no device runs.
+    let silent_domain = Domain::new(&unique_domain("nocam")).expect("domain");
+    let silent_context = Context::new(&silent_domain, "silent-camera-test").expect("node");
+    let camera = Scenario::preset(SCENARIO).expect("scenario").camera;
+    let config = CameraConformanceConfig {
+        rgb_intrinsics: camera.color_intrinsics(),
+        depth_intrinsics: camera.depth_intrinsics(),
+        ..CameraConformanceConfig::tl460()
+    };
+    let report = camera_suite(
+        &config,
+        || SimRgbdCamera::connect(&sim.context).expect("connect sim camera"),
+        || SimRgbdCamera::connect(&silent_context).expect("connect silent camera"),
+    )
+    .expect("conformance suite");
+    assert_all_passed(&report, 3);
+}
+
+#[test]
+fn simulated_platform_passes_the_conformance_suite() {
+    let _watchdog = TestWatchdog::arm("platform", WATCHDOG);
+    let sim = SimDevices::start("platform");
+    let report = platform_suite(&PlatformConformanceConfig::default(), || {
+        SimPlatform::connect(
+            &sim.context,
+            PlatformTravel::default(),
+            Duration::from_secs(20),
+        )
+        .expect("connect sim platform")
+    })
+    .expect("conformance suite");
+    assert_all_passed(&report, 5);
+}
+
+#[test]
+fn platform_driver_without_a_device_reports_a_timeout() {
+    let _watchdog = TestWatchdog::arm("platform timeout", WATCHDOG);
+    let domain = Domain::new(&unique_domain("noplat")).expect("domain");
+    let context = Context::new(&domain, "silent-platform-test").expect("node");
+    let mut platform = SimPlatform::connect(
+        &context,
+        PlatformTravel::default(),
+        Duration::from_millis(50),
+    )
+    .expect("connect");
+    let error = platform.position().expect_err("no device is running");
+    assert_eq!(error.kind(), ErrorKind::Timeout, "{error}");
+    // Refused before reaching the (absent) device.
+    let error = platform.move_to(0.1, 2.0).expect_err("beyond the travel");
+    assert_eq!(error.kind(), ErrorKind::InvalidRequest, "{error}");
+    assert!(error.to_string().contains("up-down"), "{error}");
+}
+
+/// The evaluation's in-process servos over a [`SimRobot`] of this thread, with the robot and its
+/// clock advanced by the host time elapsed before every call (the evaluation steps them itself).
+struct HostTimedServos {
+    servos: InProcessServos,
+    robot: SharedRobot,
+    clock: ManualClock,
+    last_step: Instant,
+}
+
+impl HostTimedServos {
+    fn advance(&mut self) {
+        let elapsed = self.last_step.elapsed();
+        self.last_step = Instant::now();
+        self.robot
+            .borrow_mut()
+            .step(elapsed.as_secs_f64())
+            .expect("robot step");
+        self.clock.advance_ns(elapsed.as_nanos() as u64);
+    }
+}
+
+impl ArmServos for HostTimedServos {
+    type Error = InProcessDeviceError;
+
+    fn command(
+        &mut self,
+        position: [f64; JOINT_COUNT],
+        velocity: [f64; JOINT_COUNT],
+    ) -> Result<(), Self::Error> {
+        self.advance();
+        self.servos.command(position, velocity)
+    }
+
+    fn hold(&mut self) -> Result<(), Self::Error> {
+        self.advance();
+        self.servos.hold()
+    }
+
+    fn feedback(&mut self) -> Result<Option<JointFeedback>, Self::Error> {
+        self.advance();
+        self.servos.feedback()
+    }
+}
+
+#[test]
+fn in_process_servos_pass_the_conformance_suite() {
+    let _watchdog = TestWatchdog::arm("in-process servos", WATCHDOG);
+    let scenario = Scenario::preset(SCENARIO).expect("scenario");
+    let robot: SharedRobot = Rc::new(RefCell::new(SimRobot::new(&scenario, 1).expect("robot")));
+    let clock = ManualClock::starting_at(1);
+    for arm in [Arm::One, Arm::Two] {
+        let limits = declared_limits(arm);
+        let config = ServoConformanceConfig::with_limits(limits);
+        let report = servo_suite(&config, || HostTimedServos {
+            servos: InProcessServos::new(robot.clone(), arm, clock.clone()),
+            robot: robot.clone(),
+            clock: clock.clone(),
+            last_step: Instant::now(),
+        })
+        .unwrap_or_else(|error| panic!("{arm:?}: {error}"));
+        assert_all_passed(&report, 4);
     }
 }

@@ -3,7 +3,9 @@
 
 pub mod alacs;
 pub mod arm_servos;
+pub mod conformance;
 pub mod error_kind;
+pub mod lidar;
 pub mod platform;
 pub mod rgbd_camera;
 pub mod valve_board;

@@ -130,6 +130,21 @@ impl<T: Payload> Channel<T> {
             payload: PhantomData,
         }
     }
+
+    /// An ad-hoc channel that is **not part of the stack catalogue**: for benchmarks and
+    /// evaluation tools that need a channel of their own (e.g. `harvest bench ipc`'s payload-size
+    /// sweep). It is in [`Layer::Evaluation`], is not visited by [`visit_all`] (so it is never
+    /// recorded, replayed or listed), and no stack process opens it. The caller picks a topic
+    /// that no catalogue channel uses (by convention under `bench/`); it becomes the service
+    /// `harvest/<topic>` like any other channel.
+    pub const fn ad_hoc(topic: &'static str, qos: Qos) -> Self {
+        Self::in_layer(
+            Layer::Evaluation,
+            topic,
+            qos,
+            "ad-hoc channel (not part of the stack catalogue)",
+        )
+    }
 }
 
 /// Arm identifiers: arm 1 and arm 2.
@@ -237,6 +252,15 @@ pub const EMERGENCY_STOP: Channel<EmergencyStop> = Channel::new(
     Qos::STATE,
     "engaged: all arms stop, all valves close",
 );
+pub const HARVEST_EVENTS: Channel<HarvestEvent> = Channel::new(
+    "harvest/events",
+    Qos {
+        max_publishers: 6,
+        ..Qos::SMALL
+    },
+    "per-apple harvest events of the arms and the vacuum supervisor (assigned, phases, result, \
+rejected targets with a reason)",
+);
 pub const PROCESS_HEALTH: Channel<ProcessHealth> = Channel::new(
     "system/health",
     Qos {
@@ -313,11 +337,40 @@ pub const HW_ALACS_IMAGE: Channel<AlacsImage> = Channel::in_layer(
     },
     "ALACS device answers with the 1440x1080 RGB image",
 );
+pub const HW_PLATFORM_COMMAND: Channel<PlatformCommand> = Channel::in_layer(
+    Layer::Hardware,
+    "hw/platform/command",
+    Qos::STATE,
+    "in-out and up-down targets (or stop) to the platform movement module",
+);
+pub const HW_PLATFORM_FEEDBACK: Channel<PlatformFeedback> = Channel::in_layer(
+    Layer::Hardware,
+    "hw/platform/feedback",
+    Qos::STATE,
+    "platform stage positions and motion state, 50 Hz",
+);
 pub const SIM_GROUND_TRUTH: Channel<GroundTruth> = Channel::in_layer(
     Layer::Evaluation,
     "sim/ground_truth",
     Qos::STATE,
     "true apple centres and states, for evaluation only",
+);
+
+/// Integrated LiDAR point clouds (Livox Mid-70), published by the `lidar` process.
+pub const LIDAR_POINTS: Channel<PointCloud> = Channel::new(
+    "lidar/points",
+    Qos::FRAMES,
+    "integrated solid-state LiDAR point clouds (<= 100k points, LiDAR frame), 1 Hz by default",
+);
+/// The simulated (or real) LiDAR device's 10 Hz frames, integrated by the LiDAR driver.
+pub const HW_LIDAR_POINTS: Channel<PointCloud> = Channel::in_layer(
+    Layer::Hardware,
+    "hw/lidar/points",
+    Qos {
+        max_subscribers: 2,
+        ..Qos::FRAMES
+    },
+    "point frames as the LiDAR device delivers them to its driver, 10 Hz",
 );
 
 /// Called once per catalogue channel with its payload type.
@@ -340,6 +393,7 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(VALVE_GRANT);
     visitor.visit(VACUUM_STATE);
     visitor.visit(EMERGENCY_STOP);
+    visitor.visit(HARVEST_EVENTS);
     visitor.visit(PROCESS_HEALTH);
     visitor.visit(HW_CAMERA_RGBD);
     for arm in ArmId::ALL {
@@ -350,7 +404,11 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(HW_VALVE_READINGS);
     visitor.visit(HW_ALACS_COMMAND);
     visitor.visit(HW_ALACS_IMAGE);
+    visitor.visit(HW_PLATFORM_COMMAND);
+    visitor.visit(HW_PLATFORM_FEEDBACK);
     visitor.visit(SIM_GROUND_TRUTH);
+    visitor.visit(LIDAR_POINTS);
+    visitor.visit(HW_LIDAR_POINTS);
 }
 
 /// Every channel's spec, in catalogue order.
@@ -386,5 +444,14 @@ mod tests {
             );
             assert!(spec.qos.default_buffer_size <= spec.qos.subscriber_max_buffer_size);
         }
+    }
+
+    #[test]
+    fn ad_hoc_channels_stay_out_of_the_catalogue() {
+        let channel = Channel::<LaserScanRequest>::ad_hoc("bench/test", Qos::SMALL);
+        assert_eq!(channel.spec.layer, Layer::Evaluation);
+        assert_eq!(channel.spec.service_name(), "harvest/bench/test");
+        assert_eq!(channel.spec.type_name, LaserScanRequest::TYPE_NAME);
+        assert!(all_specs().iter().all(|spec| spec.topic != "bench/test"));
     }
 }

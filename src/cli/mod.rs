@@ -34,6 +34,9 @@ enum Command {
         /// Stop by itself after this long (e.g. 10s, 2m).
         #[arg(long, value_parser = harvest_ipc::duration::parse_duration)]
         duration: Option<Duration>,
+        /// Stop once the vacuum supervisor reports that nothing is left to pick.
+        #[arg(long)]
+        until_harvested: bool,
     },
     /// Simulated robot: the orchard world serving the hardware channels.
     Sim(harvest_sim::process::SimArgs),
@@ -41,6 +44,10 @@ enum Command {
     Camera(harvest_camera::CameraArgs),
     /// Perception process: camera/rgbd -> perception/apples.
     Perception(harvest_perception::process::PerceptionArgs),
+    /// Arm process: one arm's 200 Hz control loop (targets -> servos, state, valve requests).
+    Arm(harvest_supervisor::stack_processes::arm::ArmArgs),
+    /// Vacuum process: valves, attachment inference, coordination policy and apple assignment.
+    Vacuum(harvest_supervisor::stack_processes::vacuum::VacuumArgs),
     /// Calibrate a sensor and print the comparison of methods.
     #[command(subcommand)]
     Calibrate(CalibrateCommand),
@@ -55,6 +62,8 @@ enum Command {
     Eval(EvalCommand),
     /// Laser process: answers scan requests with the ALACS unit.
     Laser(harvest_laser::LaserArgs),
+    /// LiDAR process: integrated point clouds of the solid-state LiDAR -> lidar/points.
+    Lidar(harvest_lidar::LidarArgs),
     /// Recorder process: every channel of the domain -> MCAP files.
     Recorder(harvest_recorder::RecorderArgs),
     /// Republish a recording into the channels at recorded timing.
@@ -84,6 +93,9 @@ enum Command {
 enum CalibrateCommand {
     /// ALACS laser-camera extrinsics (alpha, L0, beta): Algorithm 1 and the Table 1 comparison.
     Laser(harvest_laser::CalibrateLaserArgs),
+    /// LiDAR-camera extrinsic (target-based, eq. 3) from generated checkerboard scenes: the
+    /// Table I report (average and normalized reprojection error).
+    LidarCamera(harvest_lidar::CalibrateLidarCameraArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -91,6 +103,9 @@ enum BenchCommand {
     /// One-way latency between separate processes: our layer vs raw iceoryx2 vs a copying
     /// Unix socket, 64 B to 16 MB, event-driven and busy-poll wake-ups.
     Ipc(harvest_bench::BenchIpcArgs),
+    /// End-to-end latency in a running stack (simulated robot): capture -> camera ->
+    /// perception -> arm target -> arm command per hop, and the arm control loop's jitter.
+    Pipeline(harvest_bench::BenchPipelineArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -102,6 +117,9 @@ enum EvalCommand {
     Harvest(harvest_eval::harvest::EvalHarvestArgs),
     /// Laser refinement of ToF apple positions: error before/after and the time a scan costs.
     Laser(harvest_laser::EvalLaserArgs),
+    /// Fused LiDAR-camera vs ToF fruit localization repeatability per distance (Table III
+    /// style) and the fusion time.
+    Lidar(harvest_lidar::EvalLidarArgs),
 }
 
 impl Cli {
@@ -117,11 +135,20 @@ impl Cli {
             Command::Sim(_) => "sim",
             Command::Camera(_) => "camera",
             Command::Perception(_) => "perception",
+            Command::Arm(args) => {
+                if args.id == 1 {
+                    "arm1"
+                } else {
+                    "arm2"
+                }
+            }
+            Command::Vacuum(_) => "vacuum",
             Command::Calibrate(_) => "calibrate",
             Command::Bench(_) => "bench",
             Command::Eval(_) => "eval",
             Command::Recorder(_) => "recorder",
             Command::Laser(_) => "laser",
+            Command::Lidar(_) => "lidar",
             Command::Replay(_) => "replay",
             Command::Rec { .. } => "rec",
             Command::BenchPeer(_) => "bench-peer",
@@ -135,7 +162,21 @@ impl Cli {
     pub fn run(self, process_name: &str) -> Result<ExitCode> {
         let domain = Domain::from_flag_or_env(self.domain.as_deref())?;
         match self.command {
-            Command::Up { launch, duration } => up(launch, duration, domain),
+            Command::Up {
+                launch,
+                duration,
+                until_harvested,
+            } => up(launch, duration, until_harvested, domain),
+            Command::Arm(args) => {
+                harvest_supervisor::stack_processes::arm::run(&args, &domain, process_name)
+                    .context("arm process")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Vacuum(args) => {
+                harvest_supervisor::stack_processes::vacuum::run(&args, &domain, process_name)
+                    .context("vacuum process")?;
+                Ok(ExitCode::SUCCESS)
+            }
             Command::Sim(args) => {
                 harvest_sim::process::run(&args, &domain, process_name).context("sim process")?;
                 Ok(ExitCode::SUCCESS)
@@ -158,6 +199,12 @@ impl Cli {
                 print!("{}", report.table());
                 Ok(ExitCode::SUCCESS)
             }
+            Command::Bench(BenchCommand::Pipeline(args)) => {
+                let report = harvest_bench::run_bench_pipeline(&args, &domain)
+                    .context("pipeline benchmark")?;
+                print!("{}", report.table());
+                Ok(ExitCode::SUCCESS)
+            }
             Command::Eval(EvalCommand::Perception(args)) => {
                 harvest_eval::run_eval_perception(&args).context("perception evaluation")?;
                 Ok(ExitCode::SUCCESS)
@@ -171,6 +218,20 @@ impl Cli {
                 let report =
                     harvest_eval::harvest::run_eval_harvest(&args).context("harvest evaluation")?;
                 print!("{}", report.render_text());
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Lidar(args) => {
+                harvest_lidar::process::run(&args, &domain, process_name)
+                    .context("lidar process")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Calibrate(CalibrateCommand::LidarCamera(args)) => {
+                harvest_lidar::run_calibrate_lidar_camera(&args)
+                    .context("lidar-camera calibration")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Eval(EvalCommand::Lidar(args)) => {
+                harvest_lidar::run_eval_lidar(&args).context("lidar evaluation")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Eval(EvalCommand::Laser(args)) => {
@@ -218,7 +279,12 @@ impl Cli {
     }
 }
 
-fn up(launch: Option<PathBuf>, duration: Option<Duration>, domain: Domain) -> Result<ExitCode> {
+fn up(
+    launch: Option<PathBuf>,
+    duration: Option<Duration>,
+    until_harvested: bool,
+    domain: Domain,
+) -> Result<ExitCode> {
     let launch = match &launch {
         Some(path) => harvest_supervisor::Launch::from_path(path)?,
         None => harvest_supervisor::Launch::default_stack()?,
@@ -229,7 +295,11 @@ fn up(launch: Option<PathBuf>, duration: Option<Duration>, domain: Domain) -> Re
         domain,
         duration,
         executable,
+        until_harvested,
     })?;
+    if let Some(harvest) = summary.render_harvest() {
+        print!("{harvest}");
+    }
     eprint!("{}", summary.render());
     Ok(if summary.failure.is_some() {
         ExitCode::FAILURE

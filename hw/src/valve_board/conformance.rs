@@ -16,10 +16,12 @@
 
 use super::types::{PressureReadings, ValveId, ValveState, ValveStates};
 use super::{VALVE_COUNT, ValveBoard};
+use crate::conformance::{Check, PollBounds, Probe, call, poll_until, run_checks, violated};
 use crate::error_kind::{DeviceError, ErrorKind};
-use std::sync::mpsc;
-use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
+
+/// The shared harness's types, re-exported where this suite's users have always found them.
+pub use crate::conformance::{ConformanceError, ConformanceReport, TestWatchdog};
 
 /// Bounds of the conformance run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -42,67 +44,6 @@ impl Default for ConformanceConfig {
     }
 }
 
-/// What a passing run checked.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ConformanceReport {
-    /// Names of the checks that passed, in order.
-    pub checks_passed: Vec<&'static str>,
-}
-
-/// A conformance check that failed.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum ConformanceError {
-    /// A call that must succeed returned an error.
-    #[error("check `{check}`: {call} failed with kind {kind:?}: {message}")]
-    CallFailed {
-        /// The check.
-        check: &'static str,
-        /// The call, e.g. `set_valve(3, open)`.
-        call: String,
-        /// The error's kind.
-        kind: ErrorKind,
-        /// The error's message.
-        message: String,
-    },
-    /// A call that must fail succeeded, or failed with the wrong kind.
-    #[error("check `{check}`: {call} should fail with kind {expected:?}, got {got}")]
-    WrongOutcome {
-        /// The check.
-        check: &'static str,
-        /// The call.
-        call: String,
-        /// The kind required.
-        expected: ErrorKind,
-        /// What happened instead.
-        got: String,
-    },
-    /// The board's observable state broke a rule.
-    #[error("check `{check}`: {detail}")]
-    Violated {
-        /// The check.
-        check: &'static str,
-        /// What was observed.
-        detail: String,
-    },
-}
-
-fn call<T, E: DeviceError>(
-    check: &'static str,
-    call: impl FnOnce() -> String,
-    result: Result<T, E>,
-) -> Result<T, ConformanceError> {
-    result.map_err(|e| ConformanceError::CallFailed {
-        check,
-        call: call(),
-        kind: e.kind(),
-        message: e.to_string(),
-    })
-}
-
-fn violated(check: &'static str, detail: String) -> ConformanceError {
-    ConformanceError::Violated { check, detail }
-}
-
 /// Run every check with the default bounds.
 pub fn conformance_suite<B: ValveBoard>(
     make: impl FnMut() -> B,
@@ -113,10 +54,9 @@ pub fn conformance_suite<B: ValveBoard>(
 /// Run every check, each on a fresh board from `make`.
 pub fn conformance_suite_with<B: ValveBoard>(
     config: ConformanceConfig,
-    mut make: impl FnMut() -> B,
+    make: impl FnMut() -> B,
 ) -> Result<ConformanceReport, ConformanceError> {
-    type Check<B> = fn(&ConformanceConfig, &mut B) -> Result<(), ConformanceError>;
-    let checks: [(&'static str, Check<B>); 7] = [
+    let checks: [Check<ConformanceConfig, B>; 7] = [
         ("heartbeat", check_heartbeat),
         ("close_all_settles_closed", check_close_all_settles),
         ("each_valve_opens_and_closes_alone", check_each_valve),
@@ -125,23 +65,17 @@ pub fn conformance_suite_with<B: ValveBoard>(
         ("pressures_plausible", check_pressures),
         ("close_all_from_mixed_states", check_close_all_mixed),
     ];
-    let mut report = ConformanceReport {
-        checks_passed: Vec::with_capacity(checks.len()),
-    };
-    for (name, check) in checks {
-        let mut board = make();
-        check(&config, &mut board)?;
+    run_checks("valve board", &config, &checks, make, |name, board| {
         let faults = board.take_faults();
-        if !faults.is_empty() {
-            return Err(violated(
+        if faults.is_empty() {
+            Ok(())
+        } else {
+            Err(violated(
                 name,
                 format!("healthy board reported faults {faults:?}"),
-            ));
+            ))
         }
-        tracing::debug!(check = name, "valve board conformance check passed");
-        report.checks_passed.push(name);
-    }
-    Ok(report)
+    })
 }
 
 /// Poll valve states until `done` holds, every intermediate state satisfying `allowed`.
@@ -153,8 +87,11 @@ fn wait_for<B: ValveBoard>(
     allowed: impl Fn(ValveId, ValveState) -> bool,
     done: impl Fn(&ValveStates) -> bool,
 ) -> Result<ValveStates, ConformanceError> {
-    let deadline = Instant::now() + config.settle_timeout;
-    loop {
+    let bounds = PollBounds {
+        timeout: config.settle_timeout,
+        interval: config.poll_interval,
+    };
+    poll_until(check, bounds, what, || {
         let states = call(check, || "valve_states()".to_owned(), board.valve_states())?;
         if let Some((valve, state)) = states.iter().find(|&(v, s)| !allowed(v, s)) {
             return Err(violated(
@@ -162,20 +99,12 @@ fn wait_for<B: ValveBoard>(
                 format!("while waiting for {what}, {valve} was {state:?} (all: {states:?})"),
             ));
         }
-        if done(&states) {
-            return Ok(states);
-        }
-        if Instant::now() >= deadline {
-            return Err(violated(
-                check,
-                format!(
-                    "{what} not reached within {} ms; last states {states:?}",
-                    config.settle_timeout.as_millis()
-                ),
-            ));
-        }
-        std::thread::sleep(config.poll_interval);
-    }
+        Ok(if done(&states) {
+            Probe::Done(states)
+        } else {
+            Probe::Waiting(format!("states {states:?}"))
+        })
+    })
 }
 
 fn all_closed(states: &ValveStates) -> bool {
@@ -439,46 +368,4 @@ fn check_close_all_mixed<B: ValveBoard>(
         all_closed,
     )?;
     Ok(())
-}
-
-/// Aborts the whole test process if a test runs longer than its limit, so a hung device
-/// exchange fails CI instead of stalling it. Test support; dropping the guard disarms it.
-#[derive(Debug)]
-pub struct TestWatchdog {
-    disarm: Option<mpsc::Sender<()>>,
-    thread: Option<JoinHandle<()>>,
-}
-
-impl TestWatchdog {
-    /// Arm a watchdog named `test` that aborts the process after `limit`.
-    pub fn arm(test: &str, limit: Duration) -> TestWatchdog {
-        let (disarm, disarmed) = mpsc::channel::<()>();
-        let name = test.to_owned();
-        let thread = std::thread::Builder::new()
-            .name(format!("watchdog-{name}"))
-            .spawn(move || {
-                if let Err(mpsc::RecvTimeoutError::Timeout) = disarmed.recv_timeout(limit) {
-                    tracing::error!(test = %name, limit_s = limit.as_secs_f64(), "test watchdog fired");
-                    eprintln!(
-                        "watchdog: test `{name}` still running after {:.1} s; aborting",
-                        limit.as_secs_f64()
-                    );
-                    std::process::abort();
-                }
-            })
-            .ok();
-        TestWatchdog {
-            disarm: Some(disarm),
-            thread,
-        }
-    }
-}
-
-impl Drop for TestWatchdog {
-    fn drop(&mut self) {
-        drop(self.disarm.take());
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
-        }
-    }
 }

@@ -59,15 +59,25 @@ source_capture_ns:u64"
 );
 
 /// Joint set-points for one arm's servos (controller -> arm driver), sent every control period.
+///
+/// `header.capture_ns` is the control tick the command was computed at. `apple_id` and
+/// `source_capture_ns` tie the command to the detection behind the arm's current target, so the
+/// latency of the chain camera frame -> perception -> target -> command can be read from headers
+/// alone (`source_capture_ns` is the camera frame's `capture_ns`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
-#[type_name("harvest.ArmCommand.v1")]
+#[type_name("harvest.ArmCommand.v2")]
 pub struct ArmCommand {
     pub header: Header,
     pub arm_id: u8,
     /// 1: hold (ignore set-points, brake), 0: track set-points.
     pub hold: u8,
-    pub _reserved: [u8; 6],
+    pub _reserved: [u8; 2],
+    /// The apple of the arm's current target (0: none).
+    pub apple_id: u32,
+    /// `capture_ns` of the camera frame whose detection set produced the current target (0 when
+    /// the arm has no target).
+    pub source_capture_ns: u64,
     /// D in m, theta/phi/twist in rad.
     pub joint_position: [f64; JOINT_COUNT],
     /// m/s and rad/s feed-forward velocities.
@@ -77,10 +87,11 @@ pub struct ArmCommand {
 crate::serde_payload!(
     ArmCommand,
     "harvest.ArmCommand",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-arm_id:u8; hold:u8; _reserved:[u8;6]; joint_position:[f64;4] (D m, theta rad, phi rad, twist \
-rad); joint_velocity:[f64;4]"
+    2,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64 (control tick), \
+publish_ns:u64}; arm_id:u8; hold:u8; _reserved:[u8;2]; apple_id:u32 (0 none); \
+source_capture_ns:u64 (camera frame behind the current target, 0 none); joint_position:[f64;4] \
+(D m, theta rad, phi rad, twist rad); joint_velocity:[f64;4]"
 );
 
 /// What an arm reports at its control rate.

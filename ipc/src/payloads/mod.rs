@@ -5,7 +5,10 @@ pub mod apple_detections;
 pub mod arm;
 pub mod emergency_stop;
 pub mod hardware;
+pub mod harvest_event;
 pub mod laser_scan;
+pub mod platform;
+pub mod point_cloud;
 pub mod process_health;
 pub mod rgbd_frame;
 pub mod vacuum;
@@ -17,7 +20,12 @@ pub use emergency_stop::EmergencyStop;
 pub use hardware::{
     EncoderFeedback, GroundTruth, ServoSetpoint, TrueApple, ValveBoardCommand, ValveBoardReadings,
 };
+pub use harvest_event::{
+    HARVEST_EVENT_REASON_BYTES, HarvestCause, HarvestEvent, HarvestEventKind, HarvestEventSource,
+};
 pub use laser_scan::{LaserScanRequest, LaserScanResult};
+pub use platform::{PlatformCommand, PlatformFeedback};
+pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
 pub use process_health::{ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
 pub use vacuum::{VacuumState, ValveGrant, ValveRequest, ValveRequestKind};

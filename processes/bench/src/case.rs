@@ -65,6 +65,9 @@ pub struct RunResult {
     /// Median time the sender spent writing the payload (capture_ns to publish_ns), not part
     /// of the latency.
     pub producer_write_p50_ns: u64,
+    /// Median time the sender spent in the transport's send call after `publish_ns` (part of
+    /// the latency: the sender's share; the rest is the receiver waking up and receiving).
+    pub sender_send_call_p50_ns: u64,
     pub throughput: Throughput,
 }
 
@@ -102,7 +105,7 @@ fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchErr
         Transport::Ours => Some(Box::new(OursReceiver::<T>::open(
             spec.domain,
             spec.mode,
-            name,
+            spec.payload,
         )?)),
         Transport::Iceoryx2 => Some(Box::new(RawReceiver::<T>::open(
             spec.domain,
@@ -136,7 +139,7 @@ fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchErr
     );
     receiver.run_phase(&mut watchdog, &mut |message: &T, recv_ns| {
         let header = *message.header();
-        let phase = message.check(name)?;
+        let phase = settings.sender_write.check(message, name)?;
         match phase {
             Phase::Warmup => {}
             Phase::Measure | Phase::MeasureLast => {
@@ -167,7 +170,7 @@ fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchErr
     watchdog.start_phase("throughput", settings.duration / 4 + PHASE_GRACE);
     receiver.run_phase(&mut watchdog, &mut |message: &T, recv_ns| {
         let header = *message.header();
-        let phase = message.check(name)?;
+        let phase = settings.sender_write.check(message, name)?;
         match phase {
             Phase::Stream | Phase::StreamLast => {
                 tally.add(header.msg_seq, header.publish_ns, recv_ns);
@@ -189,12 +192,15 @@ fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchErr
         })
     })?;
     control.send(END)?;
+    watchdog.start_phase("end", PHASE_GRACE);
+    let sender_send_call_p50_ns = control.read_u64_watched(&mut watchdog)?;
     watchdog.wait_exit(PHASE_GRACE)?;
     drop(receiver);
 
     let result = RunResult {
         latency: LatencySummary::from_histogram(&latency),
         producer_write_p50_ns: producer_write.value_at_quantile(0.5),
+        sender_send_call_p50_ns,
         throughput: tally.throughput(spec.payload.size_bytes()),
     };
     tracing::info!(
@@ -223,6 +229,7 @@ fn spawn_peer(spec: &CaseSpec<'_>, control: &Path) -> Result<std::process::Child
         iterations: spec.settings.iterations,
         duration: spec.settings.duration,
         pin_cpu: spec.settings.pin_cpus.map(|(_, sender)| sender),
+        sender_write: spec.settings.sender_write,
     };
     Command::new(&exe)
         .arg(PEER_SUBCOMMAND)

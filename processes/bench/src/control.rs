@@ -3,7 +3,8 @@
 //! Peer: connect (`HELLO_CONTROL`; for the copying baseline also a data connection with
 //! `HELLO_DATA`), open its sender, `READY`. Receiver: `GO_LATENCY`; then per stop-and-wait
 //! message `ACK`; `GO_STREAM`; then `ACK` per streamed message (the peer keeps at most a window
-//! of unacknowledged messages in flight); after the last one `END`, and the peer exits.
+//! of unacknowledged messages in flight); after the last one `END`; the peer answers with its
+//! median send-call time (8 bytes, u64 little-endian nanoseconds) and exits.
 //! The control connection only paces the run: it is never inside a measured interval.
 
 use crate::error::BenchError;
@@ -57,6 +58,20 @@ impl Control {
 
     pub fn send(&mut self, byte: u8) -> Result<(), BenchError> {
         write_all(&mut self.stream, &[byte], WHAT, &self.path)
+    }
+
+    /// Peer side: sends one number (u64 little-endian).
+    pub fn send_u64(&mut self, value: u64) -> Result<(), BenchError> {
+        write_all(&mut self.stream, &value.to_le_bytes(), WHAT, &self.path)
+    }
+
+    /// Receiver side: reads one number sent with [`Self::send_u64`], watching the peer.
+    pub fn read_u64_watched(&mut self, watchdog: &mut Watchdog) -> Result<u64, BenchError> {
+        let mut bytes = [0u8; 8];
+        read_full(&mut self.stream, &mut bytes, WHAT, &self.path, &mut || {
+            watchdog.check()
+        })?;
+        Ok(u64::from_le_bytes(bytes))
     }
 
     /// Peer side: blocks for the next byte and checks it.

@@ -117,12 +117,6 @@ expected {expected:#018x} (stale or torn payload)"
         length: u64,
         max: usize,
     },
-    /// Our layer can only open catalogue channels, and this payload has none.
-    #[error(
-        "payload {payload} has no catalogue channel: harvest_ipc can only open catalogue \
-channels (Channel::new is private), so our layer cannot carry it"
-    )]
-    NoCatalogueChannel { payload: &'static str },
     /// A received message carried an unknown phase code.
     #[error("{payload} message msg_seq {msg_seq}: unknown phase code {code}")]
     UnknownPhase {
@@ -150,6 +144,16 @@ channels (Channel::new is private), so our layer cannot carry it"
         #[source]
         source: std::io::Error,
     },
+    /// The stack under test (`harvest up`) ended while the pipeline benchmark was collecting.
+    #[error("the stack under test ended early with {status} (log {log}):\n{tail}")]
+    StackEnded {
+        status: std::process::ExitStatus,
+        log: PathBuf,
+        tail: String,
+    },
+    /// The stack under test could not be stopped or waited for.
+    #[error("cannot stop the stack under test (log {log})")]
+    StackStop { log: PathBuf },
     /// Serializing the JSON report failed.
     #[error("cannot serialize the report as JSON: {0}")]
     Json(#[from] serde_json::Error),

@@ -8,6 +8,8 @@
 //!
 //! - [`run_bench_ipc`] / [`BenchIpcArgs`]: the benchmark, returning a [`BenchReport`].
 //! - [`run_bench_peer`] / [`BenchPeerArgs`]: the hidden peer subcommand.
+//! - [`run_bench_pipeline`] / [`BenchPipelineArgs`]: `harvest bench pipeline`, per-hop latency
+//!   in a running stack and the arm control loop's jitter ([`pipeline`]).
 
 pub mod affinity;
 pub mod bench_payload;
@@ -18,8 +20,10 @@ pub mod message;
 pub mod options;
 pub mod payload_case;
 pub mod peer;
+pub mod pipeline;
 pub mod report;
 pub mod run;
+pub mod sender_write;
 pub mod socket_io;
 pub mod stats;
 pub mod svg;
@@ -31,6 +35,8 @@ pub use error::BenchError;
 pub use options::{BenchIpcArgs, BenchPeerArgs, PEER_SUBCOMMAND, Transport, WakeMode};
 pub use payload_case::PayloadCase;
 pub use peer::run_bench_peer;
+pub use pipeline::{BenchPipelineArgs, PipelineReport, run_bench_pipeline};
 pub use report::BenchReport;
 pub use run::run_bench_ipc;
+pub use sender_write::SenderWrite;
 pub use svg::render_svg;

@@ -54,11 +54,17 @@ impl Phase {
 
 /// A payload type the benchmark can send: how to fill and check it, and where it lives.
 pub trait BenchMessage: Payload {
-    /// The catalogue channel carrying this type (our layer can only open catalogue channels).
-    fn channel() -> Option<Channel<Self>>;
-    /// QoS the raw iceoryx2 baseline mirrors (the catalogue channel's, if there is one).
+    /// The catalogue channel carrying this type, if it is a catalogue type.
+    fn catalogue_channel() -> Option<Channel<Self>>;
+    /// The channel our layer uses: the catalogue channel, else an ad-hoc channel on `topic`
+    /// with [`Self::qos`] (`harvest_ipc::Channel::ad_hoc`, not part of the stack catalogue).
+    fn channel(topic: &'static str) -> Channel<Self> {
+        Self::catalogue_channel().unwrap_or_else(|| Channel::ad_hoc(topic, Self::qos()))
+    }
+    /// QoS of our layer's channel and of the raw iceoryx2 baseline (the catalogue channel's,
+    /// if there is one).
     fn qos() -> Qos {
-        match Self::channel() {
+        match Self::catalogue_channel() {
             Some(channel) => channel.spec.qos,
             None if std::mem::size_of::<Self>() <= SMALL_QOS_MAX_BYTES => Qos::SMALL,
             None => Qos::FRAMES,
@@ -67,6 +73,10 @@ pub trait BenchMessage: Payload {
     /// Writes the phase code and a `msg_seq`-dependent value into every line of the body.
     /// Does not touch the header.
     fn fill(&mut self, msg_seq: u64, phase: Phase);
+    /// Writes only the phase code (the diagnostic `--sender-write none|elsewhere` variants).
+    fn set_phase(&mut self, phase: Phase);
+    /// The phase code written by [`Self::fill`] or [`Self::set_phase`].
+    fn phase_code(&self) -> u64;
     /// Reads back a sample of lines against `header().msg_seq` and returns the phase.
     fn check(&self, payload: &'static str) -> Result<Phase, BenchError>;
 }
@@ -188,7 +198,8 @@ fn sampled_lines(lines: usize) -> impl Iterator<Item = usize> {
     })
 }
 
-fn phase_of(code: u64, payload: &'static str, msg_seq: u64) -> Result<Phase, BenchError> {
+/// The phase of a received code, or [`BenchError::UnknownPhase`].
+pub fn phase_of(code: u64, payload: &'static str, msg_seq: u64) -> Result<Phase, BenchError> {
     Phase::from_code(code).ok_or(BenchError::UnknownPhase {
         payload,
         msg_seq,
@@ -197,13 +208,21 @@ fn phase_of(code: u64, payload: &'static str, msg_seq: u64) -> Result<Phase, Ben
 }
 
 impl<const N: usize> BenchMessage for BenchPayload<N> {
-    fn channel() -> Option<Channel<Self>> {
+    fn catalogue_channel() -> Option<Channel<Self>> {
         None
     }
 
     fn fill(&mut self, msg_seq: u64, phase: Phase) {
         self.phase = phase.code();
         fill_byte_lines(&mut self.bytes, msg_seq, 0);
+    }
+
+    fn set_phase(&mut self, phase: Phase) {
+        self.phase = phase.code();
+    }
+
+    fn phase_code(&self) -> u64 {
+        self.phase
     }
 
     fn check(&self, payload: &'static str) -> Result<Phase, BenchError> {
@@ -215,8 +234,16 @@ impl<const N: usize> BenchMessage for BenchPayload<N> {
 
 /// 64 bytes: the smallest message of the catalogue. Every field after the header is written.
 impl BenchMessage for LaserScanRequest {
-    fn channel() -> Option<Channel<Self>> {
+    fn catalogue_channel() -> Option<Channel<Self>> {
         Some(catalogue::LASER_SCAN_REQUEST)
+    }
+
+    fn set_phase(&mut self, phase: Phase) {
+        self.request_seq = phase.code() as u32;
+    }
+
+    fn phase_code(&self) -> u64 {
+        u64::from(self.request_seq)
     }
 
     fn fill(&mut self, msg_seq: u64, phase: Phase) {
@@ -260,8 +287,16 @@ impl BenchMessage for LaserScanRequest {
 
 /// About 5.7 kB: a full list of detections, every detection rewritten.
 impl BenchMessage for AppleDetections {
-    fn channel() -> Option<Channel<Self>> {
+    fn catalogue_channel() -> Option<Channel<Self>> {
         Some(catalogue::PERCEPTION_APPLES)
+    }
+
+    fn set_phase(&mut self, phase: Phase) {
+        self.processing_ns = phase.code();
+    }
+
+    fn phase_code(&self) -> u64 {
+        self.processing_ns
     }
 
     fn fill(&mut self, msg_seq: u64, phase: Phase) {
@@ -312,8 +347,16 @@ impl BenchMessage for AppleDetections {
 /// About 6.8 MB: every line of the colour and depth images is rewritten; the phase travels in
 /// `meta.exposure_us` (the frame's metadata is otherwise left as it was).
 impl BenchMessage for RgbdFrame {
-    fn channel() -> Option<Channel<Self>> {
+    fn catalogue_channel() -> Option<Channel<Self>> {
         Some(catalogue::CAMERA_RGBD)
+    }
+
+    fn set_phase(&mut self, phase: Phase) {
+        self.meta.exposure_us = phase.code() as u32;
+    }
+
+    fn phase_code(&self) -> u64 {
+        u64::from(self.meta.exposure_us)
     }
 
     fn fill(&mut self, msg_seq: u64, phase: Phase) {

@@ -3,6 +3,7 @@
 
 use crate::error::BenchError;
 use crate::payload_case::PayloadCase;
+use crate::sender_write::SenderWrite;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -14,7 +15,8 @@ pub const PEER_SUBCOMMAND: &str = "bench-peer";
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, clap::ValueEnum, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Transport {
-    /// Our layer: harvest_ipc `Publisher`/`Subscriber` on a catalogue channel.
+    /// Our layer: harvest_ipc `Publisher`/`Subscriber` on the payload's catalogue channel, or an
+    /// ad-hoc channel (`Channel::ad_hoc`) for the sweep sizes.
     #[value(name = "ours")]
     Ours,
     /// iceoryx2 publish-subscribe used directly, without our layer.
@@ -94,6 +96,11 @@ pub struct BenchIpcArgs {
     /// [default: 3; --quick: 1]
     #[arg(long)]
     pub repeats: Option<usize>,
+    /// What the sender writes before each send: `full` (every line of the payload, the fair
+    /// test), or the diagnostics `none` (only the phase code) and `elsewhere` (as many lines
+    /// into a private buffer of the payload's size, not the message) [default: full]
+    #[arg(long, value_enum)]
+    pub sender_write: Option<SenderWrite>,
     /// A small run for tests and CI (small counts; explicit options still win)
     #[arg(long)]
     pub quick: bool,
@@ -131,6 +138,8 @@ pub struct BenchPeerArgs {
     /// CPU to pin this process to
     #[arg(long)]
     pub pin_cpu: Option<usize>,
+    #[arg(long, value_enum, default_value = "full")]
+    pub sender_write: SenderWrite,
 }
 
 impl BenchPeerArgs {
@@ -153,6 +162,8 @@ impl BenchPeerArgs {
             self.iterations.to_string(),
             "--duration".to_owned(),
             format!("{}ms", self.duration.as_millis()),
+            "--sender-write".to_owned(),
+            self.sender_write.name().to_owned(),
         ];
         if let Some(cpu) = self.pin_cpu {
             line.extend(["--pin-cpu".to_owned(), cpu.to_string()]);
@@ -178,6 +189,8 @@ pub struct Settings {
     pub modes: Vec<WakeMode>,
     /// (receiver CPU, sender CPU).
     pub pin_cpus: Option<(usize, usize)>,
+    /// What the sender writes before each send (`full` is the fair test).
+    pub sender_write: SenderWrite,
 }
 
 fn serialize_seconds<S: serde::Serializer>(value: &Duration, s: S) -> Result<S::Ok, S::Error> {
@@ -206,6 +219,7 @@ impl Settings {
             transports: dedup_or(&args.transports, &Transport::ALL),
             modes: dedup_or(&args.modes, &WakeMode::ALL),
             pin_cpus: resolve_pin_cpus(&args.pin_cpus, cpu_count)?,
+            sender_write: args.sender_write.unwrap_or_default(),
         };
         if settings.iterations == 0 {
             return Err(BenchError::InvalidOption {
@@ -348,6 +362,7 @@ mod tests {
             iterations: 9,
             duration: Duration::from_millis(1500),
             pin_cpu: Some(1),
+            sender_write: SenderWrite::Elsewhere,
         };
         let mut argv = vec!["peer".to_owned()];
         argv.extend(peer.to_command_line());

@@ -169,10 +169,33 @@ impl PayloadCase {
         with_payload_type!(self, T => std::mem::size_of::<T>())
     }
 
-    /// Whether our layer can carry it: only catalogue channels can be opened through
-    /// `harvest_ipc::Context` (its `Channel` constructor is private).
+    /// Whether it is one of the stack's catalogue types (carried on its catalogue channel);
+    /// the sweep sizes travel on ad-hoc channels ([`Self::topic`]).
     pub fn has_catalogue_channel(self) -> bool {
         matches!(self, Self::ScanRequest | Self::Detections | Self::Rgbd)
+    }
+
+    /// Topic of the channel our layer uses for this payload: the catalogue topic for the
+    /// catalogue types, else an ad-hoc `bench/<name>` channel
+    /// (`harvest_ipc::Channel::ad_hoc`, not part of the stack catalogue).
+    pub fn topic(self) -> &'static str {
+        match self {
+            Self::Bytes64 => "bench/64b",
+            Self::Bytes256 => "bench/256b",
+            Self::KiB1 => "bench/1kib",
+            Self::KiB4 => "bench/4kib",
+            Self::KiB16 => "bench/16kib",
+            Self::KiB64 => "bench/64kib",
+            Self::KiB256 => "bench/256kib",
+            Self::MiB1 => "bench/1mib",
+            Self::MiB2 => "bench/2mib",
+            Self::MiB4 => "bench/4mib",
+            Self::MiB8 => "bench/8mib",
+            Self::MiB16 => "bench/16mib",
+            Self::ScanRequest => harvest_ipc::catalogue::LASER_SCAN_REQUEST.spec.topic,
+            Self::Detections => harvest_ipc::catalogue::PERCEPTION_APPLES.spec.topic,
+            Self::Rgbd => harvest_ipc::catalogue::CAMERA_RGBD.spec.topic,
+        }
     }
 
     /// Parses one `--sizes` entry: a name (`rgbd`), or a size with an optional `K`/`M` suffix
@@ -238,6 +261,26 @@ mod tests {
             (6_500_000..7_000_000).contains(&rgbd),
             "rgbd is {rgbd} bytes"
         );
+    }
+
+    #[test]
+    fn topics_are_unique_and_catalogue_types_keep_theirs() {
+        let mut topics: Vec<_> = PayloadCase::ALL.iter().map(|case| case.topic()).collect();
+        topics.sort_unstable();
+        topics.dedup();
+        assert_eq!(topics.len(), PayloadCase::ALL.len());
+        assert_eq!(PayloadCase::Rgbd.topic(), "camera/rgbd");
+        let catalogue: Vec<_> = harvest_ipc::catalogue::all_specs()
+            .iter()
+            .map(|spec| spec.topic)
+            .collect();
+        for case in PayloadCase::ALL {
+            assert_eq!(
+                catalogue.contains(&case.topic()),
+                case.has_catalogue_channel(),
+                "{case}"
+            );
+        }
     }
 
     #[test]

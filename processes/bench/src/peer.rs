@@ -6,6 +6,8 @@ use crate::error::BenchError;
 use crate::message::{BenchMessage, Phase};
 use crate::options::{BenchPeerArgs, Transport};
 use crate::payload_case::{PayloadCase, with_payload_type};
+use crate::sender_write::PayloadWriter;
+use crate::stats::latency_histogram;
 use crate::transport::SendPort;
 use crate::transport::copy::CopySender;
 use crate::transport::ours::OursSender;
@@ -20,20 +22,20 @@ pub fn run_bench_peer(args: &BenchPeerArgs) -> Result<(), BenchError> {
         pin_to_cpu(cpu)?;
     }
     let payload = PayloadCase::parse(&args.payload)?;
-    with_payload_type!(payload, T => run_typed::<T>(args, payload.name()))
+    with_payload_type!(payload, T => run_typed::<T>(args, payload))
 }
 
-fn run_typed<T: BenchMessage>(
-    args: &BenchPeerArgs,
-    payload: &'static str,
-) -> Result<(), BenchError> {
+fn run_typed<T: BenchMessage>(args: &BenchPeerArgs, case: PayloadCase) -> Result<(), BenchError> {
+    let payload = case.name();
     let mut control = Control::connect(&args.control)?;
     let domain = Domain::new(&args.domain)?;
     let mut sender: Box<dyn SendPort<T>> = match args.transport {
-        Transport::Ours => Box::new(OursSender::<T>::open(&domain, payload)?),
+        Transport::Ours => Box::new(OursSender::<T>::open(&domain, case)?),
         Transport::Iceoryx2 => Box::new(RawSender::<T>::open(&domain, args.mode, payload)?),
         Transport::UdsCopy => Box::new(CopySender::<T>::connect(&args.control, payload)?),
     };
+    let mut writer = PayloadWriter::new(args.sender_write, std::mem::size_of::<T>());
+    let mut send_call = latency_histogram()?;
     control.send(READY)?;
 
     control.expect(GO_LATENCY, "start of the latency phase")?;
@@ -41,7 +43,10 @@ fn run_typed<T: BenchMessage>(
     let mut progress = LatencyProgress::default();
     loop {
         let phase = plan.next_phase(&mut progress, Instant::now());
-        sender.send(phase)?;
+        let call_ns = sender.send(phase, &mut writer)?;
+        if matches!(phase, Phase::Measure | Phase::MeasureLast) {
+            send_call.saturating_record(call_ns.max(1));
+        }
         control.expect(ACK, "acknowledgement of a stop-and-wait message")?;
         if phase == Phase::MeasureLast {
             break;
@@ -63,11 +68,14 @@ fn run_typed<T: BenchMessage>(
             in_flight -= control.read_acks(in_flight)?;
         }
         let last = start.elapsed() >= stream_for;
-        sender.send(if last {
-            Phase::StreamLast
-        } else {
-            Phase::Stream
-        })?;
+        sender.send(
+            if last {
+                Phase::StreamLast
+            } else {
+                Phase::Stream
+            },
+            &mut writer,
+        )?;
         in_flight += 1;
         if last {
             break;
@@ -77,6 +85,7 @@ fn run_typed<T: BenchMessage>(
         in_flight -= control.read_acks(in_flight)?;
     }
     control.expect(END, "end of the case")?;
+    control.send_u64(send_call.value_at_quantile(0.5))?;
     Ok(())
 }
 

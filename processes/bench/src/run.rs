@@ -3,8 +3,7 @@
 use crate::affinity::AffinityRestore;
 use crate::case::{CaseSpec, RunResult, run_case};
 use crate::error::BenchError;
-use crate::options::{BenchIpcArgs, Settings, Transport};
-use crate::payload_case::PayloadCase;
+use crate::options::{BenchIpcArgs, Settings};
 use crate::report::{BenchReport, CaseResult, HostInfo, check_targets, compute_ratios};
 use crate::svg::render_svg;
 use harvest_ipc::Domain;
@@ -35,17 +34,11 @@ pub fn run_bench_ipc(args: &BenchIpcArgs) -> Result<BenchReport, BenchError> {
             }
         }
     }
-    let measurable = |transport: Transport, payload: PayloadCase| {
-        transport != Transport::Ours || payload.has_catalogue_channel()
-    };
-    let total = cases.iter().filter(|(p, t, _)| measurable(*t, *p)).count() * settings.repeats;
+    let total = cases.len() * settings.repeats;
     let mut runs: Vec<Vec<RunResult>> = vec![Vec::new(); cases.len()];
     let mut index = 0;
     for _ in 0..settings.repeats {
         for (&(payload, transport, mode), case_runs) in cases.iter().zip(&mut runs) {
-            if !measurable(transport, payload) {
-                continue;
-            }
             let spec = CaseSpec {
                 payload,
                 transport,
@@ -70,20 +63,7 @@ pub fn run_bench_ipc(args: &BenchIpcArgs) -> Result<BenchReport, BenchError> {
         .iter()
         .zip(runs)
         .map(|(&(payload, transport, mode), case_runs)| {
-            if measurable(transport, payload) {
-                CaseResult::measured(payload, transport, mode, case_runs)
-            } else {
-                CaseResult::unmeasured(
-                    payload,
-                    transport,
-                    mode,
-                    Some(
-                        "our layer only opens catalogue channels (harvest_ipc's Channel \
-constructor is private): measured on scan-request, detections and rgbd only"
-                            .to_owned(),
-                    ),
-                )
-            }
+            CaseResult::measured(payload, transport, mode, case_runs)
         })
         .collect();
 
@@ -116,8 +96,6 @@ constructor is private): measured on scan-request, detections and rgbd only"
     Ok(report)
 }
 
-/// A domain no other run uses: `bench-<pid>-<microseconds mod 10^6>`.
-
 /// Removes what a failed peer left in the domain (nothing after a clean case).
 fn clean_domain(domain: &Domain) {
     match remove_dead_nodes(domain) {
@@ -144,7 +122,7 @@ impl Drop for DomainRemoval<'_> {
 
 /// Removes the domain's global management segment, the one file iceoryx2 keeps per domain,
 /// once no node of the domain is left (the domain is unique to this run, so none can join).
-fn remove_domain(domain: &Domain) {
+pub(crate) fn remove_domain(domain: &Domain) {
     match remove_dead_nodes(domain) {
         Ok(report) if report.alive_nodes == 0 => {
             // SAFETY: no process uses this domain any more: its name is unique to this run,
@@ -172,13 +150,13 @@ fn remove_domain(domain: &Domain) {
     }
 }
 
-fn kernel_release() -> String {
+pub(crate) fn kernel_release() -> String {
     std::fs::read_to_string("/proc/sys/kernel/osrelease")
         .map(|text| text.trim().to_owned())
         .unwrap_or_else(|_| "unknown".to_owned())
 }
 
-fn write_file(path: &Path, text: &str) -> Result<(), BenchError> {
+pub(crate) fn write_file(path: &Path, text: &str) -> Result<(), BenchError> {
     std::fs::write(path, text).map_err(|source| BenchError::WriteOutput {
         path: path.to_owned(),
         source,

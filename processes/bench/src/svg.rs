@@ -43,14 +43,14 @@ fn marker(out: &mut String, mode: WakeMode, x: f64, y: f64, fill: &str, stroke: 
     };
 }
 
-fn escape(text: &str) -> String {
+pub(crate) fn escape(text: &str) -> String {
     text.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
         .replace('"', "&quot;")
 }
 
-fn time_label(ns: f64) -> String {
+pub(crate) fn time_label(ns: f64) -> String {
     if ns >= 1e9 {
         format!("{} s", ns / 1e9)
     } else if ns >= 1e6 {

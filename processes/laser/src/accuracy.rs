@@ -10,6 +10,11 @@
 //! board point on the pixel's ray). Reported: max and mean |error| per axis, against the paper's
 //! worst case of 0.6 / 1.2 / 4 mm (x / y / z). The apple-centre candidates' errors are reported
 //! too.
+//!
+//! The paper's worst case is a maximum over 30 samples per slide position: 3 laser points chosen
+//! at random from each of 10 images. Beside the maximum over every stripe point (a thousand per
+//! position, so a much deeper tail), the same statistic is reported: 3 stripe points drawn at
+//! random per image (`paper_sample`, from its own random stream so the scenes do not change).
 
 use harvest_hw::alacs::{
     AlacsError, AlacsExtrinsics, AlacsRenderer, AlacsScene, AppleSphere, LaserRenderParams,
@@ -122,6 +127,9 @@ pub struct SlideAccuracy {
     pub points_true_extrinsics: AxisErrors,
     /// Apple-centre candidates.
     pub centres: AxisErrors,
+    /// Three stripe points drawn at random per image (the paper's 30 samples per position),
+    /// calibrated extrinsics.
+    pub paper_sample: AxisErrors,
     /// Used stripe points whose pixel ray does not hit the target apple.
     pub misattributed_points: usize,
 }
@@ -133,8 +141,16 @@ pub struct AccuracyReport {
     pub points: AxisErrors,
     pub points_true_extrinsics: AxisErrors,
     pub centres: AxisErrors,
+    /// Three random stripe points per image, all positions (the paper's protocol).
+    pub paper_sample: AxisErrors,
     pub paper_max_mm: [f64; 3],
 }
+
+/// Stripe points the paper takes per image (section 5.2).
+pub const PAPER_POINTS_PER_IMAGE: usize = 3;
+
+/// Decorrelates the paper-sample draws from the scene stream.
+const PAPER_SAMPLE_STREAM: u64 = 0x5a3c_9e1d_27b4_f60b;
 
 /// Why the evaluation could not run.
 #[derive(Debug, thiserror::Error)]
@@ -191,6 +207,8 @@ pub fn evaluate_localization_accuracy(
     let mut processor = ScanProcessor::new(intrinsics, *calibrated, ProcessorConfig::default())?;
     let ideal = LaserTriangulator::new(intrinsics, *truth);
     let mut rng = SmallRng::seed_from_u64(config.seed);
+    let mut sample_rng = SmallRng::seed_from_u64(config.seed ^ PAPER_SAMPLE_STREAM);
+    let mut image_points: Vec<([f64; 3], [f64; 3])> = Vec::new();
     let unit_normal = Normal::new(0.0, 1.0).map_err(|_| AccuracyError::InvalidConfig {
         name: "normal",
         value: 1.0,
@@ -206,6 +224,7 @@ pub fn evaluate_localization_accuracy(
             points: AxisErrors::default(),
             points_true_extrinsics: AxisErrors::default(),
             centres: AxisErrors::default(),
+            paper_sample: AxisErrors::default(),
             misattributed_points: 0,
         };
         for depth_index in 0..config.depths {
@@ -253,6 +272,7 @@ pub fn evaluate_localization_accuracy(
             result.images_with_candidate += 1;
             result.centres.add(candidate.centre_in_camera_m, centre);
             let points = processor.last_points();
+            image_points.clear();
             for &index in processor.last_inliers() {
                 let point = &points[index];
                 let (u_bar, v_bar) = intrinsics.normalize(point.u_px, point.v_px);
@@ -264,6 +284,7 @@ pub fn evaluate_localization_accuracy(
                 result
                     .points
                     .add(point.point_in_camera_m, hit.point_in_camera_m);
+                image_points.push((point.point_in_camera_m, hit.point_in_camera_m));
                 if let Some(ideal_point) =
                     ideal.point_from_pixel(slide_position_m, point.u_px, point.v_px)
                 {
@@ -272,6 +293,11 @@ pub fn evaluate_localization_accuracy(
                         .add(ideal_point, hit.point_in_camera_m);
                 }
             }
+            let draws = PAPER_POINTS_PER_IMAGE.min(image_points.len());
+            for index in rand::seq::index::sample(&mut sample_rng, image_points.len(), draws) {
+                let (estimate, truth_point) = image_points[index];
+                result.paper_sample.add(estimate, truth_point);
+            }
         }
         tracing::debug!(?result, "ALACS accuracy at one slide position");
         per_slide.push(result);
@@ -279,16 +305,19 @@ pub fn evaluate_localization_accuracy(
     let mut points = AxisErrors::default();
     let mut points_true_extrinsics = AxisErrors::default();
     let mut centres = AxisErrors::default();
+    let mut paper_sample = AxisErrors::default();
     for slide in &per_slide {
         points.merge(&slide.points);
         points_true_extrinsics.merge(&slide.points_true_extrinsics);
         centres.merge(&slide.centres);
+        paper_sample.merge(&slide.paper_sample);
     }
     Ok(AccuracyReport {
         per_slide,
         points,
         points_true_extrinsics,
         centres,
+        paper_sample,
         paper_max_mm: PAPER_MAX_ERROR_MM,
     })
 }
@@ -406,37 +435,40 @@ impl std::fmt::Display for AccuracyReport {
         )?;
         writeln!(
             f,
-            "{:>6} {:>7} {:>7} {:>22} {:>22} {:>22} {:>6}",
+            "{:>6} {:>7} {:>7} {:>22} {:>22} {:>22} {:>22} {:>6}",
             "d cm",
             "images",
             "points",
             "stripe pts, calibrated",
             "stripe pts, true extr.",
+            "3 pts/image (paper)",
             "apple centres",
             "wrong"
         )?;
         for slide in &self.per_slide {
             writeln!(
                 f,
-                "{:>6.1} {:>3}/{:<3} {:>7} {:>22} {:>22} {:>22} {:>6}",
+                "{:>6.1} {:>3}/{:<3} {:>7} {:>22} {:>22} {:>22} {:>22} {:>6}",
                 slide.slide_position_m * 100.0,
                 slide.images_with_candidate,
                 slide.images,
                 slide.points.count,
                 cell(&slide.points),
                 cell(&slide.points_true_extrinsics),
+                cell(&slide.paper_sample),
                 cell(&slide.centres),
                 slide.misattributed_points
             )?;
         }
         writeln!(
             f,
-            "{:>6} {:>7} {:>7} {:>22} {:>22} {:>22}",
+            "{:>6} {:>7} {:>7} {:>22} {:>22} {:>22} {:>22}",
             "all",
             "",
             self.points.count,
             cell(&self.points),
             cell(&self.points_true_extrinsics),
+            cell(&self.paper_sample),
             cell(&self.centres)
         )?;
         writeln!(
@@ -490,5 +522,10 @@ mod tests {
             "{report}"
         );
         assert_eq!(report.points, report.points_true_extrinsics);
+        // The paper's protocol: 3 points per image, a subset of all the points.
+        assert_eq!(report.paper_sample.count, 3 * 6);
+        for axis in 0..3 {
+            assert!(report.paper_sample.max_abs_mm[axis] <= report.points.max_abs_mm[axis]);
+        }
     }
 }

@@ -27,9 +27,16 @@ pub struct CalibrateLaserArgs {
     /// Seed of the generated samples and of the RANSAC draws.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// RANSAC inlier threshold epsilon on |z - z_hat|, mm.
+    /// RANSAC inlier threshold epsilon on |z - z_hat|, mm (the floor when
+    /// --epsilon-scale-sigmas is positive).
     #[arg(long, default_value_t = 2.0)]
     pub epsilon_mm: f64,
+    /// Each RANSAC method's threshold is max(epsilon, this many least-median-of-squares
+    /// standard deviations of its own model); 0 uses epsilon alone. 2.5 is Rousseeuw's
+    /// reweighting cut-off. It keeps the low-fidelity model (method 2), which cannot fit clean
+    /// data to 2 mm, from voting out good samples with the outliers.
+    #[arg(long, default_value_t = 2.5)]
+    pub epsilon_scale_sigmas: f64,
     /// RANSAC hypotheses k_max.
     #[arg(long, default_value_t = 200)]
     pub iterations: usize,
@@ -75,6 +82,13 @@ pub fn run_calibrate_laser_to(
     args: &CalibrateLaserArgs,
     out: &mut impl Write,
 ) -> Result<CalibrationReport, CalibrateLaserError> {
+    if !(args.epsilon_scale_sigmas.is_finite() && args.epsilon_scale_sigmas >= 0.0) {
+        return Err(CalibrateLaserError::InvalidArgument {
+            name: "epsilon-scale-sigmas",
+            value: args.epsilon_scale_sigmas.to_string(),
+            reason: "must be a non-negative number of standard deviations",
+        });
+    }
     if !(args.epsilon_mm.is_finite() && args.epsilon_mm > 0.0) {
         return Err(CalibrateLaserError::InvalidArgument {
             name: "epsilon-mm",
@@ -104,6 +118,7 @@ pub fn run_calibrate_laser_to(
         ransac: RansacOptions {
             iterations: args.iterations,
             epsilon_m: args.epsilon_mm * 1e-3,
+            scale_sigmas: args.epsilon_scale_sigmas,
             seed: args.seed,
         },
         ..CalibrationOptions::default()

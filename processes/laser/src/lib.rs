@@ -6,7 +6,8 @@
 //! The scan algorithms are transport-free; [`service`] answers one scan request on any ALACS
 //! unit, [`process`] is the `harvest laser` process around it (IPC, heartbeats), and
 //! [`refinement`] measures what the scan adds to the ToF camera's localisation
-//! (`harvest eval laser`).
+//! (`harvest eval laser`), [`policy_eval`] what perception's scan policy gains and costs
+//! (`harvest eval laser --policy`).
 
 pub mod accuracy;
 pub mod calibration;
@@ -15,6 +16,7 @@ pub mod cli;
 pub mod extraction;
 pub mod fusion;
 pub mod observed_unit;
+pub mod policy_eval;
 pub mod process;
 pub mod refinement;
 pub mod scan;
@@ -27,6 +29,7 @@ pub use candidate::{CandidateConfig, PositionCandidate, TargetHint};
 pub use cli::{CalibrateLaserArgs, CalibrateLaserError, run_calibrate_laser};
 pub use extraction::{ExtractionConfig, LaserLineExtractor, PixelRoi, StripePoint};
 pub use process::{LaserArgs, LaserProcessError};
+pub use policy_eval::{PolicyReport, evaluate_policy};
 pub use refinement::{
     EvalLaserArgs, EvalLaserError, RefinementReport, evaluate_refinement, run_eval_laser,
 };

@@ -75,6 +75,22 @@ pub struct EvalLaserArgs {
     /// Also write the report (with every apple) as JSON to this file.
     #[arg(long, value_name = "PATH")]
     pub json: Option<PathBuf>,
+    /// Scan only the apples perception's scan policy asks for, as the running stack does
+    /// (tracks over frames, scans answered after their modelled duration, refined positions
+    /// applied to later detections), and report the published positions with and without the
+    /// scans. Without it every paired apple is scanned.
+    #[arg(long)]
+    pub policy: bool,
+    /// Perception configuration (TOML) whose `[laser]` policy is used with --policy; default:
+    /// perception's built-in values.
+    #[arg(long, value_name = "PATH")]
+    pub perception_config: Option<PathBuf>,
+    /// With --policy: simulated time per world, s.
+    #[arg(long, default_value_t = 12.0)]
+    pub duration_s: f64,
+    /// With --policy: time between the camera frames perception processes, ms.
+    #[arg(long, default_value_t = 200.0)]
+    pub frame_interval_ms: f64,
 }
 
 /// Why the evaluation could not run.
@@ -230,18 +246,31 @@ pub struct RefinementReport {
     pub apples: Vec<AppleRecord>,
 }
 
-/// Runs the evaluation, prints the summary to stdout and writes the JSON report if asked.
-pub fn run_eval_laser(args: &EvalLaserArgs) -> Result<RefinementReport, EvalLaserError> {
-    let report = evaluate_refinement(args)?;
-    print!("{}", render_report(&report));
+/// Runs the evaluation (every paired apple scanned, or with `--policy` perception's scan
+/// policy), prints the summary to stdout and writes the JSON report if asked.
+pub fn run_eval_laser(args: &EvalLaserArgs) -> Result<(), EvalLaserError> {
+    let text = if args.policy {
+        let report = crate::policy_eval::evaluate_policy(args)?;
+        write_json(args, &report)?;
+        crate::policy_eval::render_policy_report(&report)
+    } else {
+        let report = evaluate_refinement(args)?;
+        write_json(args, &report)?;
+        render_report(&report)
+    };
+    print!("{text}");
+    Ok(())
+}
+
+fn write_json(args: &EvalLaserArgs, report: &impl Serialize) -> Result<(), EvalLaserError> {
     if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&report)?;
+        let text = serde_json::to_string_pretty(report)?;
         std::fs::write(path, text + "\n").map_err(|source| EvalLaserError::WriteJson {
             path: path.clone(),
             source,
         })?;
     }
-    Ok(report)
+    Ok(())
 }
 
 /// Runs the evaluation (prints nothing).
@@ -285,7 +314,9 @@ pub fn evaluate_refinement(args: &EvalLaserArgs) -> Result<RefinementReport, Eva
         apples_generated += world.apples().len();
         let color_from_robot = tof.robot_from_color.inverse();
         let estimates = tof.localise(world, frame_seq as u64)?;
-        for (estimate, apple_index) in pair_with_truth(world, estimates) {
+        let estimates = estimates.to_vec();
+        for (estimate_index, apple_index) in pair_with_truth(world, &estimates) {
+            let estimate = estimates[estimate_index];
             let apple = &world.apples()[apple_index];
             let truth_in_tof = color_from_robot.apply(apple.center_in_robot_m);
             let request = LaserScanRequest {
@@ -354,7 +385,7 @@ pub fn evaluate_refinement(args: &EvalLaserArgs) -> Result<RefinementReport, Eva
     Ok(summarise(args, timing, apples_generated, records))
 }
 
-fn check_args(args: &EvalLaserArgs) -> Result<(), EvalLaserError> {
+pub(crate) fn check_args(args: &EvalLaserArgs) -> Result<(), EvalLaserError> {
     let invalid = |name, value: String, reason| {
         Err(EvalLaserError::InvalidArgument {
             name,
@@ -383,21 +414,39 @@ fn check_args(args: &EvalLaserArgs) -> Result<(), EvalLaserError> {
             return invalid(name, value.to_string(), "must be a non-negative time");
         }
     }
+    for (name, value) in [
+        ("duration-s", args.duration_s),
+        ("frame-interval-ms", args.frame_interval_ms),
+    ] {
+        if !(value.is_finite() && value > 0.0) {
+            return invalid(name, value.to_string(), "must be a positive time");
+        }
+    }
+    if args.duration_s * 1e3 / args.frame_interval_ms > 1e5 {
+        return invalid(
+            "duration-s",
+            args.duration_s.to_string(),
+            "more than 100000 frames per world",
+        );
+    }
     Ok(())
 }
 
 /// The ToF camera and perception, as the stack runs them.
-struct TofPath {
+pub(crate) struct TofPath {
     renderer: RgbdRenderer,
-    perception: Perception,
-    robot_from_color: RigidTransform,
+    pub(crate) perception: Perception,
+    pub(crate) robot_from_color: RigidTransform,
     rgb: Vec<u8>,
     depth_mm: Vec<u16>,
     estimates: Vec<AppleEstimate>,
 }
 
 impl TofPath {
-    fn new(scenario: &Scenario, estimator: EstimatorChoice) -> Result<Self, EvalLaserError> {
+    pub(crate) fn new(
+        scenario: &Scenario,
+        estimator: EstimatorChoice,
+    ) -> Result<Self, EvalLaserError> {
         let renderer = RgbdRenderer::new(&scenario.camera)?;
         let robot_from_color = renderer.robot_from_color();
         let cameras = CameraSetup {
@@ -421,7 +470,7 @@ impl TofPath {
     }
 
     /// Renders the ToF frame of `world` and localises its apples (colour-camera frame).
-    fn localise(
+    pub(crate) fn localise(
         &mut self,
         world: &World,
         frame_seq: u64,
@@ -448,8 +497,9 @@ impl TofPath {
 }
 
 /// Pairs estimates with true apples on the tree: centres within [`MATCH_RADII`] true radii
-/// (robot frame), one to one, nearest pairs first.
-fn pair_with_truth(world: &World, estimates: &[AppleEstimate]) -> Vec<(AppleEstimate, usize)> {
+/// (robot frame), one to one, nearest pairs first. Returns `(estimate index, apple index)` in
+/// estimate order.
+pub(crate) fn pair_with_truth(world: &World, estimates: &[AppleEstimate]) -> Vec<(usize, usize)> {
     let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
     for (e, estimate) in estimates.iter().enumerate() {
         for (a, apple) in world.apples().iter().enumerate() {
@@ -476,7 +526,7 @@ fn pair_with_truth(world: &World, estimates: &[AppleEstimate]) -> Vec<(AppleEsti
     }
     // Scan in perception's order, as a harvest cycle would ask.
     paired.sort_unstable();
-    paired.into_iter().map(|(e, a)| (estimates[e], a)).collect()
+    paired
 }
 
 fn summarise(
@@ -677,7 +727,7 @@ pub fn render_report(report: &RefinementReport) -> String {
     out
 }
 
-fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+pub(crate) fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     norm([a[0] - b[0], a[1] - b[1], a[2] - b[2]])
 }
 
@@ -709,6 +759,10 @@ mod tests {
             settle_ms: 50.0,
             capture_ms: 40.0,
             json: None,
+            policy: false,
+            perception_config: None,
+            duration_s: 12.0,
+            frame_interval_ms: 200.0,
         };
         assert!(check_args(&args).is_ok());
         for bad in [
@@ -726,6 +780,10 @@ mod tests {
             },
             EvalLaserArgs {
                 seed: u64::MAX,
+                ..args.clone()
+            },
+            EvalLaserArgs {
+                frame_interval_ms: -1.0,
                 ..args.clone()
             },
         ] {

@@ -10,23 +10,30 @@
 //! 3. [`estimator`]: one 3D position per detection, either the paper's DBSCAN cluster-depth method
 //!    or the bias-free robust sphere fit, selected by [`estimator::EstimatorKind`].
 //! 4. Positions are reported in the colour camera frame and in the robot frame.
+//! 5. [`laser_refiner`]: apples are followed over frames; hard ones (heavily occluded, uncertain
+//!    depth: [`scan_policy`]) are sent to the ALACS laser scanner, and a scan's position replaces
+//!    the ToF estimate in the apple's later detections.
 //!
 //! "Camera frame" in this crate always means the colour (RGB) camera frame: x right, y down,
 //! z forward, metres.
 
+pub mod apple_tracks;
 pub mod blob_localization;
 pub mod calibration;
 pub mod camera_setup;
+pub mod config_file;
 pub mod dbscan;
 pub mod detector;
 pub mod estimate_checks;
 pub mod estimator;
 pub mod frame;
+pub mod laser_refiner;
 pub mod node;
 pub mod noise_model;
 pub mod pipeline;
 pub mod process;
 pub mod registration;
+pub mod scan_policy;
 pub mod stats;
 pub mod synthetic;
 pub mod timing;

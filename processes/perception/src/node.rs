@@ -1,16 +1,19 @@
 //! The perception process's logic, free of transport and clock: one camera frame in, one
-//! detections message out. The same type runs in the `perception` process, in-process under
+//! detections message out (plus the laser scans it asks for, and the scan results it takes
+//! whenever they come). The same type runs in the `perception` process, in-process under
 //! `harvest eval`, and on replayed recordings.
 
 use crate::calibration::Calibration;
 use crate::camera_setup::CameraSetup;
 use crate::estimator::EstimatorKind;
 use crate::frame::{DepthView, RgbView};
+use crate::laser_refiner::{LaserRefiner, ScanResultOutcome, TrackedApple};
 use crate::pipeline::{AppleEstimate, Perception, PerceptionConfig, PerceptionSetupError};
 use crate::stats::FrameStats;
 use harvest_ipc::payloads::apple_detections::MAX_APPLES_PER_FRAME;
 use harvest_ipc::payloads::{
-    AppleDetection, AppleDetections, LocalizationMethod, RgbdFrame, RgbdFrameMeta,
+    AppleDetection, AppleDetections, LaserScanRequest, LaserScanResult, LocalizationMethod,
+    RgbdFrame, RgbdFrameMeta,
 };
 
 /// Perception with its rig; rebuilt when a frame's camera metadata changes.
@@ -19,6 +22,8 @@ pub struct PerceptionNode {
     calibration: Calibration,
     pipeline: Option<(RgbdFrameMeta, Perception)>,
     apples: Vec<AppleEstimate>,
+    refiner: LaserRefiner,
+    tracked: Vec<TrackedApple>,
     frames_processed: u64,
     frames_rejected: u64,
 }
@@ -30,6 +35,8 @@ impl PerceptionNode {
             calibration,
             pipeline: None,
             apples: Vec::new(),
+            refiner: LaserRefiner::new(config.laser),
+            tracked: Vec::new(),
             frames_processed: 0,
             frames_rejected: 0,
         }
@@ -44,9 +51,36 @@ impl PerceptionNode {
         self.frames_rejected
     }
 
+    /// The laser scans asked for by the last [`Self::process`] call, to publish on
+    /// `laser/scan_request`.
+    pub fn scan_requests(&self) -> &[LaserScanRequest] {
+        self.refiner.requests()
+    }
+
+    /// Takes a `laser/scan_result`: the apple that asked for it is published at the scan's
+    /// position from its next detection on. Never blocks.
+    pub fn handle_scan_result(&mut self, result: &LaserScanResult) -> ScanResultOutcome {
+        self.refiner
+            .handle_result(result, &self.calibration.camera.robot_from_camera)
+    }
+
+    /// Tracks, scan policy and their counters.
+    pub fn laser_refiner(&self) -> &LaserRefiner {
+        &self.refiner
+    }
+
+    /// The apples of the last frame as estimated from the ToF frame alone (before any laser
+    /// refinement), in the order of the published detections.
+    pub fn last_estimates(&self) -> &[AppleEstimate] {
+        &self.apples
+    }
+
     /// Detects and localizes the apples of `frame` into `out` (which may be loaned shared
-    /// memory; every field of it is written). Returns the frame's statistics, or the setup
-    /// error when the frame's camera parameters are unusable (then `out` holds no apples).
+    /// memory; every field of it is written). Apples carry their track id as `apple_id`; a
+    /// laser-refined apple is published at the scan's position with method `LaserScan`. Scans
+    /// to ask for are in [`Self::scan_requests`] afterwards. Returns the frame's statistics,
+    /// or the setup error when the frame's camera parameters are unusable (then `out` holds no
+    /// apples).
     pub fn process(
         &mut self,
         frame: &RgbdFrame,
@@ -56,6 +90,7 @@ impl PerceptionNode {
         out.source_capture_ns = frame.header.capture_ns;
         out.processing_ns = 0;
         out.apples.clear();
+        self.refiner.clear_requests();
         self.frames_processed += 1;
         let mut apples = std::mem::take(&mut self.apples);
         let perception = match self.pipeline_for(&frame.meta) {
@@ -80,14 +115,35 @@ impl PerceptionNode {
         if stats.rejection.is_some() {
             self.frames_rejected += 1;
         }
+        let color = &frame.meta.rgb_intrinsics;
+        let color_focal_px = 0.5 * (color.fx_px + color.fy_px);
+        self.refiner.update(
+            &apples,
+            color_focal_px,
+            frame.header.capture_ns,
+            &mut self.tracked,
+        );
         out.processing_ns = stats.timings.total_us * 1000;
-        for (index, apple) in apples.iter().take(MAX_APPLES_PER_FRAME).enumerate() {
+        for (apple, tracked) in apples
+            .iter()
+            .zip(&self.tracked)
+            .take(MAX_APPLES_PER_FRAME)
+        {
+            let (method, position_in_camera_m, position_in_robot_m) =
+                match tracked.laser_position_m {
+                    Some((camera, robot)) => (LocalizationMethod::LaserScan, camera, robot),
+                    None => (
+                        localization_method(apple.estimator),
+                        apple.position_in_camera_m,
+                        apple.position_in_robot_m,
+                    ),
+                };
             let detection = AppleDetection {
-                apple_id: index as u32,
-                method: localization_method(apple.estimator) as u8,
+                apple_id: tracked.apple_id,
+                method: method as u8,
                 _reserved: [0; 3],
-                position_in_camera_m: apple.position_in_camera_m,
-                position_in_robot_m: apple.position_in_robot_m,
+                position_in_camera_m,
+                position_in_robot_m,
                 radius_m: apple.radius_m,
                 confidence: apple.confidence,
                 box_px: [

@@ -49,6 +49,7 @@ use crate::estimator::{
 use crate::frame::{DepthView, RgbView};
 use crate::noise_model::DepthNoiseModel;
 use crate::registration::{DepthRange, DepthRangeError, DepthRegistration};
+use crate::scan_policy::{LaserScanConfig, LaserScanConfigError};
 use crate::stats::{FrameStats, PerceptionStats};
 
 /// Blob radius over fruit radius: the simulator's and the sun's saturated disc slightly exceeds
@@ -105,6 +106,8 @@ pub struct PerceptionConfig {
     pub saturated_blob_max_asymmetry: f64,
     /// Position confidence of a confirmed blob's estimate (see `blob_estimate`).
     pub saturated_blob_position_confidence: f32,
+    /// Laser scans of hard apples (`[laser]`; see [`crate::scan_policy`]).
+    pub laser: LaserScanConfig,
 }
 
 impl Default for PerceptionConfig {
@@ -127,6 +130,7 @@ impl Default for PerceptionConfig {
             saturated_blob_max_flatness: 0.9,
             saturated_blob_max_asymmetry: 0.4,
             saturated_blob_position_confidence: 0.8,
+            laser: LaserScanConfig::default(),
         }
     }
 }
@@ -146,6 +150,9 @@ pub enum PerceptionSetupError {
     /// The depth range is invalid.
     #[error(transparent)]
     DepthRange(#[from] DepthRangeError),
+    /// A laser-scan setting is invalid.
+    #[error(transparent)]
+    Laser(#[from] LaserScanConfigError),
     /// A pipeline parameter is not finite or outside its range.
     #[error("perception config: {key} = {value} is not finite or outside {min}..={max}")]
     OutOfRange {
@@ -257,6 +264,7 @@ impl Perception {
     ) -> Result<Self, PerceptionSetupError> {
         cameras.validate()?;
         config.depth_range.validate()?;
+        config.laser.validate()?;
         let checks = [
             (
                 "min_detection_confidence",

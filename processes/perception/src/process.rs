@@ -3,12 +3,19 @@
 //! Event-driven: the wait set wakes on each frame; the frame is read in place in shared memory
 //! and the detections are written in place into a loaned sample. Only the newest frame is
 //! processed when several are queued (perception must not fall behind the camera).
+//!
+//! Laser refinement (`[laser]` in the config): before each frame every `laser/scan_result`
+//! that has arrived is taken (never waited for); after it, the scans the frame asked for are
+//! published on `laser/scan_request`.
 
 use crate::calibration::{Calibration, CalibrationError};
+use crate::config_file::{ConfigFileError, read_config};
 use crate::estimator::EstimatorKind;
 use crate::node::PerceptionNode;
 use crate::pipeline::PerceptionConfig;
-use harvest_ipc::catalogue::{CAMERA_RGBD, PERCEPTION_APPLES};
+use harvest_ipc::catalogue::{
+    CAMERA_RGBD, LASER_SCAN_REQUEST, LASER_SCAN_RESULT, PERCEPTION_APPLES,
+};
 use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
@@ -38,14 +45,23 @@ pub struct PerceptionArgs {
     /// Camera calibration (TOML); default: the simulated robot's camera mounting.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
+    /// Perception configuration (TOML, every key optional; see
+    /// processes/perception/config/default.toml); default: the built-in values.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     #[arg(long, value_enum, default_value = "sphere-fit")]
     pub estimator: EstimatorChoice,
+    /// Ask the laser scanner for no scans (overrides the config's `laser.enabled`).
+    #[arg(long)]
+    pub no_laser: bool,
 }
 
 #[derive(Debug, thiserror::Error)]
 pub enum PerceptionProcessError {
     #[error(transparent)]
     Calibration(#[from] CalibrationError),
+    #[error(transparent)]
+    Config(#[from] ConfigFileError),
     #[error(transparent)]
     Node(#[from] harvest_ipc::error::NodeError),
     #[error(transparent)]
@@ -68,25 +84,46 @@ pub fn run(
         Some(path) => Calibration::from_path(path)?,
         None => Calibration::default_calibration()?,
     };
-    let mut config = PerceptionConfig::default();
+    let mut config = match &args.config {
+        Some(path) => read_config(path)?,
+        None => PerceptionConfig::default(),
+    };
     config.estimator.kind = args.estimator.kind();
+    if args.no_laser {
+        config.laser.enabled = false;
+    }
     let mut node = PerceptionNode::new(config, calibration);
 
     let context = Context::new(domain, process_name)?;
     let frames = context.subscriber(CAMERA_RGBD)?;
     let mut detections = context.publisher(PERCEPTION_APPLES)?;
+    let scan_results = context.subscriber(LASER_SCAN_RESULT)?;
+    let mut scan_requests = context.publisher(LASER_SCAN_REQUEST)?;
     let mut health = HealthReporter::new(&context)?;
     let waiter = Waiter::new()?;
     let frame_guard = waiter.attach_listener(frames.listener())?;
     let heartbeat = waiter.attach_interval(HEARTBEAT_PERIOD)?;
     let mut last_receive_latency_ns = 0u64;
     let mut apples_published = 0u64;
-    tracing::info!(estimator = ?args.estimator, "perception running");
+    tracing::info!(
+        estimator = ?args.estimator,
+        laser = config.laser.enabled,
+        "perception running"
+    );
     waiter
         .run(|attachment| -> Result<Flow, PerceptionProcessError> {
             if attachment.has_event_from(&frame_guard)
                 && let Some(frame) = frames.receive_latest()?
             {
+                while let Some(result) = scan_results.receive()? {
+                    let outcome = node.handle_scan_result(&result);
+                    tracing::debug!(
+                        request_seq = result.request_seq,
+                        apple_id = result.apple_id,
+                        ?outcome,
+                        "laser scan result"
+                    );
+                }
                 let received_ns = MonotonicClock::read_ns();
                 last_receive_latency_ns = received_ns.saturating_sub(frame.header.publish_ns);
                 let mut out = detections.loan()?;
@@ -96,6 +133,9 @@ pub fn run(
                 drop(frame);
                 detections.send(out)?;
                 apples_published += count as u64;
+                for request in node.scan_requests() {
+                    scan_requests.publish(request)?;
+                }
                 match result {
                     Ok(stats) => tracing::trace!(
                         apples = count,
@@ -131,6 +171,7 @@ pub fn run(
         rejected = node.frames_rejected(),
         dropped = frames.dropped_count(),
         apples = apples_published,
+        laser = ?node.laser_refiner().stats(),
         "perception stopped"
     );
     Ok(())

@@ -7,8 +7,10 @@
 
 pub mod alacs_device;
 pub mod ground_truth;
+pub mod lidar_device;
 pub mod orchard;
 pub mod physics;
+pub mod platform_device;
 pub mod process;
 pub mod render_rate;
 pub mod render_rgbd;

@@ -4,6 +4,10 @@
 //! - each arm's servo set-points (`hw/armN/servo`) in, encoder feedback (`hw/armN/encoders`) out;
 //! - the valve board's commands (`hw/valves/command`) in, readings (`hw/valves/readings`) out;
 //! - the ALACS unit's commands (`hw/alacs/command`) in, its images (`hw/alacs/image`) out;
+//! - the platform's targets (`hw/platform/command`) in, its positions (`hw/platform/feedback`)
+//!   out at 50 Hz (see [`crate::platform_device`]);
+//! - with `--lidar`, the solid-state LiDAR's point frames on `hw/lidar/points` at 10 Hz (see
+//!   [`crate::lidar_device`]);
 //! - the true apples on `sim/ground_truth` (evaluation only).
 //!
 //! The loop is one wait set: each device has an interval at its own period (the simulated
@@ -11,8 +15,10 @@
 //! 10 Hz) and the loop sleeps in between. Simulated time advances with the host clock.
 
 use crate::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer};
+use crate::lidar_device::{LidarDeviceConfig, LidarDevicePort};
 use crate::orchard::AppleState;
 use crate::physics::Arm;
+use crate::platform_device::{PlatformDeviceConfig, PlatformDeviceServer};
 use crate::render_rgbd::RgbdRenderer;
 use crate::robot::SimRobot;
 use crate::scenario::Scenario;
@@ -42,6 +48,9 @@ pub struct SimArgs {
     /// Frame rate of the simulated ToF camera.
     #[arg(long, default_value_t = 30.0)]
     pub camera_rate_hz: f64,
+    /// Also simulate the solid-state LiDAR (Livox Mid-70) on `hw/lidar/points`.
+    #[arg(long)]
+    pub lidar: bool,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -58,6 +67,10 @@ pub enum SimError {
     Receive(#[from] harvest_ipc::error::ReceiveError),
     #[error(transparent)]
     Alacs(#[from] harvest_hw::alacs::AlacsError),
+    #[error(transparent)]
+    Platform(#[from] crate::platform_device::PlatformDeviceError),
+    #[error(transparent)]
+    Lidar(#[from] crate::lidar_device::LidarDeviceError),
     #[error(transparent)]
     Node(#[from] harvest_ipc::error::NodeError),
     #[error(transparent)]
@@ -202,6 +215,16 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
     let alacs_guard = waiter.attach_listener(alacs_commands.listener())?;
     let physics_tick = waiter.attach_interval(PHYSICS_PERIOD)?;
     let truth_tick = waiter.attach_interval(GROUND_TRUTH_PERIOD)?;
+    let mut platform = PlatformDeviceServer::open(&context, PlatformDeviceConfig::default())?;
+    let platform_tick = waiter.attach_interval(platform.period())?;
+    let mut lidar = args
+        .lidar
+        .then(|| LidarDevicePort::open(&context, LidarDeviceConfig::default()))
+        .transpose()?;
+    let lidar_tick = lidar
+        .as_ref()
+        .map(|lidar| waiter.attach_interval(lidar.period()))
+        .transpose()?;
     let mut last_physics = Instant::now();
     let color_from_depth = renderer
         .robot_from_color()
@@ -253,6 +276,14 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
                     alacs.handle(robot.world(), &command, &mut image);
                     alacs_images.send(image)?;
                 }
+            }
+            if attachment.has_event_from(&platform_tick) {
+                platform.tick()?;
+            }
+            if let (Some(lidar), Some(tick)) = (lidar.as_mut(), lidar_tick.as_ref())
+                && attachment.has_event_from(tick)
+            {
+                lidar.tick(robot.world())?;
             }
             if attachment.has_event_from(&truth_tick) {
                 publish_ground_truth(&robot, &mut truth_out)?;

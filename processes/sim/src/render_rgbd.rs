@@ -21,9 +21,12 @@
 //! deviation of zero-mean Gaussian noise, `sigma = 4 mm + 0.0025 z`, independent per pixel and per
 //! frame (seeded by world seed and frame number), outside 0.3-9.5 m the pixel reads 0.
 //!
-//! Over-exposure (Table 3, "Exposure"): around each apple flagged over-exposed, a disc of
-//! `overexposed_patch_scale` apple radii saturates towards white in RGB; in depth the noise grows
-//! up to `overexposed_depth_noise_gain` and pixels drop out with up to
+//! Over-exposure (Table 3, "Exposure"): an apple flagged over-exposed reflects direct sunlight
+//! into the lens (a specular, saturated highlight on its waxy skin). The highlight is a disc of
+//! `overexposed_patch_scale` apple radii around the apple's projected centre, but only the apple's
+//! own visible pixels are affected: leaves and branches in front of it keep their own colour and
+//! depth. On those pixels the RGB saturates towards white; in depth the noise grows up to
+//! `overexposed_depth_noise_gain` and pixels drop out with up to
 //! `overexposed_dropout_probability`, both tapering to the disc's edge.
 
 use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
@@ -232,6 +235,8 @@ struct SpherePrim {
     blush_axis: V3,
     /// Blush where `n . axis > 1 - 2 f` (a cap of area fraction `f`).
     blush_cos: f32,
+    /// Specular highlight of an over-exposed apple; `None` for a normally lit one.
+    glare: Option<GlareDisc>,
     area: PixelBox,
 }
 
@@ -274,11 +279,19 @@ struct CylinderPrim {
     area: PixelBox,
 }
 
-/// An over-exposed disc in normalised image coordinates.
+/// The highlight disc of an over-exposed apple, in normalised image coordinates.
 #[derive(Debug, Clone, Copy)]
-struct GlarePrim {
+struct GlareDisc {
     center: [f32; 2],
     inv_radius_sq: f32,
+}
+
+/// An over-exposed apple's highlight disc with its pixel box and the apple's label: only pixels
+/// the apple itself wins are affected.
+#[derive(Debug, Clone, Copy)]
+struct GlarePrim {
+    disc: GlareDisc,
+    label: u32,
     area: PixelBox,
 }
 
@@ -325,30 +338,34 @@ impl Scene {
                 continue;
             };
             let center = to_f32(c);
+            let label = label::APPLE_BASE + apple.id.0;
+            let mut glare = None;
+            if apple.overexposed && patch_scale > 0.0 {
+                let radius = patch_scale * r / c[2];
+                let (cx, cy) = (c[0] / c[2], c[1] / c[2]);
+                let disc = GlareDisc {
+                    center: [cx as f32, cy as f32],
+                    inv_radius_sq: (1.0 / (radius * radius)) as f32,
+                };
+                glare = Some(disc);
+                if let Some(area) =
+                    camera.pixel_box(cx - radius, cx + radius, cy - radius, cy + radius)
+                {
+                    self.glare.push(GlarePrim { disc, label, area });
+                }
+            }
             self.spheres.push(SpherePrim {
                 center,
                 inv_radius: (1.0 / r) as f32,
                 c_sq_minus_r_sq: (c[0] * c[0] + c[1] * c[1] + c[2] * c[2] - r * r) as f32,
-                label: label::APPLE_BASE + apple.id.0,
+                label,
                 blush: apple.blush_rgb,
                 ground: apple.ground_rgb,
                 blush_axis: to_f32(pose.rotate(apple.blush_axis_in_robot)),
                 blush_cos: (1.0 - 2.0 * apple.blush_fraction) as f32,
+                glare,
                 area,
             });
-            if apple.overexposed {
-                let radius = patch_scale * r / c[2];
-                let (cx, cy) = (c[0] / c[2], c[1] / c[2]);
-                if let Some(area) =
-                    camera.pixel_box(cx - radius, cx + radius, cy - radius, cy + radius)
-                {
-                    self.glare.push(GlarePrim {
-                        center: [cx as f32, cy as f32],
-                        inv_radius_sq: (1.0 / (radius * radius)) as f32,
-                        area,
-                    });
-                }
-            }
         }
         for leaf in world.leaves() {
             let c = pose.apply(leaf.center_in_robot_m);
@@ -571,6 +588,31 @@ trait Shader {
 /// Depth only: nothing but the z-buffer.
 struct DepthOnly;
 
+/// Depth plus, per pixel, the label of the apple that owns it (0 for anything else), so the
+/// over-exposure pass can corrupt only the over-exposed apple's own pixels.
+struct DepthOwners<'a> {
+    owner: &'a mut [u32],
+}
+
+impl Shader for DepthOwners<'_> {
+    #[inline(always)]
+    fn sphere(&mut self, pixel: usize, prim: &SpherePrim, _: V3) {
+        self.owner[pixel] = prim.label;
+    }
+    #[inline(always)]
+    fn disc(&mut self, pixel: usize, _: &DiscPrim, _: f32) {
+        self.owner[pixel] = 0;
+    }
+    #[inline(always)]
+    fn cylinder(&mut self, pixel: usize, _: &CylinderPrim, _: V3, _: f32) {
+        self.owner[pixel] = 0;
+    }
+    #[inline(always)]
+    fn backdrop(&mut self, pixel: usize, _: BackdropHit) {
+        self.owner[pixel] = 0;
+    }
+}
+
 impl Shader for DepthOnly {
     #[inline(always)]
     fn sphere(&mut self, _: usize, _: &SpherePrim, _: V3) {}
@@ -676,10 +718,22 @@ impl Shader for Colors<'_> {
         let blush = ((dot(n, prim.blush_axis) - prim.blush_cos) * 2.5 + 0.5).clamp(0.0, 1.0);
         let light = self.ambient + self.sun_intensity * diffuse;
         let shine = self.specular * self.sun_intensity * highlight * 255.0;
-        let rgb = std::array::from_fn(|k| {
+        let mut rgb: V3 = std::array::from_fn(|k| {
             let albedo = prim.ground[k] + (prim.blush[k] - prim.ground[k]) * blush;
             albedo * light * 255.0 + shine
         });
+        if let Some(glare) = &prim.glare {
+            // Sunlight reflected by the apple's own skin saturates it towards white. A later,
+            // nearer leaf or branch overwrites this pixel with its own colour.
+            let weight = glare_weight(glare, [hit[0] / hit[2], hit[1] / hit[2]]);
+            if weight > 0.0 {
+                let saturation = (1.6 * weight).min(1.0);
+                for c in &mut rgb {
+                    let clipped = c.clamp(0.0, 255.0);
+                    *c = clipped + (255.0 - clipped) * saturation;
+                }
+            }
+        }
         self.put(pixel, rgb);
     }
 
@@ -891,6 +945,9 @@ pub struct RgbdRenderer {
     depth: RasterCamera,
     camera: CameraConfig,
     scene: Scene,
+    /// Per depth pixel, the label of the apple that won it (0 = not an apple); only filled for
+    /// frames with over-exposed apples.
+    depth_owner: Vec<u32>,
 }
 
 impl RgbdRenderer {
@@ -904,6 +961,7 @@ impl RgbdRenderer {
             depth: RasterCamera::new(camera.depth_intrinsics(), robot_from_depth),
             camera: camera.clone(),
             scene: Scene::default(),
+            depth_owner: Vec::new(),
         })
     }
 
@@ -964,28 +1022,9 @@ impl RgbdRenderer {
         rgb_out.copy_from_slice(&camera.backdrop.rgb);
         self.scene
             .prepare(world, &self.color, self.camera.overexposed_patch_scale);
+        // Over-exposed apples are saturated in the sphere shader, on their own pixels only.
         let mut shader = Colors::new(world, &self.color.camera_from_robot, rgb_out);
         rasterize(&mut self.color, &self.scene, &mut shader);
-        // Sunlight saturates the over-exposed discs towards white.
-        let rgb_out = shader.out;
-        let width = self.color.width;
-        for glare in &self.scene.glare {
-            let a = glare.area;
-            for v in a.v0..=a.v1 {
-                for u in a.u0..=a.u1 {
-                    let pixel = v * width + u;
-                    let weight = glare_weight(glare, self.color.rays[pixel]);
-                    if weight <= 0.0 {
-                        continue;
-                    }
-                    let saturation = (1.6 * weight).min(1.0);
-                    for channel in &mut rgb_out[3 * pixel..3 * pixel + 3] {
-                        let c = f32::from(*channel);
-                        *channel = (c + (255.0 - c) * saturation) as u8;
-                    }
-                }
-            }
-        }
         tracing::trace!(
             apples = self.scene.spheres.len(),
             leaves = self.scene.discs.len(),
@@ -1016,14 +1055,24 @@ impl RgbdRenderer {
         camera.z_m.copy_from_slice(&camera.backdrop.z_m);
         self.scene
             .prepare(world, &self.depth, self.camera.overexposed_patch_scale);
-        rasterize(&mut self.depth, &self.scene, &mut DepthOnly);
+        if self.scene.glare.is_empty() {
+            rasterize(&mut self.depth, &self.scene, &mut DepthOnly);
+        } else {
+            self.depth_owner.clear();
+            self.depth_owner.resize(self.depth.z_m.len(), 0);
+            let mut shader = DepthOwners {
+                owner: &mut self.depth_owner,
+            };
+            rasterize(&mut self.depth, &self.scene, &mut shader);
+        }
         let mut rng = SmallRng::seed_from_u64(
             world.seed() ^ DEPTH_NOISE_STREAM ^ frame_seq.wrapping_mul(0xa24b_aed4_963e_e407),
         );
         let camera = &self.camera;
         let sigma_const_m = (camera.depth_noise_mm / 1000.0) as f32;
         let sigma_fraction = camera.depth_noise_fraction as f32;
-        // Over-exposed discs: extra noise and dropouts, tapering to the disc edge.
+        // Over-exposed apples: extra noise and dropouts on their own pixels, tapering to the
+        // highlight disc's edge.
         let width = self.depth.width;
         let gain = camera.overexposed_depth_noise_gain as f32;
         let dropout = camera.overexposed_dropout_probability as f32;
@@ -1032,7 +1081,10 @@ impl RgbdRenderer {
             for v in a.v0..=a.v1 {
                 for u in a.u0..=a.u1 {
                     let pixel = v * width + u;
-                    let weight = glare_weight(glare, self.depth.rays[pixel]);
+                    if self.depth_owner.get(pixel) != Some(&glare.label) {
+                        continue;
+                    }
+                    let weight = glare_weight(&glare.disc, self.depth.rays[pixel]);
                     let z = self.depth.z_m[pixel];
                     if weight <= 0.0 || !z.is_finite() {
                         continue;
@@ -1090,7 +1142,7 @@ impl RgbdRenderer {
 
 /// Glare weight at a ray: `1 - (d / R)^2` inside the disc, else <= 0.
 #[inline(always)]
-fn glare_weight(glare: &GlarePrim, ray: [f32; 2]) -> f32 {
+fn glare_weight(glare: &GlareDisc, ray: [f32; 2]) -> f32 {
     let dx = ray[0] - glare.center[0];
     let dy = ray[1] - glare.center[1];
     1.0 - (dx * dx + dy * dy) * glare.inv_radius_sq
@@ -1262,6 +1314,50 @@ mod tests {
         }
         let dropouts = |d: &[u16]| d.iter().filter(|&&z| z == 0).count();
         assert!(dropouts(&frames.depth_mm) > dropouts(&clean.depth_mm) + 100);
+    }
+
+    #[test]
+    fn overexposure_leaves_occluders_in_their_own_colour() {
+        // Every apple over-exposed and most of them behind extra leaves.
+        let mut scenario = Scenario::preset("default").expect("default");
+        scenario.failures.camera_overexposure = 1.0;
+        scenario.failures.heavy_occlusion = 1.0;
+        let world = World::generate(&scenario, 7).expect("world");
+        let (_, glaring) = render(&world, 0);
+        // The same world rendered without any highlight.
+        let mut camera = scenario.camera.clone();
+        camera.overexposed_patch_scale = 0.0;
+        let mut renderer = RgbdRenderer::new(&camera).expect("renderer");
+        let mut plain = vec![0u8; glaring.rgb.len()];
+        renderer.render_color(&world, &mut plain).expect("rgb");
+        let (mut occluder_pixels, mut saturated_apple_pixels) = (0usize, 0usize);
+        for (pixel, &label) in glaring.labels.iter().enumerate() {
+            let rgb = 3 * pixel..3 * pixel + 3;
+            if apple_from_label(label).is_some() {
+                if glaring.rgb[rgb.clone()] != plain[rgb.clone()]
+                    && glaring.rgb[rgb].iter().all(|&c| c >= 250)
+                {
+                    saturated_apple_pixels += 1;
+                }
+            } else {
+                assert_eq!(
+                    glaring.rgb[rgb.clone()],
+                    plain[rgb],
+                    "pixel {pixel} (label {label}) changed by an apple's highlight"
+                );
+                if label == label::LEAF || label == label::WOOD {
+                    occluder_pixels += 1;
+                }
+            }
+        }
+        assert!(
+            occluder_pixels > 100_000,
+            "{occluder_pixels} occluder pixels"
+        );
+        assert!(
+            saturated_apple_pixels > 10_000,
+            "{saturated_apple_pixels} saturated apple pixels"
+        );
     }
 
     #[test]

@@ -33,6 +33,7 @@ pub const KNOWN_COMMANDS: &[&str] = &[
     "arm",
     "vacuum",
     "laser",
+    "lidar",
     "recorder",
     "fixture",
 ];
@@ -287,6 +288,22 @@ mod tests {
     fn default_launch_is_valid() {
         let launch = Launch::default_stack().expect("default launch parses");
         assert!(launch.processes.iter().any(|p| p.command == "camera"));
+    }
+
+    #[test]
+    fn every_shipped_launch_file_is_valid() {
+        let folder = Path::new(env!("CARGO_MANIFEST_DIR")).join("launch");
+        let mut checked = 0;
+        for entry in std::fs::read_dir(&folder).expect("launch folder") {
+            let path = entry.expect("entry").path();
+            if path.extension().is_some_and(|ext| ext == "toml") {
+                let launch = Launch::from_path(&path)
+                    .unwrap_or_else(|error| panic!("{}: {error}", path.display()));
+                assert!(!launch.processes.is_empty(), "{}", path.display());
+                checked += 1;
+            }
+        }
+        assert!(checked >= 2, "default and lidar profiles at least");
     }
 
     #[test]

@@ -4,15 +4,23 @@
 //! housekeeping interval reaps children (`waitpid` without blocking), starts processes whose
 //! backoff has elapsed, kills hung ones, and refreshes the status. Housekeeping is not a hot
 //! path; the processes' own loops are event-driven.
+//!
+//! The harvest itself is followed on `harvest/events`: each event worth showing becomes a line
+//! on stdout ([`harvest_vacuum::harvest_log::HarvestLog`]), and the harvest summary (attempted,
+//! harvested, success rate, first-attempt successes, cycle times) is part of the final
+//! [`Summary`]. With [`UpOptions::until_harvested`] the stack stops once the vacuum supervisor
+//! reports that nothing is left to pick.
 
 use crate::child;
 use crate::launch::{Launch, ProcessSpec};
 use crate::restart_tracker::{RestartDecision, RestartTracker};
 use crate::status::{self, ProcessPhase, ProcessStatus};
-use harvest_ipc::catalogue::PROCESS_HEALTH;
-use harvest_ipc::{Context, Domain, Flow, RunEnd, Waiter};
+use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH};
+use harvest_ipc::{Context, Domain, Flow, MonotonicClock, RunEnd, Waiter};
+use harvest_vacuum::harvest_log::{HarvestLog, HarvestLogSummary};
 use nix::sys::signal::Signal;
 use std::io::IsTerminal;
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::{Child, ExitStatus};
 use std::time::{Duration, Instant};
@@ -32,6 +40,9 @@ pub struct UpOptions {
     pub duration: Option<Duration>,
     /// The `harvest` executable children are started from.
     pub executable: PathBuf,
+    /// Stop once the vacuum supervisor reports the harvest complete (`HarvestComplete` on
+    /// `harvest/events`).
+    pub until_harvested: bool,
 }
 
 /// How the run ended.
@@ -42,9 +53,18 @@ pub struct Summary {
     pub failure: Option<String>,
     pub ended_by: String,
     pub leftover_files: Vec<PathBuf>,
+    /// The harvest as `harvest/events` told it (None when no harvest event arrived).
+    pub harvest: Option<HarvestLogSummary>,
 }
 
 impl Summary {
+    /// The harvest summary (what `harvest up` prints on stdout at the end), if any harvest
+    /// event arrived.
+    pub fn render_harvest(&self) -> Option<String> {
+        self.harvest.as_ref().map(ToString::to_string)
+    }
+
+    /// The processes' final states (what `harvest up` prints on stderr at the end).
     pub fn render(&self) -> String {
         let mut out = format!("harvest up ended: {}\n", self.ended_by);
         for process in &self.processes {
@@ -79,8 +99,10 @@ impl Summary {
 pub enum SupervisorError {
     #[error("supervisor node: {0}")]
     Node(#[from] harvest_ipc::error::NodeError),
-    #[error("supervisor health channel: {0}")]
+    #[error("supervisor channel: {0}")]
     Channel(#[from] harvest_ipc::error::OpenChannelError),
+    #[error("supervisor receiving harvest events: {0}")]
+    Receive(#[from] harvest_ipc::error::ReceiveError),
     #[error("supervisor event loop: {0}")]
     Wait(#[from] harvest_ipc::error::WaitError),
     #[error("cleaning stale resources: {0}")]
@@ -106,6 +128,10 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     let waiter = Waiter::new()?;
     let health_guard = waiter.attach_listener(health.listener())?;
     let tick_guard = waiter.attach_interval(HOUSEKEEPING_PERIOD)?;
+    let events = context.subscriber_with_buffer(HARVEST_EVENTS, 256)?;
+    let events_guard = waiter.attach_listener(events.listener())?;
+    let mut harvest_log = HarvestLog::new(MonotonicClock::read_ns());
+    let mut harvest_events = 0u64;
 
     let stack = options.launch.stack;
     let started = Instant::now();
@@ -154,6 +180,31 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
 
     let run_end = waiter.run(|attachment| -> Result<Flow, SupervisorError> {
         let now = Instant::now();
+        if attachment.has_event_from(&events_guard) {
+            let mut lines = Vec::new();
+            while let Some(event) = events.receive()? {
+                harvest_events += 1;
+                if let Some(line) = harvest_log.on_event(&event) {
+                    lines.push(line);
+                }
+            }
+            if !lines.is_empty() {
+                if tty && status_lines > 0 {
+                    // Clear the in-place status block; it is drawn again below the lines.
+                    eprint!("\x1b[{status_lines}A\x1b[J");
+                    status_lines = 0;
+                }
+                let mut stdout = std::io::stdout().lock();
+                for line in &lines {
+                    let _ = writeln!(stdout, "{line}");
+                }
+                let _ = stdout.flush();
+            }
+            if options.until_harvested && harvest_log.complete() {
+                ended_by = "harvest complete".to_owned();
+                return Ok(Flow::Stop);
+            }
+        }
         if attachment.has_event_from(&health_guard) {
             while let Ok(Some(beat)) = health.receive() {
                 let name = beat.process_name.as_str();
@@ -262,6 +313,15 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     };
     drop(health_guard);
     drop(tick_guard);
+    drop(events_guard);
+    // Events sent while the stack stops (attempts cut short) still count.
+    while let Ok(Some(event)) = events.receive() {
+        harvest_events += 1;
+        if let Some(line) = harvest_log.on_event(&event) {
+            println!("{line}");
+        }
+    }
+    drop(events);
     shutdown(
         &mut processes,
         Duration::from_millis(stack.shutdown_grace_ms),
@@ -277,6 +337,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         failure,
         ended_by,
         leftover_files: harvest_ipc::cleanup::leftover_files(domain),
+        harvest: (harvest_events > 0).then(|| harvest_log.summary()),
     })
 }
 

@@ -158,6 +158,25 @@ pub fn assign_apples<F>(
 where
     F: Fn(ArmId, &[f64; 3]) -> bool,
 {
+    assign_apples_with_held(apples, frame, [0, 0], reachable)
+}
+
+/// Algorithm 1 run again while the arms work: `held[i]` apples are already in arm `i`'s hands
+/// (attempts in progress, indexed by [`ArmId::index`]) and count towards its half in the split
+/// of lines 12-17. Over a whole harvest this keeps the paper's split (each arm ends up with half
+/// of the apples it was given, counting those it picked since), and at the end it gives the last
+/// shared apple to the arm that is free rather than always to arm 1: re-planned over the waiting
+/// apples only, the split would hand arm 1 the odd apple while it is still busy and leave arm 2
+/// idle.
+pub fn assign_apples_with_held<F>(
+    apples: &[Apple],
+    frame: &AssignmentFrame,
+    held: [usize; 2],
+    reachable: F,
+) -> Result<Assignment, AssignError>
+where
+    F: Fn(ArmId, &[f64; 3]) -> bool,
+{
     let mut out = Assignment::default();
     let mut shared: Vec<Apple> = Vec::new();
     // Lines 1-10: reachability classes.
@@ -177,7 +196,7 @@ where
             (false, false) => out.unreachable.push(*apple),
         }
     }
-    let reachable_count = out.arm1.len() + out.arm2.len() + shared.len();
+    let reachable_count = out.arm1.len() + out.arm2.len() + shared.len() + held[0] + held[1];
     // Line 11: shared apples from arm 1's side to arm 2's side.
     shared.sort_by(|a, b| {
         frame
@@ -187,7 +206,7 @@ where
     });
     // Lines 12-17: arm 1 takes from its side until it holds half of the reachable apples.
     let mut rest = shared.into_iter();
-    while 2 * out.arm1.len() < reachable_count {
+    while 2 * (out.arm1.len() + held[0]) < reachable_count {
         match rest.next() {
             Some(apple) => out.arm1.push(apple),
             None => break,

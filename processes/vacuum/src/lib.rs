@@ -11,6 +11,9 @@
 //! - [`trace`] and [`safety_monitor`]: time-stamped observations and an independent checker.
 //! - [`node`]: the vacuum supervisor process's logic (valves, inference, policy, assignment)
 //!   without transport.
+//! - [`process`]: the `harvest vacuum` process running the node over the channels at 200 Hz;
+//!   [`harvest_events`] turns its events into `harvest/events` messages and [`harvest_log`]
+//!   turns those into per-apple lines and the harvest summary (`harvest up`).
 //!
 //! The mapping from the paper's formulas to the policy state machine is in `POLICY.md`.
 
@@ -18,9 +21,13 @@ pub mod arm_id;
 pub mod arm_phase;
 pub mod assignment;
 pub mod cycle_model;
+pub mod harvest_events;
+pub mod harvest_log;
 pub mod node;
 pub mod policy;
+pub mod policy_arg;
 pub mod pressure;
+pub mod process;
 pub mod replan;
 pub mod safety_monitor;
 pub mod trace;

@@ -882,6 +882,9 @@ impl VacuumNode {
                 && track.dispatched.is_none()
                 && track.active.is_none()
                 && self.planner.in_progress(arm).is_none();
+            if self.config.arms_enabled[i] && idle && self.planner.queue(arm).is_empty() {
+                self.rebalance_for(arm);
+            }
             if !self.config.arms_enabled[i] || !idle || self.planner.queue(arm).is_empty() {
                 continue;
             }
@@ -939,6 +942,26 @@ impl VacuumNode {
                     }
                 }
             }
+        }
+    }
+
+    /// Gives the free `arm` its share of the apples queued for the other arm at once (see
+    /// [`AssignmentPlanner::rebalance_for`]) instead of at the next detection set.
+    fn rebalance_for(&mut self, arm: ArmId) {
+        let enabled = self.config.arms_enabled;
+        let last_set = &self.last_set;
+        let reachable = &self.reachable;
+        let result = self.planner.rebalance_for(arm, |arm, p| {
+            let radius = last_set
+                .iter()
+                .find(|(q, _)| q == p)
+                .map_or(FALLBACK_RADIUS_M, |(_, r)| *r);
+            enabled[arm.index()] && reachable(arm, p, radius)
+        });
+        match result {
+            Ok(true) => debug!(%arm, queued = self.planner.queue(arm).len(), "queues rebalanced"),
+            Ok(false) => {}
+            Err(error) => warn!(%error, "rebalancing refused by the planner"),
         }
     }
 

@@ -6,12 +6,15 @@
 //! of the valve board driver.
 //!
 //! Physics used. With an arm's source valve open and nothing on the cup, air streams through
-//! the cup and the tube, and the pressure drop along that path leaves the arm sensor well below
-//! the source (a fraction of it). When an apple seals the cup the flow stops and the arm
-//! pressure climbs to the source pressure (ratio close to 1). With the valve closed the tube is
-//! vented and reads about zero. Comparing the arm reading to the *source* reading (a ratio)
-//! rather than to a fixed level keeps the inference valid when the source sags because the
-//! other arm is open to the atmosphere.
+//! the cup and the tube, and the pressure drop along that path leaves the arm sensor below the
+//! source: the cup and the inlet form a divider of two conductances, ratio
+//! `g_inlet / (g_inlet + g_cup)` ([`ValveLineModel`]; 0.625 with a bare cup and 0.71 with a leaf
+//! under it for the nominal valve box). When an apple seals the cup the flow stops and the arm
+//! pressure climbs to the source pressure (0.99). With the valve closed the tube is vented and
+//! reads about zero. Comparing the arm reading to the *source* reading (a ratio) rather than to
+//! a fixed level keeps the inference valid when the source sags because the other arm is open
+//! to the atmosphere. The ratio thresholds are derived from the line model
+//! ([`PressureConfig::for_line`]), the one place where they meet the valve box's physics.
 //!
 //! States of one arm (see [`AttachmentState`]):
 //!
@@ -33,6 +36,89 @@ use serde::{Deserialize, Serialize};
 use std::fmt;
 use thiserror::Error;
 use tracing::{debug, trace};
+
+/// The valve line as the linear-conductance model of the valve box sees it (the model the
+/// simulator implements, `harvest_sim` `physics::vacuum`): with the inlet gate fully open and
+/// the vent shut, air flows from the cup through the tube to the source, and the arm sensor reads
+/// `g_inlet / (g_inlet + g_cup)` of the source vacuum (a divider of two conductances in series).
+/// Conductances in m^3/h of air per mmH2O; only their ratios matter here.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ValveLineModel {
+    /// Arm tube to source through the fully open inlet gate (valve 1 or 3).
+    pub inlet_conductance: f64,
+    /// End-effector open to the air (nothing on the cup).
+    pub open_cup_conductance: f64,
+    /// End-effector on a fruit with a leaf between them (no seal).
+    pub leaf_blocked_cup_conductance: f64,
+    /// End-effector sealed on a fruit (residual leak through the soft lip).
+    pub sealed_cup_conductance: f64,
+}
+
+impl ValveLineModel {
+    /// The nominal valve box: a tube and gate that pass 0.5 m^3/h per mmH2O, a bare cup 0.3,
+    /// a cup held off the fruit by a leaf 0.2, a sealed cup 0.005 (1 % of the inlet). With the
+    /// 2500 mmH2O / 360 m^3/h source (section 2.3) an open cup then draws about 110 m^3/h at
+    /// 1 in 3 of the source's free flow, and a sealed cup holds 99 % of the source vacuum. The
+    /// simulator's default `VacuumConfig` uses these values (the evaluation checks it).
+    pub const NOMINAL: ValveLineModel = ValveLineModel {
+        inlet_conductance: 0.5,
+        open_cup_conductance: 0.3,
+        leaf_blocked_cup_conductance: 0.2,
+        sealed_cup_conductance: 0.005,
+    };
+
+    /// Arm vacuum over source vacuum with the inlet open and a cup of conductance `cup_conductance`.
+    pub fn open_valve_ratio(&self, cup_conductance: f64) -> f64 {
+        self.inlet_conductance / (self.inlet_conductance + cup_conductance)
+    }
+
+    /// The highest ratio an unsealed cup reads (open to the air or blocked by a leaf).
+    pub fn unsealed_ratio(&self) -> f64 {
+        self.open_valve_ratio(self.open_cup_conductance)
+            .max(self.open_valve_ratio(self.leaf_blocked_cup_conductance))
+    }
+
+    /// The ratio a sealed cup reads.
+    pub fn sealed_ratio(&self) -> f64 {
+        self.open_valve_ratio(self.sealed_cup_conductance)
+    }
+
+    /// The ratio thresholds `(seal_ratio_on, seal_ratio_off)` this line calls for. With `u`
+    /// the highest unsealed ratio and `s` the sealed one, the gap `g = s - u` is split in
+    /// quarters: `on = u + g / 2` (a seal is declared halfway between a leaf-blocked cup and a
+    /// sealed one, equal margins against both), `off = u + g / 4` (a lost seal is declared once
+    /// the ratio has fallen a quarter of the gap below `on`; `off` stays above every unsealed
+    /// reading, so an apple that slipped off a cup still open is always detected).
+    pub fn ratio_thresholds(&self) -> Result<(f32, f32), PressureConfigError> {
+        let conductances = [
+            ("inlet_conductance", self.inlet_conductance),
+            ("open_cup_conductance", self.open_cup_conductance),
+            ("leaf_blocked_cup_conductance", self.leaf_blocked_cup_conductance),
+            ("sealed_cup_conductance", self.sealed_cup_conductance),
+        ];
+        for (key, value) in conductances {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(PressureConfigError::BadConductance { key, value });
+            }
+        }
+        let (u, s) = (self.unsealed_ratio(), self.sealed_ratio());
+        if s <= u {
+            return Err(PressureConfigError::SealIndistinct {
+                sealed: s,
+                unsealed: u,
+            });
+        }
+        let gap = s - u;
+        Ok(((u + gap / 2.0) as f32, (u + gap / 4.0) as f32))
+    }
+}
+
+impl Default for ValveLineModel {
+    fn default() -> Self {
+        ValveLineModel::NOMINAL
+    }
+}
 
 /// Thresholds of the attachment inference. Defaults are documented on [`Default`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -61,10 +147,11 @@ pub struct PressureConfig {
 }
 
 impl Default for PressureConfig {
-    /// - `seal_ratio_on` 0.80 / `seal_ratio_off` 0.60: a sealed cup has no flow, so the arm
-    ///   reads within a few percent of the source; an open cup reads a small fraction of it.
-    ///   The 0.2 band absorbs sensor noise (tens of mmH2O) and slow leaks through a cup that
-    ///   sits slightly askew on the fruit.
+    /// - `seal_ratio_on` / `seal_ratio_off`: derived from [`ValveLineModel::NOMINAL`] by
+    ///   [`ValveLineModel::ratio_thresholds`] (0.852 / 0.783): a sealed cup has almost no flow
+    ///   and reads 0.99 of the source, a bare cup 0.625 and a leaf-blocked one 0.714. The
+    ///   thresholds are not free numbers: they must separate those levels of the valve box
+    ///   the robot (or the simulator) actually has.
     /// - `seal_on_min_vacuum_mmh2o` 800 / `seal_off_min_vacuum_mmh2o` 500: the 47 N average
     ///   suction force at about 2500 mmH2O (sections 2.2, 2.3) implies an effective cup area of
     ///   about 19 cm^2, so 800 mmH2O still pulls about 15 N and 500 mmH2O about 9 N, three to
@@ -75,9 +162,28 @@ impl Default for PressureConfig {
     /// - `debounce_ns` 20 ms: four samples at the 200 Hz control rate (section 2.2).
     /// - `attach_timeout_ns` 250 ms: the attach phase time derived from Fig. 12 (see POLICY.md).
     fn default() -> Self {
+        PressureConfig::for_line(&ValveLineModel::NOMINAL)
+    }
+}
+
+impl PressureConfig {
+    /// The default thresholds with the ratio thresholds of `line` (see
+    /// [`ValveLineModel::ratio_thresholds`]); a line model that cannot separate a seal from an
+    /// open cup falls back to the nominal line's thresholds, which [`PressureConfig::validate`]
+    /// then accepts. Use [`PressureConfig::try_for_line`] to see that error.
+    pub fn for_line(line: &ValveLineModel) -> Self {
+        Self::try_for_line(line).unwrap_or_else(|_| Self::with_ratios(NOMINAL_RATIOS))
+    }
+
+    /// The default thresholds with the ratio thresholds of `line`.
+    pub fn try_for_line(line: &ValveLineModel) -> Result<Self, PressureConfigError> {
+        Ok(Self::with_ratios(line.ratio_thresholds()?))
+    }
+
+    fn with_ratios((seal_ratio_on, seal_ratio_off): (f32, f32)) -> Self {
         PressureConfig {
-            seal_ratio_on: 0.80,
-            seal_ratio_off: 0.60,
+            seal_ratio_on,
+            seal_ratio_off,
             seal_on_min_vacuum_mmh2o: 800.0,
             seal_off_min_vacuum_mmh2o: 500.0,
             source_min_vacuum_mmh2o: 300.0,
@@ -87,9 +193,33 @@ impl Default for PressureConfig {
     }
 }
 
+/// `(seal_ratio_on, seal_ratio_off)` of [`ValveLineModel::NOMINAL`], precomputed for the
+/// fallback of [`PressureConfig::for_line`] (checked against the derivation by a test).
+const NOMINAL_RATIOS: (f32, f32) = (0.852_192_34, 0.783_239_07);
+
 /// A [`PressureConfig`] value that cannot work.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum PressureConfigError {
+    /// A conductance of the valve line model is not a positive number.
+    #[error("valve line model key `{key}` = {value}: must be finite and > 0")]
+    BadConductance {
+        /// The offending key.
+        key: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// The valve line model gives a sealed cup no higher ratio than an unsealed one, so no
+    /// threshold can tell them apart.
+    #[error(
+        "valve line model: a sealed cup reads {sealed:.3} of the source, not above an unsealed \
+         cup's {unsealed:.3}"
+    )]
+    SealIndistinct {
+        /// Ratio of a sealed cup.
+        sealed: f64,
+        /// Highest ratio of an unsealed cup.
+        unsealed: f64,
+    },
     /// A ratio threshold is outside (0, 1].
     #[error("pressure config key `{key}` = {value}: a ratio threshold must lie in (0, 1]")]
     RatioOutOfRange {
@@ -529,6 +659,39 @@ mod tests {
     }
 
     #[test]
+    fn thresholds_derive_from_the_valve_line_and_separate_its_levels() {
+        let line = ValveLineModel::NOMINAL;
+        // Known answers of the conductance divider: 0.5 / (0.5 + g_cup).
+        assert!((line.open_valve_ratio(line.open_cup_conductance) - 0.625).abs() < 1e-12);
+        assert!((line.unsealed_ratio() - 0.5 / 0.7).abs() < 1e-12);
+        assert!((line.sealed_ratio() - 0.5 / 0.505).abs() < 1e-12);
+        let (on, off) = line.ratio_thresholds().expect("nominal line");
+        assert_eq!((on, off), NOMINAL_RATIOS, "precomputed fallback is stale");
+        assert_eq!((cfg().seal_ratio_on, cfg().seal_ratio_off), (on, off));
+        // Every unsealed level lies below `off`, the sealed level above `on`.
+        let (on, off) = (f64::from(on), f64::from(off));
+        assert!(line.unsealed_ratio() < off && off < on && on < line.sealed_ratio());
+        // A cup that lost its apple (open to the air) is read as a drop: below `off`.
+        assert!(line.open_valve_ratio(line.open_cup_conductance) < off);
+        // A model that cannot tell a seal apart is refused, by name.
+        let leaky = ValveLineModel {
+            sealed_cup_conductance: 0.4,
+            ..line
+        };
+        assert!(matches!(
+            leaky.ratio_thresholds(),
+            Err(PressureConfigError::SealIndistinct { .. })
+        ));
+        assert_eq!(PressureConfig::for_line(&leaky), cfg());
+        let bad = ValveLineModel {
+            inlet_conductance: f64::NAN,
+            ..line
+        };
+        let err = PressureConfig::try_for_line(&bad).expect_err("NaN conductance");
+        assert!(err.to_string().contains("inlet_conductance"), "{err}");
+    }
+
+    #[test]
     fn default_config_validates_and_bad_ones_are_named() {
         assert_eq!(cfg().validate(), Ok(()));
         let bad = PressureConfig {
@@ -635,14 +798,15 @@ mod tests {
 
     #[test]
     fn hysteresis_band_neither_seals_nor_drops() {
-        // In the band (0.60..0.80) an unsealed arm stays unsealed...
+        // In the band (off..on) an unsealed arm stays unsealed...
+        let band = 0.5 * (cfg().seal_ratio_off + cfg().seal_ratio_on);
         let mut est = AttachmentEstimator::new(ArmId::Arm1, cfg());
-        let (_, _) = feed(&mut est, 0, 40, true, 0.7 * SOURCE, SOURCE);
+        let (_, _) = feed(&mut est, 0, 40, true, band * SOURCE, SOURCE);
         assert_eq!(est.state(), AttachmentState::OpenToAtmosphere);
         // ...and a sealed arm stays sealed.
         let mut est = AttachmentEstimator::new(ArmId::Arm1, cfg());
         let (_, t) = feed(&mut est, 0, 10, true, 0.97 * SOURCE, SOURCE);
-        let (changes, _) = feed(&mut est, t, 1000, true, 0.7 * SOURCE, SOURCE);
+        let (changes, _) = feed(&mut est, t, 1000, true, band * SOURCE, SOURCE);
         assert!(changes.is_empty());
         assert_eq!(est.state(), AttachmentState::Sealed);
     }

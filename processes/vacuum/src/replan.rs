@@ -8,13 +8,16 @@
 //!   `match_radius_m`, so an apple keeps its id (and its attempt count) across sets;
 //! - drops known apples that are no longer seen, adds unmatched detections as new apples;
 //! - skips apples already attempted `max_attempts` times;
-//! - runs Algorithm 1 ([`crate::assignment::assign_apples`]) again over the waiting apples.
+//! - runs Algorithm 1 again over the waiting apples, counting the apples the arms are working on
+//!   in each arm's half ([`crate::assignment::assign_apples_with_held`]).
 //!
 //! A failed apple is not put back in a queue at once: it waits for the next detection set,
 //! which tells whether it is still on the tree and where.
 
 use crate::arm_id::ArmId;
-use crate::assignment::{Apple, AppleId, AssignError, Assignment, AssignmentFrame, assign_apples};
+use crate::assignment::{
+    Apple, AppleId, AssignError, Assignment, AssignmentFrame, assign_apples_with_held,
+};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use thiserror::Error;
@@ -110,7 +113,7 @@ impl AssignmentPlanner {
     }
 
     /// Take a new detection set (positions in the assignment frame, m) and re-plan.
-    /// `reachable(arm, position_m)` as in [`assign_apples`]. On error nothing changes.
+    /// `reachable(arm, position_m)` as in [`crate::assignment::assign_apples`]. On error nothing changes.
     pub fn replan<F>(
         &mut self,
         detections_m: &[[f64; 3]],
@@ -189,7 +192,8 @@ impl AssignmentPlanner {
             .copied()
             .collect();
         summary.exhausted = next_known.len() - waiting.len();
-        let plan = assign_apples(&waiting, &self.config.frame, reachable)?;
+        let held = self.in_progress.map(|a| usize::from(a.is_some()));
+        let plan = assign_apples_with_held(&waiting, &self.config.frame, held, reachable)?;
         self.next_id = next_id;
         self.known = next_known;
         self.plan = plan;
@@ -207,6 +211,37 @@ impl AssignmentPlanner {
             "apple assignment re-planned"
         );
         Ok(summary)
+    }
+
+    /// Runs the split again over the apples already queued, without a new detection set, when
+    /// `arm` is free with an empty queue while the other arm still has apples waiting: the
+    /// queues were split while both arms were busy, and the free arm should not wait for the
+    /// next set (up to one perception period) to take its share of the shared apples. Apples
+    /// that failed stay out of the queues until a detection set sees them again, as in
+    /// [`AssignmentPlanner::replan`]. Returns true when the queues changed.
+    pub fn rebalance_for<F>(&mut self, arm: ArmId, reachable: F) -> Result<bool, AssignError>
+    where
+        F: Fn(ArmId, &[f64; 3]) -> bool,
+    {
+        if self.in_progress[arm.index()].is_some()
+            || !self.plan.queue(arm).is_empty()
+            || self.plan.queue(arm.other()).is_empty()
+        {
+            return Ok(false);
+        }
+        let waiting: Vec<Apple> = self
+            .plan
+            .arm1
+            .iter()
+            .chain(&self.plan.arm2)
+            .copied()
+            .collect();
+        let held = self.in_progress.map(|a| usize::from(a.is_some()));
+        let mut plan = assign_apples_with_held(&waiting, &self.config.frame, held, reachable)?;
+        plan.unreachable.extend_from_slice(&self.plan.unreachable);
+        let changed = plan.queue(arm) != self.plan.queue(arm);
+        self.plan = plan;
+        Ok(changed)
     }
 
     /// The waiting queue of `arm`, next apple first.

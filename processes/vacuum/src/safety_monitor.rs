@@ -9,7 +9,11 @@
 //! - [`Violation::FailureNotClosed`]: a valve still open one control period after a failure
 //!   was detected on its arm (eq. 11 clauses 1-2);
 //! - [`Violation::JointOutOfLimits`]: a joint command outside the limits it was sent with;
-//! - [`Violation::EndEffectorsTooClose`]: the two end-effectors closer than the clearance.
+//! - [`Violation::EndEffectorsTooClose`]: the two end-effectors closer than the clearance;
+//! - [`Violation::ValveOpenDuringEmergencyStop`]: a valve opened while the emergency stop is
+//!   engaged, or still open one control period after it was engaged;
+//! - [`Violation::MovedDuringEmergencyStop`]: a joint set-point sent to an arm more than one
+//!   control period after the emergency stop was engaged (the drives must brake).
 //!
 //! A closed valve vents the tube, so it ends any seal on that arm.
 
@@ -83,6 +87,26 @@ pub enum Violation {
         /// Upper limit.
         upper: f64,
     },
+    /// A valve opened while the emergency stop was engaged, or was still open one control
+    /// period after it was engaged.
+    ValveOpenDuringEmergencyStop {
+        /// The arm whose valve.
+        arm: ArmId,
+        /// When the stop was engaged, ns.
+        stop_ns: u64,
+        /// When the valve was seen open, ns.
+        stamp_ns: u64,
+    },
+    /// A joint set-point was sent more than one control period after the emergency stop was
+    /// engaged (reported once per arm and engagement).
+    MovedDuringEmergencyStop {
+        /// The arm.
+        arm: ArmId,
+        /// When the stop was engaged, ns.
+        stop_ns: u64,
+        /// The set-point's time, ns.
+        stamp_ns: u64,
+    },
     /// The end-effectors came closer than the clearance (or a position was not finite).
     EndEffectorsTooClose {
         /// Time of validity, ns.
@@ -92,6 +116,81 @@ pub enum Violation {
         /// The required clearance, m.
         clearance_m: f64,
     },
+}
+
+impl std::fmt::Display for Violation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let ms = |ns: u64| ns as f64 * 1e-6;
+        match *self {
+            Violation::OpenedBesideUnsealed { stamp_ns, arm } => write!(
+                f,
+                "{arm} opened its valve at {:.1} ms while the other arm's valve was open with no \
+                 seal",
+                ms(stamp_ns)
+            ),
+            Violation::BothOpenUnsealed {
+                since_ns,
+                noticed_ns,
+            } => write!(
+                f,
+                "both valves open with neither cup sealed from {:.1} ms (still at {:.1} ms)",
+                ms(since_ns),
+                ms(noticed_ns)
+            ),
+            Violation::FailureNotClosed {
+                arm,
+                kind,
+                failure_ns,
+                deadline_ns,
+            } => write!(
+                f,
+                "{arm}: {kind} at {:.1} ms but the valve was still open at the {:.1} ms deadline",
+                ms(failure_ns),
+                ms(deadline_ns)
+            ),
+            Violation::JointOutOfLimits {
+                stamp_ns,
+                arm,
+                joint,
+                command,
+                lower,
+                upper,
+            } => write!(
+                f,
+                "{arm}: {joint:?} commanded to {command} at {:.1} ms, outside [{lower}, {upper}]",
+                ms(stamp_ns)
+            ),
+            Violation::EndEffectorsTooClose {
+                stamp_ns,
+                distance_m,
+                clearance_m,
+            } => write!(
+                f,
+                "end-effectors {distance_m:.3} m apart at {:.1} ms (clearance {clearance_m} m)",
+                ms(stamp_ns)
+            ),
+            Violation::ValveOpenDuringEmergencyStop {
+                arm,
+                stop_ns,
+                stamp_ns,
+            } => write!(
+                f,
+                "{arm}: valve open at {:.1} ms, emergency stop engaged at {:.1} ms",
+                ms(stamp_ns),
+                ms(stop_ns)
+            ),
+            Violation::MovedDuringEmergencyStop {
+                arm,
+                stop_ns,
+                stamp_ns,
+            } => write!(
+                f,
+                "{arm}: joint set-point sent at {:.1} ms, emergency stop engaged at {:.1} ms",
+                ms(stamp_ns),
+                ms(stop_ns)
+            ),
+        }
+    }
 }
 
 /// A trace the monitor cannot judge.
@@ -119,6 +218,9 @@ pub struct SafetyMonitor {
     pending_failure: [Option<(u64, FailureKind)>; 2],
     /// Start of the both-open-unsealed condition, and whether it has been reported.
     unsealed_pair_since: Option<(u64, bool)>,
+    /// When the engaged emergency stop began, and per arm whether its open valve / its motion
+    /// has been reported during this engagement.
+    stop: Option<(u64, [bool; 2], [bool; 2])>,
     violations: Vec<Violation>,
 }
 
@@ -132,6 +234,7 @@ impl SafetyMonitor {
             sealed: [false; 2],
             pending_failure: [None; 2],
             unsealed_pair_since: None,
+            stop: None,
             violations: Vec::new(),
         }
     }
@@ -156,6 +259,16 @@ impl SafetyMonitor {
         self.check_deadlines(stamp_ns);
         match *event {
             TraceEvent::ValveOpened { arm, .. } => {
+                if let Some((stop_ns, valve_reported, _)) = self.stop.as_mut()
+                    && !valve_reported[arm.index()]
+                {
+                    valve_reported[arm.index()] = true;
+                    self.violations.push(Violation::ValveOpenDuringEmergencyStop {
+                        arm,
+                        stop_ns: *stop_ns,
+                        stamp_ns,
+                    });
+                }
                 let other = arm.other().index();
                 if self.open[other] && !self.sealed[other] {
                     self.violations
@@ -179,6 +292,11 @@ impl SafetyMonitor {
                 }
             }
             TraceEvent::PhaseChanged { .. } => {}
+            TraceEvent::EmergencyStop { engaged, .. } => match (engaged, self.stop) {
+                (true, None) => self.stop = Some((stamp_ns, [false; 2], [false; 2])),
+                (false, Some(_)) => self.stop = None,
+                _ => {}
+            },
             TraceEvent::JointCommand {
                 arm,
                 joint,
@@ -187,6 +305,17 @@ impl SafetyMonitor {
                 upper,
                 ..
             } => {
+                if let Some((stop_ns, _, motion_reported)) = self.stop.as_mut()
+                    && stamp_ns > *stop_ns + self.config.control_period_ns
+                    && !motion_reported[arm.index()]
+                {
+                    motion_reported[arm.index()] = true;
+                    self.violations.push(Violation::MovedDuringEmergencyStop {
+                        arm,
+                        stop_ns: *stop_ns,
+                        stamp_ns,
+                    });
+                }
                 let inside = command.is_finite() && lower <= command && command <= upper;
                 if !inside {
                     self.violations.push(Violation::JointOutOfLimits {
@@ -244,6 +373,20 @@ impl SafetyMonitor {
                         deadline_ns,
                     });
                     self.pending_failure[arm.index()] = None;
+                }
+            }
+        }
+        if let Some((stop_ns, valve_reported, _)) = self.stop.as_mut()
+            && now_ns > *stop_ns + period
+        {
+            for arm in ArmId::ALL {
+                if self.open[arm.index()] && !valve_reported[arm.index()] {
+                    valve_reported[arm.index()] = true;
+                    self.violations.push(Violation::ValveOpenDuringEmergencyStop {
+                        arm,
+                        stop_ns: *stop_ns,
+                        stamp_ns: now_ns,
+                    });
                 }
             }
         }
@@ -491,6 +634,83 @@ mod tests {
             matches!(v[2], Violation::EndEffectorsTooClose { stamp_ns: 4, distance_m, .. }
             if (distance_m - 0.06).abs() < 1e-12)
         );
+    }
+
+    #[test]
+    fn emergency_stop_must_close_the_valves_and_brake_the_arms_within_one_period() {
+        let joint = |stamp_ns, arm| JointCommand {
+            stamp_ns,
+            arm,
+            joint: JointId::Pitch,
+            command: 0.1,
+            lower: -1.0,
+            upper: 1.0,
+        };
+        let stop = |stamp_ns, engaged| EmergencyStop { stamp_ns, engaged };
+        // Valve closed and last set-point within the period: fine.
+        let ok = [
+            ValveOpened {
+                stamp_ns: 0,
+                arm: A1,
+            },
+            stop(100 * MS, true),
+            joint(103 * MS, A1),
+            ValveClosed {
+                stamp_ns: 105 * MS,
+                arm: A1,
+            },
+            EndEffectors {
+                stamp_ns: 400 * MS,
+                arm1_in_robot_m: [1.0, 0.2, 0.0],
+                arm2_in_robot_m: [1.0, -0.2, 0.0],
+            },
+            stop(500 * MS, false),
+            joint(510 * MS, A2),
+            ValveOpened {
+                stamp_ns: 520 * MS,
+                arm: A2,
+            },
+        ];
+        assert_eq!(check(&ok), vec![]);
+        // Valve left open, a later set-point, and a valve opened while engaged.
+        let bad = [
+            ValveOpened {
+                stamp_ns: 0,
+                arm: A1,
+            },
+            stop(100 * MS, true),
+            joint(120 * MS, A2),
+            joint(125 * MS, A2),
+            ValveOpened {
+                stamp_ns: 130 * MS,
+                arm: A2,
+            },
+        ];
+        assert_eq!(
+            check(&bad),
+            vec![
+                Violation::ValveOpenDuringEmergencyStop {
+                    arm: A1,
+                    stop_ns: 100 * MS,
+                    stamp_ns: 120 * MS
+                },
+                Violation::MovedDuringEmergencyStop {
+                    arm: A2,
+                    stop_ns: 100 * MS,
+                    stamp_ns: 120 * MS
+                },
+                Violation::ValveOpenDuringEmergencyStop {
+                    arm: A2,
+                    stop_ns: 100 * MS,
+                    stamp_ns: 130 * MS
+                },
+                Violation::OpenedBesideUnsealed {
+                    stamp_ns: 130 * MS,
+                    arm: A2
+                },
+            ]
+        );
+        assert!(check(&bad)[0].to_string().contains("emergency stop"));
     }
 
     #[test]

@@ -104,6 +104,13 @@ pub enum TraceEvent {
         /// Upper limit, same unit as `command`.
         upper: f64,
     },
+    /// The emergency stop was engaged or released (`safety/emergency_stop`).
+    EmergencyStop {
+        /// Time of the change, ns.
+        stamp_ns: u64,
+        /// True while engaged.
+        engaged: bool,
+    },
     /// Positions of both end-effectors in one common frame (the robot frame), metres.
     EndEffectors {
         /// Time of validity, ns.
@@ -125,6 +132,7 @@ impl TraceEvent {
             | TraceEvent::FailureDetected { stamp_ns, .. }
             | TraceEvent::PhaseChanged { stamp_ns, .. }
             | TraceEvent::JointCommand { stamp_ns, .. }
+            | TraceEvent::EmergencyStop { stamp_ns, .. }
             | TraceEvent::EndEffectors { stamp_ns, .. } => stamp_ns,
         }
     }

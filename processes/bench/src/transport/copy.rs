@@ -9,6 +9,7 @@ use crate::control::{HELLO_DATA, accept_stream};
 use crate::error::BenchError;
 use crate::message::{BenchMessage, Phase};
 use crate::options::WakeMode;
+use crate::sender_write::PayloadWriter;
 use crate::socket_io::{read_full, socket_error, write_all};
 use crate::watchdog::Watchdog;
 use harvest_ipc::{Flow, MonotonicClock};
@@ -46,14 +47,15 @@ impl<T: BenchMessage> CopySender<T> {
 }
 
 impl<T: BenchMessage> SendPort<T> for CopySender<T> {
-    fn send(&mut self, phase: Phase) -> Result<(), BenchError> {
+    fn send(&mut self, phase: Phase, writer: &mut PayloadWriter) -> Result<u64, BenchError> {
         let msg_seq = self.next_seq;
         let capture_ns = MonotonicClock::read_ns();
-        self.message.fill(msg_seq, phase);
+        writer.write(&mut *self.message, msg_seq, phase);
         let header = self.message.header_mut();
         header.msg_seq = msg_seq;
         header.capture_ns = capture_ns;
-        header.publish_ns = MonotonicClock::read_ns();
+        let publish_ns = MonotonicClock::read_ns();
+        header.publish_ns = publish_ns;
         self.buffer.clear();
         self.buffer.extend_from_slice(&[0; PREFIX_BYTES]);
         self.message
@@ -67,7 +69,7 @@ impl<T: BenchMessage> SendPort<T> for CopySender<T> {
         self.buffer[..PREFIX_BYTES].copy_from_slice(&length.to_le_bytes());
         write_all(&mut self.stream, &self.buffer, WHAT, &self.path)?;
         self.next_seq += 1;
-        Ok(())
+        Ok(MonotonicClock::read_ns().saturating_sub(publish_ns))
     }
 }
 

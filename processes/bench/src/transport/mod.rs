@@ -7,6 +7,7 @@ pub mod raw;
 
 use crate::error::BenchError;
 use crate::message::{BenchMessage, Phase};
+use crate::sender_write::PayloadWriter;
 use crate::watchdog::Watchdog;
 use harvest_ipc::Flow;
 
@@ -16,9 +17,11 @@ pub type OnMessage<'a, T> = dyn FnMut(&T, u64) -> Result<Flow, BenchError> + 'a;
 
 /// The sending side of a transport.
 pub trait SendPort<T: BenchMessage> {
-    /// Writes a fresh message of `phase` (every line of its body) and sends it. Stamps
-    /// `capture_ns` before writing and `publish_ns` right before handing it to the transport.
-    fn send(&mut self, phase: Phase) -> Result<(), BenchError>;
+    /// Writes a fresh message of `phase` with `writer` (the fair test: every line of its body)
+    /// and sends it. Stamps `capture_ns` before writing and `publish_ns` right before handing
+    /// it to the transport. Returns the nanoseconds spent in the transport's send call from
+    /// about `publish_ns` until it returned (sender side of the one-way latency).
+    fn send(&mut self, phase: Phase, writer: &mut PayloadWriter) -> Result<u64, BenchError>;
 }
 
 /// The receiving side of a transport.

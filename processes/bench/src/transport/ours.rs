@@ -1,30 +1,29 @@
 //! Our layer: harvest_ipc `Context`, `Publisher`, `Subscriber` and `Waiter` on the payload's
-//! catalogue channel, exactly as the stack's processes use them.
+//! catalogue channel (sweep sizes: an ad-hoc channel, `Channel::ad_hoc`), exactly as the
+//! stack's processes use them.
 
 use super::{OnMessage, ReceivePort, SendPort};
 use crate::error::BenchError;
 use crate::message::{BenchMessage, Phase};
 use crate::options::WakeMode;
+use crate::payload_case::PayloadCase;
+use crate::sender_write::PayloadWriter;
 use crate::watchdog::{WATCH_PERIOD, Watchdog};
 use harvest_ipc::error::WaitError;
 use harvest_ipc::{
-    Channel, Context, Domain, Flow, MonotonicClock, Publisher, RunEnd, RunError, Subscriber, Waiter,
+    Context, Domain, Flow, MonotonicClock, Publisher, RunEnd, RunError, Subscriber, Waiter,
 };
 
-fn channel_of<T: BenchMessage>(payload: &'static str) -> Result<Channel<T>, BenchError> {
-    T::channel().ok_or(BenchError::NoCatalogueChannel { payload })
-}
-
-/// Publishes on the catalogue channel of `T`.
+/// Publishes on the channel of `payload` (see [`BenchMessage::channel`]).
 pub struct OursSender<T: BenchMessage> {
     publisher: Publisher<T>,
     _context: Context,
 }
 
 impl<T: BenchMessage> OursSender<T> {
-    pub fn open(domain: &Domain, payload: &'static str) -> Result<Self, BenchError> {
+    pub fn open(domain: &Domain, payload: PayloadCase) -> Result<Self, BenchError> {
         let context = Context::new(domain, "bench-sender")?;
-        let publisher = context.publisher(channel_of::<T>(payload)?)?;
+        let publisher = context.publisher(T::channel(payload.topic()))?;
         Ok(Self {
             publisher,
             _context: context,
@@ -33,19 +32,20 @@ impl<T: BenchMessage> OursSender<T> {
 }
 
 impl<T: BenchMessage> SendPort<T> for OursSender<T> {
-    fn send(&mut self, phase: Phase) -> Result<(), BenchError> {
+    fn send(&mut self, phase: Phase, writer: &mut PayloadWriter) -> Result<u64, BenchError> {
         // `Publisher::send` numbers messages last_seq + 1 and stamps publish_ns itself.
         let msg_seq = self.publisher.last_seq() + 1;
         let mut loan = self.publisher.loan()?;
         let capture_ns = MonotonicClock::read_ns();
-        loan.fill(msg_seq, phase);
+        writer.write(&mut *loan, msg_seq, phase);
         loan.header_mut().capture_ns = capture_ns;
+        let call_ns = MonotonicClock::read_ns();
         self.publisher.send(loan)?;
-        Ok(())
+        Ok(MonotonicClock::read_ns().saturating_sub(call_ns))
     }
 }
 
-/// Subscribes to the catalogue channel of `T` (default buffer) and wakes through a `Waiter`
+/// Subscribes to the channel of `payload` (default buffer) and wakes through a `Waiter`
 /// (event mode) or spins on `Subscriber::receive` (poll mode).
 pub struct OursReceiver<T: BenchMessage> {
     subscriber: Subscriber<T>,
@@ -54,13 +54,9 @@ pub struct OursReceiver<T: BenchMessage> {
 }
 
 impl<T: BenchMessage> OursReceiver<T> {
-    pub fn open(
-        domain: &Domain,
-        mode: WakeMode,
-        payload: &'static str,
-    ) -> Result<Self, BenchError> {
+    pub fn open(domain: &Domain, mode: WakeMode, payload: PayloadCase) -> Result<Self, BenchError> {
         let context = Context::new(domain, "bench-receiver")?;
-        let subscriber = context.subscriber(channel_of::<T>(payload)?)?;
+        let subscriber = context.subscriber(T::channel(payload.topic()))?;
         let waiter = match mode {
             WakeMode::Event => Some(Waiter::new()?),
             WakeMode::Poll => None,

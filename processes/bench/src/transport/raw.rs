@@ -6,6 +6,7 @@ use super::{OnMessage, ReceivePort, SendPort};
 use crate::error::BenchError;
 use crate::message::{BenchMessage, Phase};
 use crate::options::WakeMode;
+use crate::sender_write::PayloadWriter;
 use crate::watchdog::{WATCH_PERIOD, Watchdog};
 use harvest_ipc::{Domain, Flow, Ipc, MonotonicClock};
 use iceoryx2::node::Node;
@@ -120,7 +121,7 @@ impl<T: BenchMessage> RawSender<T> {
 }
 
 impl<T: BenchMessage> SendPort<T> for RawSender<T> {
-    fn send(&mut self, phase: Phase) -> Result<(), BenchError> {
+    fn send(&mut self, phase: Phase, writer: &mut PayloadWriter) -> Result<u64, BenchError> {
         let msg_seq = self.next_seq;
         let uninit = self
             .publisher
@@ -131,11 +132,12 @@ impl<T: BenchMessage> SendPort<T> for RawSender<T> {
         let mut sample = unsafe { uninit.assume_init() };
         let capture_ns = MonotonicClock::read_ns();
         let message = sample.payload_mut();
-        message.fill(msg_seq, phase);
+        writer.write(message, msg_seq, phase);
         let header = message.header_mut();
         header.msg_seq = msg_seq;
         header.capture_ns = capture_ns;
-        header.publish_ns = MonotonicClock::read_ns();
+        let publish_ns = MonotonicClock::read_ns();
+        header.publish_ns = publish_ns;
         sample
             .send()
             .map_err(|error| self.services.error("send", error))?;
@@ -145,7 +147,7 @@ impl<T: BenchMessage> SendPort<T> for RawSender<T> {
                 .notify()
                 .map_err(|error| self.services.error("notify", error))?;
         }
-        Ok(())
+        Ok(MonotonicClock::read_ns().saturating_sub(publish_ns))
     }
 }
 

@@ -2,32 +2,10 @@
 
 use std::path::PathBuf;
 
-use harvest_vacuum::policy::PolicyKind;
 use serde::Serialize;
 
-/// A vacuum coordination policy (paper 003, section 4.2 and Fig. 12).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
-pub enum PolicyArg {
-    /// No coordination: the arms run strictly one after the other.
-    Baseline,
-    /// The 2023 version: parallel approaches, vacuum exclusive from attach to release.
-    #[value(name = "2023")]
-    V2023,
-    /// The 2024 failure-aware policy (eq. 7-12).
-    #[value(name = "2024")]
-    V2024,
-}
-
-impl PolicyArg {
-    /// The vacuum crate's policy kind.
-    pub fn kind(self) -> PolicyKind {
-        match self {
-            Self::Baseline => PolicyKind::Baseline,
-            Self::V2023 => PolicyKind::V2023,
-            Self::V2024 => PolicyKind::V2024,
-        }
-    }
-}
+/// The coordination policy argument, shared with `harvest vacuum --policy`.
+pub use harvest_vacuum::policy_arg::PolicyArg;
 
 /// Which hardware timing the simulated robot runs with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
@@ -69,6 +47,10 @@ pub struct EvalHarvestArgs {
     /// Simulated time limit per episode, s.
     #[arg(long, default_value_t = 900.0)]
     pub max_episode_s: f64,
+    /// Extra episodes that engage the emergency stop at staggered times (every phase of the
+    /// cycle) to measure the reaction; 0 skips the measurement.
+    #[arg(long, default_value_t = 20)]
+    pub estop_trials: u32,
 }
 
 impl Default for EvalHarvestArgs {
@@ -83,6 +65,7 @@ impl Default for EvalHarvestArgs {
             timing: TimingArg::Scenario,
             detection_noise: 1.0,
             max_episode_s: 900.0,
+            estop_trials: 20,
         }
     }
 }
@@ -91,6 +74,7 @@ impl Default for EvalHarvestArgs {
 mod tests {
     use super::*;
     use clap::Parser;
+    use harvest_vacuum::policy::PolicyKind;
 
     #[derive(Parser)]
     struct Cli {

@@ -1,57 +1,66 @@
-//! The vacuum supervisor's pressure thresholds calibrated to the simulated valve box.
+//! The vacuum supervisor's pressure thresholds for the simulated valve box.
 //!
-//! The attachment inference (`harvest_vacuum::pressure`) compares the arm tube's vacuum to the
-//! source's. Its defaults assume an open cup reads "a small fraction" of the source and put the
-//! hysteresis band at 0.60-0.80. In the simulator's linear-conductance model (`harvest_sim`
-//! `physics::vacuum`), an arm whose source valve is open reads
-//! `g_inlet / (g_inlet + g_cup)` of the source: 0.99 sealed, 0.71 with a leaf under the cup,
-//! but 0.625 with the cup open to the air (scenario defaults: inlet 0.5, open cup 0.3). 0.625
-//! lies inside the default band, so a sealed apple that slips off the cup keeps reading
-//! "sealed": the loss is never detected, the valve stays open and the arm "releases" nothing at
-//! the drop-off. [`calibrated_pressure`] moves the falling threshold to the middle between the
-//! open-cup ratio and the rising threshold, as one would calibrate the real board against its
-//! sensors; the rising threshold (0.80) already separates sealed from open and leaf-blocked.
+//! The attachment inference (`harvest_vacuum::pressure`) derives its ratio thresholds from a
+//! [`ValveLineModel`] (the conductance divider of inlet and cup). The simulator implements the
+//! same linear-conductance model with the scenario's `VacuumConfig`; [`line_model`] reads the
+//! model off the scenario, so the thresholds of an evaluation follow the simulated hardware by
+//! one formula, and the test below pins the simulator's default constants to the nominal line
+//! the live vacuum process uses ([`ValveLineModel::NOMINAL`]).
 
 use harvest_sim::scenario::VacuumConfig;
-use harvest_vacuum::pressure::PressureConfig;
+use harvest_vacuum::pressure::{PressureConfig, PressureConfigError, ValveLineModel};
 
-/// Ratio of the arm vacuum to the source vacuum with the source valve fully open and a cup of
-/// conductance `cup` (vent closed), in the simulator's model.
-pub fn open_valve_ratio(vacuum: &VacuumConfig, cup: f64) -> f64 {
-    vacuum.inlet_conductance / (vacuum.inlet_conductance + cup)
+/// The valve line of the simulated valve box.
+pub fn line_model(vacuum: &VacuumConfig) -> ValveLineModel {
+    ValveLineModel {
+        inlet_conductance: vacuum.inlet_conductance,
+        open_cup_conductance: vacuum.open_cup_conductance,
+        leaf_blocked_cup_conductance: vacuum.leaf_blocked_cup_conductance,
+        sealed_cup_conductance: vacuum.sealed_cup_conductance,
+    }
 }
 
-/// `pressure` with `seal_ratio_off` halfway between the open-cup ratio of `vacuum` and
-/// `seal_ratio_on` (unchanged when the default already lies above the open-cup ratio with that
-/// margin).
-pub fn calibrated_pressure(vacuum: &VacuumConfig, pressure: PressureConfig) -> PressureConfig {
-    let open = open_valve_ratio(vacuum, vacuum.open_cup_conductance) as f32;
-    let off = 0.5 * (open + pressure.seal_ratio_on);
-    PressureConfig {
-        seal_ratio_off: pressure.seal_ratio_off.max(off),
+/// `pressure` with the ratio thresholds of the simulated valve box (every other field kept).
+pub fn pressure_for(
+    vacuum: &VacuumConfig,
+    pressure: PressureConfig,
+) -> Result<PressureConfig, PressureConfigError> {
+    let (seal_ratio_on, seal_ratio_off) = line_model(vacuum).ratio_thresholds()?;
+    Ok(PressureConfig {
+        seal_ratio_on,
+        seal_ratio_off,
         ..pressure
-    }
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use harvest_sim::scenario::{Scenario, preset_names};
 
     #[test]
-    fn the_falling_threshold_separates_an_open_cup_from_a_seal() {
+    fn the_simulated_valve_box_is_the_nominal_line_in_every_preset() {
+        assert_eq!(line_model(&VacuumConfig::default()), ValveLineModel::NOMINAL);
+        for name in preset_names() {
+            let scenario = Scenario::preset(name).expect("preset");
+            let line = line_model(&scenario.vacuum);
+            assert_eq!(line, ValveLineModel::NOMINAL, "preset {name}");
+            let derived = pressure_for(&scenario.vacuum, PressureConfig::default()).expect("ok");
+            assert_eq!(derived, PressureConfig::default(), "preset {name}");
+        }
+    }
+
+    #[test]
+    fn the_thresholds_separate_the_simulated_levels() {
         let vacuum = VacuumConfig::default();
-        let open = open_valve_ratio(&vacuum, vacuum.open_cup_conductance);
-        let sealed = open_valve_ratio(&vacuum, vacuum.sealed_cup_conductance);
-        assert!((open - 0.625).abs() < 1e-12);
-        assert!(sealed > 0.98);
-        let defaults = PressureConfig::default();
-        assert!(
-            f64::from(defaults.seal_ratio_off) < open,
-            "the flaw being fixed"
-        );
-        let calibrated = calibrated_pressure(&vacuum, defaults);
-        assert!(f64::from(calibrated.seal_ratio_off) > open);
-        assert!(calibrated.seal_ratio_off < calibrated.seal_ratio_on);
-        assert_eq!(calibrated.validate(), Ok(()));
+        let p = pressure_for(&vacuum, PressureConfig::default()).expect("ok");
+        let ratio = |cup: f64| vacuum.inlet_conductance / (vacuum.inlet_conductance + cup);
+        let (on, off) = (f64::from(p.seal_ratio_on), f64::from(p.seal_ratio_off));
+        // A cup that lost its apple reads below `off` (the loss is detected) ...
+        assert!(ratio(vacuum.open_cup_conductance) < off);
+        // ... a leaf-blocked cup never reads sealed, a sealed one does.
+        assert!(ratio(vacuum.leaf_blocked_cup_conductance) < off);
+        assert!(off < on && on < ratio(vacuum.sealed_cup_conductance));
+        assert_eq!(p.validate(), Ok(()));
     }
 }

@@ -20,6 +20,9 @@ pub enum HarvestEvalError {
     /// An arm node could not be built.
     #[error("{0}")]
     ArmNode(#[from] ArmNodeError),
+    /// The scenario's valve box gives no pressure thresholds that tell a seal apart.
+    #[error("pressure thresholds: {0}")]
+    Pressure(#[from] harvest_vacuum::pressure::PressureConfigError),
     /// The vacuum node could not be built.
     #[error("{0}")]
     VacuumNode(#[from] VacuumNodeError),

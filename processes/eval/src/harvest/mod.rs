@@ -15,7 +15,7 @@
 //! - [`runner`]: one episode, tick by tick; also measures the emergency-stop reaction.
 //! - [`records`]: event log, attempts, per-apple records, failure causes.
 //! - [`timing`]: the hardware timing profiles (scenario constants, or Fig. 12's phase times).
-//! - [`calibration`]: the pressure thresholds calibrated to the simulated valve box.
+//! - [`calibration`]: the pressure thresholds derived from the simulated valve box.
 
 pub mod args;
 pub mod calibration;

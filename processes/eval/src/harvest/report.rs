@@ -12,17 +12,27 @@
 //!   "cycle time per attempt");
 //! - the *release interval* is the mean time between consecutive apples landing on the dropping
 //!   module within an episode, `(t_last - t_first) / (n - 1)`: the dashed-line spacing of
-//!   Fig. 12 without the start-up of the first cycle.
+//!   Fig. 12 without the start-up of the first cycle;
+//! - the *steady-state interval* is the same, counting only the releases up to the end of the
+//!   last attempt of the arm that finished first (both arms busy). It is Fig. 12's measure:
+//!   the paper's 2.25 s is "half the dashed-line spacing" of the interleaved timeline, with
+//!   apples at uniform distances, no start-up and no end;
+//! - the *whole-run* figure is `seconds_per_apple` above: everything from the start of the
+//!   episode (the first detection set arrives 0.1 s in) to the end of the last attempt, so it
+//!   includes the first cycle with no release before it and the tail where one arm has no
+//!   apple left. [`TimeBudget`] splits it up; its `balanced_seconds_per_apple` is the floor
+//!   the whole-run figure can reach with the same attempt durations.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use harvest_arm::node::ArmNodeConfig;
+use harvest_vacuum::harvest_log::CycleRates;
 use harvest_vacuum::pressure::PressureConfig;
 use serde::Serialize;
 
 use super::args::{EvalHarvestArgs, PolicyArg, TimingArg};
-use super::calibration::calibrated_pressure;
+use super::calibration::pressure_for;
 use super::detections::DetectionModel;
 use super::error::HarvestEvalError;
 use super::records::{AppleRecord, AttemptRecord, HarvestEvent};
@@ -40,6 +50,50 @@ pub struct PhaseMeans {
     pub retract_s: Option<f64>,
     /// Release at the drop-off.
     pub release_s: Option<f64>,
+}
+
+/// Where the harvesting arms' time went, summed over the episodes and over the arms that
+/// harvest: for every arm, `startup_s + attempts_s + between_attempts_s + tail_s` is the
+/// episode's duration, so the four fields add up to `arms x duration_s`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct TimeBudget {
+    /// From the start of the episode to the arm's first dispatch (first detection set and its
+    /// latency), s.
+    pub startup_s: f64,
+    /// Inside attempts, from dispatch to the arm idle again, s.
+    pub attempts_s: f64,
+    /// Between the end of one attempt and the next dispatch to the same arm, s.
+    pub between_attempts_s: f64,
+    /// From the arm's last attempt to the end of the episode (the other arm still working), s.
+    pub tail_s: f64,
+    /// Attempt time per harvesting arm over the harvested apples: the seconds per apple if the attempts were spread
+    /// evenly over the arms with no start-up, gap or tail (the floor the whole-run figure
+    /// can reach with these attempt durations), s.
+    pub balanced_seconds_per_apple: Option<f64>,
+}
+
+impl TimeBudget {
+    /// Adds the budget of one episode; returns its attempt time per harvesting arm, s.
+    fn add_episode(&mut self, outcome: &EpisodeOutcome) -> f64 {
+        let before_s = self.attempts_s;
+        for arm in 1..=outcome.arms {
+            let mut end_s = 0.0;
+            let mut first = true;
+            for a in outcome.recorder.attempts.iter().filter(|a| a.arm == arm) {
+                let ended_s = a.ended_s.unwrap_or(outcome.duration_s);
+                if first {
+                    self.startup_s += a.dispatched_s;
+                    first = false;
+                } else {
+                    self.between_attempts_s += (a.dispatched_s - end_s).max(0.0);
+                }
+                self.attempts_s += ended_s - a.dispatched_s;
+                end_s = ended_s;
+            }
+            self.tail_s += (outcome.duration_s - end_s).max(0.0);
+        }
+        (self.attempts_s - before_s) / f64::from(outcome.arms.max(1))
+    }
 }
 
 /// Counts and times of one or more episodes.
@@ -74,6 +128,8 @@ pub struct HarvestSummary {
     pub steady_release_interval_s: Option<f64>,
     /// Mean phase durations, s.
     pub mean_phase: PhaseMeans,
+    /// Where the arms' time went.
+    pub time_budget: TimeBudget,
     /// Episodes cut by the time limit.
     pub truncated_episodes: u32,
     /// Safety-monitor violations.
@@ -92,6 +148,7 @@ impl HarvestSummary {
         let mut steady_gaps = 0u32;
         let mut phase_sum = [0.0; 4];
         let mut phase_n = [0u32; 4];
+        let mut balanced_s = 0.0;
         for o in outcomes {
             s.episodes += 1;
             s.apples_in_world += o.apples_in_world;
@@ -139,18 +196,25 @@ impl HarvestSummary {
                     steady_gaps += steady.len() as u32 - 1;
                 }
             }
+            balanced_s += s.time_budget.add_episode(o);
             s.truncated_episodes += u32::from(o.truncated);
             s.safety_violations += o.violations.len() as u32;
             s.trace_events += o.trace_events;
         }
-        s.success_rate = (s.apples_attempted > 0)
-            .then(|| f64::from(s.apples_harvested) / f64::from(s.apples_attempted));
-        s.seconds_per_apple =
-            (s.apples_harvested > 0).then(|| s.duration_s / f64::from(s.apples_harvested));
-        s.seconds_per_attempt = (s.attempts > 0).then(|| s.duration_s / f64::from(s.attempts));
+        let rates = CycleRates::new(
+            s.apples_attempted,
+            s.apples_harvested,
+            s.attempts,
+            s.duration_s,
+        );
+        s.success_rate = rates.success_rate;
+        s.seconds_per_apple = rates.seconds_per_apple;
+        s.seconds_per_attempt = rates.seconds_per_attempt;
         s.release_interval_s = (release_gaps > 0).then(|| release_span_s / f64::from(release_gaps));
         s.steady_release_interval_s =
             (steady_gaps > 0).then(|| steady_span_s / f64::from(steady_gaps));
+        s.time_budget.balanced_seconds_per_apple =
+            (s.apples_harvested > 0).then(|| balanced_s / f64::from(s.apples_harvested));
         let mean = |k: usize| (phase_n[k] > 0).then(|| phase_sum[k] / f64::from(phase_n[k]));
         s.mean_phase = PhaseMeans {
             approach_s: mean(0),
@@ -160,6 +224,85 @@ impl HarvestSummary {
         };
         s
     }
+}
+
+/// Mean and worst of one emergency-stop delay over the trials, s.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct DelayStats {
+    /// Trials where it happened before the episode ended.
+    pub measured: u32,
+    /// Mean, s.
+    pub mean_s: Option<f64>,
+    /// Worst, s.
+    pub max_s: Option<f64>,
+}
+
+impl DelayStats {
+    fn of(values: impl Iterator<Item = Option<f64>>) -> Self {
+        let (mut n, mut sum, mut max) = (0u32, 0.0, None::<f64>);
+        for v in values.flatten() {
+            n += 1;
+            sum += v;
+            max = Some(max.map_or(v, |m| m.max(v)));
+        }
+        Self {
+            measured: n,
+            mean_s: (n > 0).then(|| sum / f64::from(n)),
+            max_s: max,
+        }
+    }
+}
+
+/// The emergency-stop reaction measured in simulated time: `safety/emergency_stop` engaged at
+/// staggered times of harvesting episodes (so every phase of the cycle is hit), then the delays
+/// until the stack had commanded everything off, the board reported every gate closed at its
+/// end stop, both arms published `Stopped` (drives braked) and both arms were still.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct EmergencyStopSummary {
+    /// Trials run.
+    pub trials: u32,
+    /// Request to every valve commanded closed and both drives told to brake.
+    pub commanded: DelayStats,
+    /// Request to every gate reported closed.
+    pub valves_closed: DelayStats,
+    /// Request to both arms reporting `Stopped`.
+    pub arms_holding: DelayStats,
+    /// Request to both arms still (joints slower than 1 mm/s, 1 mrad/s).
+    pub arms_stopped: DelayStats,
+    /// Gate travel time of the simulated valves, s (the physical floor of `valves_closed`).
+    pub valve_travel_s: f64,
+    /// Safety violations during the trials.
+    pub safety_violations: u32,
+}
+
+/// Runs `trials` episodes of `base` with the stop engaged at `0.5 s + k x 0.373 s` (spread over
+/// the cycle) and summarizes the reactions.
+pub fn measure_emergency_stop(
+    base: &EpisodeConfig,
+    trials: u32,
+) -> Result<EmergencyStopSummary, HarvestEvalError> {
+    let mut reactions = Vec::with_capacity(trials as usize);
+    let mut violations = 0u32;
+    for k in 0..trials {
+        let mut config = base.clone();
+        config.seed = base.seed + u64::from(k);
+        config.emergency_stop_at_s = Some(0.5 + 0.373 * f64::from(k));
+        config.keep_events = false;
+        let outcome = run_episode(&config)?;
+        violations += outcome.violations.len() as u32;
+        if let Some(m) = outcome.emergency_stop {
+            reactions.push(m);
+        }
+    }
+    Ok(EmergencyStopSummary {
+        trials,
+        commanded: DelayStats::of(reactions.iter().map(|m| m.commanded_s)),
+        valves_closed: DelayStats::of(reactions.iter().map(|m| m.valves_closed_s)),
+        arms_holding: DelayStats::of(reactions.iter().map(|m| m.arms_holding_s)),
+        arms_stopped: DelayStats::of(reactions.iter().map(|m| m.arms_stopped_s)),
+        valve_travel_s: base.scenario.vacuum.valve_travel_time_s,
+        safety_violations: violations,
+    })
 }
 
 /// One episode in the report.
@@ -219,6 +362,8 @@ pub struct HarvestReport {
     pub summary: HarvestSummary,
     /// Each episode.
     pub episodes: Vec<EpisodeReport>,
+    /// The emergency-stop reaction (`--estop-trials` > 0).
+    pub emergency_stop: Option<EmergencyStopSummary>,
 }
 
 fn opt(value: Option<f64>, digits: usize) -> String {
@@ -247,14 +392,26 @@ impl HarvestReport {
         );
         let _ = writeln!(
             out,
-            "  attempts: {}; time {:.1} s: {} s/apple, {} s/attempt; release interval {} s \
-             (both arms busy: {} s)",
+            "  attempts: {}; time {:.1} s: whole run {} s/apple, {} s/attempt; release \
+             interval {} s, steady state (both arms busy) {} s",
             s.attempts,
             s.duration_s,
             opt(s.seconds_per_apple, 2),
             opt(s.seconds_per_attempt, 2),
             opt(s.release_interval_s, 2),
             opt(s.steady_release_interval_s, 2)
+        );
+        let b = &s.time_budget;
+        let _ = writeln!(
+            out,
+            "  arm time: start-up {:.2} s, in attempts {:.2} s, between attempts {:.2} s, tail \
+             (no apple left while the other arm works) {:.2} s; attempts spread evenly: {} \
+             s/apple",
+            b.startup_s,
+            b.attempts_s,
+            b.between_attempts_s,
+            b.tail_s,
+            opt(b.balanced_seconds_per_apple, 2)
         );
         let p = &s.mean_phase;
         let _ = writeln!(
@@ -278,6 +435,23 @@ impl HarvestReport {
             "  safety: {} violations in {} trace events; {} truncated episode(s)",
             s.safety_violations, s.trace_events, s.truncated_episodes
         );
+        if let Some(e) = &self.emergency_stop {
+            let d =
+                |d: &DelayStats| format!("mean {} / worst {} s", opt(d.mean_s, 3), opt(d.max_s, 3));
+            let _ = writeln!(
+                out,
+                "  emergency stop ({} trials, simulated time): commanded {}; all valves closed \
+                 {} (gate travel {:.2} s); both arms holding {}; both arms still {}; {} \
+                 violations",
+                e.trials,
+                d(&e.commanded),
+                d(&e.valves_closed),
+                e.valve_travel_s,
+                d(&e.arms_holding),
+                d(&e.arms_stopped),
+                e.safety_violations
+            );
+        }
         out
     }
 }
@@ -303,7 +477,7 @@ pub fn run_eval_harvest(args: &EvalHarvestArgs) -> Result<HarvestReport, Harvest
     let mut arm_node = ArmNodeConfig::default();
     let mut pressure = PressureConfig::default();
     apply_timing(&mut scenario, &mut arm_node, &mut pressure, args.timing);
-    let pressure = calibrated_pressure(&scenario.vacuum, pressure);
+    let pressure = pressure_for(&scenario.vacuum, pressure)?;
     let mut outcomes = Vec::with_capacity(args.episodes as usize);
     for k in 0..args.episodes {
         let mut config = EpisodeConfig::new(
@@ -330,6 +504,19 @@ pub fn run_eval_harvest(args: &EvalHarvestArgs) -> Result<HarvestReport, Harvest
         );
         outcomes.push(outcome);
     }
+    let emergency_stop = if args.estop_trials > 0 {
+        let mut base =
+            EpisodeConfig::new(scenario.clone(), args.policy.kind(), args.arms, args.seed);
+        base.arm_node = arm_node;
+        base.pressure = pressure;
+        base.detection = DetectionModel {
+            noise_scale: args.detection_noise,
+            ..DetectionModel::default()
+        };
+        Some(measure_emergency_stop(&base, args.estop_trials)?)
+    } else {
+        None
+    };
     let refs: Vec<&EpisodeOutcome> = outcomes.iter().collect();
     let report = HarvestReport {
         scenario: scenario.name.clone(),
@@ -340,6 +527,7 @@ pub fn run_eval_harvest(args: &EvalHarvestArgs) -> Result<HarvestReport, Harvest
         seed: args.seed,
         summary: HarvestSummary::of(&refs),
         episodes: outcomes.iter().map(EpisodeReport::of).collect(),
+        emergency_stop,
     };
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| HarvestEvalError::Write {

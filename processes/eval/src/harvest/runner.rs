@@ -117,6 +117,9 @@ pub struct EmergencyStopReaction {
     pub commanded_s: Option<f64>,
     /// From the request until every gate reported closed at its end stop, s.
     pub valves_closed_s: Option<f64>,
+    /// From the request until both arms published the `Stopped` phase on their state channel
+    /// (their drives braked: what a live observer of `arm{1,2}/state` sees), s.
+    pub arms_holding_s: Option<f64>,
     /// From the request until every joint of both arms moved slower than 1 mm/s or 1 mrad/s, s.
     pub arms_stopped_s: Option<f64>,
     /// Phases of the arms when the stop was requested.
@@ -128,6 +131,8 @@ pub struct EmergencyStopReaction {
 pub struct EpisodeOutcome {
     /// World seed.
     pub seed: u64,
+    /// Arms that harvested (1: arm 1 alone, 2: both).
+    pub arms: u8,
     /// Apples in the world.
     pub apples_in_world: u32,
     /// Event log and attempts.
@@ -283,6 +288,7 @@ impl Episode {
                 requested_s: at,
                 commanded_s: None,
                 valves_closed_s: None,
+                arms_holding_s: None,
                 arms_stopped_s: None,
                 phases_at_request: self.arm_states.map(|s| {
                     s.and_then(|s| PhaseCode::from_code(s.phase))
@@ -472,6 +478,14 @@ impl Episode {
         if m.valves_closed_s.is_none() && valves.iter().all(|s| *s == ValveState::Closed) {
             m.valves_closed_s = Some(t_s - m.requested_s);
         }
+        if m.arms_holding_s.is_none()
+            && self
+                .arm_states
+                .iter()
+                .all(|s| s.is_some_and(|s| s.phase == PhaseCode::Stopped as u8))
+        {
+            m.arms_holding_s = Some(t_s - m.requested_s);
+        }
         if m.arms_stopped_s.is_none() {
             let robot = self.robot.borrow();
             let still = Arm::BOTH
@@ -487,6 +501,7 @@ impl Episode {
         if let Some(m) = &self.estop {
             return m.commanded_s.is_some()
                 && m.valves_closed_s.is_some()
+                && m.arms_holding_s.is_some()
                 && m.arms_stopped_s.is_some();
         }
         let arms_idle = self
@@ -516,6 +531,7 @@ impl Episode {
             .fold(0.0, f64::max);
         EpisodeOutcome {
             seed: self.config.seed,
+            arms: self.config.arms,
             apples_in_world: robot.world().apples().len() as u32,
             apples,
             duration_s,

@@ -1,7 +1,7 @@
 //! End-to-end tests of the in-process harvesting loop. All times are simulated (deterministic
 //! for a seed); nothing here measures or asserts wall-clock time.
 
-use super::calibration::calibrated_pressure;
+use super::calibration::pressure_for;
 use super::detections::DetectionModel;
 use super::records::FailureCause;
 use super::report::HarvestSummary;
@@ -28,7 +28,7 @@ fn episode(
     let mut arm_node = ArmNodeConfig::default();
     let mut pressure = PressureConfig::default();
     apply_timing(&mut scenario, &mut arm_node, &mut pressure, timing);
-    let pressure = calibrated_pressure(&scenario.vacuum, pressure);
+    let pressure = pressure_for(&scenario.vacuum, pressure).expect("thresholds");
     let mut config = EpisodeConfig::new(scenario, policy, arms, seed);
     config.arm_node = arm_node;
     config.pressure = pressure;
@@ -368,5 +368,52 @@ fn report_numbers() {
              arms stopped {:.3} s",
             worst[0], worst[1], worst[2]
         );
+    }
+}
+
+/// Diagnostic timeline (not a check).
+#[test]
+#[ignore]
+fn timeline_diag() {
+    let policy = match std::env::var("POLICY").as_deref() {
+        Ok("2023") => PolicyKind::V2023,
+        Ok("baseline") => PolicyKind::Baseline,
+        _ => PolicyKind::V2024,
+    };
+    let outcome =
+        run_episode(&episode("ideal", TimingArg::Fig12, policy, 2, 1, 0.0)).expect("episode");
+    for a in &outcome.recorder.attempts {
+        let phases: Vec<String> = a
+            .phases
+            .iter()
+            .map(|p| format!("{}@{:.3}", &p.phase[..3], p.start_s))
+            .collect();
+        println!(
+            "arm {} apple {:?} disp {:.3} start {:?} end {:?} | {}",
+            a.arm,
+            a.apple,
+            a.dispatched_s,
+            a.started_s,
+            a.ended_s,
+            phases.join(" ")
+        );
+    }
+    println!("releases {:?}", outcome.recorder.releases_s);
+    let s = summary(&outcome);
+    println!("{s:#?}");
+}
+
+/// Diagnostic: the CLI's text for the ideal scenario (not a check).
+#[test]
+#[ignore]
+fn cli_text_diag() {
+    for (noise, episodes) in [(0.0, 1), (1.0, 10)] {
+        let args = EvalHarvestArgs {
+            timing: TimingArg::Fig12,
+            detection_noise: noise,
+            episodes,
+            ..EvalHarvestArgs::default()
+        };
+        print!("{}", run_eval_harvest(&args).expect("run").render_text());
     }
 }

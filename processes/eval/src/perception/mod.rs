@@ -15,6 +15,8 @@
 pub mod args;
 pub mod error;
 pub mod frame;
+#[cfg(test)]
+mod glare_tests;
 pub mod matching;
 pub mod records;
 pub mod report;

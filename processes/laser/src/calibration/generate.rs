@@ -1,13 +1,20 @@
 //! Synthetic calibration samples from known extrinsics, shaped like the paper's data set
 //! (paper 000, section 5.1: 10 board positions between 0.6 and 1.2 m, 3 laser points each).
 //!
-//! For each board: a plane at its depth, tilted at random, centred where the laser line falls.
-//! For each of its points: a row of the image (the three rows spread top to bottom), the 3D
-//! point where the laser plane (eq. 4-5, slide home, `L = L0`) meets the board on that row,
-//! projected to a pixel (eq. 2), moved by Gaussian pixel noise (stripe extraction), normalised
-//! back (eq. 3); its depth is where that noisy ray meets the board (the paper's pose-based
-//! depth) plus Gaussian depth noise (pose reconstruction). A few samples then get a gross depth
-//! error (the outliers RANSAC must find).
+//! For each board: a checkerboard of `board_height_m` at its depth, tilted at random, centred
+//! where the laser line falls. The laser points lie on the board (section 4.2: the image covers
+//! the whole checkerboard and the points are taken where the line crosses it), so how far they
+//! spread over the image rows shrinks as the board moves away. For each of its points: a height
+//! on the board (the points spread bottom to top, one band each), the 3D point where the laser
+//! plane (eq. 4-5, slide home, `L = L0`) crosses the board at that height, projected to a pixel
+//! (eq. 2), moved by Gaussian pixel noise (stripe extraction), normalised back (eq. 3); its
+//! depth is where that noisy ray meets the board (the paper's pose-based depth) plus Gaussian
+//! depth noise (pose reconstruction). A few samples then get a gross depth error (the outliers
+//! RANSAC must find).
+//!
+//! The spread of rows matters for the comparison of section 5.1: the low-fidelity model (eq. 10)
+//! drops the `v_bar tan(beta)` term, whose depth error grows with `|v_bar|` and with `z^2`, so
+//! points spread over rows the board could not cover would exaggerate that model's error.
 
 use harvest_hw::alacs::AlacsExtrinsics;
 use harvest_ipc::camera_model::CameraIntrinsics;
@@ -29,6 +36,8 @@ pub struct SampleGeneratorConfig {
     pub points_per_board: usize,
     pub nearest_board_m: f64,
     pub farthest_board_m: f64,
+    /// Height of the checkerboard's laser-point area along the board, m.
+    pub board_height_m: f64,
     /// Largest tilt of a board about the camera's x and y axes, rad.
     pub max_board_tilt_rad: f64,
     /// Standard deviation of the laser-point pixel position, pixels.
@@ -45,7 +54,9 @@ pub struct SampleGeneratorConfig {
 
 impl SampleGeneratorConfig {
     /// The paper's set-up: Table 1 extrinsics, 10 boards in 0.6-1.2 m, 3 points each, 0.25 px
-    /// and 0.25 mm noise, 3 gross outliers of 5-25 mm.
+    /// and 0.25 mm noise, 3 gross outliers of 5-25 mm. The board is 0.297 m high (an A3 sheet
+    /// in landscape; the paper does not give its size): the tallest common sheet that fits in
+    /// the ALACS camera's view (0.37 m high at 0.6 m) with a margin, as the whole board must.
     pub fn paper_like(intrinsics: CameraIntrinsics, seed: u64) -> Self {
         Self {
             truth: AlacsExtrinsics::paper_table1(),
@@ -54,6 +65,7 @@ impl SampleGeneratorConfig {
             points_per_board: 3,
             nearest_board_m: 0.6,
             farthest_board_m: 1.2,
+            board_height_m: 0.297,
             max_board_tilt_rad: 15_f64.to_radians(),
             pixel_noise_px: 0.25,
             depth_noise_m: 0.25e-3,
@@ -107,7 +119,6 @@ pub fn generate_samples(config: &SampleGeneratorConfig) -> Result<GeneratedSampl
     let plane = truth.laser_plane_in_camera(0.0);
     let laser_normal = Vector3::from(plane.normal);
     let (sin_a, cos_a) = truth.alpha_rad.sin_cos();
-    let height_px = f64::from(intrinsics.height_px);
 
     let mut samples = Vec::with_capacity(config.boards * config.points_per_board);
     for board in 0..config.boards {
@@ -124,20 +135,27 @@ pub fn generate_samples(config: &SampleGeneratorConfig) -> Result<GeneratedSampl
         let tilt_y = rng.random_range(-1.0..=1.0) * config.max_board_tilt_rad;
         let board_normal = Vector3::new(tilt_y.sin(), -tilt_x.sin(), -1.0).normalize();
         let board_offset = board_normal.dot(&centre);
+        // The board's own vertical axis: the camera's y projected into the board plane.
+        let down = Vector3::new(0.0, 1.0, 0.0);
+        let board_down = (down - board_normal * board_normal.dot(&down)).normalize();
         for point in 0..config.points_per_board {
             let mut placed = None;
             for _ in 0..MAX_ATTEMPTS {
-                // Rows spread over the middle 80 % of the image, one band per point.
-                let band = 0.8 * height_px / config.points_per_board as f64;
-                let v_px = 0.1 * height_px + band * (point as f64 + rng.random_range(0.0..1.0));
-                let v_bar = (v_px - intrinsics.cy_px) / intrinsics.fy_px;
-                // Laser plane, board plane and the row's y = v_bar z.
+                // Heights spread over the board, one band per point.
+                let band = config.board_height_m / config.points_per_board as f64;
+                let height_m = -0.5 * config.board_height_m
+                    + band * (point as f64 + rng.random_range(0.0..1.0));
+                // Laser plane, board plane and the board's line at that height.
                 let system = Matrix3::from_rows(&[
                     laser_normal.transpose(),
                     board_normal.transpose(),
-                    Vector3::new(0.0, 1.0, -v_bar).transpose(),
+                    board_down.transpose(),
                 ]);
-                let rhs = Vector3::new(-plane.offset_m, board_offset, 0.0);
+                let rhs = Vector3::new(
+                    -plane.offset_m,
+                    board_offset,
+                    board_down.dot(&centre) + height_m,
+                );
                 let Some(point_on_board) = system.lu().solve(&rhs) else {
                     continue;
                 };
@@ -204,6 +222,11 @@ fn validate(config: &SampleGeneratorConfig) -> Result<(), GenerateError> {
             config.farthest_board_m >= config.nearest_board_m,
         ),
         (
+            "board_height_m",
+            config.board_height_m,
+            config.board_height_m > 0.0,
+        ),
+        (
             "max_board_tilt_rad",
             config.max_board_tilt_rad,
             config.max_board_tilt_rad.abs() < 1.2,
@@ -266,6 +289,47 @@ mod tests {
         let min = depths.iter().copied().fold(f64::INFINITY, f64::min);
         let max = depths.iter().copied().fold(0.0, f64::max);
         assert!(min > 0.5 && max < 1.35 && max - min > 0.4, "{min} {max}");
+    }
+
+    #[test]
+    fn points_lie_on_the_board_so_their_rows_narrow_with_depth() {
+        let mut config = SampleGeneratorConfig::paper_like(alacs_camera_intrinsics(), 5);
+        config.pixel_noise_px = 0.0;
+        config.depth_noise_m = 0.0;
+        config.outliers = 0;
+        let generated = generate_samples(&config).expect("generate");
+        let half_height_m = 0.5 * config.board_height_m;
+        let mut widest_v_bar = [0.0_f64; 2];
+        for (index, sample) in generated.samples.iter().enumerate() {
+            // The boards are centred on the optical axis's row (y = 0): a point's height in the
+            // camera frame cannot exceed half the board's height.
+            let y_m = sample.v_bar * sample.z_m;
+            assert!(y_m.abs() <= half_height_m + 1e-9, "sample {index}: y {y_m} m");
+            let board = index / config.points_per_board;
+            if board == 0 {
+                widest_v_bar[0] = widest_v_bar[0].max(sample.v_bar.abs());
+            } else if board == config.boards - 1 {
+                widest_v_bar[1] = widest_v_bar[1].max(sample.v_bar.abs());
+            }
+        }
+        // The farthest board (1.2 m) covers at most half the rows of the nearest (0.6 m).
+        assert!(
+            widest_v_bar[1] <= half_height_m / 1.2 + 1e-9,
+            "far board reaches v_bar {}",
+            widest_v_bar[1]
+        );
+        assert!(widest_v_bar[0] > widest_v_bar[1], "{widest_v_bar:?}");
+        let bad = SampleGeneratorConfig {
+            board_height_m: 0.0,
+            ..config
+        };
+        assert!(matches!(
+            generate_samples(&bad),
+            Err(GenerateError::InvalidOption {
+                name: "board_height_m",
+                ..
+            })
+        ));
     }
 
     #[test]

@@ -116,6 +116,47 @@ mod tests {
     }
 
     #[test]
+    fn method_2_removes_outliers_not_the_clean_samples_its_model_misfits() {
+        for seed in 1..=5 {
+            let generated = paper_like(seed);
+            let options = CalibrationOptions::default();
+            let method_2 = calibrate(
+                &generated.samples,
+                CalibrationMethod::LowFidelityRansac,
+                &options,
+            )
+            .expect("method 2");
+            let clean_used = method_2
+                .used
+                .iter()
+                .filter(|&&index| !generated.is_outlier[index])
+                .count();
+            // 27 clean samples; the low-fidelity model's structural error is several mm, so
+            // its threshold must be wider than the 2 mm floor to keep them.
+            assert!(clean_used >= 24, "seed {seed}: {clean_used} clean samples kept");
+            let threshold_m = method_2.threshold_m.expect("RANSAC threshold");
+            assert!(threshold_m > options.ransac.epsilon_m, "seed {seed}");
+            // The high-fidelity model fits clean data to well under 2 mm: its threshold stays
+            // epsilon, so Algorithm 1 runs as written.
+            let method_4 = calibrate(
+                &generated.samples,
+                CalibrationMethod::HighFidelityRansac,
+                &options,
+            )
+            .expect("method 4");
+            assert_eq!(method_4.threshold_m, Some(options.ransac.epsilon_m));
+        }
+    }
+
+    #[test]
+    fn lmeds_scale_of_gaussian_residuals() {
+        // The median of |N(0, sigma)| is 0.6745 sigma; the small-sample factor is 1 + 5/(n-p).
+        let sigma = fit::lmeds_sigma_m(0.6745, 1_000_005, 5);
+        assert!((sigma - 1.0).abs() < 1e-3, "{sigma}");
+        assert!((fit::lmeds_sigma_m(1.0, 30, 2) - 1.4826 * (1.0 + 5.0 / 28.0)).abs() < 1e-12);
+    }
+
+    #[test]
     fn bad_sample_sets_are_refused() {
         let options = CalibrationOptions::default();
         let generated = paper_like(2);

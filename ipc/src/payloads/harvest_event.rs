@@ -1,0 +1,346 @@
+//! What happened to each apple: the harvest's event trace (`harvest/events`), published by the
+//! arm processes and the vacuum supervisor, read by `harvest up` (per-apple lines and the
+//! harvest summary), the recorder and offline checkers.
+
+use crate::fixed_string::FixedString;
+use crate::header::Header;
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Serialize};
+
+/// Capacity of [`HarvestEvent::reason`], bytes.
+pub const HARVEST_EVENT_REASON_BYTES: usize = 96;
+
+/// Which process reported the event (code in [`HarvestEvent::source`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum HarvestEventSource {
+    Arm1 = 1,
+    Arm2 = 2,
+    Vacuum = 3,
+}
+
+impl HarvestEventSource {
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            1 => Some(Self::Arm1),
+            2 => Some(Self::Arm2),
+            3 => Some(Self::Vacuum),
+            _ => None,
+        }
+    }
+
+    /// The source of arm `number` (1 or 2).
+    pub fn arm(number: u8) -> Option<Self> {
+        match number {
+            1 => Some(Self::Arm1),
+            2 => Some(Self::Arm2),
+            _ => None,
+        }
+    }
+
+    /// `arm1`, `arm2` or `vacuum`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Arm1 => "arm1",
+            Self::Arm2 => "arm2",
+            Self::Vacuum => "vacuum",
+        }
+    }
+}
+
+/// What happened (code in [`HarvestEvent::kind`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum HarvestEventKind {
+    /// Vacuum: the apple was assigned and its target published to `arm_id`.
+    Assigned = 1,
+    /// Arm: the target was taken; the approach starts.
+    TargetAccepted = 2,
+    /// Arm: the target was refused (`cause` says why, `reason` in words); `harvested` is 1 when
+    /// the refusal depends on the moment and the target is retried.
+    TargetRejected = 3,
+    /// Arm: the target is held back until the other arm's state is known.
+    TargetDeferred = 4,
+    /// Arm: the published phase changed to `phase`.
+    PhaseChanged = 5,
+    /// Arm: the pressure showed a seal; twisting the apple off.
+    Attached = 6,
+    /// Arm: a picking-cycle step (`reason` names it: approach complete, detach complete, ...).
+    CycleStep = 7,
+    /// Arm: the attempt ended; `harvested` and `cause` tell how.
+    AttemptEnded = 8,
+    /// Vacuum: the arm's valve was opened on its request.
+    ValveOpened = 9,
+    /// Vacuum: the arm's valve was closed (`reason` says why).
+    ValveClosed = 10,
+    /// Vacuum (or arm, for the answer it got): an open request was refused (`reason`).
+    ValveRefused = 11,
+    /// Either: the emergency stop was engaged (`harvested` 1) or released (0).
+    EmergencyStop = 12,
+    /// Vacuum: the arm's attempt is over as the supervisor sees it (`harvested`).
+    AttemptFinished = 13,
+    /// Vacuum: the dispatched target was never taken up; counted as a failed attempt.
+    DispatchTimedOut = 14,
+    /// Vacuum: a detection set re-planned the assignment (`reason`: queue lengths).
+    Replanned = 15,
+    /// Vacuum: the attachment inferred from pressure changed (`reason`: to what).
+    AttachmentChanged = 16,
+    /// Vacuum: nothing is assigned, dispatched or running, both arms are idle and the newest
+    /// detection sets hold nothing to pick: the harvest of what the camera sees is complete.
+    HarvestComplete = 17,
+}
+
+impl HarvestEventKind {
+    pub fn from_code(code: u8) -> Option<Self> {
+        use HarvestEventKind::*;
+        [
+            Assigned,
+            TargetAccepted,
+            TargetRejected,
+            TargetDeferred,
+            PhaseChanged,
+            Attached,
+            CycleStep,
+            AttemptEnded,
+            ValveOpened,
+            ValveClosed,
+            ValveRefused,
+            EmergencyStop,
+            AttemptFinished,
+            DispatchTimedOut,
+            Replanned,
+            AttachmentChanged,
+            HarvestComplete,
+        ]
+        .into_iter()
+        .find(|kind| *kind as u8 == code)
+    }
+}
+
+/// Why an attempt failed or a target was refused (code in [`HarvestEvent::cause`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum HarvestCause {
+    /// No failure (or not applicable).
+    None = 0,
+    // Attempt failures (the arm's account).
+    /// The arm did not settle at the apple in time.
+    ApproachTimeout = 1,
+    /// The vacuum supervisor did not open the valve in time.
+    ValveNotGranted = 2,
+    /// No seal within the attach timeout.
+    NoAttachment = 3,
+    /// The seal was lost after attaching (apple slipped, dropped or knocked off).
+    AppleLost = 4,
+    /// At the drop-off the valve never reported closed.
+    ValveNotClosed = 5,
+    /// The emergency stop abandoned the attempt.
+    EmergencyStop = 6,
+    /// The arm never took the target up (the vacuum supervisor gave it up).
+    TargetNotTaken = 7,
+    // Target refusals.
+    /// A coordinate is NaN or infinite.
+    NonFinite = 20,
+    /// The detection behind the target is too old.
+    Stale = 21,
+    /// The detection is stamped in the future.
+    FromFuture = 22,
+    /// Outside the arm's workspace (no inverse kinematics within the joint limits).
+    OutsideWorkspace = 23,
+    /// The arm is busy with another apple.
+    Busy = 24,
+    /// The motion would come too close to the other arm (retried).
+    ClearanceConflict = 25,
+    /// The other arm approaches an unknown goal (retried).
+    OtherArmGoalUnknown = 26,
+    /// No valid joint feedback.
+    NoFeedback = 27,
+    /// Anything else (`reason` says what).
+    Other = 255,
+}
+
+impl HarvestCause {
+    pub fn from_code(code: u8) -> Option<Self> {
+        use HarvestCause::*;
+        [
+            None,
+            ApproachTimeout,
+            ValveNotGranted,
+            NoAttachment,
+            AppleLost,
+            ValveNotClosed,
+            EmergencyStop,
+            TargetNotTaken,
+            NonFinite,
+            Stale,
+            FromFuture,
+            OutsideWorkspace,
+            Busy,
+            ClearanceConflict,
+            OtherArmGoalUnknown,
+            NoFeedback,
+            Other,
+        ]
+        .into_iter()
+        .find(|cause| *cause as u8 == code)
+    }
+
+    /// A short snake_case label (`no_attachment`, `outside_workspace`, ...).
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::ApproachTimeout => "approach_timeout",
+            Self::ValveNotGranted => "valve_not_granted",
+            Self::NoAttachment => "no_attachment",
+            Self::AppleLost => "apple_lost",
+            Self::ValveNotClosed => "valve_not_closed",
+            Self::EmergencyStop => "emergency_stop",
+            Self::TargetNotTaken => "target_not_taken",
+            Self::NonFinite => "non_finite",
+            Self::Stale => "stale",
+            Self::FromFuture => "from_future",
+            Self::OutsideWorkspace => "outside_workspace",
+            Self::Busy => "busy",
+            Self::ClearanceConflict => "clearance_conflict",
+            Self::OtherArmGoalUnknown => "other_arm_goal_unknown",
+            Self::NoFeedback => "no_feedback",
+            Self::Other => "other",
+        }
+    }
+}
+
+/// One event of the harvest.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[type_name("harvest.HarvestEvent.v1")]
+pub struct HarvestEvent {
+    /// `capture_ns`: the control tick the event happened at.
+    pub header: Header,
+    /// [`HarvestEventSource`] code.
+    pub source: u8,
+    /// [`HarvestEventKind`] code.
+    pub kind: u8,
+    /// The arm concerned (1 or 2; 0 none).
+    pub arm_id: u8,
+    /// [`crate::payloads::ArmPhase`] code of the arm after the event (for the vacuum's events:
+    /// the arm's last published phase).
+    pub phase: u8,
+    /// 1 when the attempt harvested its apple (`AttemptEnded`, `AttemptFinished`), when the
+    /// refusal is retried (`TargetRejected`), when engaged (`EmergencyStop`).
+    pub harvested: u8,
+    /// [`HarvestCause`] code.
+    pub cause: u8,
+    pub _reserved: [u8; 2],
+    /// The apple (the vacuum supervisor's id as on `armN/target`; 0 none).
+    pub apple_id: u32,
+    pub _reserved2: u32,
+    /// The apple centre, robot frame, m (NaN when unknown).
+    pub position_in_robot_m: [f64; 3],
+    /// A short human-readable reason or detail.
+    pub reason: FixedString<HARVEST_EVENT_REASON_BYTES>,
+}
+
+crate::serde_payload!(
+    HarvestEvent,
+    "harvest.HarvestEvent",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64 (event tick), \
+publish_ns:u64}; source:u8 (1 arm1, 2 arm2, 3 vacuum); kind:u8 (1 assigned, 2 target accepted, \
+3 target rejected, 4 target deferred, 5 phase changed, 6 attached, 7 cycle step, 8 attempt \
+ended, 9 valve opened, 10 valve closed, 11 valve refused, 12 emergency stop, 13 attempt \
+finished, 14 dispatch timed out, 15 replanned, 16 attachment changed, 17 harvest complete); \
+arm_id:u8; phase:u8 (ArmState phase code); harvested:u8; cause:u8 (0 none, 1 approach timeout, \
+2 valve not granted, 3 no attachment, 4 apple lost, 5 valve not closed, 6 emergency stop, 7 \
+target not taken, 20 non-finite, 21 stale, 22 from future, 23 outside workspace, 24 busy, 25 \
+clearance conflict, 26 other arm goal unknown, 27 no feedback, 255 other); _reserved:[u8;2]; \
+apple_id:u32; _reserved2:u32; position_in_robot_m:[f64;3]; reason: u64 length + UTF-8"
+);
+
+impl HarvestEvent {
+    /// An event with the given source, kind, arm and apple; everything else zero, the position
+    /// NaN and no reason.
+    pub fn new(
+        stamp_ns: u64,
+        source: HarvestEventSource,
+        kind: HarvestEventKind,
+        arm_id: u8,
+        apple_id: u32,
+    ) -> Self {
+        Self {
+            header: Header {
+                msg_seq: 0,
+                capture_ns: stamp_ns,
+                publish_ns: 0,
+            },
+            source: source as u8,
+            kind: kind as u8,
+            arm_id,
+            apple_id,
+            position_in_robot_m: [f64::NAN; 3],
+            ..Self::default()
+        }
+    }
+
+    /// The decoded kind, if known.
+    pub fn kind(&self) -> Option<HarvestEventKind> {
+        HarvestEventKind::from_code(self.kind)
+    }
+
+    /// The decoded source, if known.
+    pub fn source(&self) -> Option<HarvestEventSource> {
+        HarvestEventSource::from_code(self.source)
+    }
+
+    /// The decoded cause, if known.
+    pub fn cause(&self) -> Option<HarvestCause> {
+        HarvestCause::from_code(self.cause)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::payload::Payload;
+
+    #[test]
+    fn codes_round_trip() {
+        for code in 0..=255u8 {
+            if let Some(kind) = HarvestEventKind::from_code(code) {
+                assert_eq!(kind as u8, code);
+            }
+            if let Some(cause) = HarvestCause::from_code(code) {
+                assert_eq!(cause as u8, code);
+            }
+        }
+        assert_eq!(
+            HarvestEventKind::from_code(17),
+            Some(HarvestEventKind::HarvestComplete)
+        );
+        assert_eq!(
+            HarvestCause::from_code(23),
+            Some(HarvestCause::OutsideWorkspace)
+        );
+        assert_eq!(HarvestEventSource::arm(2), Some(HarvestEventSource::Arm2));
+    }
+
+    #[test]
+    fn encodes_and_decodes() {
+        let mut event = HarvestEvent::new(
+            42,
+            HarvestEventSource::Arm1,
+            HarvestEventKind::TargetRejected,
+            1,
+            7,
+        );
+        event.cause = HarvestCause::OutsideWorkspace as u8;
+        event.position_in_robot_m = [3.0, 0.0, 0.5];
+        event.reason = FixedString::new("target 7 is unreachable");
+        let mut bytes = Vec::new();
+        event.encode(&mut bytes).expect("encode");
+        let mut back = HarvestEvent::default();
+        HarvestEvent::decode_into(&bytes, &mut back).expect("decode");
+        assert_eq!(back, event);
+        assert_eq!(back.reason.as_str(), "target 7 is unreachable");
+        assert_eq!(back.kind(), Some(HarvestEventKind::TargetRejected));
+    }
+}

@@ -1,0 +1,67 @@
+//! Perception's configuration file (TOML): [`PerceptionConfig`] with every key optional.
+//! `config/default.toml` documents the laser-scan keys.
+
+use std::path::Path;
+
+use crate::pipeline::PerceptionConfig;
+
+/// The documented defaults of the laser-scan policy.
+pub const DEFAULT_CONFIG: &str = include_str!("../config/default.toml");
+
+/// A configuration file that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigFileError {
+    /// The file could not be read.
+    #[error("cannot read perception config {path}: {source}")]
+    Read {
+        path: String,
+        source: std::io::Error,
+    },
+    /// Not valid TOML, an unknown key or a wrongly typed value (toml's message names the line,
+    /// column and key).
+    #[error("perception config {path}: {message}")]
+    Parse { path: String, message: String },
+}
+
+/// Reads a configuration file. Values are range-checked when the pipeline is built.
+pub fn read_config(path: &Path) -> Result<PerceptionConfig, ConfigFileError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigFileError::Read {
+        path: path.display().to_string(),
+        source,
+    })?;
+    parse_config(&text, &path.display().to_string())
+}
+
+/// Parses configuration text; `origin` names it in errors.
+pub fn parse_config(text: &str, origin: &str) -> Result<PerceptionConfig, ConfigFileError> {
+    toml::from_str(text).map_err(|error| ConfigFileError::Parse {
+        path: origin.to_owned(),
+        message: error.to_string(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_documented_defaults_are_the_code_defaults() {
+        let config = parse_config(DEFAULT_CONFIG, "default.toml").expect("parse");
+        assert_eq!(config, PerceptionConfig::default());
+    }
+
+    #[test]
+    fn unknown_keys_are_named_with_the_file() {
+        let bad = DEFAULT_CONFIG.replace("max_scans_per_frame", "max_scans");
+        let message = parse_config(&bad, "bad.toml")
+            .expect_err("unknown key")
+            .to_string();
+        assert!(
+            message.contains("bad.toml") && message.contains("max_scans"),
+            "{message}"
+        );
+        let config = parse_config("[laser]\nenabled = false\n", "off.toml").expect("parse");
+        assert!(!config.laser.enabled);
+        assert_eq!(config.min_detection_confidence, 0.3);
+    }
+}
