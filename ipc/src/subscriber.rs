@@ -64,25 +64,49 @@ impl<T: Payload> Subscriber<T> {
     /// call it until it returns `None`.
     pub fn receive(&self) -> Result<Option<Received<T>>, ReceiveError> {
         if self.batch_done.replace(false) {
-            // Events only mean "look at the queue": drain them so the wait set sleeps again.
-            if let Err(error) = self.listener.try_wait(|_| {}) {
-                tracing::debug!(
-                    topic = self.channel.spec.topic,
-                    ?error,
-                    "draining events failed"
-                );
-            }
+            self.drain_events();
         }
+        let sample = self.take()?;
+        if sample.is_none() {
+            self.batch_done.set(true);
+        }
+        Ok(sample)
+    }
+
+    /// Takes the next sample, if any, for a caller that spins on the queue instead of waiting
+    /// on [`Self::listener`] (busy-poll). The wake-up events are consumed on the first empty
+    /// poll after a sample arrived, so a spinning caller makes no system call per empty poll
+    /// and none between a sample's arrival and its return. Do not mix with a wait set.
+    pub fn poll(&self) -> Result<Option<Received<T>>, ReceiveError> {
+        let sample = self.take()?;
+        if sample.is_some() {
+            self.batch_done.set(true);
+        } else if self.batch_done.replace(false) {
+            self.drain_events();
+        }
+        Ok(sample)
+    }
+
+    /// Events only mean "look at the queue": drain them so the wait set sleeps again.
+    fn drain_events(&self) {
+        if let Err(error) = self.listener.try_wait(|_| {}) {
+            tracing::debug!(
+                topic = self.channel.spec.topic,
+                ?error,
+                "draining events failed"
+            );
+        }
+    }
+
+    fn take(&self) -> Result<Option<Received<T>>, ReceiveError> {
         let sample = self.port.receive().map_err(|error| ReceiveError {
             topic: self.channel.spec.topic,
             reason: format!("{error:?}"),
         })?;
-        let Some(sample) = sample else {
-            self.batch_done.set(true);
-            return Ok(None);
-        };
-        self.count(sample.origin().value(), sample.payload().header().msg_seq);
-        Ok(Some(Received { sample }))
+        Ok(sample.map(|sample| {
+            self.count(sample.origin().value(), sample.payload().header().msg_seq);
+            Received { sample }
+        }))
     }
 
     /// Takes every queued sample and returns only the newest (for state-like channels).
@@ -116,5 +140,44 @@ impl<T: Payload> Subscriber<T> {
             }
             None => last_seqs.push((publisher_id, msg_seq)),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::catalogue::{Channel, Qos};
+    use crate::payloads::EmergencyStop;
+    use crate::{Context, Domain, Payload};
+
+    fn pending_events(listener: &iceoryx2::port::listener::Listener<crate::Ipc>) -> usize {
+        let mut count = 0;
+        listener.try_wait(|_| count += 1).expect("try_wait");
+        count
+    }
+
+    #[test]
+    fn poll_takes_every_sample_and_drains_the_wake_ups_once_idle() {
+        let domain = Domain::unique("poll");
+        let context = Context::new(&domain, "poll-test").expect("context");
+        let channel = Channel::<EmergencyStop>::ad_hoc("test/poll", Qos::SMALL);
+        let subscriber = context.subscriber(channel).expect("subscriber");
+        let mut publisher = context.publisher(channel).expect("publisher");
+        // The first empty poll consumes whatever was pending before anything was sent.
+        assert!(subscriber.poll().expect("poll").is_none());
+        for engaged in [1u8, 0, 1] {
+            publisher
+                .publish_with(1, |message: &mut EmergencyStop| message.engaged = engaged)
+                .expect("publish");
+        }
+        let mut seen = Vec::new();
+        while let Some(sample) = subscriber.poll().expect("poll") {
+            seen.push((sample.engaged, sample.header().msg_seq));
+        }
+        assert_eq!(seen, vec![(1, 1), (0, 2), (1, 3)]);
+        assert_eq!(subscriber.dropped_count(), 0);
+        // The empty poll that ended the batch drained the three notifications.
+        assert_eq!(pending_events(subscriber.listener()), 0);
+        // Nothing new: further empty polls make no system call and find nothing.
+        assert!(subscriber.poll().expect("poll").is_none());
     }
 }

@@ -45,9 +45,9 @@ enum Command {
     /// Perception process: camera/rgbd -> perception/apples.
     Perception(harvest_perception::process::PerceptionArgs),
     /// Arm process: one arm's 200 Hz control loop (targets -> servos, state, valve requests).
-    Arm(harvest_supervisor::stack_processes::arm::ArmArgs),
+    Arm(harvest_arm::process::ArmArgs),
     /// Vacuum process: valves, attachment inference, coordination policy and apple assignment.
-    Vacuum(harvest_supervisor::stack_processes::vacuum::VacuumArgs),
+    Vacuum(harvest_vacuum::process::VacuumArgs),
     /// Calibrate a sensor and print the comparison of methods.
     #[command(subcommand)]
     Calibrate(CalibrateCommand),
@@ -79,6 +79,9 @@ enum Command {
         #[arg(long)]
         check: bool,
     },
+    /// Safety monitor: judge the stack's channels live, or a recording (`--recording`);
+    /// prints violations as found, exits non-zero if any.
+    Monitor(harvest_monitor::MonitorArgs),
     /// List the channel catalogue.
     Channels,
     /// Fault-injection fixtures for supervisor tests.
@@ -153,6 +156,7 @@ impl Cli {
             Command::Rec { .. } => "rec",
             Command::BenchPeer(_) => "bench-peer",
             Command::Clean { .. } => "clean",
+            Command::Monitor(_) => "monitor",
             Command::Channels => "channels",
             Command::Fixture { .. } => "fixture",
         }
@@ -168,12 +172,12 @@ impl Cli {
                 until_harvested,
             } => up(launch, duration, until_harvested, domain),
             Command::Arm(args) => {
-                harvest_supervisor::stack_processes::arm::run(&args, &domain, process_name)
+                harvest_arm::process::run(&args, &domain, process_name)
                     .context("arm process")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Vacuum(args) => {
-                harvest_supervisor::stack_processes::vacuum::run(&args, &domain, process_name)
+                harvest_vacuum::process::run(&args, &domain, process_name)
                     .context("vacuum process")?;
                 Ok(ExitCode::SUCCESS)
             }
@@ -255,6 +259,16 @@ impl Cli {
             Command::BenchPeer(args) => {
                 harvest_bench::run_bench_peer(&args).context("benchmark peer")?;
                 Ok(ExitCode::SUCCESS)
+            }
+            Command::Monitor(args) => {
+                let report = harvest_monitor::run_monitor(&args, &domain, process_name)
+                    .context("safety monitor")?;
+                print!("{}", report.render());
+                Ok(if report.violations.is_empty() {
+                    ExitCode::SUCCESS
+                } else {
+                    ExitCode::FAILURE
+                })
             }
             Command::Clean { check } => clean(&domain, check),
             Command::Channels => {

@@ -19,8 +19,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut sums = [[0.0_f64; 5]; 4];
     let mut ranked_as_paper = 0;
     for seed in 1..=sets {
-        let generated =
-            generate_samples(&SampleGeneratorConfig::paper_like(alacs_camera_intrinsics(), seed))?;
+        let generated = generate_samples(&SampleGeneratorConfig::paper_like(
+            alacs_camera_intrinsics(),
+            seed,
+        ))?;
         options.ransac.seed = seed;
         let clean = generated.clean_mask();
         let report = compare_methods(&generated.samples, Some(&clean), &options)?;

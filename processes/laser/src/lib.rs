@@ -28,8 +28,8 @@ pub use accuracy::{AccuracyConfig, AccuracyReport, evaluate_localization_accurac
 pub use candidate::{CandidateConfig, PositionCandidate, TargetHint};
 pub use cli::{CalibrateLaserArgs, CalibrateLaserError, run_calibrate_laser};
 pub use extraction::{ExtractionConfig, LaserLineExtractor, PixelRoi, StripePoint};
-pub use process::{LaserArgs, LaserProcessError};
 pub use policy_eval::{PolicyReport, evaluate_policy};
+pub use process::{LaserArgs, LaserProcessError};
 pub use refinement::{
     EvalLaserArgs, EvalLaserError, RefinementReport, evaluate_refinement, run_eval_laser,
 };

@@ -24,9 +24,9 @@ use harvest_perception::PerceptionConfig;
 use harvest_perception::config_file::read_config;
 use harvest_perception::laser_refiner::{LaserRefiner, ScanResultOutcome, TrackedApple};
 use harvest_perception::scan_policy::LaserScanConfig;
+use harvest_sim::World;
 use harvest_sim::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer, LocalAlacsUnit};
 use harvest_sim::process::load_scenario;
-use harvest_sim::World;
 use serde::Serialize;
 
 use crate::refinement::{
@@ -189,7 +189,7 @@ pub fn evaluate_policy(args: &EvalLaserArgs) -> Result<PolicyReport, EvalLaserEr
                     ScanResultOutcome::Unmatched => {}
                 }
             }
-            let estimates = tof.localise(&world, frame_seq)?.to_vec();
+            let estimates = tof.localise(world, frame_seq)?.to_vec();
             frame_seq += 1;
             let started = std::time::Instant::now();
             refiner.update(&estimates, color_focal_px, now_ns, &mut tracked);
@@ -202,8 +202,9 @@ pub fn evaluate_policy(args: &EvalLaserArgs) -> Result<PolicyReport, EvalLaserEr
                 // A failure is in `result.status`.
                 let _ = service.answer(&mut unit, &request, &mut result, &mut || {});
                 let motion = service.last_motion();
-                let processing_ms =
-                    (result.scan_duration_ns as f64 * 1e-6 - motion.device_ns as f64 * 1e-6).max(0.0);
+                let processing_ms = (result.scan_duration_ns as f64 * 1e-6
+                    - motion.device_ns as f64 * 1e-6)
+                    .max(0.0);
                 let duration_ms = 1e3 * motion.slide_travel_m / args.slide_speed_m_s
                     + motion.moves as f64 * args.settle_ms
                     + motion.captures as f64 * args.capture_ms
@@ -219,10 +220,12 @@ pub fn evaluate_policy(args: &EvalLaserArgs) -> Result<PolicyReport, EvalLaserEr
             }
             if frame + 1 == frames {
                 report.scans_unanswered_at_end += queue.len() + usize::from(in_flight.is_some());
-                report.waiting_at_end += count_waiting(&refiner, &estimates, &tracked, color_focal_px);
+                report.waiting_at_end +=
+                    count_waiting(&refiner, &estimates, &tracked, color_focal_px);
                 let color_from_robot = robot_from_color.inverse();
                 for (e, a) in pair_with_truth(world, &estimates) {
-                    let truth_in_camera = color_from_robot.apply(world.apples()[a].center_in_robot_m);
+                    let truth_in_camera =
+                        color_from_robot.apply(world.apples()[a].center_in_robot_m);
                     let estimate = &estimates[e];
                     let tof_mm = 1e3 * distance(estimate.position_in_camera_m, truth_in_camera);
                     let published_mm = match tracked.get(e).and_then(|t| t.laser_position_m) {
@@ -340,10 +343,22 @@ pub fn render_policy_report(report: &PolicyReport) -> String {
         "3D error at each world's last frame, mm            n     mean   median      p95      max"
     );
     let rows = [
-        ("laser-refined apples: ToF estimate      ", &report.refined_tof_error_mm),
-        ("laser-refined apples: published (laser) ", &report.refined_published_error_mm),
-        ("all published apples: ToF only          ", &report.all_tof_error_mm),
-        ("all published apples: with the scans    ", &report.all_published_error_mm),
+        (
+            "laser-refined apples: ToF estimate      ",
+            &report.refined_tof_error_mm,
+        ),
+        (
+            "laser-refined apples: published (laser) ",
+            &report.refined_published_error_mm,
+        ),
+        (
+            "all published apples: ToF only          ",
+            &report.all_tof_error_mm,
+        ),
+        (
+            "all published apples: with the scans    ",
+            &report.all_published_error_mm,
+        ),
     ];
     for (name, summary) in rows {
         let _ = writeln!(out, "{name}      {}", line(summary));

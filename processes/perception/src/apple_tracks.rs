@@ -178,10 +178,18 @@ mod tests {
         assert_eq!(first, vec![0, 1, 2]);
         // Next frame: a few millimetres of ToF noise, another order, one apple missing.
         let jitter = |p: [f64; 3], d: f64| [p[0] + d, p[1] - d, p[2]];
-        let second = associate(&mut tracks, &[jitter(c, 0.004), jitter(a, -0.006)], 33_000_000);
+        let second = associate(
+            &mut tracks,
+            &[jitter(c, 0.004), jitter(a, -0.006)],
+            33_000_000,
+        );
         assert_eq!(second, vec![2, 0]);
         // A new apple far from every track gets a new id.
-        let third = associate(&mut tracks, &[[0.9, 0.0, 0.5], jitter(b, 0.003)], 66_000_000);
+        let third = associate(
+            &mut tracks,
+            &[[0.9, 0.0, 0.5], jitter(b, 0.003)],
+            66_000_000,
+        );
         assert_eq!(third, vec![3, 1]);
         assert_eq!(tracks.tracks().len(), 4);
     }

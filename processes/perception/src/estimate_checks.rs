@@ -50,6 +50,16 @@ pub fn visible_fraction(visible_px: u32, radius_m: f64, depth_m: f64, focal_px: 
     f64::from(visible_px) / disc_px
 }
 
+/// Image radius of an over-exposed blob, pixels: the radius of a disc of its area, or half its
+/// box's longer side when that is larger. The highlight saturates only the apple's own visible
+/// pixels, so a leaf across the apple shrinks the blob's area, while the box usually still spans
+/// the apple's full diameter in one direction.
+pub fn blob_radius_px(visible_px: u32, box_width_px: u32, box_height_px: u32) -> f64 {
+    let from_area = (f64::from(visible_px) / std::f64::consts::PI).sqrt();
+    let from_box = 0.5 * f64::from(box_width_px.max(box_height_px));
+    from_area.max(from_box)
+}
+
 /// Depth confirmation of an over-exposed blob detection.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SaturatedBlobCheck {
@@ -74,16 +84,22 @@ impl SaturatedBlobCheck {
         points as f64 / expected
     }
 
-    /// Physical radius of a blob of `visible_px` colour pixels seen at `depth_m`, metres.
-    pub fn blob_radius_m(&self, visible_px: u32, depth_m: f64) -> f64 {
-        let radius_px = (f64::from(visible_px) / std::f64::consts::PI).sqrt();
+    /// Physical radius of a blob of image radius `radius_px` seen at `depth_m`, metres.
+    pub fn blob_radius_m(&self, radius_px: f64, depth_m: f64) -> f64 {
         radius_px * depth_m / self.color_focal_px
     }
 
-    /// True when the depth confirms an apple: enough coverage, and the blob's radius at the
-    /// estimate's centre depth in the accepted range.
-    pub fn confirms(&self, points: usize, visible_px: u32, estimate: &PositionEstimate) -> bool {
-        let radius_m = self.blob_radius_m(visible_px, estimate.position_in_camera_m[2]);
+    /// True when the depth confirms an apple: enough coverage of the blob's `visible_px`, and
+    /// the blob's radius (`radius_px`, see [`blob_radius_px`]) at the estimate's centre depth in
+    /// the accepted range.
+    pub fn confirms(
+        &self,
+        points: usize,
+        visible_px: u32,
+        radius_px: f64,
+        estimate: &PositionEstimate,
+    ) -> bool {
+        let radius_m = self.blob_radius_m(radius_px, estimate.position_in_camera_m[2]);
         self.depth_coverage(points, visible_px) >= self.min_depth_coverage
             && radius_m >= self.radius_range_m[0]
             && radius_m <= self.radius_range_m[1]
@@ -143,11 +159,18 @@ mod tests {
         };
         // A 40 mm fruit at 1.6 m: 40 px radius, 5027 px, 503 depth samples expected.
         let visible_px = (std::f64::consts::PI * 40.0 * 40.0) as u32;
-        assert!((check.blob_radius_m(visible_px, 1.6) - 0.04).abs() < 1e-3);
-        assert!(check.confirms(300, visible_px, &estimate(1.6)));
+        let radius_px = blob_radius_px(visible_px, 80, 80);
+        assert!((radius_px - 40.0).abs() < 0.1);
+        assert!((check.blob_radius_m(radius_px, 1.6) - 0.04).abs() < 1e-3);
+        assert!(check.confirms(300, visible_px, radius_px, &estimate(1.6)));
         // White sky: no depth.
-        assert!(!check.confirms(10, visible_px, &estimate(1.6)));
+        assert!(!check.confirms(10, visible_px, radius_px, &estimate(1.6)));
         // The same blob on the next row 5 m away would be a 125 mm object.
-        assert!(!check.confirms(300, visible_px, &estimate(5.0)));
+        assert!(!check.confirms(300, visible_px, radius_px, &estimate(5.0)));
+        // Half the fruit behind a leaf: half the area, but the box still spans the diameter
+        // vertically, so the fruit keeps its size.
+        let half = visible_px / 2;
+        assert!((blob_radius_px(half, 40, 80) - 40.0).abs() < 1e-9);
+        assert!(check.confirms(150, half, blob_radius_px(half, 40, 80), &estimate(1.6)));
     }
 }

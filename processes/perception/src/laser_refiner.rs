@@ -9,7 +9,9 @@
 //! whose `method` then reads `LaserScan`.
 //!
 //! A scan's position is accepted only when it lies within `max_refinement_shift_m` of the
-//! apple's current ToF estimate (a larger jump means the line fell on another apple); a scan
+//! apple's current ToF estimate (a larger jump means the line fell on another apple) and, unless
+//! `accept_single_image_answers`, when it is the sphere fitted to all stripes rather than one
+//! image's candidate (the result then equals its selected candidate, see the payload); a scan
 //! that failed, was refused or went unanswered for `scan_timeout_ms` marks the apple as failed
 //! and it is not asked for again.
 
@@ -241,6 +243,7 @@ impl LaserRefiner {
         robot_from_camera: &RigidTransform,
     ) -> ScanResultOutcome {
         let max_shift_m = self.config.max_refinement_shift_m;
+        let accept_single_image = self.config.accept_single_image_answers;
         let Some(track) = self.tracks.by_request_mut(result.request_seq) else {
             self.stats.unmatched_results += 1;
             debug!(
@@ -252,16 +255,27 @@ impl LaserRefiner {
         if result.status != SCAN_STATUS_OK {
             track.scan = ScanState::Failed;
             self.stats.scan_failures += 1;
-            debug!(apple_id = track.id, status = result.status, "laser scan failed");
+            debug!(
+                apple_id = track.id,
+                status = result.status,
+                "laser scan failed"
+            );
             return ScanResultOutcome::ScanFailed;
         }
         let position_in_camera_m = result.position_in_camera_m;
         let position_in_robot_m = robot_from_camera.apply(position_in_camera_m);
         let shift_m = distance_m(position_in_robot_m, track.position_in_robot_m);
-        if !(position_in_camera_m.iter().all(|v| v.is_finite()) && shift_m <= max_shift_m) {
+        let single_image = is_single_image_answer(result);
+        if !(position_in_camera_m.iter().all(|v| v.is_finite())
+            && shift_m <= max_shift_m
+            && (accept_single_image || !single_image))
+        {
             track.scan = ScanState::Failed;
             self.stats.refused += 1;
-            debug!(apple_id = track.id, shift_m, "laser scan position refused");
+            debug!(
+                apple_id = track.id,
+                shift_m, single_image, "laser scan position refused"
+            );
             return ScanResultOutcome::Refused;
         }
         track.scan = ScanState::Refined {
@@ -273,6 +287,17 @@ impl LaserRefiner {
         debug!(apple_id = track.id, shift_m, "apple refined by laser scan");
         ScanResultOutcome::Refined
     }
+}
+
+/// The scan answered with its selected single-image candidate instead of a sphere fitted to all
+/// stripes (the payload's rule: the fused sphere when at least 3 stripes agree, else the selected
+/// candidate).
+pub fn is_single_image_answer(result: &LaserScanResult) -> bool {
+    let count = usize::from(result.candidate_count).min(result.candidates_in_camera_m.len());
+    let selected = usize::from(result.selected);
+    count == 0
+        || (selected < count
+            && result.candidates_in_camera_m[selected] == result.position_in_camera_m)
 }
 
 #[cfg(test)]
@@ -316,12 +341,20 @@ mod tests {
         }
     }
 
+    /// A fused answer: five candidates around the fitted sphere's centre.
     fn answer(request: &LaserScanRequest, position_in_camera_m: [f64; 3]) -> LaserScanResult {
+        let mut candidates = [position_in_camera_m; 5];
+        for (k, candidate) in candidates.iter_mut().enumerate() {
+            candidate[0] += 0.001 * (k as f64 - 2.0);
+        }
         LaserScanResult {
             request_seq: request.request_seq,
             apple_id: request.apple_id,
             status: SCAN_STATUS_OK,
+            candidate_count: 5,
+            selected: 1,
             position_in_camera_m,
+            candidates_in_camera_m: candidates,
             ..LaserScanResult::default()
         }
     }
@@ -347,7 +380,10 @@ mod tests {
         let asked: Vec<u32> = refiner.requests().iter().map(|r| r.apple_id).collect();
         // Priority: visible fraction x confidence = 0.1 (apple 3), 0.27 (apple 2), 0.405 (1).
         assert_eq!(asked, vec![3, 2]);
-        assert_eq!(refiner.requests()[0].rough_position_in_camera_m, [0.3, 0.0, 1.0]);
+        assert_eq!(
+            refiner.requests()[0].rough_position_in_camera_m,
+            [0.3, 0.0, 1.0]
+        );
         // Next frame: one slot left of the 3 pending; the remaining candidate is asked for;
         // apples already asked for are not asked again.
         refiner.update(&apples, FOCAL_PX, 33_000_000, &mut out);
@@ -370,7 +406,8 @@ mod tests {
         refiner.update(&apples, FOCAL_PX, 33_000_000, &mut out);
         assert!(out.iter().all(|a| a.laser_position_m.is_none()));
         let laser_in_camera = [0.205, 0.002, 1.012];
-        let outcome = refiner.handle_result(&answer(&request, laser_in_camera), &robot_from_camera());
+        let outcome =
+            refiner.handle_result(&answer(&request, laser_in_camera), &robot_from_camera());
         assert_eq!(outcome, ScanResultOutcome::Refined);
         // Later frames, apples in another order and with ToF jitter: only apple 1 is refined.
         apples.reverse();
@@ -393,16 +430,29 @@ mod tests {
     #[test]
     fn far_failed_or_late_answers_are_not_applied() {
         let config = LaserScanConfig {
-            max_scans_per_frame: 3,
-            max_pending_scans: 3,
+            max_scans_per_frame: 4,
+            max_pending_scans: 4,
             ..LaserScanConfig::default()
         };
         let mut refiner = LaserRefiner::new(config);
-        let apples = [apple(-0.2, 0.3, 0.9), apple(0.0, 0.3, 0.9), apple(0.2, 0.3, 0.9)];
+        let apples = [
+            apple(-0.2, 0.3, 0.9),
+            apple(0.0, 0.3, 0.9),
+            apple(0.2, 0.3, 0.9),
+            apple(0.4, 0.3, 0.9),
+        ];
         let mut out = Vec::new();
         refiner.update(&apples, FOCAL_PX, 0, &mut out);
         let requests = refiner.requests().to_vec();
-        assert_eq!(requests.len(), 3);
+        assert_eq!(requests.len(), 4);
+        // Answered by one image's candidate (no fused sphere): refused by default.
+        let mut single = answer(&requests[3], [0.401, 0.0, 1.0]);
+        single.candidates_in_camera_m[usize::from(single.selected)] = single.position_in_camera_m;
+        assert!(is_single_image_answer(&single));
+        assert_eq!(
+            refiner.handle_result(&single, &robot_from_camera()),
+            ScanResultOutcome::Refused
+        );
         // 8 cm away from the ToF estimate: the line fell on something else.
         let far = answer(&requests[0], [-0.12, 0.0, 1.0]);
         assert_eq!(
@@ -422,14 +472,20 @@ mod tests {
             refiner.update(&apples, FOCAL_PX, second * 1_000_000_000, &mut out);
         }
         assert!(out.iter().all(|a| a.laser_position_m.is_none()));
-        assert!(refiner.requests().is_empty(), "failed apples are not asked again");
+        assert!(
+            refiner.requests().is_empty(),
+            "failed apples are not asked again"
+        );
         let late = answer(&requests[2], [0.2, 0.0, 1.0]);
         assert_eq!(
             refiner.handle_result(&late, &robot_from_camera()),
             ScanResultOutcome::Unmatched
         );
         let stats = refiner.stats();
-        assert_eq!((stats.refused, stats.scan_failures, stats.timed_out), (1, 1, 1));
+        assert_eq!(
+            (stats.refused, stats.scan_failures, stats.timed_out),
+            (2, 1, 1)
+        );
     }
 
     #[test]
@@ -444,6 +500,9 @@ mod tests {
         refiner.update(&apples, FOCAL_PX, 0, &mut out);
         refiner.update(&apples, FOCAL_PX, 1, &mut out);
         assert!(refiner.requests().is_empty());
-        assert_eq!(out.iter().map(|a| a.apple_id).collect::<Vec<_>>(), vec![0, 1]);
+        assert_eq!(
+            out.iter().map(|a| a.apple_id).collect::<Vec<_>>(),
+            vec![0, 1]
+        );
     }
 }

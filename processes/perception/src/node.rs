@@ -124,20 +124,16 @@ impl PerceptionNode {
             &mut self.tracked,
         );
         out.processing_ns = stats.timings.total_us * 1000;
-        for (apple, tracked) in apples
-            .iter()
-            .zip(&self.tracked)
-            .take(MAX_APPLES_PER_FRAME)
-        {
-            let (method, position_in_camera_m, position_in_robot_m) =
-                match tracked.laser_position_m {
-                    Some((camera, robot)) => (LocalizationMethod::LaserScan, camera, robot),
-                    None => (
-                        localization_method(apple.estimator),
-                        apple.position_in_camera_m,
-                        apple.position_in_robot_m,
-                    ),
-                };
+        for (apple, tracked) in apples.iter().zip(&self.tracked).take(MAX_APPLES_PER_FRAME) {
+            let (method, position_in_camera_m, position_in_robot_m) = match tracked.laser_position_m
+            {
+                Some((camera, robot)) => (LocalizationMethod::LaserScan, camera, robot),
+                None => (
+                    localization_method(apple.estimator),
+                    apple.position_in_camera_m,
+                    apple.position_in_robot_m,
+                ),
+            };
             let detection = AppleDetection {
                 apple_id: tracked.apple_id,
                 method: method as u8,

@@ -41,7 +41,9 @@ use crate::detector::color_segmentation::{
     ColorSegmentation, ColorSegmentationConfig, ColorSegmentationConfigError,
 };
 use crate::detector::{Detection, DetectionSource, Detector, PixelBox};
-use crate::estimate_checks::{SaturatedBlobCheck, depth_agrees, median_depth_m, visible_fraction};
+use crate::estimate_checks::{
+    SaturatedBlobCheck, blob_radius_px, depth_agrees, median_depth_m, visible_fraction,
+};
 use crate::estimator::{
     Estimator, EstimatorConfig, EstimatorConfigError, EstimatorContext, EstimatorInput,
     EstimatorKind, PositionEstimate, make_estimator,
@@ -710,6 +712,11 @@ impl Perception {
                 continue;
             };
             let box_center_ray = self.box_center_ray(&detection.pixel_box);
+            let blob_radius_px = blob_radius_px(
+                detection.visible_px,
+                detection.pixel_box.width_px(),
+                detection.pixel_box.height_px(),
+            );
             if blob && self.estimator.kind() != EstimatorKind::ClusterDepth {
                 estimates.clear();
                 estimates.extend(blob_estimate(
@@ -718,7 +725,7 @@ impl Perception {
                     self.blob_check.color_focal_px,
                     points,
                     box_center_ray,
-                    detection.visible_px,
+                    blob_radius_px,
                 ));
             } else {
                 let input = EstimatorInput {
@@ -738,9 +745,12 @@ impl Perception {
             if blob {
                 // Only the best-supported fruit of a blob; its size must be an apple's.
                 estimates.truncate(1);
-                if !self
-                    .blob_check
-                    .confirms(points.len(), detection.visible_px, &estimates[0])
+                if !self.blob_check.confirms(
+                    points.len(),
+                    detection.visible_px,
+                    blob_radius_px,
+                    &estimates[0],
+                )
                 {
                     stats.saturated_blobs_rejected += 1;
                     continue;
@@ -869,7 +879,7 @@ fn blob_estimate(
     color_focal_px: f64,
     points: &[[f32; 3]],
     ray: [f64; 3],
-    visible_px: u32,
+    blob_radius_px: f64,
 ) -> Option<PositionEstimate> {
     let fit = &config.estimator.sphere_fit;
     let params = BlobLocalizerParams {
@@ -880,7 +890,6 @@ fn blob_estimate(
         min_half_window_m: BLOB_VOTE_MIN_HALF_WINDOW_M,
         noise: config.noise,
     };
-    let blob_radius_px = (f64::from(visible_px) / std::f64::consts::PI).sqrt();
     let location = localizer.locate(points, ray, blob_radius_px, color_focal_px, &params)?;
     trace!(
         flatness = location.flatness,

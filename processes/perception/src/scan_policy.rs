@@ -30,6 +30,11 @@ pub struct LaserScanConfig {
     /// A scan's position further than this from the apple's ToF estimate is refused (the line
     /// fell on another apple), m.
     pub max_refinement_shift_m: f64,
+    /// Accept a scan whose answer is its selected single-image candidate (fewer than 3 stripes
+    /// agreed, so no sphere was fitted to all of them). Off: such answers are refused (in
+    /// `harvest eval laser` they err by 7 mm median, up to several cm, against 0.1 mm for the
+    /// fused sphere).
+    pub accept_single_image_answers: bool,
     /// A detection continues a track whose last ToF position is within this, m.
     pub track_gate_m: f64,
     /// A track unseen for this long is dropped, ms.
@@ -48,6 +53,7 @@ impl Default for LaserScanConfig {
             max_scans_per_frame: 1,
             max_pending_scans: 1,
             max_refinement_shift_m: 0.05,
+            accept_single_image_answers: false,
             track_gate_m: 0.03,
             track_timeout_ms: 2_000,
             scan_timeout_ms: 5_000,
@@ -145,7 +151,9 @@ mod tests {
         let config = LaserScanConfig::default();
         assert_eq!(config.scan_priority(&evidence(0.9, 0.9)), None);
         let occluded = config.scan_priority(&evidence(0.3, 0.9)).expect("occluded");
-        let uncertain = config.scan_priority(&evidence(0.9, 0.4)).expect("uncertain");
+        let uncertain = config
+            .scan_priority(&evidence(0.9, 0.4))
+            .expect("uncertain");
         assert!((occluded - 0.27).abs() < 1e-6 && (uncertain - 0.36).abs() < 1e-6);
         let fallback = ScanEvidence {
             fallback: true,

@@ -94,7 +94,10 @@ impl ValveLineModel {
         let conductances = [
             ("inlet_conductance", self.inlet_conductance),
             ("open_cup_conductance", self.open_cup_conductance),
-            ("leaf_blocked_cup_conductance", self.leaf_blocked_cup_conductance),
+            (
+                "leaf_blocked_cup_conductance",
+                self.leaf_blocked_cup_conductance,
+            ),
             ("sealed_cup_conductance", self.sealed_cup_conductance),
         ];
         for (key, value) in conductances {

@@ -263,11 +263,12 @@ impl SafetyMonitor {
                     && !valve_reported[arm.index()]
                 {
                     valve_reported[arm.index()] = true;
-                    self.violations.push(Violation::ValveOpenDuringEmergencyStop {
-                        arm,
-                        stop_ns: *stop_ns,
-                        stamp_ns,
-                    });
+                    self.violations
+                        .push(Violation::ValveOpenDuringEmergencyStop {
+                            arm,
+                            stop_ns: *stop_ns,
+                            stamp_ns,
+                        });
                 }
                 let other = arm.other().index();
                 if self.open[other] && !self.sealed[other] {
@@ -382,11 +383,12 @@ impl SafetyMonitor {
             for arm in ArmId::ALL {
                 if self.open[arm.index()] && !valve_reported[arm.index()] {
                     valve_reported[arm.index()] = true;
-                    self.violations.push(Violation::ValveOpenDuringEmergencyStop {
-                        arm,
-                        stop_ns: *stop_ns,
-                        stamp_ns: now_ns,
-                    });
+                    self.violations
+                        .push(Violation::ValveOpenDuringEmergencyStop {
+                            arm,
+                            stop_ns: *stop_ns,
+                            stamp_ns: now_ns,
+                        });
                 }
             }
         }

@@ -78,7 +78,7 @@ impl<T: BenchMessage> ReceivePort<T> for OursReceiver<T> {
         let subscriber = &self.subscriber;
         let Some(waiter) = &self.waiter else {
             loop {
-                match subscriber.receive()? {
+                match subscriber.poll()? {
                     Some(sample) => {
                         let recv_ns = MonotonicClock::read_ns();
                         if on_message(&sample, recv_ns)? == Flow::Stop {

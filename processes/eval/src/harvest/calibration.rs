@@ -40,7 +40,10 @@ mod tests {
 
     #[test]
     fn the_simulated_valve_box_is_the_nominal_line_in_every_preset() {
-        assert_eq!(line_model(&VacuumConfig::default()), ValveLineModel::NOMINAL);
+        assert_eq!(
+            line_model(&VacuumConfig::default()),
+            ValveLineModel::NOMINAL
+        );
         for name in preset_names() {
             let scenario = Scenario::preset(name).expect("preset");
             let line = line_model(&scenario.vacuum);

@@ -284,6 +284,9 @@ impl Episode {
             && estop
             && self.estop.is_none()
         {
+            if let Some(safety) = self.safety.as_mut() {
+                safety.emergency_stop(now_ns, true)?;
+            }
             self.estop = Some(EmergencyStopReaction {
                 requested_s: at,
                 commanded_s: None,

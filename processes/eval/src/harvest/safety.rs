@@ -157,6 +157,11 @@ impl SafetyTrace {
         Ok(())
     }
 
+    /// The emergency stop was engaged (or released) at `stamp_ns`.
+    pub fn emergency_stop(&mut self, stamp_ns: u64, engaged: bool) -> Result<(), TraceError> {
+        self.observe(TraceEvent::EmergencyStop { stamp_ns, engaged })
+    }
+
     /// Both measured end-effector positions, robot frame, m.
     pub fn end_effectors(
         &mut self,

@@ -51,7 +51,10 @@ fn over_exposed_apples_behind_leaves_are_localized_on_the_apple_not_the_leaf() {
                 .enumerate()
                 .max_by_key(|(_, count)| **count)
                 .expect("apples");
-            assert!(pixels > 0, "seed {seed}: a detection with no apple pixel in its box");
+            assert!(
+                pixels > 0,
+                "seed {seed}: a detection with no apple pixel in its box"
+            );
             // Its leaf pixels do not outnumber its apple pixels (a box drawn on a leaf would).
             let [u0, v0, w, h] = apple.box_px.map(|x| x as usize);
             let width = meter.width_px();

@@ -304,7 +304,10 @@ mod tests {
             // The boards are centred on the optical axis's row (y = 0): a point's height in the
             // camera frame cannot exceed half the board's height.
             let y_m = sample.v_bar * sample.z_m;
-            assert!(y_m.abs() <= half_height_m + 1e-9, "sample {index}: y {y_m} m");
+            assert!(
+                y_m.abs() <= half_height_m + 1e-9,
+                "sample {index}: y {y_m} m"
+            );
             let board = index / config.points_per_board;
             if board == 0 {
                 widest_v_bar[0] = widest_v_bar[0].max(sample.v_bar.abs());

@@ -358,7 +358,8 @@ impl std::fmt::Display for CalibrationReport {
                 row.mean_abs_error_all_mm,
                 row.mean_abs_error_used_mm,
                 row.used_samples,
-                row.epsilon_mm.map_or("/".to_string(), |e| format!("{e:.2}")),
+                row.epsilon_mm
+                    .map_or("/".to_string(), |e| format!("{e:.2}")),
                 row.time_ms
             )?;
         }

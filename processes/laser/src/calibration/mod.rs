@@ -133,7 +133,10 @@ mod tests {
                 .count();
             // 27 clean samples; the low-fidelity model's structural error is several mm, so
             // its threshold must be wider than the 2 mm floor to keep them.
-            assert!(clean_used >= 24, "seed {seed}: {clean_used} clean samples kept");
+            assert!(
+                clean_used >= 24,
+                "seed {seed}: {clean_used} clean samples kept"
+            );
             let threshold_m = method_2.threshold_m.expect("RANSAC threshold");
             assert!(threshold_m > options.ransac.epsilon_m, "seed {seed}");
             // The high-fidelity model fits clean data to well under 2 mm: its threshold stays
