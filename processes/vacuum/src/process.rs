@@ -30,6 +30,7 @@ use harvest_arm::node::{ArmNodeConfig, pick_reachable};
 use harvest_arm::params::ArmId as ArmNumber;
 use harvest_arm::period_stats::{PeriodStats, PeriodStatsError, PeriodSummary};
 use harvest_arm::process::ArmDevice;
+use harvest_hw::valve_board::serial::{SerialBoardConfig, SerialValveBoard};
 use harvest_hw::valve_board::sim::SimValveBoard;
 use harvest_hw::valve_board::{ValveBoard, ValveId, ValveState};
 use harvest_ipc::catalogue::{
@@ -56,6 +57,9 @@ use crate::pressure::PressureConfig;
 pub enum VacuumDevice {
     /// The simulated valve board behind `hw/valves/command` and `hw/valves/readings`.
     Sim,
+    /// The robot's Arduino valve board on a serial line (`--port`), through the documented line
+    /// protocol (`harvest_hw::valve_board::protocol`).
+    Serial,
 }
 
 /// Attach timeout with the simulated valve box, ns: with the scenario's 0.12 s tube lag and
@@ -74,13 +78,15 @@ impl VacuumDevice {
                 attach_timeout_ns: SIM_ATTACH_TIMEOUT_NS,
                 ..PressureConfig::default()
             },
+            Self::Serial => PressureConfig::default(),
         }
     }
 
     /// The arm settings of the same robot (for the reachability test).
-    pub fn arm_device(self) -> ArmDevice {
+    pub fn arm_node_config(self) -> ArmNodeConfig {
         match self {
-            Self::Sim => ArmDevice::Sim,
+            Self::Sim => ArmDevice::Sim.node_config(),
+            Self::Serial => ArmNodeConfig::default(),
         }
     }
 }
@@ -97,6 +103,9 @@ pub struct VacuumArgs {
     /// Valve board device.
     #[arg(long, value_enum, default_value = "sim")]
     pub device: VacuumDevice,
+    /// Serial port of the valve board (with `--device serial`), e.g. `/dev/ttyACM0`.
+    #[arg(long, required_if_eq("device", "serial"))]
+    pub port: Option<String>,
     /// Process settings (TOML file, every key optional; see `VacuumProcessConfig`).
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -251,7 +260,7 @@ pub fn run(
     node_config.arms_enabled = [true, args.arms >= 2];
     let arm_node = config
         .arm_node
-        .unwrap_or_else(|| args.device.arm_device().node_config());
+        .unwrap_or_else(|| args.device.arm_node_config());
     let node = VacuumNode::new(
         node_config,
         Box::new(move |arm: ArmId, centre: &[f64; 3], radius_m: f64| {
@@ -265,6 +274,14 @@ pub fn run(
         VacuumDevice::Sim => {
             let board = SimValveBoard::connect(&context, timeout)
                 .map_err(|error| VacuumProcessError::Device(error.to_string()))?;
+            control_loop(&context, board, node, &config, args)
+        }
+        VacuumDevice::Serial => {
+            let port = args.port.as_deref().ok_or_else(|| {
+                VacuumProcessError::Device("--device serial needs --port PATH".to_owned())
+            })?;
+            let board = SerialValveBoard::open(&SerialBoardConfig::new(port))
+                .map_err(|error| VacuumProcessError::Device(format!("{port}: {error}")))?;
             control_loop(&context, board, node, &config, args)
         }
     }
