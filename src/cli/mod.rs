@@ -172,8 +172,7 @@ impl Cli {
                 until_harvested,
             } => up(launch, duration, until_harvested, domain),
             Command::Arm(args) => {
-                harvest_arm::process::run(&args, &domain, process_name)
-                    .context("arm process")?;
+                harvest_arm::process::run(&args, &domain, process_name).context("arm process")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Vacuum(args) => {

@@ -31,6 +31,11 @@ pub struct MonitorArgs {
     /// Minimum distance between the two end-effectors, m.
     #[arg(long, default_value_t = 0.10)]
     pub clearance_m: f64,
+    /// Live only: engage `safety/emergency_stop` this long after starting (e.g. 15s) and report
+    /// how long the stack takes to close every valve and brake both arms. The stop stays
+    /// engaged.
+    #[arg(long, value_parser = harvest_ipc::duration::parse_duration)]
+    pub engage_stop_after: Option<Duration>,
 }
 
 impl Default for MonitorArgs {
@@ -41,6 +46,7 @@ impl Default for MonitorArgs {
             attach_window_ms: DEFAULT_ATTACH_WINDOW_NS / 1_000_000,
             reaction_ms: STACK_REACTION_NS / 1_000_000,
             clearance_m: 0.10,
+            engage_stop_after: None,
         }
     }
 }
@@ -84,7 +90,20 @@ pub fn run_monitor(
     let (mapping, checks) = args.configs()?;
     let print = |v: &harvest_vacuum::safety_monitor::Violation| println!("VIOLATION {v}");
     match &args.recording {
+        Some(_) if args.engage_stop_after.is_some() => Err(MonitorError::InvalidArgument {
+            arg: "--engage-stop-after",
+            value: format!("{:?}", args.engage_stop_after),
+            reason: "only for the live stack, not with --recording",
+        }),
         Some(path) => check_recording(path, mapping, checks, print),
-        None => run_live(domain, process_name, args.duration, mapping, checks, print),
+        None => run_live(
+            domain,
+            process_name,
+            args.duration,
+            args.engage_stop_after,
+            mapping,
+            checks,
+            print,
+        ),
     }
 }

@@ -6,7 +6,10 @@
 use std::time::{Duration, Instant};
 
 use harvest_ipc::catalogue::{ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, VACUUM_STATE};
-use harvest_ipc::{Context, Domain, Flow, MonotonicClock, Payload, Subscriber, Waiter};
+use harvest_ipc::payloads::EmergencyStop;
+use harvest_ipc::{
+    Context, Domain, FixedString, Flow, MonotonicClock, Payload, Subscriber, Waiter,
+};
 use harvest_vacuum::ArmId;
 use harvest_vacuum::safety_monitor::{MonitorConfig, Violation};
 
@@ -14,8 +17,8 @@ use crate::error::MonitorError;
 use crate::mapping::MappingConfig;
 use crate::stack_monitor::{MonitorReport, StackMessage, StackMonitor};
 
-/// How often the loop wakes without traffic to check the duration.
-const HOUSEKEEPING: Duration = Duration::from_millis(100);
+/// How often the loop wakes without traffic to check the duration and the stop time.
+const HOUSEKEEPING: Duration = Duration::from_millis(20);
 
 fn subscribe<T: Payload>(
     context: &Context,
@@ -28,11 +31,14 @@ fn subscribe<T: Payload>(
 }
 
 /// Monitors the stack of `domain` until `duration` has passed (or a termination signal);
-/// `on_violation` sees each violation when it is found.
+/// `on_violation` sees each violation when it is found. With `engage_stop_after`, the monitor
+/// also engages `safety/emergency_stop` itself that long after it started (and leaves it
+/// engaged), to measure the stack's reaction live ([`crate::stack_monitor::StopReaction`]).
 pub fn run_live(
     domain: &Domain,
     process_name: &str,
     duration: Option<Duration>,
+    engage_stop_after: Option<Duration>,
     mapping: MappingConfig,
     checks: MonitorConfig,
     mut on_violation: impl FnMut(&Violation),
@@ -49,6 +55,14 @@ pub fn run_live(
         subscribe(&context, ARM_STATE[1])?,
     ];
     let stop = subscribe(&context, EMERGENCY_STOP)?;
+    let mut stop_publisher = match engage_stop_after {
+        Some(_) => Some(
+            context
+                .publisher(EMERGENCY_STOP)
+                .map_err(|error| MonitorError::Channels(error.to_string()))?,
+        ),
+        None => None,
+    };
     let waiter = Waiter::new()?;
     let _guards = [
         waiter.attach_listener(vacuum.listener())?,
@@ -70,6 +84,20 @@ pub fn run_live(
         Ok::<(), MonitorError>(())
     };
     let end = waiter.run(|_attachment| -> Result<Flow, MonitorError> {
+        if let (Some(after), Some(publisher)) = (engage_stop_after, stop_publisher.as_mut())
+            && started.elapsed() >= after
+        {
+            let message = EmergencyStop {
+                engaged: 1,
+                reason: FixedString::new("harvest monitor: reaction measurement"),
+                ..EmergencyStop::default()
+            };
+            publisher
+                .publish(&message)
+                .map_err(|error| MonitorError::Channels(error.to_string()))?;
+            tracing::warn!("emergency stop engaged by the monitor (reaction measurement)");
+            stop_publisher = None;
+        }
         // Any wake-up: drain every queue (a wake-up may stand for several channels).
         while let Some(sample) = vacuum.receive()? {
             judge(&mut monitor, StackMessage::Vacuum(&sample))?;

@@ -3,7 +3,9 @@
 
 use std::fmt::Write as _;
 
-use harvest_ipc::payloads::{ArmCommand, ArmState, EmergencyStop, VacuumState};
+use harvest_ipc::payloads::{
+    ArmCommand, ArmPhase as PhaseCode, ArmState, EmergencyStop, VacuumState,
+};
 use harvest_vacuum::ArmId;
 use harvest_vacuum::safety_monitor::{MonitorConfig, SafetyMonitor, TraceError, Violation};
 use harvest_vacuum::trace::TraceEvent;
@@ -23,6 +25,19 @@ pub enum StackMessage<'a> {
     Stop(&'a EmergencyStop),
 }
 
+/// The stack's reaction to one engagement of the emergency stop, as seen on the channels: from
+/// the `safety/emergency_stop` message to the first `vacuum/state` reporting all four valves
+/// closed at their end stops, and to both arms publishing the `Stopped` phase (drives braked).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StopReaction {
+    /// When the engaged stop was received, ns.
+    pub engaged_ns: u64,
+    /// Delay until every valve was reported closed and settled, s.
+    pub valves_closed_s: Option<f64>,
+    /// Delay until both arms reported `Stopped`, s.
+    pub arms_holding_s: Option<f64>,
+}
+
 /// What a monitoring run found.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MonitorReport {
@@ -36,6 +51,8 @@ pub struct MonitorReport {
     pub span_ns: Option<(u64, u64)>,
     /// Every violation, in the order found.
     pub violations: Vec<Violation>,
+    /// Each engagement of the emergency stop and how fast the stack reacted.
+    pub emergency_stops: Vec<StopReaction>,
 }
 
 impl MonitorReport {
@@ -55,6 +72,22 @@ impl MonitorReport {
             self.skipped_messages,
             self.violations.len()
         );
+        for stop in &self.emergency_stops {
+            let delay = |d: Option<f64>| {
+                d.map_or_else(|| "not seen".to_owned(), |d| format!("{:.1} ms", d * 1e3))
+            };
+            let _ = writeln!(
+                out,
+                "  emergency stop {:.3} s into the run: all valves closed after {}, both arms \
+                 holding after {}",
+                stop.engaged_ns
+                    .saturating_sub(self.span_ns.map_or(0, |(first, _)| first))
+                    as f64
+                    * 1e-9,
+                delay(stop.valves_closed_s),
+                delay(stop.arms_holding_s)
+            );
+        }
         out
     }
 }
@@ -66,6 +99,8 @@ pub struct StackMonitor {
     monitor: SafetyMonitor,
     events: Vec<TraceEvent>,
     report: MonitorReport,
+    stop_engaged: bool,
+    arm_stopped: [bool; 2],
 }
 
 impl StackMonitor {
@@ -76,6 +111,8 @@ impl StackMonitor {
             monitor: SafetyMonitor::new(checks),
             events: Vec::with_capacity(8),
             report: MonitorReport::default(),
+            stop_engaged: false,
+            arm_stopped: [false; 2],
         }
     }
 
@@ -104,6 +141,7 @@ impl StackMonitor {
                     .emergency_stop(receive_ns, stop, &mut self.events)
             }
         }
+        self.time_stop(receive_ns, message);
         let before = self.monitor.violations().len();
         for event in &self.events {
             self.monitor.observe(event)?;
@@ -115,6 +153,44 @@ impl StackMonitor {
             None => (receive_ns, receive_ns),
         });
         Ok(&self.monitor.violations()[before..])
+    }
+
+    /// Measures the reaction to the emergency stop ([`StopReaction`]).
+    fn time_stop(&mut self, receive_ns: u64, message: StackMessage<'_>) {
+        match message {
+            StackMessage::Stop(stop) => {
+                let engaged = stop.engaged != 0;
+                if engaged && !self.stop_engaged {
+                    self.report.emergency_stops.push(StopReaction {
+                        engaged_ns: receive_ns,
+                        ..StopReaction::default()
+                    });
+                }
+                self.stop_engaged = engaged;
+            }
+            StackMessage::State(arm, state) => {
+                self.arm_stopped[arm.index()] = state.phase == PhaseCode::Stopped as u8;
+            }
+            StackMessage::Vacuum(_) | StackMessage::Command(..) => {}
+        }
+        if !self.stop_engaged {
+            return;
+        }
+        let arms_holding = self.arm_stopped == [true, true];
+        let Some(reaction) = self.report.emergency_stops.last_mut() else {
+            return;
+        };
+        let delay_s = receive_ns.saturating_sub(reaction.engaged_ns) as f64 * 1e-9;
+        if let StackMessage::Vacuum(v) = message
+            && reaction.valves_closed_s.is_none()
+            && v.valve_open == [0; 4]
+            && v.valve_in_transit == [0; 4]
+        {
+            reaction.valves_closed_s = Some(delay_s);
+        }
+        if arms_holding && reaction.arms_holding_s.is_none() {
+            reaction.arms_holding_s = Some(delay_s);
+        }
     }
 
     /// Counts a message that could not be judged.

@@ -115,13 +115,14 @@ fn harvest(arm2_opens_ms: u64, arm1_d_m: f64) -> Recording {
             _ => 0,
         };
         let arm2_open = (arm2_opens_ms..arm2_opens_ms + 50).contains(&t);
-        r.push(
-            t,
-            VACUUM_STATE,
-            &vacuum([arm1_open, arm2_open], [arm1, u8::from(arm2_open)]),
-        );
+        let mut state = vacuum([arm1_open, arm2_open], [arm1, u8::from(arm2_open)]);
+        if t >= 410 {
+            // Emergency stop: the vents close too (every valve closed).
+            state.valve_open = [0; 4];
+        }
+        r.push(t, VACUUM_STATE, &state);
         for arm in 0..2 {
-            let stopped = t >= 400;
+            let stopped = t >= 405;
             r.push(
                 t,
                 ARM_STATE[arm],
@@ -179,6 +180,19 @@ fn a_clean_recording_has_no_violation() {
         report.trace_events
     );
     assert!(report.render().contains("0 violation(s)"));
+    // The stop at 400 ms: arms report Stopped at 405 ms, every valve closed at 410 ms.
+    assert_eq!(report.emergency_stops.len(), 1);
+    let stop = report.emergency_stops[0];
+    assert_eq!(stop.engaged_ns, T0 + 400 * MS);
+    assert!(
+        (stop.arms_holding_s.expect("seen") - 0.005).abs() < 1e-9,
+        "{stop:?}"
+    );
+    assert!(
+        (stop.valves_closed_s.expect("seen") - 0.010).abs() < 1e-9,
+        "{stop:?}"
+    );
+    assert!(report.render().contains("all valves closed after 10.0 ms"));
 }
 
 #[test]

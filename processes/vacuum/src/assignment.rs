@@ -270,6 +270,31 @@ mod tests {
     }
 
     #[test]
+    fn apples_in_hand_count_towards_each_arm_half() {
+        let apples = [
+            apple(2, 0.7, 0.05),
+            apple(3, 0.4, 0.0),
+            apple(4, 0.8, -0.05),
+        ];
+        // Nothing in hand: arm 1 takes two of the three shared apples from its side (queued by
+        // depth).
+        let free = assign_apples_with_held(&apples, &AssignmentFrame::ROBOT, [0, 0], overlap_reach)
+            .expect("finite");
+        assert_eq!((ids(&free.arm1), ids(&free.arm2)), (vec![3, 2], vec![4]));
+        // Arm 1 busy with one apple, arm 2 free: of 4 apples in all, arm 1 holds 2 with only
+        // one more from the queue; the odd shared apple goes to the free arm.
+        let busy = assign_apples_with_held(&apples, &AssignmentFrame::ROBOT, [1, 0], overlap_reach)
+            .expect("finite");
+        assert_eq!((ids(&busy.arm1), ids(&busy.arm2)), (vec![2], vec![3, 4]));
+        let one = [apple(7, 0.6, 0.0)];
+        let last = assign_apples_with_held(&one, &AssignmentFrame::ROBOT, [1, 0], overlap_reach)
+            .expect("finite");
+        assert_eq!((ids(&last.arm1), ids(&last.arm2)), (vec![], vec![7]));
+        let plain = assign_apples(&one, &AssignmentFrame::ROBOT, overlap_reach).expect("finite");
+        assert_eq!((ids(&plain.arm1), ids(&plain.arm2)), (vec![7], vec![]));
+    }
+
+    #[test]
     fn paper_frame_reverses_side_and_depth_axis() {
         // Arm 1 towards -y, depth along z.
         let pts = [

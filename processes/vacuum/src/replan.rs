@@ -387,6 +387,41 @@ mod tests {
     }
 
     #[test]
+    fn a_free_arm_takes_the_busy_arm_queued_shared_apple_at_once() {
+        let mut p = planner();
+        // Two shared apples (reachable by both, |y| <= 0.1): arm 1 gets the one on its side.
+        let set = [[0.5, 0.05, 0.0], [0.6, -0.05, 0.0]];
+        p.replan(&set, reach).expect("finite");
+        assert_eq!(
+            (p.queue(ArmId::Arm1).len(), p.queue(ArmId::Arm2).len()),
+            (1, 1)
+        );
+        // Both arms start; arm 2 is done first.
+        let first = p.start_next(ArmId::Arm1).expect("queued");
+        assert_eq!(first.position_m, set[0]);
+        let second = p.start_next(ArmId::Arm2).expect("queued");
+        p.finish(ArmId::Arm2, AttemptResult::Harvested);
+        // Nothing to move while the free arm's own queue is not empty, or nothing waits.
+        assert_eq!(p.rebalance_for(ArmId::Arm2, reach), Ok(false));
+        // A third apple appears on arm 1's side; arm 1 is still busy: arm 2 takes it.
+        p.replan(&[set[0], [0.55, 0.08, 0.0]], reach)
+            .expect("finite");
+        assert_eq!(p.queue(ArmId::Arm2).len(), 1);
+        // Force the situation a re-plan without the rule would leave: arm 1 queued, arm 2 idle.
+        let queued = p.plan.arm2.remove(0);
+        p.plan.arm1.push(queued);
+        assert_eq!(
+            p.rebalance_for(ArmId::Arm1, reach),
+            Ok(false),
+            "arm 1 is busy"
+        );
+        assert_eq!(p.rebalance_for(ArmId::Arm2, reach), Ok(true));
+        assert_eq!(p.queue(ArmId::Arm2), &[queued]);
+        assert!(p.queue(ArmId::Arm1).is_empty());
+        assert_ne!(second.id, queued.id);
+    }
+
+    #[test]
     fn harvested_apple_is_forgotten() {
         let mut p = planner();
         p.replan(&[[0.5, 0.3, 0.0]], reach).expect("finite");

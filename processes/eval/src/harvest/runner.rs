@@ -42,6 +42,7 @@ use harvest_vacuum::node::{
 };
 use harvest_vacuum::policy::PolicyKind;
 use harvest_vacuum::pressure::PressureConfig;
+use harvest_vacuum::replan::PlannerConfig;
 use harvest_vacuum::safety_monitor::Violation;
 use rand::SeedableRng;
 use rand::rngs::SmallRng;
@@ -86,6 +87,8 @@ pub struct EpisodeConfig {
     pub arm_node: ArmNodeConfig,
     /// The vacuum supervisor's attachment inference.
     pub pressure: PressureConfig,
+    /// The vacuum supervisor's assignment (Algorithm 1 and re-planning).
+    pub planner: PlannerConfig,
 }
 
 impl EpisodeConfig {
@@ -103,6 +106,7 @@ impl EpisodeConfig {
             emergency_stop_at_s: None,
             arm_node: ArmNodeConfig::default(),
             pressure: PressureConfig::default(),
+            planner: PlannerConfig::default(),
         }
     }
 }
@@ -238,6 +242,7 @@ impl Episode {
             VacuumNodeConfig {
                 policy: config.policy,
                 pressure: config.pressure,
+                planner: config.planner,
                 arms_enabled: [true, config.arms >= 2],
                 ..VacuumNodeConfig::default()
             },

@@ -87,6 +87,25 @@ fn fig_12_cycle_times_come_out_of_the_full_loop() {
             && v2023.seconds_per_apple < baseline.seconds_per_apple
     );
     assert_eq!(v2024.safety_violations, 0);
+    // The time budget accounts for the whole run of both arms.
+    for s in [&baseline, &v2023, &v2024] {
+        let b = s.time_budget;
+        let total = b.startup_s + b.attempts_s + b.between_attempts_s + b.tail_s;
+        assert!(
+            (total - 2.0 * s.duration_s).abs() < 1e-6,
+            "{b:?} vs {}",
+            s.duration_s
+        );
+    }
+    // 2024: the whole run exceeds the evenly spread floor only by start-up, gaps and tail.
+    let b = v2024.time_budget;
+    let floor = b.balanced_seconds_per_apple.unwrap_or(f64::NAN);
+    let whole = v2024.seconds_per_apple.unwrap_or(f64::NAN);
+    let excess = (b.startup_s + b.between_attempts_s + b.tail_s) / 2.0;
+    assert!(
+        (whole - floor - excess / f64::from(v2024.apples_harvested)).abs() < 1e-6,
+        "{whole} {floor} {excess}"
+    );
 }
 
 /// With the field's failure mix (`default` scenario), two arms need less time per attempt than
@@ -368,52 +387,5 @@ fn report_numbers() {
              arms stopped {:.3} s",
             worst[0], worst[1], worst[2]
         );
-    }
-}
-
-/// Diagnostic timeline (not a check).
-#[test]
-#[ignore]
-fn timeline_diag() {
-    let policy = match std::env::var("POLICY").as_deref() {
-        Ok("2023") => PolicyKind::V2023,
-        Ok("baseline") => PolicyKind::Baseline,
-        _ => PolicyKind::V2024,
-    };
-    let outcome =
-        run_episode(&episode("ideal", TimingArg::Fig12, policy, 2, 1, 0.0)).expect("episode");
-    for a in &outcome.recorder.attempts {
-        let phases: Vec<String> = a
-            .phases
-            .iter()
-            .map(|p| format!("{}@{:.3}", &p.phase[..3], p.start_s))
-            .collect();
-        println!(
-            "arm {} apple {:?} disp {:.3} start {:?} end {:?} | {}",
-            a.arm,
-            a.apple,
-            a.dispatched_s,
-            a.started_s,
-            a.ended_s,
-            phases.join(" ")
-        );
-    }
-    println!("releases {:?}", outcome.recorder.releases_s);
-    let s = summary(&outcome);
-    println!("{s:#?}");
-}
-
-/// Diagnostic: the CLI's text for the ideal scenario (not a check).
-#[test]
-#[ignore]
-fn cli_text_diag() {
-    for (noise, episodes) in [(0.0, 1), (1.0, 10)] {
-        let args = EvalHarvestArgs {
-            timing: TimingArg::Fig12,
-            detection_noise: noise,
-            episodes,
-            ..EvalHarvestArgs::default()
-        };
-        print!("{}", run_eval_harvest(&args).expect("run").render_text());
     }
 }
