@@ -326,7 +326,8 @@ pub fn render_policy_report(report: &PolicyReport) -> String {
     let _ = writeln!(
         out,
         "Scans asked for: {}; refined {}, failed {} (no laser line {}, out of the slide's view or \
-         reach {}, device error {}), refused (too far from the ToF estimate) {}, unanswered at \
+         reach {}, device error {}), refused by perception (one image's candidate, or too far \
+         from the ToF estimate) {}, unanswered at \
          the end {}. Qualifying apples never asked for at the end: {}.\n",
         report.scans_requested,
         report.scans_refined,

@@ -750,8 +750,7 @@ impl Perception {
                     detection.visible_px,
                     blob_radius_px,
                     &estimates[0],
-                )
-                {
+                ) {
                     stats.saturated_blobs_rejected += 1;
                     continue;
                 }

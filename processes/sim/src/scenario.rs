@@ -272,7 +272,8 @@ pub struct FailureConfig {
     pub insufficient_detachment_force: f64,
     /// Per detached apple: a branch knocks it off the end-effector during the retract.
     pub holding_interference: f64,
-    /// Per apple: sunlight saturates a patch of the image around it.
+    /// Per apple: sunlight saturates the apple's own visible surface (a specular highlight;
+    /// occluders in front keep their colour).
     pub camera_overexposure: f64,
     /// Per apple: extra leaves right in front of it hide most of it.
     pub heavy_occlusion: f64,
