@@ -77,3 +77,40 @@ pub struct ReceiveError {
 pub struct WaitError {
     pub reason: String,
 }
+
+/// Any failure of the transport layer, for a process error that only passes them on: one
+/// `Ipc(#[from] IpcError)` variant plus [`crate::from_ipc_errors!`] instead of a variant per
+/// transport error in every process.
+#[derive(Debug, thiserror::Error)]
+pub enum IpcError {
+    #[error(transparent)]
+    Node(#[from] NodeError),
+    #[error(transparent)]
+    Channel(#[from] OpenChannelError),
+    #[error(transparent)]
+    Send(#[from] SendError),
+    #[error(transparent)]
+    Receive(#[from] ReceiveError),
+    #[error(transparent)]
+    Wait(#[from] WaitError),
+}
+
+/// Implements `From<E>` for every transport error `E` on an error type that has
+/// `From<IpcError>` (usually an `Ipc(#[from] IpcError)` variant), so `?` works on each of them.
+#[macro_export]
+macro_rules! from_ipc_errors {
+    ($target:ty) => {
+        $crate::from_ipc_errors!(@one $target, $crate::error::NodeError);
+        $crate::from_ipc_errors!(@one $target, $crate::error::OpenChannelError);
+        $crate::from_ipc_errors!(@one $target, $crate::error::SendError);
+        $crate::from_ipc_errors!(@one $target, $crate::error::ReceiveError);
+        $crate::from_ipc_errors!(@one $target, $crate::error::WaitError);
+    };
+    (@one $target:ty, $source:ty) => {
+        impl From<$source> for $target {
+            fn from(error: $source) -> Self {
+                Self::from($crate::error::IpcError::from(error))
+            }
+        }
+    };
+}

@@ -21,21 +21,9 @@ pub enum BenchError {
     /// The benchmark domain name was rejected by harvest-ipc.
     #[error(transparent)]
     Domain(#[from] harvest_ipc::domain::InvalidDomain),
-    /// Creating the process's node through harvest-ipc failed.
+    /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
-    Node(#[from] harvest_ipc::error::NodeError),
-    /// Opening a catalogue channel through harvest-ipc failed.
-    #[error(transparent)]
-    OpenChannel(#[from] harvest_ipc::error::OpenChannelError),
-    /// Sending through harvest-ipc failed.
-    #[error(transparent)]
-    Send(#[from] harvest_ipc::error::SendError),
-    /// Receiving through harvest-ipc failed.
-    #[error(transparent)]
-    Receive(#[from] harvest_ipc::error::ReceiveError),
-    /// The harvest-ipc wait set failed.
-    #[error(transparent)]
-    Wait(#[from] harvest_ipc::error::WaitError),
+    Ipc(#[from] harvest_ipc::error::IpcError),
     /// A raw iceoryx2 call (the baseline without our layer) failed.
     #[error("raw iceoryx2 baseline: {operation} on service {service:?} failed: {reason}")]
     Iceoryx2 {
@@ -158,3 +146,5 @@ expected {expected:#018x} (stale or torn payload)"
     #[error("cannot serialize the report as JSON: {0}")]
     Json(#[from] serde_json::Error),
 }
+
+harvest_ipc::from_ipc_errors!(BenchError);

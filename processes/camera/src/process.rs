@@ -28,17 +28,16 @@ pub struct CameraArgs {
 
 #[derive(Debug, thiserror::Error)]
 pub enum CameraError {
+    /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
-    Node(#[from] harvest_ipc::error::NodeError),
-    #[error(transparent)]
-    Channel(#[from] harvest_ipc::error::OpenChannelError),
-    #[error(transparent)]
-    Send(#[from] harvest_ipc::error::SendError),
+    Ipc(#[from] harvest_ipc::error::IpcError),
     #[error("camera device: {0}")]
     Device(String),
     #[error("installing signal handler: {0}")]
     Signal(#[from] std::io::Error),
 }
+
+harvest_ipc::from_ipc_errors!(CameraError);
 
 /// Runs the camera process until SIGINT/SIGTERM.
 pub fn run(args: &CameraArgs, domain: &Domain, process_name: &str) -> Result<(), CameraError> {

@@ -55,17 +55,12 @@ pub enum LaserProcessError {
     /// The ALACS driver could not open its hardware channels.
     #[error("ALACS driver: {0}")]
     Driver(#[from] AlacsError),
+    /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
-    Node(#[from] harvest_ipc::error::NodeError),
-    #[error(transparent)]
-    Channel(#[from] harvest_ipc::error::OpenChannelError),
-    #[error(transparent)]
-    Send(#[from] harvest_ipc::error::SendError),
-    #[error(transparent)]
-    Receive(#[from] harvest_ipc::error::ReceiveError),
-    #[error(transparent)]
-    Wait(#[from] harvest_ipc::error::WaitError),
+    Ipc(#[from] harvest_ipc::error::IpcError),
 }
+
+harvest_ipc::from_ipc_errors!(LaserProcessError);
 
 /// The extrinsics the process triangulates with: the calibration file's, else the paper's.
 pub fn load_extrinsics(args: &LaserArgs) -> Result<AlacsExtrinsics, CalibrationFileError> {

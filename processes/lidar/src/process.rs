@@ -33,12 +33,9 @@ pub struct LidarArgs {
 /// Errors of the LiDAR process.
 #[derive(Debug, thiserror::Error)]
 pub enum LidarProcessError {
+    /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
-    Node(#[from] harvest_ipc::error::NodeError),
-    #[error(transparent)]
-    Channel(#[from] harvest_ipc::error::OpenChannelError),
-    #[error(transparent)]
-    Send(#[from] harvest_ipc::error::SendError),
+    Ipc(#[from] harvest_ipc::error::IpcError),
     /// The device failed (repeatedly) or could not be opened.
     #[error("lidar device: {0}")]
     Device(String),
@@ -54,6 +51,8 @@ pub enum LidarProcessError {
     #[error("installing signal handler: {0}")]
     Signal(#[from] std::io::Error),
 }
+
+harvest_ipc::from_ipc_errors!(LidarProcessError);
 
 /// Runs the LiDAR process until SIGINT/SIGTERM.
 pub fn run(args: &LidarArgs, domain: &Domain, process_name: &str) -> Result<(), LidarProcessError> {

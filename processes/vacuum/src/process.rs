@@ -227,17 +227,12 @@ pub enum VacuumProcessError {
     /// The valve board could not be reached or refused commands for too long.
     #[error("valve board: {0}")]
     Device(String),
+    /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
-    Ipc(#[from] harvest_ipc::error::NodeError),
-    #[error(transparent)]
-    Channel(#[from] harvest_ipc::error::OpenChannelError),
-    #[error(transparent)]
-    Send(#[from] harvest_ipc::error::SendError),
-    #[error(transparent)]
-    Receive(#[from] harvest_ipc::error::ReceiveError),
-    #[error(transparent)]
-    Wait(#[from] harvest_ipc::error::WaitError),
+    Ipc(#[from] harvest_ipc::error::IpcError),
 }
+
+harvest_ipc::from_ipc_errors!(VacuumProcessError);
 
 /// Board exchanges failing in a row after which the process stops (and is restarted): 10 s.
 const MAX_CONSECUTIVE_DEVICE_ERRORS: u32 = 2000;
