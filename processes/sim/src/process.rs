@@ -10,32 +10,31 @@
 //!   [`crate::lidar_device`]);
 //! - the true apples on `sim/ground_truth` (evaluation only).
 //!
-//! The loop is one wait set: each device has an interval at its own period (the simulated
-//! device's clock: physics and servos at 200 Hz, camera at its frame rate, ground truth at
-//! 10 Hz) and the loop sleeps in between. Simulated time advances with the host clock.
+//! Two threads serve the devices, as on the real robot where the servo controller does not stall
+//! while a camera exposes:
+//! - the physics thread ([`crate::physics_thread`]): servos, valve board, vacuum and contact
+//!   physics at 200 Hz, the platform and the ground truth, never blocked by a render;
+//! - the render thread ([`crate::render_thread`], the process's main thread and node): the ToF
+//!   camera, the ALACS unit and the LiDAR, each rendered from the newest consistent snapshot of
+//!   the moving world the physics thread hands over ([`crate::thread_link`]).
+//!
+//! Each thread has its own iceoryx2 node, ports and wait set; both end on SIGINT/SIGTERM, and
+//! either one's end (an error included) ends the other. Simulated time advances with the host
+//! clock. The world is generated from the seed as before; which physics step a camera frame
+//! shows now depends on thread scheduling (it depended on host timing before too), while each
+//! frame's depth noise is still a function of the world seed and the frame number.
 
-use crate::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer};
-use crate::lidar_device::{LidarDeviceConfig, LidarDevicePort};
-use crate::orchard::AppleState;
-use crate::physics::Arm;
-use crate::platform_device::{PlatformDeviceConfig, PlatformDeviceServer};
-use crate::render_rgbd::RgbdRenderer;
+use crate::alacs_device::AlacsDeviceConfig;
+use crate::lidar_device::LidarDeviceConfig;
+use crate::physics_thread::{PhysicsThreadConfig, PhysicsThreadError};
+use crate::platform_device::PlatformDeviceConfig;
+use crate::render_thread::{CameraRenderer, RenderThreadConfig, RenderThreadError, RgbdCamera};
 use crate::robot::SimRobot;
 use crate::scenario::Scenario;
-use harvest_ipc::catalogue::{
-    HW_ALACS_COMMAND, HW_ALACS_IMAGE, HW_ARM_ENCODERS, HW_ARM_SERVO, HW_CAMERA_RGBD,
-    HW_VALVE_COMMAND, HW_VALVE_READINGS, SIM_GROUND_TRUTH,
-};
-use harvest_ipc::payloads::{
-    EncoderFeedback, GroundTruth, ServoSetpoint, ValveBoardCommand, ValveBoardReadings,
-};
-use harvest_ipc::payloads::{ProcessRunState, TrueApple};
-use harvest_ipc::{
-    Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Publisher, Subscriber,
-    Waiter,
-};
+use crate::thread_link::ThreadLink;
+use harvest_ipc::Domain;
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimArgs {
@@ -53,125 +52,59 @@ pub struct SimArgs {
     pub lidar: bool,
 }
 
+/// Why the simulator stopped with an error.
 #[derive(Debug, thiserror::Error)]
 pub enum SimError {
+    /// The scenario could not be loaded.
     #[error(transparent)]
     Scenario(#[from] crate::scenario::ScenarioError),
-    #[error(transparent)]
-    Orchard(#[from] crate::orchard::OrchardError),
+    /// The camera renderer could not be built from the scenario.
     #[error(transparent)]
     Render(#[from] crate::render_rgbd::RenderError),
+    /// The simulated robot could not be built from the scenario.
     #[error(transparent)]
     Robot(#[from] crate::robot::SimRobotError),
-    #[error(transparent)]
-    Receive(#[from] harvest_ipc::error::ReceiveError),
-    #[error(transparent)]
-    Alacs(#[from] harvest_hw::alacs::AlacsError),
-    #[error(transparent)]
-    Platform(#[from] crate::platform_device::PlatformDeviceError),
-    #[error(transparent)]
-    Lidar(#[from] crate::lidar_device::LidarDeviceError),
-    #[error(transparent)]
-    Node(#[from] harvest_ipc::error::NodeError),
-    #[error(transparent)]
-    Channel(#[from] harvest_ipc::error::OpenChannelError),
-    #[error(transparent)]
-    Send(#[from] harvest_ipc::error::SendError),
-    #[error(transparent)]
-    Wait(#[from] harvest_ipc::error::WaitError),
+    /// The physics thread (servos, valves, vacuum, platform, ground truth) failed.
+    #[error("sim physics thread: {0}")]
+    Physics(#[source] PhysicsThreadError),
+    /// The render thread (ToF camera, ALACS unit, LiDAR, heartbeat) failed.
+    #[error("sim render thread: {0}")]
+    RenderThread(#[source] RenderThreadError),
+    /// The physics thread panicked (a bug); the render thread was stopped.
+    #[error("sim physics thread panicked")]
+    PhysicsPanicked,
+    /// The OS refused to start the physics thread.
+    #[error("cannot start the sim physics thread: {0}")]
+    Spawn(#[source] std::io::Error),
+    /// The camera rate is outside the supported range.
     #[error("camera rate must be between 0.1 and 120 Hz, got {0}")]
     BadRate(f64),
 }
 
-/// Servo and physics rate of the simulated robot.
-const PHYSICS_PERIOD: Duration = Duration::from_millis(5);
-/// Rate of the evaluation-only ground truth.
-const GROUND_TRUTH_PERIOD: Duration = Duration::from_millis(100);
-
-const ARMS: [Arm; 2] = [Arm::One, Arm::Two];
-
-/// Applies the newest commands the drivers sent, then advances the physics by `dt_s`.
-fn step_devices(
-    robot: &mut SimRobot,
-    servo_in: &[Subscriber<ServoSetpoint>; 2],
-    valves_in: &Subscriber<ValveBoardCommand>,
-    dt_s: f64,
-) -> Result<(), SimError> {
-    for (arm, setpoints) in ARMS.into_iter().zip(servo_in) {
-        if let Some(setpoint) = setpoints.receive_latest()? {
-            if setpoint.hold != 0 {
-                robot.hold(arm);
-            } else if let Err(error) =
-                robot.set_servo_setpoint(arm, setpoint.joint_position, setpoint.joint_velocity)
-            {
-                // A real servo controller refuses such a set-point and keeps its last order.
-                tracing::warn!(%error, "servo set-point refused");
-            }
-        }
-    }
-    if let Some(command) = valves_in.receive_latest()? {
-        robot.set_valves(command.valve_open.map(|open| open != 0));
-    }
-    for event in robot.step(dt_s)? {
-        tracing::debug!(?event, "world event");
-    }
-    Ok(())
+/// Settings of both threads.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimThreadsConfig {
+    pub physics: PhysicsThreadConfig,
+    pub render: RenderThreadConfig,
 }
 
-/// Publishes what the devices report: encoders of both arms and the valve board's readings.
-fn publish_device_state(
-    robot: &SimRobot,
-    encoders_out: &mut [Publisher<EncoderFeedback>; 2],
-    valves_out: &mut Publisher<ValveBoardReadings>,
-) -> Result<(), SimError> {
-    let capture_ns = MonotonicClock::read_ns();
-    for (arm, encoders) in ARMS.into_iter().zip(encoders_out.iter_mut()) {
-        let (position, velocity) = robot.encoders(arm);
-        encoders.publish_with(capture_ns, |feedback| {
-            feedback.joint_position = position;
-            feedback.joint_velocity = velocity;
-            feedback.fault_bits = 0;
-            feedback._reserved = [0; 7];
-        })?;
-    }
-    let (open, in_transit, pressure_mmh2o) = robot.valve_readings();
-    valves_out.publish_with(capture_ns, |readings| {
-        readings.valve_open = open.map(u8::from);
-        readings.valve_in_transit = in_transit.map(u8::from);
-        readings.pressure_mmh2o = pressure_mmh2o;
-        readings._reserved = [0; 4];
-    })?;
-    Ok(())
-}
-
-fn publish_ground_truth(
-    robot: &SimRobot,
-    truth_out: &mut Publisher<GroundTruth>,
-) -> Result<(), SimError> {
-    let truth = robot.world().ground_truth();
-    truth_out.publish_with(MonotonicClock::read_ns(), |message| {
-        message.apples.clear();
-        for apple in &truth.apples {
-            let state = match apple.state {
-                AppleState::OnTree => 0,
-                AppleState::Attached { arm: Arm::One, .. } => 1,
-                AppleState::Attached { arm: Arm::Two, .. } => 2,
-                AppleState::Dropped => 3,
-                AppleState::Harvested => 4,
-            };
-            let entry = TrueApple {
-                apple_id: apple.id.0,
-                state,
-                _reserved: [0; 3],
-                center_in_robot_m: apple.center_in_robot_m,
-                radius_m: apple.radius_m,
-            };
-            if message.apples.push(entry).is_err() {
-                break;
-            }
+impl SimThreadsConfig {
+    /// The threads of process `process_name`: the render thread's node carries the process
+    /// name (its heartbeats), the physics thread's node `<process_name>-physics`.
+    pub fn new(process_name: &str, camera_period: Duration, lidar: bool) -> Self {
+        Self {
+            physics: PhysicsThreadConfig {
+                node_name: format!("{process_name}-physics"),
+                platform: PlatformDeviceConfig::default(),
+            },
+            render: RenderThreadConfig {
+                node_name: process_name.to_owned(),
+                camera_period,
+                alacs: AlacsDeviceConfig::default(),
+                lidar: lidar.then(LidarDeviceConfig::default),
+            },
         }
-    })?;
-    Ok(())
+    }
 }
 
 /// Loads a scenario by preset name, or from a file when the argument is a path to one.
@@ -190,46 +123,13 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
         return Err(SimError::BadRate(args.camera_rate_hz));
     }
     let scenario = load_scenario(&args.scenario)?;
-    let mut robot = SimRobot::new(&scenario, args.seed)?;
-    let mut renderer = RgbdRenderer::new(&scenario.camera)?;
-    let context = Context::new(domain, process_name)?;
-    let mut camera_out = context.publisher(HW_CAMERA_RGBD)?;
-    let mut alacs = AlacsDeviceServer::new(AlacsDeviceConfig::default())?;
-    let alacs_commands = context.subscriber(HW_ALACS_COMMAND)?;
-    let mut alacs_images = context.publisher(HW_ALACS_IMAGE)?;
-    let servo_in = [
-        context.subscriber(HW_ARM_SERVO[0])?,
-        context.subscriber(HW_ARM_SERVO[1])?,
-    ];
-    let mut encoders_out = [
-        context.publisher(HW_ARM_ENCODERS[0])?,
-        context.publisher(HW_ARM_ENCODERS[1])?,
-    ];
-    let valves_in = context.subscriber(HW_VALVE_COMMAND)?;
-    let mut valves_out = context.publisher(HW_VALVE_READINGS)?;
-    let mut truth_out = context.publisher(SIM_GROUND_TRUTH)?;
-    let mut health = HealthReporter::new(&context)?;
-    let waiter = Waiter::new()?;
-    let camera_tick = waiter.attach_interval(Duration::from_secs_f64(1.0 / args.camera_rate_hz))?;
-    let heartbeat_tick = waiter.attach_interval(HEARTBEAT_PERIOD)?;
-    let alacs_guard = waiter.attach_listener(alacs_commands.listener())?;
-    let physics_tick = waiter.attach_interval(PHYSICS_PERIOD)?;
-    let truth_tick = waiter.attach_interval(GROUND_TRUTH_PERIOD)?;
-    let mut platform = PlatformDeviceServer::open(&context, PlatformDeviceConfig::default())?;
-    let platform_tick = waiter.attach_interval(platform.period())?;
-    let mut lidar = args
-        .lidar
-        .then(|| LidarDevicePort::open(&context, LidarDeviceConfig::default()))
-        .transpose()?;
-    let lidar_tick = lidar
-        .as_ref()
-        .map(|lidar| waiter.attach_interval(lidar.period()))
-        .transpose()?;
-    let mut last_physics = Instant::now();
-    let color_from_depth = renderer
-        .robot_from_color()
-        .inverse()
-        .compose(&renderer.robot_from_depth());
+    let robot = SimRobot::new(&scenario, args.seed)?;
+    let mut camera = RgbdCamera::new(&scenario.camera)?;
+    let config = SimThreadsConfig::new(
+        process_name,
+        Duration::from_secs_f64(1.0 / args.camera_rate_hz),
+        args.lidar,
+    );
     tracing::info!(
         scenario = %args.scenario,
         seed = args.seed,
@@ -237,72 +137,53 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
         camera_rate_hz = args.camera_rate_hz,
         "simulated robot running"
     );
-    let mut render_ns_total = 0u64;
-    waiter
-        .run(|attachment| -> Result<Flow, SimError> {
-            if attachment.has_event_from(&camera_tick) {
-                let started = Instant::now();
-                let capture_ns = MonotonicClock::read_ns();
-                let mut frame = camera_out.loan()?;
-                let frame_seq = camera_out.last_seq() + 1;
-                renderer.render_color(robot.world(), &mut frame.rgb)?;
-                renderer.render_depth(robot.world(), frame_seq, &mut frame.depth_mm)?;
-                frame.meta.rgb_intrinsics = *renderer.color_intrinsics();
-                frame.meta.depth_intrinsics = *renderer.depth_intrinsics();
-                frame.meta.color_from_depth = color_from_depth;
-                frame.meta.exposure_us = 10_000;
-                frame.meta.flags = 0;
-                frame.header.capture_ns = capture_ns;
-                camera_out.send(frame)?;
-                let render_ns = started.elapsed().as_nanos() as u64;
-                render_ns_total += render_ns;
-                tracing::trace!(frame_seq, render_ns, "frame rendered");
-            }
-            if attachment.has_event_from(&physics_tick) {
-                let now = Instant::now();
-                let dt_s = now
-                    .duration_since(last_physics)
-                    .as_secs_f64()
-                    .clamp(1e-4, 0.05);
-                last_physics = now;
-                step_devices(&mut robot, &servo_in, &valves_in, dt_s)?;
-                publish_device_state(&robot, &mut encoders_out, &mut valves_out)?;
-            }
-            if attachment.has_event_from(&alacs_guard) {
-                // The ALACS device answers each command; a capture renders its camera image
-                // (about 0.3 s here, during which the other simulated devices wait).
-                while let Some(command) = alacs_commands.receive()? {
-                    let mut image = alacs_images.loan()?;
-                    alacs.handle(robot.world(), &command, &mut image);
-                    alacs_images.send(image)?;
-                }
-            }
-            if attachment.has_event_from(&platform_tick) {
-                platform.tick()?;
-            }
-            if let (Some(lidar), Some(tick)) = (lidar.as_mut(), lidar_tick.as_ref())
-                && attachment.has_event_from(tick)
-            {
-                lidar.tick(robot.world())?;
-            }
-            if attachment.has_event_from(&truth_tick) {
-                publish_ground_truth(&robot, &mut truth_out)?;
-            }
-            if attachment.has_event_from(&heartbeat_tick) {
-                let frames = camera_out.last_seq();
-                let mean_render_us = render_ns_total
-                    .checked_div(frames)
-                    .map_or(0, |ns| ns / 1000);
-                health.report(
-                    ProcessRunState::Running,
-                    frames,
-                    "render_us",
-                    mean_render_us,
-                )?;
-            }
-            Ok(Flow::Continue)
-        })
-        .map_err(harvest_ipc::RunError::flatten)?;
-    tracing::info!(frames = camera_out.last_seq(), "simulator stopped");
+    let link = ThreadLink::new(robot.world());
+    run_threads(domain, &config, robot, &mut camera, &link)?;
+    tracing::info!("simulator stopped");
     Ok(())
+}
+
+/// Runs the physics thread on a new thread and the render thread on the calling one, from
+/// `robot` (handed to the physics thread) and a copy of its world (kept by the render thread),
+/// until SIGINT/SIGTERM or `link.request_stop()`. `link` must have been made from `robot`'s
+/// world. When one thread fails the other is stopped and the failure returned (both failed:
+/// the physics thread's, the render thread's is logged).
+pub fn run_threads(
+    domain: &Domain,
+    config: &SimThreadsConfig,
+    robot: SimRobot,
+    camera: &mut impl CameraRenderer,
+    link: &ThreadLink,
+) -> Result<(), SimError> {
+    let render_world = robot.world().clone();
+    std::thread::scope(|scope| {
+        let physics = std::thread::Builder::new()
+            .name("sim-physics".to_owned())
+            .spawn_scoped(scope, || {
+                let _stop = link.stop_on_drop();
+                crate::physics_thread::run(domain, &config.physics, robot, link)
+            })
+            .map_err(SimError::Spawn)?;
+        let rendered = {
+            let _stop = link.stop_on_drop();
+            crate::render_thread::run(domain, &config.render, render_world, camera, link)
+        };
+        let physics = physics.join();
+        match (physics, rendered) {
+            (Ok(Ok(())), Ok(())) => Ok(()),
+            (Ok(Err(physics)), rendered) => {
+                if let Err(render) = rendered {
+                    tracing::error!(error = %render, "sim render thread failed too");
+                }
+                Err(SimError::Physics(physics))
+            }
+            (Ok(Ok(())), Err(render)) => Err(SimError::RenderThread(render)),
+            (Err(_panic), rendered) => {
+                if let Err(render) = rendered {
+                    tracing::error!(error = %render, "sim render thread failed too");
+                }
+                Err(SimError::PhysicsPanicked)
+            }
+        }
+    })
 }
