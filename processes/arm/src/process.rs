@@ -185,17 +185,12 @@ pub enum ArmProcessError {
     /// The servo device could not be reached.
     #[error("arm {arm} servo device: {message}")]
     Device { arm: u8, message: String },
+    /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
-    Ipc(#[from] harvest_ipc::error::NodeError),
-    #[error(transparent)]
-    Channel(#[from] harvest_ipc::error::OpenChannelError),
-    #[error(transparent)]
-    Send(#[from] harvest_ipc::error::SendError),
-    #[error(transparent)]
-    Receive(#[from] harvest_ipc::error::ReceiveError),
-    #[error(transparent)]
-    Wait(#[from] harvest_ipc::error::WaitError),
+    Ipc(#[from] harvest_ipc::error::IpcError),
 }
+
+harvest_ipc::from_ipc_errors!(ArmProcessError);
 
 /// Device errors in a row after which the process stops (and the supervisor restarts it).
 const MAX_CONSECUTIVE_DEVICE_ERRORS: u32 = 200;

@@ -80,13 +80,12 @@ pub enum PlatformDeviceError {
         value: f64,
         rule: &'static str,
     },
+    /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
-    Channel(#[from] harvest_ipc::error::OpenChannelError),
-    #[error(transparent)]
-    Receive(#[from] harvest_ipc::error::ReceiveError),
-    #[error(transparent)]
-    Send(#[from] harvest_ipc::error::SendError),
+    Ipc(#[from] harvest_ipc::error::IpcError),
 }
+
+harvest_ipc::from_ipc_errors!(PlatformDeviceError);
 
 impl PlatformDeviceConfig {
     /// Refuses non-finite or non-positive speeds, time constant, resolution and period, an
