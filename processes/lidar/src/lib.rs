@@ -22,10 +22,12 @@ pub mod localization;
 pub mod process;
 
 pub use calibration::{
-    CalibrateLidarCameraArgs, CalibrationError, CalibrationReport, calibrate,
-    run_calibrate_lidar_camera,
+    CalibrateLidarCameraArgs, CalibrationError, CalibrationReport, ExtrinsicFile,
+    ReadExtrinsicError, calibrate, run_calibrate_lidar_camera,
 };
 pub use evaluation::{EvalLidarArgs, run_eval_lidar};
 pub use fusion::{Fusion, FusionConfig, FusionError, FusionStats};
+/// The designed (CAD) and the simulated unit's `camera_from_lidar` extrinsics.
+pub use harvest_hw::lidar::mounting::{CAD_CAMERA_FROM_LIDAR, simulated_camera_from_lidar};
 pub use localization::{FruitPosition, ZScoreConfig, localize_fruit};
 pub use process::{LidarArgs, LidarProcessError};

@@ -43,6 +43,7 @@ pub fn parse_config(text: &str, origin: &str) -> Result<PerceptionConfig, Config
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::depth_source::DepthSource;
 
     #[test]
     fn the_documented_defaults_are_the_code_defaults() {
@@ -63,5 +64,17 @@ mod tests {
         let config = parse_config("[laser]\nenabled = false\n", "off.toml").expect("parse");
         assert!(!config.laser.enabled);
         assert_eq!(config.min_detection_confidence, 0.3);
+    }
+
+    #[test]
+    fn the_lidar_profile_selects_the_fused_depth_and_no_laser() {
+        let text = include_str!("../config/lidar.toml");
+        let config = parse_config(text, "lidar.toml").expect("parse");
+        assert_eq!(config.depth_source, DepthSource::LidarFused);
+        assert!(!config.laser.enabled);
+        let bad = parse_config("depth_source = \"stereo\"\n", "bad.toml")
+            .expect_err("unknown source")
+            .to_string();
+        assert!(bad.contains("bad.toml") && bad.contains("stereo"), "{bad}");
     }
 }

@@ -13,6 +13,8 @@
 //! 5. [`laser_refiner`]: apples are followed over frames; hard ones (heavily occluded, uncertain
 //!    depth: [`scan_policy`]) are sent to the ALACS laser scanner, and a scan's position replaces
 //!    the ToF estimate in the apple's later detections.
+//! 6. [`depth_source`]: the depth image may instead be the LiDAR cloud fused into the ToF depth
+//!    image's geometry (config `depth_source = "lidar_fused"`).
 //!
 //! "Camera frame" in this crate always means the colour (RGB) camera frame: x right, y down,
 //! z forward, metres.
@@ -23,6 +25,7 @@ pub mod calibration;
 pub mod camera_setup;
 pub mod config_file;
 pub mod dbscan;
+pub mod depth_source;
 pub mod detector;
 pub mod estimate_checks;
 pub mod estimator;

@@ -86,12 +86,35 @@ impl PerceptionNode {
         frame: &RgbdFrame,
         out: &mut AppleDetections,
     ) -> Result<FrameStats, PerceptionSetupError> {
+        self.process_with_depth(frame, None, out)
+    }
+
+    /// [`Self::process`] with `depth_mm_override` (when given) in place of the frame's depth
+    /// image: the same layout (the frame's depth intrinsics, millimetres, 0 = no return), e.g.
+    /// the LiDAR-fused depth of [`crate::depth_source::FusedDepth`]. Apples localized from an
+    /// override are published with method `LidarFusion` (laser-refined ones stay `LaserScan`).
+    /// An override of another size rejects the frame.
+    pub fn process_with_depth(
+        &mut self,
+        frame: &RgbdFrame,
+        depth_mm_override: Option<&[u16]>,
+        out: &mut AppleDetections,
+    ) -> Result<FrameStats, PerceptionSetupError> {
         out.source_frame_seq = frame.header.msg_seq;
         out.source_capture_ns = frame.header.capture_ns;
         out.processing_ns = 0;
         out.apples.clear();
         self.refiner.clear_requests();
         self.frames_processed += 1;
+        if let Some(depth) = depth_mm_override
+            && depth.len() != frame.depth_mm.len()
+        {
+            self.frames_rejected += 1;
+            return Err(PerceptionSetupError::DepthOverrideSize {
+                expected: frame.depth_mm.len(),
+                actual: depth.len(),
+            });
+        }
         let mut apples = std::mem::take(&mut self.apples);
         let perception = match self.pipeline_for(&frame.meta) {
             Ok(perception) => perception,
@@ -109,7 +132,7 @@ impl PerceptionNode {
         let depth = DepthView {
             width_px: frame.meta.depth_intrinsics.width_px,
             height_px: frame.meta.depth_intrinsics.height_px,
-            data: &frame.depth_mm,
+            data: depth_mm_override.unwrap_or(&frame.depth_mm),
         };
         let stats = perception.process_into(&rgb, &depth, &mut apples).clone();
         if stats.rejection.is_some() {
@@ -128,6 +151,11 @@ impl PerceptionNode {
             let (method, position_in_camera_m, position_in_robot_m) = match tracked.laser_position_m
             {
                 Some((camera, robot)) => (LocalizationMethod::LaserScan, camera, robot),
+                None if depth_mm_override.is_some() => (
+                    LocalizationMethod::LidarFusion,
+                    apple.position_in_camera_m,
+                    apple.position_in_robot_m,
+                ),
                 None => (
                     localization_method(apple.estimator),
                     apple.position_in_camera_m,

@@ -37,6 +37,7 @@ use tracing::{debug, trace};
 
 use crate::blob_localization::{BlobLocalizer, BlobLocalizerParams};
 use crate::camera_setup::{CameraSetup, CameraSetupError};
+use crate::depth_source::DepthSource;
 use crate::detector::color_segmentation::{
     ColorSegmentation, ColorSegmentationConfig, ColorSegmentationConfigError,
 };
@@ -110,6 +111,8 @@ pub struct PerceptionConfig {
     pub saturated_blob_position_confidence: f32,
     /// Laser scans of hard apples (`[laser]`; see [`crate::scan_policy`]).
     pub laser: LaserScanConfig,
+    /// The depth image to localize from (used by the process, see [`crate::depth_source`]).
+    pub depth_source: DepthSource,
 }
 
 impl Default for PerceptionConfig {
@@ -133,6 +136,7 @@ impl Default for PerceptionConfig {
             saturated_blob_max_asymmetry: 0.4,
             saturated_blob_position_confidence: 0.8,
             laser: LaserScanConfig::default(),
+            depth_source: DepthSource::Tof,
         }
     }
 }
@@ -163,6 +167,9 @@ pub enum PerceptionSetupError {
         min: f64,
         max: f64,
     },
+    /// A depth image given in place of the frame's has another size than the frame's.
+    #[error("depth override holds {actual} pixels, the frame's depth image {expected}")]
+    DepthOverrideSize { expected: usize, actual: usize },
 }
 
 /// One localized apple.

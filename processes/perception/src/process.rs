@@ -7,19 +7,28 @@
 //! Laser refinement (`[laser]` in the config): before each frame every `laser/scan_result`
 //! that has arrived is taken (never waited for); after it, the scans the frame asked for are
 //! published on `laser/scan_request`.
+//!
+//! Depth source (`depth_source` in the config, or `--depth-source`): with `lidar_fused` the
+//! process also subscribes to `lidar/points`; before each frame the newest cloud that has arrived
+//! (if any) is fused into the process's depth image ([`FusedDepth`]) with the frame's geometry,
+//! and the frame is localized from that image. The extrinsic is `--lidar-extrinsic FILE` (written
+//! by `harvest calibrate lidar-camera --output`), else the simulated unit's
+//! ([`harvest_lidar::simulated_camera_from_lidar`], what `harvest sim --lidar` renders with).
 
 use crate::calibration::{Calibration, CalibrationError};
 use crate::config_file::{ConfigFileError, read_config};
+use crate::depth_source::{DepthSource, FusedDepth};
 use crate::estimator::EstimatorKind;
 use crate::node::PerceptionNode;
 use crate::pipeline::PerceptionConfig;
 use harvest_ipc::catalogue::{
-    CAMERA_RGBD, LASER_SCAN_REQUEST, LASER_SCAN_RESULT, PERCEPTION_APPLES,
+    CAMERA_RGBD, LASER_SCAN_REQUEST, LASER_SCAN_RESULT, LIDAR_POINTS, PERCEPTION_APPLES,
 };
 use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
 };
+use harvest_lidar::{ExtrinsicFile, ReadExtrinsicError};
 use std::path::PathBuf;
 
 /// Localization estimator selectable on the command line.
@@ -54,6 +63,13 @@ pub struct PerceptionArgs {
     /// Ask the laser scanner for no scans (overrides the config's `laser.enabled`).
     #[arg(long)]
     pub no_laser: bool,
+    /// Depth image to localize from (overrides the config's `depth_source`).
+    #[arg(long, value_enum)]
+    pub depth_source: Option<DepthSource>,
+    /// LiDAR extrinsic for `lidar-fused` (TOML from `harvest calibrate lidar-camera --output`);
+    /// default: the simulated unit's extrinsic.
+    #[arg(long)]
+    pub lidar_extrinsic: Option<PathBuf>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -72,6 +88,9 @@ pub enum PerceptionProcessError {
     Receive(#[from] harvest_ipc::error::ReceiveError),
     #[error(transparent)]
     Wait(#[from] harvest_ipc::error::WaitError),
+    /// The `--lidar-extrinsic` file cannot be used.
+    #[error(transparent)]
+    Extrinsic(#[from] ReadExtrinsicError),
 }
 
 /// Runs until SIGINT/SIGTERM.
@@ -92,6 +111,19 @@ pub fn run(
     if args.no_laser {
         config.laser.enabled = false;
     }
+    if let Some(source) = args.depth_source {
+        config.depth_source = source;
+    }
+    let mut fused_depth = match config.depth_source {
+        DepthSource::Tof => None,
+        DepthSource::LidarFused => {
+            let camera_from_lidar = match &args.lidar_extrinsic {
+                Some(path) => ExtrinsicFile::read(path)?.camera_from_lidar,
+                None => harvest_lidar::simulated_camera_from_lidar(),
+            };
+            Some(FusedDepth::new(camera_from_lidar))
+        }
+    };
     let mut node = PerceptionNode::new(config, calibration);
 
     let context = Context::new(domain, process_name)?;
@@ -99,6 +131,10 @@ pub fn run(
     let mut detections = context.publisher(PERCEPTION_APPLES)?;
     let scan_results = context.subscriber(LASER_SCAN_RESULT)?;
     let mut scan_requests = context.publisher(LASER_SCAN_REQUEST)?;
+    let clouds = match fused_depth {
+        Some(_) => Some(context.subscriber(LIDAR_POINTS)?),
+        None => None,
+    };
     let mut health = HealthReporter::new(&context)?;
     let waiter = Waiter::new()?;
     let frame_guard = waiter.attach_listener(frames.listener())?;
@@ -108,6 +144,8 @@ pub fn run(
     tracing::info!(
         estimator = ?args.estimator,
         laser = config.laser.enabled,
+        depth_source = ?config.depth_source,
+        extrinsic = ?args.lidar_extrinsic,
         "perception running"
     );
     waiter
@@ -126,8 +164,27 @@ pub fn run(
                 }
                 let received_ns = MonotonicClock::read_ns();
                 last_receive_latency_ns = received_ns.saturating_sub(frame.header.publish_ns);
+                if let (Some(fused), Some(clouds)) = (fused_depth.as_mut(), clouds.as_ref())
+                    && let Some(cloud) = clouds.receive_latest()?
+                {
+                    match fused.update(&frame.meta, cloud.valid_points()) {
+                        Ok(stats) => tracing::debug!(
+                            cloud_seq = cloud.header.msg_seq,
+                            ?stats,
+                            "lidar cloud fused"
+                        ),
+                        Err(error) => tracing::warn!(
+                            cloud_seq = cloud.header.msg_seq,
+                            %error,
+                            "lidar cloud not fused; the previous fused depth stays in use"
+                        ),
+                    }
+                }
+                let depth_override = fused_depth
+                    .as_mut()
+                    .and_then(|fused| fused.depth_for(&frame.meta));
                 let mut out = detections.loan()?;
-                let result = node.process(&frame, &mut out);
+                let result = node.process_with_depth(&frame, depth_override, &mut out);
                 out.header.capture_ns = frame.header.capture_ns;
                 let count = out.apples.len();
                 drop(frame);
@@ -172,6 +229,7 @@ pub fn run(
         dropped = frames.dropped_count(),
         apples = apples_published,
         laser = ?node.laser_refiner().stats(),
+        fused_depth = ?fused_depth.as_ref().map(FusedDepth::counters),
         "perception stopped"
     );
     Ok(())
