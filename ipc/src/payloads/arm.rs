@@ -34,7 +34,34 @@ impl ArmPhase {
     }
 }
 
-/// An apple assigned to an arm (from assignment).
+/// What became of the newest target an arm received and has not taken up (code in
+/// [`ArmState::target_status`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum TargetStatus {
+    /// No target waiting (none received, or taken up: the attempt runs).
+    None = 0,
+    /// Refused for the moment (the other arm's swept path is in the way, stale feedback): the
+    /// arm offers it to its picking cycle again every control tick.
+    Waiting = 1,
+    /// Refused for good (outside the workspace, not finite, stale detection) and dropped.
+    Refused = 2,
+}
+
+impl TargetStatus {
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            0 => Some(Self::None),
+            1 => Some(Self::Waiting),
+            2 => Some(Self::Refused),
+            _ => None,
+        }
+    }
+}
+
+/// An apple assigned to an arm (from assignment). A target with `apple_id` 0 withdraws the
+/// target the arm has not taken up yet (its position is NaN, so an arm that predates
+/// withdrawals refuses it as not finite, with the same effect); a running attempt goes on.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
 #[type_name("harvest.ArmTarget.v1")]
@@ -97,7 +124,7 @@ source_capture_ns:u64 (camera frame behind the current target, 0 none); joint_po
 /// What an arm reports at its control rate.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
-#[type_name("harvest.ArmState.v1")]
+#[type_name("harvest.ArmState.v2")]
 pub struct ArmState {
     pub header: Header,
     pub arm_id: u8,
@@ -105,7 +132,12 @@ pub struct ArmState {
     pub phase: u8,
     /// 1 when the arm believes it holds an apple (vacuum sealed).
     pub holding: u8,
-    pub _reserved: [u8; 5],
+    /// [`TargetStatus`] code of the target `target_apple_id`, the newest one received and not
+    /// taken up.
+    pub target_status: u8,
+    /// The apple of that target (`ArmTarget::apple_id`; 0 when `target_status` is 0).
+    pub target_apple_id: u32,
+    /// The apple of the running attempt (0: none).
     pub apple_id: u32,
     pub harvested_count: u32,
     /// Encoder feedback.
@@ -119,9 +151,10 @@ pub struct ArmState {
 crate::serde_payload!(
     ArmState,
     "harvest.ArmState",
-    1,
+    2,
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
 arm_id:u8; phase:u8 (0 idle,1 approach,2 attach/detach,3 retract,4 release,5 stopped); \
-holding:u8; _reserved:[u8;5]; apple_id:u32; harvested_count:u32; joint_position:[f64;4]; \
+holding:u8; target_status:u8 (0 none, 1 waiting: refused for the moment, retried; 2 refused for \
+good); target_apple_id:u32 (0 none); apple_id:u32; harvested_count:u32; joint_position:[f64;4]; \
 joint_velocity:[f64;4]; end_effector_in_robot_m:[f64;3]; control_period_ns:u64"
 );

@@ -11,7 +11,10 @@
 //!   (the other arm's swept path, the runtime safety check of section 3.3; stale feedback) are
 //!   retried; the others (outside the workspace, NaN, stale detection) drop the target. The
 //!   target carries the apple centre and radius; the picking point handed to the cycle is
-//!   [`picking_point_m`].
+//!   [`picking_point_m`]. The published state tells the vacuum supervisor what became of the
+//!   newest target not taken up (`ArmState::target_status`: waiting after a refusal for the
+//!   moment, or refused for good), so that it can hand the apple elsewhere without waiting
+//!   for its dispatch timeout. A target with apple id 0 withdraws the one not taken up yet.
 //! - **Servo set-points.** The cycle commands joint rates; the servo trait takes position
 //!   set-points with feed-forward rates. The node integrates its own rate commands into a
 //!   position set-point valid at the tick (resynchronised to the encoders when it starts, after
@@ -33,6 +36,7 @@
 //! (the event buffer is reused).
 
 use harvest_ipc::Header;
+use harvest_ipc::payloads::arm::TargetStatus;
 use harvest_ipc::payloads::{
     ArmPhase as PhaseCode, ArmState, ArmTarget, VacuumState, ValveGrant, ValveRequest,
     ValveRequestKind,
@@ -403,6 +407,8 @@ pub struct ArmNode {
     last_target_seq: Option<u64>,
     last_rejection: Option<std::mem::Discriminant<TargetRejection>>,
     deferred: bool,
+    /// What became of the newest target not taken up, and its apple id (`ArmState`).
+    target_status: (TargetStatus, u32),
     attempt: Option<Attempt>,
     setpoint: Option<[f64; 4]>,
     last_rate: [f64; 4],
@@ -459,6 +465,7 @@ impl ArmNode {
             last_target_seq: None,
             last_rejection: None,
             deferred: false,
+            target_status: (TargetStatus::None, 0),
             attempt: None,
             setpoint: None,
             last_rate: [0.0; 4],
@@ -616,6 +623,14 @@ impl ArmNode {
             return;
         }
         self.last_target_seq = Some(target.header.msg_seq);
+        if target.apple_id == 0 {
+            // Withdrawal: the supervisor handed the apple elsewhere.
+            if let Some(p) = self.pending.take() {
+                debug!(arm = %self.arm, apple_id = p.apple_id, "pending target withdrawn");
+            }
+            self.target_status = (TargetStatus::None, 0);
+            return;
+        }
         if self.attempt.is_some_and(|a| a.apple_id == target.apple_id) {
             // A re-publication of the apple this arm is already picking.
             return;
@@ -628,6 +643,7 @@ impl ArmNode {
         }
         self.last_rejection = None;
         self.deferred = false;
+        self.target_status = (TargetStatus::None, target.apple_id);
         debug!(arm = %self.arm, apple_id = target.apple_id, "target received");
         self.output.events.push(ArmNodeEvent::TargetReceived {
             apple_id: target.apple_id,
@@ -646,6 +662,7 @@ impl ArmNode {
                     <= self.config.max_other_arm_age_s
             });
             if !fresh {
+                self.target_status = (TargetStatus::Waiting, target.apple_id);
                 if !self.deferred {
                     self.deferred = true;
                     warn!(arm = %self.arm, apple_id = target.apple_id,
@@ -675,6 +692,7 @@ impl ArmNode {
             TargetDecision::Accepted { .. } => {
                 self.pending = None;
                 self.last_rejection = None;
+                self.target_status = (TargetStatus::None, 0);
                 self.attempt = Some(Attempt {
                     apple_id,
                     failure: None,
@@ -689,6 +707,12 @@ impl ArmNode {
                 if !will_retry {
                     self.pending = None;
                 }
+                let status = if will_retry {
+                    TargetStatus::Waiting
+                } else {
+                    TargetStatus::Refused
+                };
+                self.target_status = (status, apple_id);
                 let kind = std::mem::discriminant(reason);
                 if self.last_rejection != Some(kind) || !will_retry {
                     self.last_rejection = Some(kind);
@@ -851,6 +875,7 @@ impl ArmNode {
         }
         // Targets received while stopped are dropped: the supervisor dispatches again.
         self.pending = None;
+        self.target_status = (TargetStatus::None, 0);
         self.setpoint = None;
         self.last_rate = [0.0; 4];
         self.set_phase(PhaseCode::Stopped);
@@ -881,7 +906,11 @@ impl ArmNode {
             arm_id: arm_number(self.arm),
             phase: self.phase as u8,
             holding: u8::from(holding),
-            _reserved: [0; 5],
+            target_status: self.target_status.0 as u8,
+            target_apple_id: match self.target_status.0 {
+                TargetStatus::None => 0,
+                _ => self.target_status.1,
+            },
             apple_id,
             harvested_count: self.harvested_count,
             joint_position: position,

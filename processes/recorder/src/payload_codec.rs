@@ -64,7 +64,7 @@ impl<D> SchemaMatch<D> {
     }
 }
 
-/// A JSON decoder for messages of the recorded schema `schema` (e.g. `harvest.ArmState.v1`).
+/// A JSON decoder for messages of the recorded schema `schema` (e.g. `harvest.ArmState.v2`).
 pub fn json_decoder(schema: &str) -> SchemaMatch<Box<dyn JsonDecoder>> {
     struct Find<'a> {
         schema: &'a str,
@@ -121,8 +121,8 @@ mod tests {
         state.apple_id = 17;
         let mut bytes = Vec::new();
         state.encode(&mut bytes).expect("encode");
-        let SchemaMatch::Known(mut decoder) = json_decoder("harvest.ArmState.v1") else {
-            panic!("ArmState v1 must be known");
+        let SchemaMatch::Known(mut decoder) = json_decoder("harvest.ArmState.v2") else {
+            panic!("ArmState v2 must be known");
         };
         let json = decoder.to_json(&bytes).expect("decode");
         assert_eq!(json["apple_id"], 17);
@@ -132,7 +132,7 @@ mod tests {
             json_decoder("harvest.ArmState.v0"),
             SchemaMatch::OtherVersion {
                 recorded: 0,
-                current: 1,
+                current: 2,
                 ..
             }
         ));

@@ -274,7 +274,7 @@ fn unknown_schemas_and_other_versions_are_reported_and_skipped() {
     assert_eq!(line["topic"], "vacuum/state");
     let (count, reason) = &report.undecodable["arm1/state"];
     assert_eq!(*count, 1);
-    assert!(reason.contains("v0") && reason.contains("v1"), "{reason}");
+    assert!(reason.contains("v0") && reason.contains("v2"), "{reason}");
     assert!(
         report.undecodable["other/thing"]
             .1
@@ -296,7 +296,7 @@ fn unknown_schemas_and_other_versions_are_reported_and_skipped() {
     assert!(
         report.skipped["arm1/state"]
             .1
-            .contains("harvest.ArmState.v1")
+            .contains("harvest.ArmState.v2")
     );
     assert!(report.skipped.contains_key("other/thing"));
 }

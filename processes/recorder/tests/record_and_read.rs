@@ -85,7 +85,7 @@ fn records_every_message_and_an_independent_reader_agrees() {
             message["log_time"].as_u64() >= message["publish_time"].as_u64(),
             "received after published"
         );
-        assert_eq!(message["schema"], "harvest.ArmState.v1");
+        assert_eq!(message["schema"], "harvest.ArmState.v2");
     }
     let frames = messages_of(&read, "camera/rgbd");
     assert_eq!(frames.len(), 2);

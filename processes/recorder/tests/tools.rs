@@ -56,7 +56,7 @@ fn info_cat_and_export_describe_the_recording() {
             .clone()
     };
     assert_eq!(channel("arm1/state").messages, 10);
-    assert_eq!(channel("arm1/state").schema, "harvest.ArmState.v1");
+    assert_eq!(channel("arm1/state").schema, "harvest.ArmState.v2");
     assert_eq!(channel("camera/rgbd").messages, 2);
     assert!(channel("arm1/state").rate_hz > 0.0);
     assert!(
@@ -86,7 +86,7 @@ fn info_cat_and_export_describe_the_recording() {
     for (index, line) in arms.iter().enumerate() {
         assert_eq!(line["message"]["apple_id"], 1000 + index as u64);
         assert_eq!(line["message"]["header"]["msg_seq"], index as u64 + 1);
-        assert_eq!(line["schema"], "harvest.ArmState.v1");
+        assert_eq!(line["schema"], "harvest.ArmState.v2");
     }
     let frame_line = all
         .iter()

@@ -50,17 +50,25 @@ pub fn vacuum_event(
             invalid,
             given_up,
         } => {
-            if summary.added + summary.dropped + summary.exhausted + invalid + given_up == 0 {
+            if summary.added
+                + summary.dropped
+                + summary.exhausted
+                + summary.held
+                + invalid
+                + given_up
+                == 0
+            {
                 return None;
             }
             let mut out = make(HarvestEventKind::Replanned, None, None);
             out.reason = FixedString::new(&format!(
-                "queued {}/{}; added {}, dropped {}, exhausted {}, invalid {}, given up {}",
+                "queued {}/{}; added {}, dropped {}, exhausted {}, held {}, invalid {}, given up {}",
                 queued[0],
                 queued[1],
                 summary.added,
                 summary.dropped,
                 summary.exhausted,
+                summary.held,
                 invalid,
                 given_up
             ));
@@ -89,6 +97,28 @@ pub fn vacuum_event(
             );
             out.cause = HarvestCause::TargetNotTaken as u8;
             out.reason = FixedString::new("the arm did not take the target up");
+            out
+        }
+        VacuumNodeEvent::TargetRefused { arm, apple } => {
+            let mut out = make(
+                HarvestEventKind::DispatchTimedOut,
+                Some(*arm),
+                Some(wire_id(*apple)),
+            );
+            out.cause = HarvestCause::TargetNotTaken as u8;
+            out.reason = FixedString::new("the arm refused the target");
+            out
+        }
+        VacuumNodeEvent::TargetWithdrawn { arm, apple, to } => {
+            let mut out = make(
+                HarvestEventKind::TargetDeferred,
+                Some(*arm),
+                Some(wire_id(*apple)),
+            );
+            out.reason = FixedString::new(&format!(
+                "withdrawn while the arm waited for the other arm; queued for arm {}",
+                arm_number(*to)
+            ));
             out
         }
         VacuumNodeEvent::AttemptFinished { arm, apple, result } => {

@@ -13,6 +13,14 @@
 //! later detection set still sees it. At most one target is dispatched per tick, so the arm that
 //! moves second always sees the first arm's motion in its clearance check.
 //!
+//! An arm that refuses its target for the moment (its path would come too close to the other
+//! arm's: `ArmState::target_status` waiting) keeps retrying it; once it has waited
+//! [`VacuumNodeConfig::waiting_patience_s`], the node takes the apple back without counting an
+//! attempt and hands it to the other arm (head of its queue) when that arm can reach it, or to
+//! the back of the same arm's queue when that arm has other apples to do first; the arm gets
+//! its next apple, or a withdrawal (a target with apple id 0). A target refused for good
+//! (`target_status` refused) ends the attempt as failed at once, as the dispatch timeout would.
+//!
 //! Per tick ([`VacuumNode::step`]):
 //! 1. the pressure sample goes through [`AttachmentInference`]; an arm counts as open for the
 //!    inference only once the board reports its inlet at the open end stop and its vent closed
@@ -46,6 +54,7 @@ use crate::replan::{
     AssignmentPlanner, AttemptResult, PlannerConfig, PlannerConfigError, ReplanSummary,
 };
 use harvest_ipc::Header;
+use harvest_ipc::payloads::arm::TargetStatus;
 use harvest_ipc::payloads::{
     AppleDetections, ArmPhase as PhaseCode, ArmState, ArmTarget, VacuumState, ValveGrant,
     ValveRequest, ValveRequestKind,
@@ -119,6 +128,23 @@ pub struct VacuumNodeConfig {
     /// that perception re-identifies as new after each attempt, or that the robot wrongly
     /// believes harvested, is not tried forever.
     pub give_up_radius_m: f64,
+    /// Margin around an apple held in a cup, m (default 0.03 m: the 1.5 cm from cup to apple
+    /// surface within which the cup seals, section 2.2, plus the +-1.5 cm localization error
+    /// the end-effector tolerates). A detection whose centre lies within its own radius plus
+    /// this margin of the end-effector (`ArmState::end_effector_in_robot_m`) of an arm that
+    /// holds an apple, retracts or releases is the apple in that cup seen again, not a tree
+    /// apple, and is left out of the assignment (counted as `held` in the re-plan summary).
+    /// Two touching apples of radius r lie at least ~2.2 r apart measured from the cup, so the
+    /// default (r + 3 cm, 7 cm for r = 4 cm) does not hide a neighbour.
+    pub held_margin_m: f64,
+    /// How long an arm may report its dispatched target as waiting (refused for the moment)
+    /// before the apple is handed elsewhere, s (default 0.25 s: the other arm's swept path
+    /// rarely clears sooner than its next phase, and a shorter wait would bounce apples between
+    /// the arms at every perception period).
+    pub waiting_patience_s: f64,
+    /// An apple withdrawn from an arm is not dispatched to that arm again for this long, s
+    /// (default 1 s, about one phase of the other arm, whose path was in the way).
+    pub withdrawal_backoff_s: f64,
 }
 
 impl Default for VacuumNodeConfig {
@@ -130,6 +156,9 @@ impl Default for VacuumNodeConfig {
             arms_enabled: [true, true],
             dispatch_timeout_s: 3.0,
             give_up_radius_m: 0.05,
+            held_margin_m: 0.03,
+            waiting_patience_s: 0.25,
+            withdrawal_backoff_s: 1.0,
         }
     }
 }
@@ -149,6 +178,15 @@ pub enum VacuumNodeError {
     /// `give_up_radius_m` is not a positive distance.
     #[error("vacuum node config `give_up_radius_m` = {0}: must be finite and > 0")]
     GiveUpRadius(f64),
+    /// `held_margin_m` is not a non-negative distance.
+    #[error("vacuum node config `held_margin_m` = {0}: must be finite and >= 0")]
+    HeldMargin(f64),
+    /// `waiting_patience_s` is not a non-negative number of seconds.
+    #[error("vacuum node config `waiting_patience_s` = {0}: must be finite and >= 0")]
+    WaitingPatience(f64),
+    /// `withdrawal_backoff_s` is not a non-negative number of seconds.
+    #[error("vacuum node config `withdrawal_backoff_s` = {0}: must be finite and >= 0")]
+    WithdrawalBackoff(f64),
 }
 
 /// One report of the valve board (the `ValveBoard::valve_states` and `pressures` of a tick).
@@ -252,6 +290,25 @@ pub enum VacuumNodeEvent {
         /// The apple.
         apple: AppleId,
     },
+    /// The arm refused its target for good (outside its workspace, stale, not finite);
+    /// counted as a failed attempt.
+    TargetRefused {
+        /// The arm.
+        arm: ArmId,
+        /// The apple.
+        apple: AppleId,
+    },
+    /// The arm kept refusing its target for the moment (the other arm in the way): the apple
+    /// was taken back, not counted as an attempt, and queued for `to`.
+    TargetWithdrawn {
+        /// The arm.
+        arm: ArmId,
+        /// The apple.
+        apple: AppleId,
+        /// The arm whose queue it joined (the other arm at its head, or the same arm at its
+        /// back).
+        to: ArmId,
+    },
     /// An attempt ended (the arm is idle again).
     AttemptFinished {
         /// The arm.
@@ -316,6 +373,17 @@ struct Dispatch {
     harvested_before: u32,
 }
 
+/// An apple taken back from an arm that kept waiting for the other arm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Withdrawal {
+    apple: AppleId,
+    position_m: [f64; 3],
+    at_ns: u64,
+    /// Handed to the other arm (which can reach it): while the back-off lasts, the assignment
+    /// treats it as out of this arm's reach, so re-planning does not hand it straight back.
+    to_other: bool,
+}
+
 /// What the node tracks per arm.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct ArmTrack {
@@ -339,6 +407,9 @@ struct ArmTrack {
     last_dispatch_ns: u64,
     /// The last target published for this arm.
     last_target: Option<ArmTarget>,
+    /// The apple last withdrawn from this arm (adopted if the arm took it up regardless; not
+    /// dispatched to it again within `withdrawal_backoff_s`).
+    withdrawn: Option<Withdrawal>,
 }
 
 /// The vacuum supervisor's logic; see the module documentation.
@@ -402,6 +473,17 @@ impl VacuumNode {
         }
         if !(config.give_up_radius_m.is_finite() && config.give_up_radius_m > 0.0) {
             return Err(VacuumNodeError::GiveUpRadius(config.give_up_radius_m));
+        }
+        if !(config.held_margin_m.is_finite() && config.held_margin_m >= 0.0) {
+            return Err(VacuumNodeError::HeldMargin(config.held_margin_m));
+        }
+        if !(config.waiting_patience_s.is_finite() && config.waiting_patience_s >= 0.0) {
+            return Err(VacuumNodeError::WaitingPatience(config.waiting_patience_s));
+        }
+        if !(config.withdrawal_backoff_s.is_finite() && config.withdrawal_backoff_s >= 0.0) {
+            return Err(VacuumNodeError::WithdrawalBackoff(
+                config.withdrawal_backoff_s,
+            ));
         }
         let planner = AssignmentPlanner::new(config.planner)?;
         Ok(Self {
@@ -470,7 +552,7 @@ impl VacuumNode {
             self.last_readings = Some(readings);
         }
         if let Some(set) = input.detections {
-            self.replan(set);
+            self.replan(set, &input.arm_states, now_ns);
         }
         self.track_attempts(input, now_ns);
         if input.emergency_stop {
@@ -529,12 +611,15 @@ impl VacuumNode {
         }
     }
 
-    /// Step 2: a new detection set.
-    fn replan(&mut self, set: &AppleDetections) {
+    /// Step 2: a new detection set. Detections of an apple held in a cup (see
+    /// [`VacuumNodeConfig::held_margin_m`]) are left out before planning.
+    fn replan(&mut self, set: &AppleDetections, arm_states: &[Option<&ArmState>; 2], now_ns: u64) {
         self.last_set.clear();
         self.scratch_positions.clear();
+        let cups = arm_states.map(|s| s.and_then(holding_cup_m));
         let mut invalid = 0;
         let mut given_up = 0;
+        let mut held = 0;
         for d in set.apples.iter() {
             let p = d.position_in_robot_m;
             if self.given_up(&p) {
@@ -545,6 +630,16 @@ impl VacuumNode {
                 } else {
                     FALLBACK_RADIUS_M
                 };
+                let reach_m = radius + self.config.held_margin_m;
+                if cups
+                    .iter()
+                    .flatten()
+                    .any(|cup| squared_distance(cup, &p) <= reach_m * reach_m)
+                {
+                    trace!(position_m = ?p, "detection at a holding arm's cup: not a tree apple");
+                    held += 1;
+                    continue;
+                }
                 self.last_set.push((p, radius));
                 self.scratch_positions.push(p);
             } else {
@@ -555,15 +650,20 @@ impl VacuumNode {
         let enabled = self.config.arms_enabled;
         let last_set = &self.last_set;
         let reachable = &self.reachable;
+        let avoid = self.avoided(now_ns);
+        let r2 = self.config.planner.match_radius_m.powi(2);
         let result = self.planner.replan(&self.scratch_positions, |arm, p| {
             let radius = last_set
                 .iter()
                 .find(|(q, _)| q == p)
                 .map_or(FALLBACK_RADIUS_M, |(_, r)| *r);
-            enabled[arm.index()] && reachable(arm, p, radius)
+            enabled[arm.index()]
+                && reachable(arm, p, radius)
+                && !avoid[arm.index()].is_some_and(|q| squared_distance(&q, p) <= r2)
         });
         match result {
-            Ok(summary) => {
+            Ok(mut summary) => {
+                summary.held = held;
                 let queued = ArmId::ALL.map(|arm| self.planner.queue(arm).len());
                 trace!(?summary, ?queued, "re-planned");
                 self.output.events.push(VacuumNodeEvent::Replanned {
@@ -599,22 +699,42 @@ impl VacuumNode {
                 });
                 if taken {
                     self.arms[i].dispatched = None;
+                    self.arms[i].withdrawn = None;
                     self.arms[i].active = Some(d);
                     debug!(%arm, apple = d.apple.id.0, "attempt started");
                     self.output.events.push(VacuumNodeEvent::AttemptStarted {
                         arm,
                         apple: d.apple.id,
                     });
-                } else if now_ns.saturating_sub(d.at_ns) > timeout_ns {
-                    self.arms[i].dispatched = None;
-                    self.planner.finish(arm, AttemptResult::Failed);
-                    self.remember(&d.apple.position_m);
-                    warn!(%arm, apple = d.apple.id.0, "target not taken up: given up");
-                    self.output.events.push(VacuumNodeEvent::DispatchTimedOut {
-                        arm,
-                        apple: d.apple.id,
-                    });
+                } else {
+                    if let Some(status) = state
+                        .filter(|s| s.target_apple_id == wire_id(d.apple.id))
+                        .and_then(|s| TargetStatus::from_code(s.target_status))
+                        && status != TargetStatus::None
+                    {
+                        self.on_target_status(arm, d, status, now_ns);
+                    }
+                    // Still dispatched (waiting with nowhere else to go, or no report).
+                    let still = self.arms[i].dispatched.is_some();
+                    if still && now_ns.saturating_sub(d.at_ns) > timeout_ns {
+                        self.arms[i].dispatched = None;
+                        self.planner.finish(arm, AttemptResult::Failed);
+                        self.remember(&d.apple.position_m);
+                        warn!(%arm, apple = d.apple.id.0, "target not taken up: given up");
+                        self.output.events.push(VacuumNodeEvent::DispatchTimedOut {
+                            arm,
+                            apple: d.apple.id,
+                        });
+                    }
                 }
+            }
+            if self.arms[i].active.is_none()
+                && let Some(Withdrawal { apple: id, .. }) = self.arms[i].withdrawn
+                && let Some(s) = state
+                && s.apple_id == wire_id(id)
+                && phase.is_some_and(|p| p != PhaseCode::Idle && p != PhaseCode::Stopped)
+            {
+                self.adopt(arm, id, s, now_ns);
             }
             if let Some(d) = self.arms[i].active {
                 let over = state.is_none_or(|s| {
@@ -639,6 +759,130 @@ impl VacuumNode {
                 }
             }
         }
+    }
+
+    /// A dispatched target the arm reports refused (for good, or for the moment).
+    fn on_target_status(&mut self, arm: ArmId, d: Dispatch, status: TargetStatus, now_ns: u64) {
+        let i = arm.index();
+        if status == TargetStatus::Refused {
+            self.arms[i].dispatched = None;
+            self.planner.finish(arm, AttemptResult::Failed);
+            self.remember(&d.apple.position_m);
+            warn!(%arm, apple = d.apple.id.0, "target refused by the arm");
+            self.output.events.push(VacuumNodeEvent::TargetRefused {
+                arm,
+                apple: d.apple.id,
+            });
+            return;
+        }
+        let patience_ns = (self.config.waiting_patience_s * 1e9) as u64;
+        if now_ns.saturating_sub(d.at_ns) < patience_ns {
+            return;
+        }
+        let other = arm.other();
+        let radius_m = self.radius_of(&d.apple.position_m);
+        let to = if self.config.arms_enabled[other.index()]
+            && (self.reachable)(other, &d.apple.position_m, radius_m)
+        {
+            other
+        } else if !self.planner.queue(arm).is_empty() {
+            arm
+        } else {
+            // Nowhere else to go: the arm keeps retrying until it can go or the dispatch
+            // times out.
+            return;
+        };
+        if self.planner.take_back(arm, to).is_none() {
+            return;
+        }
+        let track = &mut self.arms[i];
+        track.dispatched = None;
+        track.withdrawn = Some(Withdrawal {
+            apple: d.apple.id,
+            position_m: d.apple.position_m,
+            at_ns: now_ns,
+            to_other: to == other,
+        });
+        track.last_target = None;
+        self.target_seq += 1;
+        // Overwritten by the arm's next apple if one is dispatched this tick.
+        self.output.targets[i] = Some(ArmTarget {
+            header: Header {
+                msg_seq: self.target_seq,
+                capture_ns: now_ns,
+                publish_ns: 0,
+            },
+            arm_id: i as u8 + 1,
+            _reserved: [0; 3],
+            apple_id: 0,
+            position_in_robot_m: [f64::NAN; 3],
+            radius_m: f64::NAN,
+            source_capture_ns: self.last_set_capture_ns,
+        });
+        debug!(%arm, apple = d.apple.id.0, %to, "target withdrawn: the arm waits for the other arm");
+        self.output.events.push(VacuumNodeEvent::TargetWithdrawn {
+            arm,
+            apple: d.apple.id,
+            to,
+        });
+    }
+
+    /// The arm took up the apple withdrawn from it (the withdrawal crossed its acceptance):
+    /// follow that attempt; a target dispatched since is taken back to the arm's own queue
+    /// and withdrawn.
+    fn adopt(&mut self, arm: ArmId, id: AppleId, state: &ArmState, now_ns: u64) {
+        let i = arm.index();
+        self.arms[i].withdrawn = None;
+        if self.arms[i].dispatched.take().is_some() {
+            self.planner.take_back(arm, arm);
+            self.target_seq += 1;
+            self.output.targets[i] = Some(ArmTarget {
+                header: Header {
+                    msg_seq: self.target_seq,
+                    capture_ns: now_ns,
+                    publish_ns: 0,
+                },
+                arm_id: i as u8 + 1,
+                _reserved: [0; 3],
+                apple_id: 0,
+                position_in_robot_m: [f64::NAN; 3],
+                radius_m: f64::NAN,
+                source_capture_ns: self.last_set_capture_ns,
+            });
+        }
+        let Some(apple) = self.planner.adopt(arm, id) else {
+            warn!(%arm, apple = id.0, "arm took up a withdrawn apple that is no longer waiting");
+            return;
+        };
+        self.arms[i].active = Some(Dispatch {
+            apple,
+            at_ns: now_ns,
+            harvested_before: state.harvested_count,
+        });
+        info!(%arm, apple = id.0, "arm took up a withdrawn target: attempt followed");
+        self.output
+            .events
+            .push(VacuumNodeEvent::AttemptStarted { arm, apple: id });
+    }
+
+    /// Per arm, the position of the apple handed from it to the other arm while the back-off
+    /// lasts (treated as out of its reach by the assignment).
+    fn avoided(&self, now_ns: u64) -> [Option<[f64; 3]>; 2] {
+        let backoff_ns = (self.config.withdrawal_backoff_s * 1e9) as u64;
+        self.arms.map(|track| {
+            track
+                .withdrawn
+                .filter(|w| w.to_other && now_ns.saturating_sub(w.at_ns) < backoff_ns)
+                .map(|w| w.position_m)
+        })
+    }
+
+    /// The radius of the detection at `position_m` in the last set.
+    fn radius_of(&self, position_m: &[f64; 3]) -> f64 {
+        self.last_set
+            .iter()
+            .find(|(p, _)| p == position_m)
+            .map_or(FALLBACK_RADIUS_M, |(_, r)| *r)
     }
 
     /// True when `position_m` lies on the give-up list.
@@ -883,9 +1127,20 @@ impl VacuumNode {
                 && track.active.is_none()
                 && self.planner.in_progress(arm).is_none();
             if self.config.arms_enabled[i] && idle && self.planner.queue(arm).is_empty() {
-                self.rebalance_for(arm);
+                self.rebalance_for(arm, now_ns);
             }
             if !self.config.arms_enabled[i] || !idle || self.planner.queue(arm).is_empty() {
+                continue;
+            }
+            let backoff_ns = (self.config.withdrawal_backoff_s * 1e9) as u64;
+            if let Some(w) = self.arms[i].withdrawn
+                && now_ns.saturating_sub(w.at_ns) < backoff_ns
+                && self
+                    .planner
+                    .queue(arm)
+                    .first()
+                    .is_some_and(|a| a.id == w.apple)
+            {
                 continue;
             }
             match self
@@ -947,16 +1202,20 @@ impl VacuumNode {
 
     /// Gives the free `arm` its share of the apples queued for the other arm at once (see
     /// [`AssignmentPlanner::rebalance_for`]) instead of at the next detection set.
-    fn rebalance_for(&mut self, arm: ArmId) {
+    fn rebalance_for(&mut self, arm: ArmId, now_ns: u64) {
         let enabled = self.config.arms_enabled;
         let last_set = &self.last_set;
         let reachable = &self.reachable;
+        let avoid = self.avoided(now_ns);
+        let r2 = self.config.planner.match_radius_m.powi(2);
         let result = self.planner.rebalance_for(arm, |arm, p| {
             let radius = last_set
                 .iter()
                 .find(|(q, _)| q == p)
                 .map_or(FALLBACK_RADIUS_M, |(_, r)| *r);
-            enabled[arm.index()] && reachable(arm, p, radius)
+            enabled[arm.index()]
+                && reachable(arm, p, radius)
+                && !avoid[arm.index()].is_some_and(|q| squared_distance(&q, p) <= r2)
         });
         match result {
             Ok(true) => debug!(%arm, queued = self.planner.queue(arm).len(), "queues rebalanced"),
@@ -992,6 +1251,19 @@ impl VacuumNode {
 /// plus one, so that 0 keeps meaning "no apple".
 pub fn wire_id(id: AppleId) -> u32 {
     id.0.wrapping_add(1)
+}
+
+/// The cup of an arm whose end-effector carries (or may carry) an apple away from the tree:
+/// it holds one (`ArmState::holding`), or it retracts or releases. `None` otherwise, or when
+/// the end-effector position is not finite.
+fn holding_cup_m(state: &ArmState) -> Option<[f64; 3]> {
+    let carrying = state.holding != 0
+        || matches!(
+            PhaseCode::from_code(state.phase),
+            Some(PhaseCode::Retract | PhaseCode::Release)
+        );
+    let cup = state.end_effector_in_robot_m;
+    (carrying && cup.iter().all(|c| c.is_finite())).then_some(cup)
 }
 
 fn squared_distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {

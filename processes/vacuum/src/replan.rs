@@ -69,6 +69,9 @@ pub struct ReplanSummary {
     pub added: usize,
     /// Seen apples left out because they used all their attempts.
     pub exhausted: usize,
+    /// Detections left out before planning because they are an apple held in an arm's cup
+    /// (set by the vacuum node, see `VacuumNodeConfig::held_margin_m`; 0 from the planner).
+    pub held: usize,
 }
 
 /// How an attempt ended, as reported by the arm workflow.
@@ -284,6 +287,57 @@ impl AssignmentPlanner {
         Some(apple)
     }
 
+    /// Takes back the apple `arm` was started on before the arm took it up (it refused the
+    /// target for the moment, e.g. the other arm's swept path is in the way): its attempt is
+    /// not counted, and it waits at the head of the queue of `to` (the other arm, which can
+    /// reach it) or at the back of `arm`'s own queue (`to == arm`: the arm tries its other
+    /// apples first). Returns the apple, `None` if the arm was idle.
+    pub fn take_back(&mut self, arm: ArmId, to: ArmId) -> Option<Apple> {
+        let apple = self.in_progress[arm.index()].take()?;
+        if let Some(n) = self.attempts.get_mut(&apple.id) {
+            *n = n.saturating_sub(1);
+            if *n == 0 {
+                self.attempts.remove(&apple.id);
+            }
+        }
+        let queue = match to {
+            ArmId::Arm1 => &mut self.plan.arm1,
+            ArmId::Arm2 => &mut self.plan.arm2,
+        };
+        if to == arm {
+            queue.push(apple);
+        } else {
+            queue.insert(0, apple);
+        }
+        // Known again, so the next detection set matches it (same id).
+        self.known.push(apple);
+        Some(apple)
+    }
+
+    /// Starts `arm` on the waiting apple `id` (queued for either arm, or known), as
+    /// [`AssignmentPlanner::start_next`] does for the head of its queue: used when an arm took
+    /// up a target that was withdrawn from it. `None` (nothing changes) when the arm is busy or
+    /// the apple is not waiting.
+    pub fn adopt(&mut self, arm: ArmId, id: AppleId) -> Option<Apple> {
+        if self.in_progress[arm.index()].is_some() {
+            return None;
+        }
+        let apple = self
+            .plan
+            .arm1
+            .iter()
+            .chain(&self.plan.arm2)
+            .chain(&self.known)
+            .find(|a| a.id == id)
+            .copied()?;
+        self.plan.arm1.retain(|a| a.id != id);
+        self.plan.arm2.retain(|a| a.id != id);
+        self.known.retain(|a| a.id != id);
+        *self.attempts.entry(id).or_insert(0) += 1;
+        self.in_progress[arm.index()] = Some(apple);
+        Some(apple)
+    }
+
     /// End `arm`'s current attempt. A harvested apple is forgotten; a failed one is kept for
     /// matching with the next detection set. Returns the apple, `None` if the arm was idle.
     pub fn finish(&mut self, arm: ArmId, result: AttemptResult) -> Option<Apple> {
@@ -419,6 +473,33 @@ mod tests {
         assert_eq!(p.queue(ArmId::Arm2), &[queued]);
         assert!(p.queue(ArmId::Arm1).is_empty());
         assert_ne!(second.id, queued.id);
+    }
+
+    #[test]
+    fn an_apple_taken_back_is_not_an_attempt_and_waits_where_told() {
+        let mut p = planner();
+        // Arm 1 only: a and b; both arms: c.
+        let set = [[0.5, 0.5, 0.0], [0.6, 0.4, 0.0], [0.7, 0.0, 0.0]];
+        p.replan(&set, reach).expect("finite");
+        let a = p.start_next(ArmId::Arm1).expect("queued");
+        assert_eq!(p.attempts(a.id), 1);
+        // Back to arm 1's own queue, behind its other apples.
+        assert_eq!(p.take_back(ArmId::Arm1, ArmId::Arm1), Some(a));
+        assert_eq!(p.attempts(a.id), 0);
+        assert_eq!(p.queue(ArmId::Arm1).last(), Some(&a));
+        assert_eq!(p.in_progress(ArmId::Arm1), None);
+        assert_eq!(p.take_back(ArmId::Arm1, ArmId::Arm1), None, "idle");
+        // To the head of the other arm's queue.
+        let next = p.start_next(ArmId::Arm1).expect("queued");
+        assert_ne!(next.id, a.id);
+        assert_eq!(p.take_back(ArmId::Arm1, ArmId::Arm2), Some(next));
+        assert_eq!(p.queue(ArmId::Arm2).first(), Some(&next));
+        // Adopted by arm 1 after all: out of every queue, one attempt.
+        assert_eq!(p.adopt(ArmId::Arm1, next.id), Some(next));
+        assert!(p.queue(ArmId::Arm2).iter().all(|x| x.id != next.id));
+        assert_eq!(p.attempts(next.id), 1);
+        assert_eq!(p.in_progress(ArmId::Arm1), Some(next));
+        assert_eq!(p.adopt(ArmId::Arm1, a.id), None, "busy");
     }
 
     #[test]

@@ -1,5 +1,6 @@
 use super::*;
 use crate::kinematics::inverse;
+use harvest_ipc::payloads::arm::TargetStatus;
 
 const PERIOD_NS: u64 = 5_000_000;
 /// A mid-workspace apple centre of arm 1 (its picking point is 0.52 m from the home cup).
@@ -368,6 +369,12 @@ fn an_unreachable_target_is_dropped_with_its_reason() {
             will_retry: false
         }
     ));
+    // The published state says so, naming the apple.
+    let state = b.outputs.last().map(|o| o.state).expect("ticked");
+    assert_eq!(
+        (state.target_status, state.target_apple_id),
+        (TargetStatus::Refused as u8, 3)
+    );
     // NaN and stale targets likewise.
     b.target = Some(b.target(2, 4, [f64::NAN, 0.0, 0.3]));
     b.tick();
@@ -412,6 +419,24 @@ fn no_motion_starts_without_a_fresh_state_of_the_other_arm() {
         .count();
     assert_eq!(deferred, 1);
     assert!(!b.has(|e| matches!(e, ArmNodeEvent::TargetAccepted { .. })));
+    let status = |b: &Bench| {
+        let state = b.outputs.last().map(|o| o.state).expect("ticked");
+        (
+            TargetStatus::from_code(state.target_status),
+            state.target_apple_id,
+        )
+    };
+    assert_eq!(status(&b), (Some(TargetStatus::Waiting), 9));
+    // Withdrawn by the supervisor, then dispatched again.
+    let mut withdrawal = b.target(2, 0, [f64::NAN; 3]);
+    withdrawal.radius_m = f64::NAN;
+    b.target = Some(withdrawal);
+    b.tick();
+    assert_eq!(status(&b), (Some(TargetStatus::None), 0));
+    assert!(!b.has(|e| matches!(e, ArmNodeEvent::TargetRejected { .. })));
+    b.target = Some(b.target(3, 9, APPLE_M));
+    b.tick();
+    assert_eq!(status(&b), (Some(TargetStatus::Waiting), 9));
     // Arm 2 idle at home, freshly reported: the target is taken.
     let params = ArmParams::arm2();
     b.other = Some(ArmState {
@@ -427,6 +452,7 @@ fn no_motion_starts_without_a_fresh_state_of_the_other_arm() {
     });
     b.tick();
     assert!(b.has(|e| matches!(e, ArmNodeEvent::TargetAccepted { apple_id: 9 })));
+    assert_eq!(status(&b), (Some(TargetStatus::None), 0));
 }
 
 #[test]

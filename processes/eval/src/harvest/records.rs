@@ -260,7 +260,25 @@ impl Recorder {
     /// A vacuum node event.
     pub fn on_vacuum_event(&mut self, t_s: f64, event: &VacuumNodeEvent) {
         let arm = match event {
-            VacuumNodeEvent::DispatchTimedOut { arm, .. } => {
+            VacuumNodeEvent::TargetWithdrawn { arm, .. } => {
+                // Not an attempt: the arm never moved for it.
+                let i = arm.index();
+                if let Some(k) = self.current[i]
+                    .filter(|&k| self.attempts.get(k).is_some_and(|r| r.started_s.is_none()))
+                {
+                    self.attempts.remove(k);
+                    for slot in self.current.iter_mut().chain(self.last.iter_mut()) {
+                        *slot = match *slot {
+                            Some(x) if x == k => None,
+                            Some(x) if x > k => Some(x - 1),
+                            other => other,
+                        };
+                    }
+                }
+                Some(i as u8 + 1)
+            }
+            VacuumNodeEvent::DispatchTimedOut { arm, .. }
+            | VacuumNodeEvent::TargetRefused { arm, .. } => {
                 let i = arm.index();
                 if let Some(r) = self.current[i].and_then(|k| self.attempts.get_mut(k)) {
                     r.ended_s = Some(t_s);

@@ -404,7 +404,8 @@ impl Episode {
                 }
                 VacuumNodeEvent::Replanned { .. } => self.last_replan_ns = now_ns,
                 VacuumNodeEvent::AttemptFinished { .. }
-                | VacuumNodeEvent::DispatchTimedOut { .. } => self.last_attempt_end_ns = now_ns,
+                | VacuumNodeEvent::DispatchTimedOut { .. }
+                | VacuumNodeEvent::TargetRefused { .. } => self.last_attempt_end_ns = now_ns,
                 _ => {}
             }
             self.recorder.on_vacuum_event(t_s, event);

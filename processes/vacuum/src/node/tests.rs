@@ -488,4 +488,181 @@ fn config_is_checked() {
         VacuumNode::new(bad, reach()),
         Err(VacuumNodeError::GiveUpRadius(_))
     ));
+    let bad = VacuumNodeConfig {
+        held_margin_m: -0.01,
+        ..VacuumNodeConfig::default()
+    };
+    assert!(matches!(
+        VacuumNode::new(bad, reach()),
+        Err(VacuumNodeError::HeldMargin(_))
+    ));
+}
+
+#[test]
+fn a_detection_at_a_holding_arm_cup_is_not_a_tree_apple() {
+    // Arm 1's cup on the robot-facing surface of the apple at LEFT (radius 3.5 cm), a
+    // neighbour touching that apple on its side.
+    let cup = [LEFT[0] - 0.035, LEFT[1], LEFT[2]];
+    let neighbour = [LEFT[0], LEFT[1] + 0.07, LEFT[2]];
+    let run = |phase: PhaseCode, holding: u8| {
+        let mut b = Bench::new(PolicyKind::V2024);
+        b.set_phase(0, phase, 0);
+        b.states[0].holding = holding;
+        b.states[0].end_effector_in_robot_m = cup;
+        let set = detections(b.now_ns, &[LEFT, neighbour]);
+        b.tick_with(Some(&set));
+        let held = b
+            .events
+            .iter()
+            .find_map(|e| match e {
+                VacuumNodeEvent::Replanned { summary, .. } => Some(summary.held),
+                _ => None,
+            })
+            .expect("re-planned");
+        let mut queued: Vec<[f64; 3]> = b
+            .node
+            .planner()
+            .queue(ArmId::Arm1)
+            .iter()
+            .map(|a| a.position_m)
+            .collect();
+        queued.sort_by(|a, b| a[1].total_cmp(&b[1]));
+        (held, queued)
+    };
+    // Holding (attached and detaching), or retracting / releasing: the apple at the cup is the
+    // one in hand; the neighbour is still a tree apple.
+    for (phase, holding) in [
+        (PhaseCode::AttachDetach, 1),
+        (PhaseCode::Retract, 1),
+        (PhaseCode::Retract, 0),
+        (PhaseCode::Release, 0),
+    ] {
+        assert_eq!(
+            run(phase, holding),
+            (1, vec![neighbour]),
+            "{phase:?} {holding}"
+        );
+    }
+    // At the apple without holding it (the attachment failed, or not tried yet): both are on
+    // the tree and both are assigned.
+    for phase in [PhaseCode::AttachDetach, PhaseCode::Approach] {
+        assert_eq!(run(phase, 0), (0, vec![LEFT, neighbour]), "{phase:?}");
+    }
+}
+
+/// The bench's arm `arm` reports its target `apple_id` refused (waiting or for good).
+fn report_target(b: &mut Bench, arm: usize, status: TargetStatus, apple_id: u32) {
+    b.states[arm].target_status = status as u8;
+    b.states[arm].target_apple_id = apple_id;
+}
+
+#[test]
+fn a_target_the_arm_keeps_waiting_on_goes_to_the_other_arm() {
+    // Between the arms: both reach it; arm 1 gets it while arm 2 is busy elsewhere.
+    let shared = [1.3, 0.05, 0.3];
+    let mut b = Bench::new(PolicyKind::V2024);
+    b.set_phase(1, PhaseCode::Approach, 0);
+    let set = detections(b.now_ns, &[shared]);
+    let target = b.tick_with(Some(&set)).targets[0].expect("dispatched to arm 1");
+    // Arm 1 waits: the other arm's path is in the way. Kept until the patience is over.
+    report_target(&mut b, 0, TargetStatus::Waiting, target.apple_id);
+    let patience_ticks = (0.25e9 / (5 * MS) as f64) as usize;
+    b.ticks(patience_ticks - 2);
+    assert_eq!(
+        b.count(|e| matches!(e, VacuumNodeEvent::TargetWithdrawn { .. })),
+        0
+    );
+    let mut withdrawal = None;
+    for _ in 0..4 {
+        let out = b.tick();
+        withdrawal = withdrawal.or(out.targets[0]);
+    }
+    let withdrawal = withdrawal.expect("withdrawal published");
+    assert_eq!(withdrawal.apple_id, 0);
+    assert!(withdrawal.position_in_robot_m.iter().all(|c| c.is_nan()));
+    assert_eq!(
+        b.count(|e| matches!(
+            e,
+            VacuumNodeEvent::TargetWithdrawn {
+                arm: ArmId::Arm1,
+                to: ArmId::Arm2,
+                ..
+            }
+        )),
+        1
+    );
+    // Not an attempt; queued for arm 2, and a new detection set does not hand it back.
+    let apple = b.node.planner().queue(ArmId::Arm2)[0];
+    assert_eq!(wire_id(apple.id), target.apple_id);
+    assert_eq!(b.node.planner().attempts(apple.id), 0);
+    report_target(&mut b, 0, TargetStatus::None, 0);
+    b.tick_with(Some(&detections(b.now_ns, &[shared])));
+    assert!(b.node.planner().queue(ArmId::Arm1).is_empty());
+    b.ticks(10);
+    assert!(
+        b.node.planner().queue(ArmId::Arm1).is_empty(),
+        "no rebalancing back"
+    );
+    // Arm 2 free: it takes the apple at once.
+    b.set_phase(1, PhaseCode::Idle, 0);
+    let out = b.tick();
+    let to_arm2 = out.targets[1].expect("dispatched to arm 2");
+    assert_eq!(to_arm2.apple_id, target.apple_id);
+    assert_eq!(
+        b.count(|e| matches!(
+            e,
+            VacuumNodeEvent::DispatchTimedOut { .. } | VacuumNodeEvent::TargetRefused { .. }
+        )),
+        0
+    );
+}
+
+#[test]
+fn a_waiting_arm_with_nowhere_else_to_send_its_apple_keeps_it_and_a_refusal_ends_at_once() {
+    // Arm 1 only (LEFT), nothing else queued: the arm keeps retrying until the timeout.
+    let mut b = Bench::new(PolicyKind::V2024);
+    let set = detections(b.now_ns, &[LEFT]);
+    let target = b.tick_with(Some(&set)).targets[0].expect("dispatched");
+    report_target(&mut b, 0, TargetStatus::Waiting, target.apple_id);
+    b.ticks(700);
+    assert_eq!(
+        b.count(|e| matches!(e, VacuumNodeEvent::TargetWithdrawn { .. })),
+        0
+    );
+    assert_eq!(
+        b.count(|e| matches!(e, VacuumNodeEvent::DispatchTimedOut { .. })),
+        1
+    );
+    // Dispatched again (the next set still sees it).
+    let target =
+        b.tick_with(Some(&detections(b.now_ns, &[LEFT]))).targets[0].expect("dispatched again");
+    report_target(&mut b, 0, TargetStatus::None, 0);
+    b.tick();
+    // A status about another apple (an older target) is not about this one.
+    report_target(&mut b, 0, TargetStatus::Refused, target.apple_id + 7);
+    b.tick();
+    assert_eq!(
+        b.count(|e| matches!(e, VacuumNodeEvent::TargetRefused { .. })),
+        0
+    );
+    // Refused for good: the attempt ends as failed at once, without the 3 s timeout.
+    report_target(&mut b, 0, TargetStatus::Refused, target.apple_id);
+    b.tick();
+    assert_eq!(
+        b.count(|e| matches!(
+            e,
+            VacuumNodeEvent::TargetRefused {
+                arm: ArmId::Arm1,
+                ..
+            }
+        )),
+        1
+    );
+    assert!(b.node.planner().in_progress(ArmId::Arm1).is_none());
+    b.ticks(700);
+    assert_eq!(
+        b.count(|e| matches!(e, VacuumNodeEvent::DispatchTimedOut { .. })),
+        1,
+        "only the first one"
+    );
 }
