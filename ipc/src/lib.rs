@@ -12,6 +12,7 @@ pub mod catalogue;
 pub mod cleanup;
 pub mod clock;
 pub mod codec;
+pub mod config_file;
 pub mod context;
 pub mod domain;
 pub mod duration;

@@ -33,6 +33,7 @@ use harvest_ipc::catalogue::{
     ARM_COMMAND, ARM_STATE, ARM_TARGET, EMERGENCY_STOP, HARVEST_EVENTS, VACUUM_STATE, VALVE_GRANT,
     VALVE_REQUEST,
 };
+use harvest_ipc::config_file::{ConfigFileError, read_toml};
 use harvest_ipc::payloads::{
     ArmPhase as PhaseCode, ArmState, ArmTarget, HarvestEventKind, ProcessRunState, VacuumState,
     ValveGrant, ValveRequest,
@@ -126,14 +127,7 @@ impl Default for ArmProcessConfig {
 impl ArmProcessConfig {
     /// Reads and checks a settings file.
     pub fn from_path(path: &Path) -> Result<Self, ArmProcessError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ArmProcessError::ReadConfig {
-            path: path.to_owned(),
-            source,
-        })?;
-        let config: Self = toml::from_str(&text).map_err(|error| ArmProcessError::ParseConfig {
-            path: path.to_owned(),
-            message: error.to_string(),
-        })?;
+        let config: Self = read_toml(path, "arm settings")?;
         config.validate()?;
         Ok(config)
     }
@@ -161,14 +155,8 @@ impl ArmProcessConfig {
 #[derive(Debug, thiserror::Error)]
 pub enum ArmProcessError {
     /// The settings file could not be read.
-    #[error("cannot read arm settings {path}: {source}")]
-    ReadConfig {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    /// The settings file is not valid TOML or has unknown or mistyped keys.
-    #[error("arm settings {path}: {message}")]
-    ParseConfig { path: PathBuf, message: String },
+    #[error(transparent)]
+    Config(#[from] ConfigFileError),
     /// A setting is out of range.
     #[error("arm settings: `{key}` = {value}: expected {expected}")]
     InvalidConfig {

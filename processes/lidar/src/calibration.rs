@@ -467,31 +467,13 @@ pub struct ExtrinsicFile {
     pub normalized_error_px: f64,
 }
 
-/// Why an extrinsic file cannot be used.
-#[derive(Debug, thiserror::Error)]
-pub enum ReadExtrinsicError {
-    /// The file could not be read.
-    #[error("cannot read LiDAR extrinsic {path}: {source}")]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    /// Not an extrinsic file (toml's message names the line and key).
-    #[error("LiDAR extrinsic {path}: {message}")]
-    Parse { path: PathBuf, message: String },
-}
+/// Why an extrinsic file cannot be used (file, line and key named).
+pub type ReadExtrinsicError = harvest_ipc::config_file::ConfigFileError;
 
 impl ExtrinsicFile {
     /// Reads a file written by `harvest calibrate lidar-camera --output`.
     pub fn read(path: &std::path::Path) -> Result<Self, ReadExtrinsicError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ReadExtrinsicError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        toml::from_str(&text).map_err(|error| ReadExtrinsicError::Parse {
-            path: path.to_path_buf(),
-            message: error.to_string(),
-        })
+        harvest_ipc::config_file::read_toml(path, "LiDAR extrinsic")
     }
 }
 

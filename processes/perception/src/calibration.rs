@@ -20,33 +20,19 @@ pub struct CameraCalibration {
     pub robot_from_camera: RigidTransform,
 }
 
-/// A calibration file that cannot be used.
-#[derive(Debug, thiserror::Error)]
-pub enum CalibrationError {
-    #[error("cannot read calibration file {path}: {source}")]
-    Read {
-        path: String,
-        source: std::io::Error,
-    },
-    /// toml's message names the line, column and key.
-    #[error("calibration file {path}: {message}")]
-    Parse { path: String, message: String },
-}
+/// A calibration file that cannot be used (file, line and key named).
+pub type CalibrationError = harvest_ipc::config_file::ConfigFileError;
+
+/// What the file holds, in errors.
+const WHAT: &str = "calibration file";
 
 impl Calibration {
     pub fn from_path(path: &Path) -> Result<Self, CalibrationError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CalibrationError::Read {
-            path: path.display().to_string(),
-            source,
-        })?;
-        Self::parse(&text, &path.display().to_string())
+        harvest_ipc::config_file::read_toml(path, WHAT)
     }
 
     pub fn parse(text: &str, origin: &str) -> Result<Self, CalibrationError> {
-        toml::from_str(text).map_err(|error| CalibrationError::Parse {
-            path: origin.to_owned(),
-            message: error.to_string(),
-        })
+        harvest_ipc::config_file::parse_toml(text, origin, WHAT)
     }
 
     pub fn default_calibration() -> Result<Self, CalibrationError> {

@@ -8,36 +8,19 @@ use crate::pipeline::PerceptionConfig;
 /// The documented defaults of the laser-scan policy.
 pub const DEFAULT_CONFIG: &str = include_str!("../config/default.toml");
 
-/// A configuration file that cannot be used.
-#[derive(Debug, thiserror::Error)]
-pub enum ConfigFileError {
-    /// The file could not be read.
-    #[error("cannot read perception config {path}: {source}")]
-    Read {
-        path: String,
-        source: std::io::Error,
-    },
-    /// Not valid TOML, an unknown key or a wrongly typed value (toml's message names the line,
-    /// column and key).
-    #[error("perception config {path}: {message}")]
-    Parse { path: String, message: String },
-}
+pub use harvest_ipc::config_file::ConfigFileError;
+
+/// What the file holds, in errors.
+const WHAT: &str = "perception config";
 
 /// Reads a configuration file. Values are range-checked when the pipeline is built.
 pub fn read_config(path: &Path) -> Result<PerceptionConfig, ConfigFileError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigFileError::Read {
-        path: path.display().to_string(),
-        source,
-    })?;
-    parse_config(&text, &path.display().to_string())
+    harvest_ipc::config_file::read_toml(path, WHAT)
 }
 
 /// Parses configuration text; `origin` names it in errors.
 pub fn parse_config(text: &str, origin: &str) -> Result<PerceptionConfig, ConfigFileError> {
-    toml::from_str(text).map_err(|error| ConfigFileError::Parse {
-        path: origin.to_owned(),
-        message: error.to_string(),
-    })
+    harvest_ipc::config_file::parse_toml(text, origin, WHAT)
 }
 
 #[cfg(test)]

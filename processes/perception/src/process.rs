@@ -15,7 +15,7 @@
 //! by `harvest calibrate lidar-camera --output`), else the simulated unit's
 //! ([`harvest_lidar::simulated_camera_from_lidar`], what `harvest sim --lidar` renders with).
 
-use crate::calibration::{Calibration, CalibrationError};
+use crate::calibration::Calibration;
 use crate::config_file::{ConfigFileError, read_config};
 use crate::depth_source::{DepthSource, FusedDepth};
 use crate::estimator::EstimatorKind;
@@ -28,7 +28,7 @@ use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
 };
-use harvest_lidar::{ExtrinsicFile, ReadExtrinsicError};
+use harvest_lidar::ExtrinsicFile;
 use std::path::PathBuf;
 
 /// Localization estimator selectable on the command line.
@@ -74,24 +74,16 @@ pub struct PerceptionArgs {
 
 #[derive(Debug, thiserror::Error)]
 pub enum PerceptionProcessError {
-    #[error(transparent)]
-    Calibration(#[from] CalibrationError),
+    /// The calibration, `--config` or `--lidar-extrinsic` file cannot be used (named in the
+    /// message).
     #[error(transparent)]
     Config(#[from] ConfigFileError),
+    /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
-    Node(#[from] harvest_ipc::error::NodeError),
-    #[error(transparent)]
-    Channel(#[from] harvest_ipc::error::OpenChannelError),
-    #[error(transparent)]
-    Send(#[from] harvest_ipc::error::SendError),
-    #[error(transparent)]
-    Receive(#[from] harvest_ipc::error::ReceiveError),
-    #[error(transparent)]
-    Wait(#[from] harvest_ipc::error::WaitError),
-    /// The `--lidar-extrinsic` file cannot be used.
-    #[error(transparent)]
-    Extrinsic(#[from] ReadExtrinsicError),
+    Ipc(#[from] harvest_ipc::error::IpcError),
 }
+
+harvest_ipc::from_ipc_errors!(PerceptionProcessError);
 
 /// Runs until SIGINT/SIGTERM.
 pub fn run(

@@ -37,6 +37,7 @@ use harvest_ipc::catalogue::{
     ARM_STATE, ARM_TARGET, EMERGENCY_STOP, HARVEST_EVENTS, PERCEPTION_APPLES, VACUUM_STATE,
     VALVE_GRANT, VALVE_REQUEST,
 };
+use harvest_ipc::config_file::{ConfigFileError, read_toml};
 use harvest_ipc::payloads::{
     ArmPhase as PhaseCode, ArmState, HarvestEvent, HarvestEventKind, HarvestEventSource,
     ProcessRunState, ValveRequest,
@@ -151,16 +152,7 @@ impl Default for VacuumProcessConfig {
 impl VacuumProcessConfig {
     /// Reads and checks a settings file.
     pub fn from_path(path: &Path) -> Result<Self, VacuumProcessError> {
-        let text =
-            std::fs::read_to_string(path).map_err(|source| VacuumProcessError::ReadConfig {
-                path: path.to_owned(),
-                source,
-            })?;
-        let config: Self =
-            toml::from_str(&text).map_err(|error| VacuumProcessError::ParseConfig {
-                path: path.to_owned(),
-                message: error.to_string(),
-            })?;
+        let config: Self = read_toml(path, "vacuum settings")?;
         config.validate()?;
         Ok(config)
     }
@@ -203,14 +195,8 @@ impl VacuumProcessConfig {
 #[derive(Debug, thiserror::Error)]
 pub enum VacuumProcessError {
     /// The settings file could not be read.
-    #[error("cannot read vacuum settings {path}: {source}")]
-    ReadConfig {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    /// The settings file is not valid TOML or has unknown or mistyped keys.
-    #[error("vacuum settings {path}: {message}")]
-    ParseConfig { path: PathBuf, message: String },
+    #[error(transparent)]
+    Config(#[from] ConfigFileError),
     /// A setting is out of range.
     #[error("vacuum settings: `{key}` = {value}: expected {expected}")]
     InvalidConfig {
