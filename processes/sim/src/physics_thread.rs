@@ -21,7 +21,7 @@ use crate::thread_link::ThreadLink;
 use harvest_ipc::catalogue::{
     HW_ARM_ENCODERS, HW_ARM_SERVO, HW_VALVE_COMMAND, HW_VALVE_READINGS, SIM_GROUND_TRUTH,
 };
-use harvest_ipc::error::{NodeError, OpenChannelError, ReceiveError, SendError, WaitError};
+use harvest_ipc::error::{IpcError, OpenChannelError};
 use harvest_ipc::payloads::{
     EncoderFeedback, GroundTruth, ServoSetpoint, TrueApple, ValveBoardCommand, ValveBoardReadings,
 };
@@ -49,21 +49,9 @@ pub struct PhysicsThreadConfig {
 /// Why the physics thread stopped with an error.
 #[derive(Debug, thiserror::Error)]
 pub enum PhysicsThreadError {
-    /// The thread's node could not be created.
+    /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
-    Node(#[from] NodeError),
-    /// A device channel could not be opened.
-    #[error(transparent)]
-    Channel(#[from] OpenChannelError),
-    /// Receiving a set-point or valve command failed.
-    #[error(transparent)]
-    Receive(#[from] ReceiveError),
-    /// Publishing feedback, readings or ground truth failed.
-    #[error(transparent)]
-    Send(#[from] SendError),
-    /// The wait set failed.
-    #[error(transparent)]
-    Wait(#[from] WaitError),
+    Ipc(#[from] IpcError),
     /// The simulated robot refused a step.
     #[error(transparent)]
     Robot(#[from] SimRobotError),
@@ -71,6 +59,8 @@ pub enum PhysicsThreadError {
     #[error(transparent)]
     Platform(#[from] PlatformDeviceError),
 }
+
+harvest_ipc::from_ipc_errors!(PhysicsThreadError);
 
 /// The physics thread's ports.
 struct PhysicsPorts {

@@ -23,7 +23,7 @@ use crate::scenario::CameraConfig;
 use crate::thread_link::ThreadLink;
 use harvest_ipc::camera_model::RigidTransform;
 use harvest_ipc::catalogue::{HW_ALACS_COMMAND, HW_ALACS_IMAGE, HW_CAMERA_RGBD};
-use harvest_ipc::error::{NodeError, OpenChannelError, ReceiveError, SendError, WaitError};
+use harvest_ipc::error::IpcError;
 use harvest_ipc::payloads::{ProcessRunState, RgbdFrame};
 use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
@@ -102,21 +102,9 @@ pub struct RenderThreadConfig {
 /// Why the render thread stopped with an error.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderThreadError {
-    /// The thread's node could not be created.
+    /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
-    Node(#[from] NodeError),
-    /// A device channel could not be opened.
-    #[error(transparent)]
-    Channel(#[from] OpenChannelError),
-    /// Receiving an ALACS command failed.
-    #[error(transparent)]
-    Receive(#[from] ReceiveError),
-    /// Publishing a frame, an ALACS answer or a heartbeat failed.
-    #[error(transparent)]
-    Send(#[from] SendError),
-    /// The wait set failed.
-    #[error(transparent)]
-    Wait(#[from] WaitError),
+    Ipc(#[from] IpcError),
     /// The camera renderer failed.
     #[error("camera frame {frame_seq}: {source}")]
     Camera {
@@ -132,6 +120,8 @@ pub enum RenderThreadError {
     #[error(transparent)]
     Lidar(#[from] LidarDeviceError),
 }
+
+harvest_ipc::from_ipc_errors!(RenderThreadError);
 
 /// Runs the render thread until SIGINT/SIGTERM or [`ThreadLink::request_stop`]. `world` is the
 /// thread's copy of the world the link was made from. Its node and ports are made here, on the

@@ -804,9 +804,21 @@ impl VacuumNode {
             to_other: to == other,
         });
         track.last_target = None;
-        self.target_seq += 1;
         // Overwritten by the arm's next apple if one is dispatched this tick.
-        self.output.targets[i] = Some(ArmTarget {
+        self.output.targets[i] = Some(self.withdrawal_target(i, now_ns));
+        debug!(%arm, apple = d.apple.id.0, %to, "target withdrawn: the arm waits for the other arm");
+        self.output.events.push(VacuumNodeEvent::TargetWithdrawn {
+            arm,
+            apple: d.apple.id,
+            to,
+        });
+    }
+
+    /// The next target for arm `i` that withdraws the one it has not taken up (apple id 0, NaN
+    /// position: an arm without withdrawals rejects it as not finite, with the same effect).
+    fn withdrawal_target(&mut self, i: usize, now_ns: u64) -> ArmTarget {
+        self.target_seq += 1;
+        ArmTarget {
             header: Header {
                 msg_seq: self.target_seq,
                 capture_ns: now_ns,
@@ -818,13 +830,7 @@ impl VacuumNode {
             position_in_robot_m: [f64::NAN; 3],
             radius_m: f64::NAN,
             source_capture_ns: self.last_set_capture_ns,
-        });
-        debug!(%arm, apple = d.apple.id.0, %to, "target withdrawn: the arm waits for the other arm");
-        self.output.events.push(VacuumNodeEvent::TargetWithdrawn {
-            arm,
-            apple: d.apple.id,
-            to,
-        });
+        }
     }
 
     /// The arm took up the apple withdrawn from it (the withdrawal crossed its acceptance):
@@ -835,20 +841,7 @@ impl VacuumNode {
         self.arms[i].withdrawn = None;
         if self.arms[i].dispatched.take().is_some() {
             self.planner.take_back(arm, arm);
-            self.target_seq += 1;
-            self.output.targets[i] = Some(ArmTarget {
-                header: Header {
-                    msg_seq: self.target_seq,
-                    capture_ns: now_ns,
-                    publish_ns: 0,
-                },
-                arm_id: i as u8 + 1,
-                _reserved: [0; 3],
-                apple_id: 0,
-                position_in_robot_m: [f64::NAN; 3],
-                radius_m: f64::NAN,
-                source_capture_ns: self.last_set_capture_ns,
-            });
+            self.output.targets[i] = Some(self.withdrawal_target(i, now_ns));
         }
         let Some(apple) = self.planner.adopt(arm, id) else {
             warn!(%arm, apple = id.0, "arm took up a withdrawn apple that is no longer waiting");
