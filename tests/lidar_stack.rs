@@ -1,14 +1,14 @@
 //! The LiDAR sensing profile end to end with the real processes over real shared memory:
 //! `harvest up --launch processes/supervisor/launch/lidar.toml` runs the simulated robot with its
 //! LiDAR, the camera, the `lidar` process and perception on the LiDAR-fused depth; perception's
-//! detections on `perception/apples` carry the LidarFusion method code and lie on the simulator's
+//! detections on `perception/apples` carry the LiDAR-fused depth source code and lie on the simulator's
 //! true apples (`sim/ground_truth`).
 
 mod common;
 
 use common::*;
 use harvest_ipc::catalogue::{PERCEPTION_APPLES, SIM_GROUND_TRUTH};
-use harvest_ipc::payloads::LocalizationMethod;
+use harvest_ipc::payloads::DepthSourceCode;
 use harvest_ipc::{Context, Domain};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -79,8 +79,8 @@ fn run_profile(launch: &str) -> (std::process::ExitStatus, String, Seen) {
                     let mut seen = seen.lock().expect("lock");
                     let mut fused = 0;
                     for apple in message.apples.iter() {
-                        let is_fused = LocalizationMethod::from_code(apple.method)
-                            == Some(LocalizationMethod::LidarFusion);
+                        let is_fused = DepthSourceCode::from_code(apple.depth_source)
+                            == Some(DepthSourceCode::LidarFused);
                         let p = apple.position_in_robot_m;
                         if is_fused {
                             fused += 1;

@@ -18,7 +18,8 @@ pub enum LocalizationMethod {
     SphereFit = 2,
     /// Refined by an ALACS laser scan.
     LaserScan = 3,
-    /// LiDAR-camera fused points.
+    /// LiDAR-camera fused points (v1 recordings only: from v2 the depth source has its own
+    /// field, [`AppleDetection::depth_source`], and `method` names the estimator).
     LidarFusion = 4,
     /// Centroid of the mask points after Z-score outlier rejection.
     ZScoreCentroid = 5,
@@ -37,6 +38,29 @@ impl LocalizationMethod {
     }
 }
 
+/// Which depth a position was computed from (code in [`AppleDetection::depth_source`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum DepthSourceCode {
+    /// The ToF camera's depth image.
+    Tof = 1,
+    /// The LiDAR cloud fused into the camera geometry.
+    LidarFused = 2,
+    /// The ALACS laser line (with method [`LocalizationMethod::LaserScan`]).
+    LaserLine = 3,
+}
+
+impl DepthSourceCode {
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            1 => Some(Self::Tof),
+            2 => Some(Self::LidarFused),
+            3 => Some(Self::LaserLine),
+            _ => None,
+        }
+    }
+}
+
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
 pub struct AppleDetection {
@@ -44,7 +68,9 @@ pub struct AppleDetection {
     pub apple_id: u32,
     /// [`LocalizationMethod`] code.
     pub method: u8,
-    pub _reserved: [u8; 3],
+    /// [`DepthSourceCode`] code: the depth the position was computed from.
+    pub depth_source: u8,
+    pub _reserved: [u8; 2],
     pub position_in_camera_m: [f64; 3],
     pub position_in_robot_m: [f64; 3],
     pub radius_m: f64,
@@ -57,7 +83,7 @@ pub struct AppleDetection {
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
-#[type_name("harvest.AppleDetections.v1")]
+#[type_name("harvest.AppleDetections.v2")]
 pub struct AppleDetections {
     pub header: Header,
     /// `msg_seq` and `capture_ns` of the camera frame these come from.
@@ -71,10 +97,11 @@ pub struct AppleDetections {
 crate::serde_payload!(
     AppleDetections,
     "harvest.AppleDetections",
-    1,
+    2,
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
 source_frame_seq: u64; source_capture_ns: u64; processing_ns: u64; apples: u64 count then \
-count x {apple_id:u32, method:u8 (1 cluster centroid, 2 sphere fit, 3 laser, 4 lidar, 5 z-score centroid), _reserved:[u8;3], \
+count x {apple_id:u32, method:u8 (1 cluster centroid, 2 sphere fit, 3 laser, 5 z-score centroid; 4 lidar in v1 only), \
+depth_source:u8 (1 ToF, 2 LiDAR fused, 3 laser line), _reserved:[u8;2], \
 position_in_camera_m:[f64;3], position_in_robot_m:[f64;3], radius_m:f64, confidence:f32, \
 box_px:[u32;4] (x,y,w,h), visible_px:u32}"
 );

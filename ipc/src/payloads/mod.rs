@@ -14,7 +14,7 @@ pub mod rgbd_frame;
 pub mod vacuum;
 
 pub use alacs::{AlacsCommand, AlacsImage};
-pub use apple_detections::{AppleDetection, AppleDetections, LocalizationMethod};
+pub use apple_detections::{AppleDetection, AppleDetections, DepthSourceCode, LocalizationMethod};
 pub use arm::{ArmCommand, ArmPhase, ArmState, ArmTarget, JOINT_COUNT};
 pub use emergency_stop::EmergencyStop;
 pub use hardware::{

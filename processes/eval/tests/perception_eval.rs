@@ -1,12 +1,12 @@
 //! End-to-end checks of `harvest eval perception` on small runs.
 
-use harvest_eval::perception::args::EstimatorArg;
 use harvest_eval::perception::frame::{FrameRenderer, zeroed_frame};
 use harvest_eval::perception::truth::{Condition, TruthMeter};
 use harvest_eval::{EvalError, EvalPerceptionArgs, run_eval_perception};
 use harvest_ipc::payloads::AppleDetections;
 use harvest_perception::PerceptionConfig;
 use harvest_perception::calibration::{Calibration, CameraCalibration};
+use harvest_perception::depth_source::DepthSource;
 use harvest_perception::estimator::EstimatorKind;
 use harvest_perception::node::PerceptionNode;
 use harvest_sim::{Scenario, World};
@@ -19,10 +19,13 @@ fn args(frames: u32, empty_frames: u32) -> EvalPerceptionArgs {
         seed: 11,
         json: None,
         estimators: vec![
-            EstimatorArg::ClusterDepth,
-            EstimatorArg::SphereFit,
-            EstimatorArg::ZscoreCentroid,
+            EstimatorKind::ClusterDepth,
+            EstimatorKind::SphereFit,
+            EstimatorKind::ZScoreCentroid,
         ],
+        depth_sources: vec![DepthSource::Tof],
+        lidar_integration_s: 1.0,
+        table_iii_trials: 0,
     }
 }
 
@@ -143,6 +146,58 @@ fn small_run_gives_a_well_formed_consistent_report() {
     );
     assert!(estimator["timing"]["all_frames_ms"]["p95"].is_number());
     assert_eq!(json["matching_rule"]["max_distance_radii"], 2.0);
+    assert!(json["repeatability"].is_null());
+}
+
+#[test]
+fn lidar_fused_depth_is_evaluated_beside_the_tof_depth_with_the_table_iii_comparison() {
+    let mut args = args(2, 1);
+    args.estimators = vec![EstimatorKind::SphereFit];
+    args.depth_sources = vec![DepthSource::Tof, DepthSource::LidarFused];
+    args.table_iii_trials = 3;
+    let report = run_eval_perception(&args).expect("evaluation runs");
+    let scenario = &report.scenarios[0];
+    let labels: Vec<String> = scenario.estimators.iter().map(|e| e.label()).collect();
+    assert_eq!(labels, ["sphere_fit", "sphere_fit on lidar_fused"]);
+    assert_eq!(report.lidar_integration_s, Some(1.0));
+    let (tof, lidar) = (&scenario.estimators[0], &scenario.estimators[1]);
+    // Both depth sources find and place apples on the same frames.
+    for e in [tof, lidar] {
+        assert!(
+            e.detection.true_positives > 5,
+            "{}: {:?}",
+            e.label(),
+            e.detection
+        );
+        assert!(
+            e.error_mm.median.is_some_and(|mm| mm < 15.0),
+            "{}: {:?}",
+            e.label(),
+            e.error_mm
+        );
+        assert_eq!(e.detection.empty_frame_detections, 0);
+    }
+    // The 3D-error target was set for the ToF camera: it is checked once, on the ToF variant.
+    let error_targets: Vec<_> = scenario
+        .targets
+        .iter()
+        .filter(|t| t.target.starts_with("sphere_fit: p95 3D error"))
+        .collect();
+    assert_eq!(error_targets.len(), 1);
+    assert_eq!(error_targets[0].value, tof.error_mm.p95);
+    let table = report.repeatability.as_ref().expect("Table III run");
+    let distances: Vec<f64> = table.rows.iter().map(|r| r.distance_m).collect();
+    assert_eq!(distances, [0.5, 1.2, 1.8]);
+    for row in &table.rows {
+        assert_eq!((row.lidar.localized, row.tof.localized), (3, 3), "{row:?}");
+        assert!(row.lidar.std_cm < 1.0 && row.tof.std_cm < 1.0, "{row:?}");
+    }
+    let text = harvest_eval::perception::tables::render_tables(&report);
+    assert!(
+        text.contains("LiDAR-camera versus ToF (Table III)"),
+        "{text}"
+    );
+    assert!(text.contains("sphere_fit on lidar_fused"), "{text}");
 }
 
 #[test]

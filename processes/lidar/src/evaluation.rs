@@ -70,7 +70,7 @@ pub enum EvalLidarError {
 }
 
 /// Repeatability of one depth source at one distance.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Repeatability {
     pub trials: usize,
     /// Trials that gave a position.
@@ -86,7 +86,7 @@ pub struct Repeatability {
 }
 
 /// One row of the Table-III-style report.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct DistanceRow {
     pub distance_m: f64,
     pub lidar: Repeatability,
@@ -94,7 +94,7 @@ pub struct DistanceRow {
 }
 
 /// The report.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct EvalLidarReport {
     pub rows: Vec<DistanceRow>,
     pub integration_s: f64,
@@ -250,7 +250,10 @@ pub fn evaluate(args: &EvalLidarArgs) -> Result<EvalLidarReport, EvalLidarError>
         }
         // LiDAR path.
         let mut device = LidarDeviceServer::new(device_config)?;
-        let mut fusion = Fusion::new(FusionConfig::new(color, device_config.camera_from_lidar))?;
+        let mut fusion = Fusion::new(
+            FusionConfig::new(color, device_config.camera_from_lidar)
+                .with_range_noise(device_config.spec.range_sigma_m),
+        )?;
         let per_window = (args.integration_s * rate).round() as usize;
         let (mut lidar_positions, mut lidar_points) = (Vec::new(), 0usize);
         for _ in 0..args.trials {

@@ -87,6 +87,9 @@ pub enum FusionError {
     Setup(String),
 }
 
+/// Occlusion tolerance in range-noise sigmas (see [`FusionConfig::with_range_noise`]).
+pub const OCCLUSION_TOLERANCE_SIGMAS: f64 = 5.0;
+
 /// Fusion settings.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -112,6 +115,19 @@ impl FusionConfig {
     pub fn for_tof_depth(meta: &RgbdFrameMeta, camera_from_lidar: RigidTransform) -> Self {
         let depth_from_lidar = meta.color_from_depth.inverse().compose(&camera_from_lidar);
         Self::new(meta.depth_intrinsics, depth_from_lidar)
+    }
+
+    /// Sizes the occlusion test for points whose range errs by `range_sigma_m` (one sigma): a
+    /// point counts as hidden when it lies further than [`OCCLUSION_TOLERANCE_SIGMAS`] sigmas
+    /// (at least the default 5 cm) behind the nearest point around its pixel. The nearest of
+    /// some twenty noisy neighbours lies about two sigmas in front of the surface, so a fixed
+    /// 5 cm would drop the far half of a 2 cm-noise LiDAR's returns on every surface and pull the
+    /// depth towards the camera.
+    pub fn with_range_noise(mut self, range_sigma_m: f64) -> Self {
+        self.occlusion_tolerance_m = self
+            .occlusion_tolerance_m
+            .max(OCCLUSION_TOLERANCE_SIGMAS * range_sigma_m);
+        self
     }
 
     /// Default occlusion settings for a camera and extrinsic.
@@ -142,8 +158,12 @@ pub struct Fusion {
     config: FusionConfig,
     width: usize,
     height: usize,
-    /// Registered depth (camera z, metres), row-major at colour resolution; 0 = no point.
+    /// Registered depth (camera z, metres), row-major at colour resolution; 0 = no point. The
+    /// mean of the unoccluded points that fall into the pixel: the minimum would pull the depth
+    /// towards the camera by the range noise.
     depth_m: Vec<f32>,
+    /// Points averaged into each touched pixel of `depth_m` (zeroed with it).
+    depth_samples: Vec<u32>,
     /// Pixels written by the last fusion (to reset them sparsely).
     touched: Vec<u32>,
     /// Nearest splatted depth per occlusion cell (camera z, metres; infinity = none).
@@ -203,6 +223,7 @@ impl Fusion {
             width,
             height,
             depth_m: vec![0.0; width * height],
+            depth_samples: vec![0; width * height],
             touched: Vec::new(),
             occlusion_m: vec![f32::INFINITY; occlusion_width * occlusion_height],
             occlusion_width,
@@ -228,6 +249,7 @@ impl Fusion {
     pub fn fuse(&mut self, points: &[LidarPoint]) -> Result<FusionStats, FusionError> {
         for &pixel in &self.touched {
             self.depth_m[pixel as usize] = 0.0;
+            self.depth_samples[pixel as usize] = 0;
         }
         self.touched.clear();
         self.point_pixels.clear();
@@ -322,13 +344,15 @@ impl Fusion {
                 continue;
             }
             stats.visible += 1;
-            let depth = &mut self.depth_m[pixel];
-            if *depth == 0.0 {
+            if self.depth_samples[pixel] == 0 {
                 self.touched.push(pixel as u32);
-                *depth = point[2];
-            } else if point[2] < *depth {
-                *depth = point[2];
             }
+            self.depth_m[pixel] += point[2];
+            self.depth_samples[pixel] += 1;
+        }
+        for &pixel in &self.touched {
+            let pixel = pixel as usize;
+            self.depth_m[pixel] /= self.depth_samples[pixel] as f32;
         }
         stats.depth_pixels = self.touched.len();
         tracing::trace!(?stats, "cloud fused");
@@ -440,7 +464,7 @@ impl Fusion {
 }
 
 /// Time of [`Fusion::fuse`] for one cloud, measured on the calling thread.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct FusionTiming {
     pub points: usize,
     pub width_px: u32,

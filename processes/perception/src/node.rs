@@ -12,8 +12,8 @@ use crate::pipeline::{AppleEstimate, Perception, PerceptionConfig, PerceptionSet
 use crate::stats::FrameStats;
 use harvest_ipc::payloads::apple_detections::MAX_APPLES_PER_FRAME;
 use harvest_ipc::payloads::{
-    AppleDetection, AppleDetections, LaserScanRequest, LaserScanResult, LocalizationMethod,
-    RgbdFrame, RgbdFrameMeta,
+    AppleDetection, AppleDetections, DepthSourceCode, LaserScanRequest, LaserScanResult,
+    LocalizationMethod, RgbdFrame, RgbdFrameMeta,
 };
 
 /// Perception with its rig; rebuilt when a frame's camera metadata changes.
@@ -92,7 +92,7 @@ impl PerceptionNode {
     /// [`Self::process`] with `depth_mm_override` (when given) in place of the frame's depth
     /// image: the same layout (the frame's depth intrinsics, millimetres, 0 = no return), e.g.
     /// the LiDAR-fused depth of [`crate::depth_source::FusedDepth`]. Apples localized from an
-    /// override are published with method `LidarFusion` (laser-refined ones stay `LaserScan`).
+    /// override are published with depth source `LidarFused` (laser-refined ones `LaserLine`).
     /// An override of another size rejects the frame.
     pub fn process_with_depth(
         &mut self,
@@ -148,24 +148,31 @@ impl PerceptionNode {
         );
         out.processing_ns = stats.timings.total_us * 1000;
         for (apple, tracked) in apples.iter().zip(&self.tracked).take(MAX_APPLES_PER_FRAME) {
-            let (method, position_in_camera_m, position_in_robot_m) = match tracked.laser_position_m
-            {
-                Some((camera, robot)) => (LocalizationMethod::LaserScan, camera, robot),
-                None if depth_mm_override.is_some() => (
-                    LocalizationMethod::LidarFusion,
-                    apple.position_in_camera_m,
-                    apple.position_in_robot_m,
-                ),
-                None => (
-                    localization_method(apple.estimator),
-                    apple.position_in_camera_m,
-                    apple.position_in_robot_m,
-                ),
+            let depth_source = if depth_mm_override.is_some() {
+                DepthSourceCode::LidarFused
+            } else {
+                DepthSourceCode::Tof
             };
+            let (method, depth_source, position_in_camera_m, position_in_robot_m) =
+                match tracked.laser_position_m {
+                    Some((camera, robot)) => (
+                        LocalizationMethod::LaserScan,
+                        DepthSourceCode::LaserLine,
+                        camera,
+                        robot,
+                    ),
+                    None => (
+                        localization_method(apple.estimator),
+                        depth_source,
+                        apple.position_in_camera_m,
+                        apple.position_in_robot_m,
+                    ),
+                };
             let detection = AppleDetection {
                 apple_id: tracked.apple_id,
                 method: method as u8,
-                _reserved: [0; 3],
+                depth_source: depth_source as u8,
+                _reserved: [0; 2],
                 position_in_camera_m,
                 position_in_robot_m,
                 radius_m: apple.radius_m,

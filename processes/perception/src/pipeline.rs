@@ -76,8 +76,10 @@ pub struct PerceptionConfig {
     pub min_detection_confidence: f32,
     /// Accepted depth samples, mm.
     pub depth_range: DepthRange,
-    /// Depth noise scale of the ToF camera.
-    pub noise: DepthNoiseModel,
+    /// Depth noise scale of the depth image; default (key left out): the depth source's sensor
+    /// ([`DepthSource::noise_model`]: the ToF camera's datasheet accuracy, or the LiDAR's range
+    /// error when localizing from the fused cloud).
+    pub noise: Option<DepthNoiseModel>,
     pub estimator: EstimatorConfig,
     /// Merge estimates that localize the same fruit.
     pub merge_duplicates: bool,
@@ -90,7 +92,8 @@ pub struct PerceptionConfig {
     /// measures small radii on fragments, which would keep their duplicates apart).
     pub duplicate_min_radius_m: f64,
     /// Apples whose confidence is below this are not reported.
-    pub min_output_confidence: f32,
+    /// Default (key left out): the depth source's ([`DepthSource::min_output_confidence`]).
+    pub min_output_confidence: Option<f32>,
     /// Colour detections whose mask covers less than this fraction of their fitted fruit's
     /// image disc are dropped (fragments of mostly hidden fruit).
     pub min_visible_fraction: f64,
@@ -121,13 +124,13 @@ impl Default for PerceptionConfig {
             detector: ColorSegmentationConfig::default(),
             min_detection_confidence: 0.3,
             depth_range: DepthRange::default(),
-            noise: DepthNoiseModel::TL460,
+            noise: None,
             estimator: EstimatorConfig::default(),
             merge_duplicates: true,
             duplicate_distance_radii: 0.5,
             min_points_per_apple: 3,
             duplicate_min_radius_m: 0.035,
-            min_output_confidence: 0.25,
+            min_output_confidence: None,
             min_visible_fraction: 0.25,
             depth_agreement_sigmas: 3.0,
             saturated_blob_min_depth_coverage: 0.25,
@@ -138,6 +141,21 @@ impl Default for PerceptionConfig {
             laser: LaserScanConfig::default(),
             depth_source: DepthSource::Tof,
         }
+    }
+}
+
+impl PerceptionConfig {
+    /// The depth noise scale in use: `noise` when set, else the depth source's.
+    pub fn depth_noise(&self) -> DepthNoiseModel {
+        self.noise
+            .unwrap_or_else(|| self.depth_source.noise_model())
+    }
+
+    /// The output confidence threshold in use: `min_output_confidence` when set, else the depth
+    /// source's.
+    pub fn output_confidence_threshold(&self) -> f32 {
+        self.min_output_confidence
+            .unwrap_or_else(|| self.depth_source.min_output_confidence())
     }
 }
 
@@ -301,7 +319,7 @@ impl Perception {
             ),
             (
                 "min_output_confidence",
-                f64::from(config.min_output_confidence),
+                f64::from(config.output_confidence_threshold()),
                 0.0,
                 1.0,
             ),
@@ -367,7 +385,7 @@ impl Perception {
         let estimator = make_estimator(
             &config.estimator,
             EstimatorContext {
-                noise: config.noise,
+                noise: config.depth_noise(),
                 depth_focal_px: cameras.depth.fx_px,
             },
         )?;
@@ -538,7 +556,7 @@ impl Perception {
                 continue;
             }
             let confidence = p.mask_confidence * p.estimate.confidence;
-            if confidence.is_nan() || confidence < self.config.min_output_confidence {
+            if confidence.is_nan() || confidence < self.config.output_confidence_threshold() {
                 stats.estimates_below_confidence += 1;
                 continue;
             }
@@ -775,7 +793,7 @@ impl Perception {
                     && !depth_agrees(
                         estimate,
                         median_m,
-                        &self.config.noise,
+                        &self.config.depth_noise(),
                         self.config.depth_agreement_sigmas,
                     )
                 {
@@ -894,7 +912,7 @@ fn blob_estimate(
         blob_over_fruit_radius: BLOB_OVER_FRUIT_RADIUS,
         window_sigmas: BLOB_VOTE_WINDOW_SIGMAS,
         min_half_window_m: BLOB_VOTE_MIN_HALF_WINDOW_M,
-        noise: config.noise,
+        noise: config.depth_noise(),
     };
     let location = localizer.locate(points, ray, blob_radius_px, color_focal_px, &params)?;
     trace!(
@@ -1199,14 +1217,14 @@ mod tests {
     fn low_confidence_estimates_are_filtered_by_the_output_threshold() {
         let (_, frame) = scene_and_frame(12, 9);
         let open = PerceptionConfig {
-            min_output_confidence: 0.0,
+            min_output_confidence: Some(0.0),
             ..PerceptionConfig::default()
         };
         let mut all = Perception::new(open, cameras()).expect("valid");
         let every = all.process(&frame.rgb_view(), &frame.depth_view());
         let mut strict = perception(EstimatorKind::SphereFit);
         let kept = strict.process(&frame.rgb_view(), &frame.depth_view());
-        let threshold = PerceptionConfig::default().min_output_confidence;
+        let threshold = PerceptionConfig::default().output_confidence_threshold();
         assert!(kept.iter().all(|a| a.confidence >= threshold));
         let above = every.iter().filter(|a| a.confidence >= threshold).count();
         assert_eq!(kept.len(), above);

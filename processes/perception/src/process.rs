@@ -58,8 +58,10 @@ pub struct PerceptionArgs {
     /// processes/perception/config/default.toml); default: the built-in values.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    #[arg(long, value_enum, default_value = "sphere-fit")]
-    pub estimator: EstimatorChoice,
+    /// Localization estimator (overrides the config's `estimator.kind`; default there:
+    /// sphere fit).
+    #[arg(long, value_enum)]
+    pub estimator: Option<EstimatorKind>,
     /// Ask the laser scanner for no scans (overrides the config's `laser.enabled`).
     #[arg(long)]
     pub no_laser: bool,
@@ -99,7 +101,9 @@ pub fn run(
         Some(path) => read_config(path)?,
         None => PerceptionConfig::default(),
     };
-    config.estimator.kind = args.estimator.kind();
+    if let Some(kind) = args.estimator {
+        config.estimator.kind = kind;
+    }
     if args.no_laser {
         config.laser.enabled = false;
     }
@@ -134,7 +138,7 @@ pub fn run(
     let mut last_receive_latency_ns = 0u64;
     let mut apples_published = 0u64;
     tracing::info!(
-        estimator = ?args.estimator,
+        estimator = config.estimator.kind.name(),
         laser = config.laser.enabled,
         depth_source = ?config.depth_source,
         extrinsic = ?args.lidar_extrinsic,

@@ -11,7 +11,7 @@
 //! apple, times the evaluation's `--detection-noise` scale. A set is captured every
 //! [`DetectionModel::period_s`] and delivered [`DetectionModel::latency_s`] later.
 
-use harvest_ipc::payloads::{AppleDetection, AppleDetections, LocalizationMethod};
+use harvest_ipc::payloads::{AppleDetection, AppleDetections, DepthSourceCode, LocalizationMethod};
 use harvest_sim::orchard::{AppleState, World};
 use rand::Rng;
 use rand::rngs::SmallRng;
@@ -77,7 +77,8 @@ pub fn detect(
         let detection = AppleDetection {
             apple_id: apple.id.0,
             method: LocalizationMethod::ClusterCentroid as u8,
-            _reserved: [0; 3],
+            depth_source: DepthSourceCode::Tof as u8,
+            _reserved: [0; 2],
             position_in_camera_m: noisy,
             position_in_robot_m: robot_from_camera.apply(noisy),
             radius_m: apple.radius_m,

@@ -2,28 +2,8 @@
 
 use std::path::PathBuf;
 
+use harvest_perception::depth_source::DepthSource;
 use harvest_perception::estimator::EstimatorKind;
-
-/// A localization estimator of the perception pipeline.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum EstimatorArg {
-    /// The paper's DBSCAN cluster-depth method.
-    ClusterDepth,
-    /// Robust sphere fit with an apple-radius prior (the improved method).
-    SphereFit,
-    /// Centroid of the mask points after Z-score outlier rejection.
-    ZscoreCentroid,
-}
-
-impl EstimatorArg {
-    pub fn kind(self) -> EstimatorKind {
-        match self {
-            Self::ClusterDepth => EstimatorKind::ClusterDepth,
-            Self::SphereFit => EstimatorKind::SphereFit,
-            Self::ZscoreCentroid => EstimatorKind::ZScoreCentroid,
-        }
-    }
-}
 
 /// Arguments of `harvest eval perception`.
 #[derive(Debug, Clone, clap::Args)]
@@ -52,7 +32,24 @@ pub struct EvalPerceptionArgs {
         value_delimiter = ',',
         default_value = "cluster-depth,sphere-fit,zscore-centroid"
     )]
-    pub estimators: Vec<EstimatorArg>,
+    pub estimators: Vec<EstimatorKind>,
+    /// Depth images to localize from, comma-separated: `tof` (the ToF camera's) and/or
+    /// `lidar-fused` (a window of the simulated Mid-70 fused into the frame's geometry); every
+    /// estimator runs on each.
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "tof,lidar-fused"
+    )]
+    pub depth_sources: Vec<DepthSource>,
+    /// LiDAR integration per frame for `lidar-fused`, seconds (the LiDAR launch profile's).
+    #[arg(long, default_value_t = 1.0)]
+    pub lidar_integration_s: f64,
+    /// Repeated localizations per distance of the Table-III comparison (LiDAR-fused versus ToF
+    /// at 0.5, 1.2 and 1.8 m), printed when `lidar-fused` is a depth source; 0 leaves it out.
+    #[arg(long, default_value_t = 20)]
+    pub table_iii_trials: usize,
 }
 
 #[cfg(test)]
@@ -75,9 +72,9 @@ mod tests {
         assert_eq!(
             cli.args.estimators,
             vec![
-                EstimatorArg::ClusterDepth,
-                EstimatorArg::SphereFit,
-                EstimatorArg::ZscoreCentroid
+                EstimatorKind::ClusterDepth,
+                EstimatorKind::SphereFit,
+                EstimatorKind::ZScoreCentroid
             ]
         );
         let cli = Cli::try_parse_from([
@@ -93,7 +90,7 @@ mod tests {
         ])
         .expect("explicit");
         assert_eq!(cli.args.scenario, vec!["ideal", "fuji_ufo"]);
-        assert_eq!(cli.args.estimators, vec![EstimatorArg::SphereFit]);
+        assert_eq!(cli.args.estimators, vec![EstimatorKind::SphereFit]);
         assert_eq!(cli.args.frames, 3);
         assert!(Cli::try_parse_from(["eval", "--estimators", "magic"]).is_err());
     }

@@ -41,6 +41,21 @@ pub enum EvalError {
         estimator: &'static str,
         source: Box<PerceptionSetupError>,
     },
+    /// The simulated LiDAR could not be set up.
+    #[error("simulated LiDAR: {source}")]
+    Lidar {
+        source: Box<harvest_sim::lidar_device::LidarDeviceError>,
+    },
+    /// A LiDAR window could not be fused into the frame's depth geometry.
+    #[error("LiDAR fusion: {source}")]
+    Fusion {
+        source: Box<harvest_lidar::FusionError>,
+    },
+    /// The Table-III repeatability comparison failed.
+    #[error("Table III comparison: {source}")]
+    TableIii {
+        source: Box<harvest_lidar::evaluation::EvalLidarError>,
+    },
     /// The thread CPU clock could not be read.
     #[error("cannot read the thread CPU clock: {0}")]
     CpuClock(nix::Error),

@@ -17,6 +17,7 @@ pub mod error;
 pub mod frame;
 #[cfg(test)]
 mod glare_tests;
+pub mod lidar_capture;
 pub mod matching;
 pub mod records;
 pub mod report;
@@ -25,7 +26,7 @@ pub mod stats;
 pub mod tables;
 pub mod truth;
 
-pub use args::{EstimatorArg, EvalPerceptionArgs};
+pub use args::EvalPerceptionArgs;
 pub use error::EvalError;
 pub use report::PerceptionReport;
 pub use run::{evaluate, run_eval_perception};

@@ -1,5 +1,6 @@
 //! Raw outcomes collected while the frames are processed; the report is computed from them.
 
+use harvest_perception::depth_source::DepthSource;
 use harvest_perception::estimator::EstimatorKind;
 
 use crate::perception::truth::{AppleConditions, FrameApple};
@@ -47,10 +48,12 @@ pub struct FrameTiming {
     pub visible_apples: usize,
 }
 
-/// Everything recorded for one estimator over the frames of one scenario.
+/// Everything recorded for one estimator on one depth source over the frames of one scenario.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EstimatorRecords {
     pub kind: EstimatorKind,
+    /// The depth image the estimator localized from.
+    pub depth_source: DepthSource,
     /// Apples reported on frames with apples.
     pub detections: usize,
     /// Reported apples not matched to a true apple.
@@ -67,9 +70,10 @@ pub struct EstimatorRecords {
 }
 
 impl EstimatorRecords {
-    pub fn new(kind: EstimatorKind) -> Self {
+    pub fn new(kind: EstimatorKind, depth_source: DepthSource) -> Self {
         Self {
             kind,
+            depth_source,
             detections: 0,
             false_positives: 0,
             false_positives_duplicate: 0,

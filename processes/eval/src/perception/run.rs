@@ -3,8 +3,10 @@
 use std::time::Instant;
 
 use harvest_ipc::payloads::AppleDetections;
+use harvest_lidar::evaluation::{EvalLidarArgs, PAPER_TABLE_III_CM};
 use harvest_perception::PerceptionConfig;
 use harvest_perception::calibration::{Calibration, CameraCalibration};
+use harvest_perception::depth_source::DepthSource;
 use harvest_perception::estimator::EstimatorKind;
 use harvest_perception::node::PerceptionNode;
 use harvest_sim::process::load_scenario;
@@ -15,6 +17,7 @@ use tracing::{info, trace, warn};
 use crate::perception::args::EvalPerceptionArgs;
 use crate::perception::error::EvalError;
 use crate::perception::frame::{FrameRenderer, zeroed_frame};
+use crate::perception::lidar_capture::LidarCapture;
 use crate::perception::matching::{
     FalsePositiveKind, MatchRule, Matching, OverlapTable, ReportedApple, TrueApple,
 };
@@ -62,10 +65,27 @@ pub fn evaluate(args: &EvalPerceptionArgs) -> Result<PerceptionReport, EvalError
     }
     let mut kinds: Vec<EstimatorKind> = Vec::new();
     for estimator in &args.estimators {
-        if !kinds.contains(&estimator.kind()) {
-            kinds.push(estimator.kind());
+        if !kinds.contains(estimator) {
+            kinds.push(*estimator);
         }
     }
+    let mut depth_sources: Vec<DepthSource> = Vec::new();
+    for source in &args.depth_sources {
+        if !depth_sources.contains(source) {
+            depth_sources.push(*source);
+        }
+    }
+    if depth_sources.is_empty() {
+        return Err(EvalError::BadArgument {
+            argument: "--depth-sources",
+            value: String::new(),
+            reason: "name at least one depth source",
+        });
+    }
+    let variants: Vec<(DepthSource, EstimatorKind)> = depth_sources
+        .iter()
+        .flat_map(|&source| kinds.iter().map(move |&kind| (source, kind)))
+        .collect();
     if kinds.is_empty() {
         return Err(EvalError::BadArgument {
             argument: "--estimators",
@@ -94,16 +114,47 @@ pub fn evaluate(args: &EvalPerceptionArgs) -> Result<PerceptionReport, EvalError
             frames: args.frames,
             empty_frames,
             rule,
+            lidar_integration_s: args.lidar_integration_s,
         };
-        scenarios.push(run.evaluate(&kinds)?);
+        scenarios.push(run.evaluate(&variants)?);
     }
+    let repeatability =
+        if depth_sources.contains(&DepthSource::LidarFused) && args.table_iii_trials > 0 {
+            let table_args = EvalLidarArgs {
+                trials: args.table_iii_trials,
+                integration_s: args.lidar_integration_s,
+                distances_m: PAPER_TABLE_III_CM.iter().map(|row| row.0).collect(),
+                seed: args.seed,
+                fusion_runs: FUSION_TIMING_RUNS,
+            };
+            let report = harvest_lidar::evaluation::evaluate(&table_args).map_err(|source| {
+                EvalError::TableIii {
+                    source: Box::new(source),
+                }
+            })?;
+            Some(report)
+        } else {
+            None
+        };
     Ok(PerceptionReport {
         seed: args.seed,
         frames_per_scenario: args.frames,
         empty_frames_per_scenario: empty_frames,
         matching_rule: rule,
+        lidar_integration_s: depth_sources
+            .contains(&DepthSource::LidarFused)
+            .then_some(args.lidar_integration_s),
         scenarios,
+        repeatability,
     })
+}
+
+/// The depth image a variant localizes from: the fused one for `lidar_fused`, else the frame's.
+fn depth_for(source: DepthSource, fused_depth_mm: Option<&[u16]>) -> Option<&[u16]> {
+    match source {
+        DepthSource::Tof => None,
+        DepthSource::LidarFused => fused_depth_mm,
+    }
 }
 
 /// CPU time consumed by the calling thread, nanoseconds.
@@ -111,6 +162,9 @@ fn thread_cpu_ns() -> Result<i128, EvalError> {
     let now = clock_gettime(ClockId::CLOCK_THREAD_CPUTIME_ID).map_err(EvalError::CpuClock)?;
     Ok(i128::from(now.tv_sec()) * 1_000_000_000 + i128::from(now.tv_nsec()))
 }
+
+/// Runs of the fusion-time measurement printed with the Table-III comparison.
+const FUSION_TIMING_RUNS: usize = 30;
 
 /// The evaluation of one scenario.
 struct ScenarioRun<'a> {
@@ -120,6 +174,14 @@ struct ScenarioRun<'a> {
     frames: u32,
     empty_frames: u32,
     rule: MatchRule,
+    /// LiDAR window per frame of the `lidar_fused` depth source, seconds.
+    lidar_integration_s: f64,
+}
+
+/// One perception node under evaluation: an estimator on a depth source, and what it did.
+struct Variant {
+    node: PerceptionNode,
+    record: EstimatorRecords,
 }
 
 /// Per-frame scratch reused across frames and estimators.
@@ -149,7 +211,10 @@ impl ScenarioRun<'_> {
         }
     }
 
-    fn evaluate(&self, kinds: &[EstimatorKind]) -> Result<ScenarioReport, EvalError> {
+    fn evaluate(
+        &self,
+        variants: &[(DepthSource, EstimatorKind)],
+    ) -> Result<ScenarioReport, EvalError> {
         let mut renderer =
             FrameRenderer::new(&self.scenario.camera).map_err(|e| self.render_error(e))?;
         let robot_from_color = renderer.robot_from_color();
@@ -159,18 +224,26 @@ impl ScenarioRun<'_> {
             },
         };
         let meter = TruthMeter::new(renderer.color_intrinsics(), robot_from_color);
-        let mut nodes: Vec<PerceptionNode> = kinds
+        let mut variants: Vec<Variant> = variants
             .iter()
-            .map(|&kind| {
+            .map(|&(depth_source, kind)| {
                 let mut config = PerceptionConfig::default();
                 config.estimator.kind = kind;
-                PerceptionNode::new(config, calibration)
+                config.depth_source = depth_source;
+                Variant {
+                    node: PerceptionNode::new(config, calibration),
+                    record: EstimatorRecords::new(kind, depth_source),
+                }
             })
             .collect();
-        let mut records: Vec<EstimatorRecords> = kinds
+        let mut lidar = if variants
             .iter()
-            .map(|&kind| EstimatorRecords::new(kind))
-            .collect();
+            .any(|v| v.record.depth_source == DepthSource::LidarFused)
+        {
+            Some(LidarCapture::new(self.lidar_integration_s, self.seed)?)
+        } else {
+            None
+        };
         let mut frame = zeroed_frame();
         let mut out = Box::<AppleDetections>::default();
         let mut labels = vec![0u32; meter.pixel_count()];
@@ -180,7 +253,7 @@ impl ScenarioRun<'_> {
             scenario = self.name,
             frames = self.frames,
             empty_frames = self.empty_frames,
-            estimators = kinds.len(),
+            variants = variants.len(),
             "evaluating perception"
         );
         for i in 0..self.frames {
@@ -193,6 +266,10 @@ impl ScenarioRun<'_> {
             renderer
                 .render_labels(&world, &mut labels)
                 .map_err(|e| self.render_error(e))?;
+            let fused_depth_mm = match lidar.as_mut() {
+                Some(lidar) => Some(lidar.capture(&world, &frame.meta)?),
+                None => None,
+            };
             meter.measure(&world, &labels, &mut scratch.truth);
             scratch.true_apples.clear();
             scratch
@@ -203,19 +280,21 @@ impl ScenarioRun<'_> {
                     visible_px: apple.visible_px,
                 }));
             let visible_apples = scratch.truth.iter().filter(|a| a.visible_px > 0).count();
-            // Rotate the order so no estimator always runs first on a freshly rendered frame.
-            for k in 0..nodes.len() {
-                let e = (k + i as usize) % nodes.len();
-                let (node, record) = (&mut nodes[e], &mut records[e]);
+            // Rotate the order so no variant always runs first on a freshly rendered frame.
+            for k in 0..variants.len() {
+                let e = (k + i as usize) % variants.len();
+                let variant = &mut variants[e];
+                let depth = depth_for(variant.record.depth_source, fused_depth_mm);
                 if i == 0 {
                     // Warm-up: builds the pipeline for the frame's camera metadata.
-                    self.process(node, record.kind, &frame, &mut out)?;
+                    self.process(variant, &frame, depth, &mut out)?;
                 }
                 let start_cpu_ns = thread_cpu_ns()?;
                 let start = Instant::now();
-                self.process(node, record.kind, &frame, &mut out)?;
+                self.process(variant, &frame, depth, &mut out)?;
                 let process_ms = start.elapsed().as_secs_f64() * 1e3;
                 let process_cpu_ms = (thread_cpu_ns()? - start_cpu_ns) as f64 * 1e-6;
+                let record = &mut variant.record;
                 record.timings.push(FrameTiming {
                     process_ms,
                     process_cpu_ms,
@@ -225,6 +304,7 @@ impl ScenarioRun<'_> {
                 trace!(
                     frame = i,
                     estimator = record.kind.name(),
+                    depth_source = record.depth_source.name(),
                     reported = out.apples.len(),
                     visible_apples,
                     process_ms,
@@ -240,26 +320,35 @@ impl ScenarioRun<'_> {
             renderer
                 .render(&world, u64::from(self.frames) + u64::from(i), &mut frame)
                 .map_err(|e| self.render_error(e))?;
-            for (node, record) in nodes.iter_mut().zip(&mut records) {
-                self.process(node, record.kind, &frame, &mut out)?;
+            let fused_depth_mm = match lidar.as_mut() {
+                Some(lidar) => Some(lidar.capture(&world, &frame.meta)?),
+                None => None,
+            };
+            for variant in &mut variants {
+                let depth = depth_for(variant.record.depth_source, fused_depth_mm);
+                self.process(variant, &frame, depth, &mut out)?;
+                let record = &mut variant.record;
                 record.empty_frame_detections.push(out.apples.len());
                 trace!(
                     frame = i,
                     estimator = record.kind.name(),
+                    depth_source = record.depth_source.name(),
                     reported = out.apples.len(),
                     "frame without apples evaluated"
                 );
             }
         }
-        for (node, record) in nodes.iter().zip(&records) {
-            if node.frames_rejected() > 0 {
+        for variant in &variants {
+            if variant.node.frames_rejected() > 0 {
                 warn!(
-                    estimator = record.kind.name(),
-                    rejected = node.frames_rejected(),
+                    estimator = variant.record.kind.name(),
+                    depth_source = variant.record.depth_source.name(),
+                    rejected = variant.node.frames_rejected(),
                     "perception rejected frames"
                 );
             }
         }
+        let records: Vec<EstimatorRecords> = variants.into_iter().map(|v| v.record).collect();
         Ok(ScenarioReport::from_records(
             &self.scenario.name,
             self.name,
@@ -269,15 +358,18 @@ impl ScenarioRun<'_> {
         ))
     }
 
+    /// Runs `variant`'s node on `frame`, with `depth_mm` in place of the frame's depth when given.
     fn process(
         &self,
-        node: &mut PerceptionNode,
-        kind: EstimatorKind,
+        variant: &mut Variant,
         frame: &harvest_ipc::payloads::RgbdFrame,
+        depth_mm: Option<&[u16]>,
         out: &mut AppleDetections,
     ) -> Result<(), EvalError> {
-        let stats = node
-            .process(frame, out)
+        let kind = variant.record.kind;
+        let stats = variant
+            .node
+            .process_with_depth(frame, depth_mm, out)
             .map_err(|source| EvalError::PerceptionSetup {
                 scenario: self.name.to_owned(),
                 estimator: kind.name(),

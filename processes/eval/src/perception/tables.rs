@@ -30,7 +30,7 @@ fn spread(summary: &Summary, decimals: usize) -> String {
 }
 
 fn name(e: &EstimatorReport) -> String {
-    format!("{} ({})", e.estimator, e.role)
+    format!("{} ({})", e.label(), e.role)
 }
 
 /// Renders every scenario of `report` as Markdown.
@@ -52,8 +52,21 @@ pub fn render_tables(report: &PerceptionReport) -> String {
         100.0 * rule.min_overlap_coefficient,
         rule.max_distance_radii,
     );
+    if let Some(seconds) = report.lidar_integration_s {
+        let _ = writeln!(
+            out,
+            "Estimators marked `on lidar_fused` localize from one {seconds:.2} s window of the \
+             simulated Mid-70 fused into the frame's depth geometry (eq. 1-2, the LiDAR's true \
+             extrinsic); their times exclude the fusion (timed below). The others use the ToF \
+             depth image.\n"
+        );
+    }
     for scenario in &report.scenarios {
         render_scenario(&mut out, scenario);
+    }
+    if let Some(repeatability) = &report.repeatability {
+        let _ = writeln!(out, "## LiDAR-camera versus ToF (Table III)\n");
+        out.push_str(&repeatability.render());
     }
     out
 }
@@ -130,7 +143,7 @@ fn render_scenario(out: &mut String, s: &ScenarioReport) {
     let header: String = s
         .estimators
         .iter()
-        .map(|e| format!(" {} |", e.estimator))
+        .map(|e| format!(" {} |", e.label()))
         .collect();
     let rule: String = s.estimators.iter().map(|_| "---|").collect();
     let _ = writeln!(

@@ -23,15 +23,16 @@ pub use zscore_centroid::ZScoreConfig;
 
 use crate::noise_model::DepthNoiseModel;
 
-/// Which estimator the pipeline runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+/// Which estimator the pipeline runs (config key `estimator.kind`, flag `--estimator`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum EstimatorKind {
     /// Paper: DBSCAN, largest cluster's mean depth along the box-centre ray.
     ClusterDepth,
     /// Robust sphere fit (RANSAC + Gauss-Newton with a radius prior).
     SphereFit,
-    /// Centroid of the mask points after Z-score outlier rejection.
+    /// Centroid of the mask points after Z-score outlier rejection (LiDAR-camera paper).
+    #[value(name = "zscore-centroid")]
     ZScoreCentroid,
 }
 
