@@ -74,17 +74,6 @@ restart = "never"
     text
 }
 
-/// The number after `key ` in the harvest summary line.
-fn summary_count(stdout: &str, key: &str) -> Option<u32> {
-    let line = stdout.lines().find(|l| l.starts_with("harvest summary:"))?;
-    let start = line.find(&format!("{key} "))? + key.len() + 1;
-    line[start..]
-        .split(|c: char| !c.is_ascii_digit())
-        .next()?
-        .parse()
-        .ok()
-}
-
 #[test]
 fn harvest_up_picks_a_small_orchard_and_summarizes_it() {
     let _stack = one_stack_at_a_time();

@@ -3,17 +3,16 @@
 mod common;
 
 use common::*;
+use std::process::ExitStatus;
 use std::time::Duration;
 
-#[test]
-fn crash_at_start_exhausts_restart_budget_and_exits_nonzero() {
-    let dir = TempDir::new("crash");
-    let launch = dir.write(
-        "crash.toml",
-        "[[process]]\nname = \"crasher\"\ncommand = \"fixture\"\nargs = [\"always-crash\"]\n\
-         restart = \"on-failure\"\nmax_restarts = 2\nbackoff_initial_ms = 50\nbackoff_max_ms = 100\n",
-    );
-    let domain = unique_domain("crash");
+/// Runs `harvest up --launch <tag>.toml --duration <duration>` on a fresh domain, the launch
+/// file holding `launch_toml`; returns the exit status, stderr and the domain (for
+/// [`leftover_files`]).
+fn up_with_launch(tag: &str, launch_toml: &str, duration: &str) -> (ExitStatus, String, String) {
+    let dir = TempDir::new(tag);
+    let launch = dir.write(&format!("{tag}.toml"), launch_toml);
+    let domain = unique_domain(tag);
     let (status, _, stderr) = run_harvest(
         &domain,
         &[
@@ -21,9 +20,20 @@ fn crash_at_start_exhausts_restart_budget_and_exits_nonzero() {
             "--launch",
             launch.to_str().expect("utf-8 path"),
             "--duration",
-            "20s",
+            duration,
         ],
         Duration::from_secs(60),
+    );
+    (status, stderr, domain)
+}
+
+#[test]
+fn crash_at_start_exhausts_restart_budget_and_exits_nonzero() {
+    let (status, stderr, domain) = up_with_launch(
+        "crash",
+        "[[process]]\nname = \"crasher\"\ncommand = \"fixture\"\nargs = [\"always-crash\"]\n\
+         restart = \"on-failure\"\nmax_restarts = 2\nbackoff_initial_ms = 50\nbackoff_max_ms = 100\n",
+        "20s",
     );
     assert!(!status.success(), "must fail; stderr:\n{stderr}");
     assert!(
@@ -36,24 +46,12 @@ fn crash_at_start_exhausts_restart_budget_and_exits_nonzero() {
 
 #[test]
 fn hung_process_is_killed_and_restarted() {
-    let dir = TempDir::new("hang");
-    let launch = dir.write(
-        "hang.toml",
+    let (status, stderr, domain) = up_with_launch(
+        "hang",
         "[stack]\nhang_timeout_ms = 1500\nstartup_grace_ms = 1500\n\n[[process]]\nname = \"hanger\"\n\
          command = \"fixture\"\nargs = [\"hang-after-init\"]\nrestart = \"on-failure\"\n\
          max_restarts = 10\nbackoff_initial_ms = 50\n",
-    );
-    let domain = unique_domain("hang");
-    let (status, _, stderr) = run_harvest(
-        &domain,
-        &[
-            "up",
-            "--launch",
-            launch.to_str().expect("utf-8 path"),
-            "--duration",
-            "7s",
-        ],
-        Duration::from_secs(60),
+        "7s",
     );
     assert!(status.success(), "{stderr}");
     assert!(
@@ -67,23 +65,11 @@ fn hung_process_is_killed_and_restarted() {
 
 #[test]
 fn sigterm_ignoring_process_is_killed_after_grace() {
-    let dir = TempDir::new("ignore");
-    let launch = dir.write(
-        "ignore.toml",
+    let (status, stderr, domain) = up_with_launch(
+        "ignore",
         "[stack]\nshutdown_grace_ms = 500\n\n[[process]]\nname = \"stubborn\"\ncommand = \"fixture\"\n\
          args = [\"ignore-sigterm\"]\n",
-    );
-    let domain = unique_domain("ign");
-    let (status, _, stderr) = run_harvest(
-        &domain,
-        &[
-            "up",
-            "--launch",
-            launch.to_str().expect("utf-8 path"),
-            "--duration",
-            "2s",
-        ],
-        Duration::from_secs(60),
+        "2s",
     );
     assert!(status.success(), "{stderr}");
     assert!(stderr.contains("did not stop in time: SIGKILL"), "{stderr}");

@@ -117,6 +117,17 @@ pub fn leftover_files(domain: &str) -> String {
 }
 
 /// Parses the `messages N` column of a process's line in `harvest up`'s final summary.
+/// The number after `key ` in `harvest up`'s harvest summary line (stdout).
+pub fn summary_count(stdout: &str, key: &str) -> Option<u32> {
+    let line = stdout.lines().find(|l| l.starts_with("harvest summary:"))?;
+    let start = line.find(&format!("{key} "))? + key.len() + 1;
+    line[start..]
+        .split(|c: char| !c.is_ascii_digit())
+        .next()?
+        .parse()
+        .ok()
+}
+
 pub fn summary_messages(stderr: &str, process: &str) -> Option<u64> {
     let start = stderr.find("harvest up ended")?;
     stderr[start..].lines().find_map(|line| {

@@ -27,7 +27,7 @@ pub struct ZScoreConfig {
 impl Default for ZScoreConfig {
     fn default() -> Self {
         Self {
-            threshold: 2.0,
+            threshold: 2.5,
             min_points: 5,
         }
     }
@@ -57,48 +57,72 @@ pub enum LocalizationError {
     },
 }
 
+/// Z-score outlier rejection: the finite points of `points_in_camera_m` whose depth lies within
+/// `threshold` standard deviations of the mean depth, into `kept` (replaced). Returns the number
+/// of finite points it started from.
+pub fn reject_depth_outliers(
+    points_in_camera_m: &[[f32; 3]],
+    config: &ZScoreConfig,
+    kept: &mut Vec<[f64; 3]>,
+) -> Result<usize, LocalizationError> {
+    kept.clear();
+    kept.extend(
+        points_in_camera_m
+            .iter()
+            .filter(|p| p.iter().all(|v| v.is_finite()))
+            .map(|p| p.map(f64::from)),
+    );
+    let found = kept.len();
+    let needed = config.min_points.max(1);
+    if found < needed {
+        return Err(LocalizationError::TooFewPoints { found, needed });
+    }
+    let n = found as f64;
+    let mean = kept.iter().map(|p| p[2]).sum::<f64>() / n;
+    let std = (kept.iter().map(|p| (p[2] - mean).powi(2)).sum::<f64>() / n).sqrt();
+    let limit = config.threshold * std;
+    kept.retain(|p| (p[2] - mean).abs() <= limit);
+    if kept.len() < needed {
+        return Err(LocalizationError::TooFewAfterRejection {
+            found,
+            kept: kept.len(),
+            needed,
+        });
+    }
+    Ok(found)
+}
+
+/// Mean of `points`; `None` when empty or not finite.
+pub fn centroid(points: &[[f64; 3]]) -> Option<[f64; 3]> {
+    let n = points.len() as f64;
+    let mut sum = [0.0; 3];
+    for p in points {
+        for k in 0..3 {
+            sum[k] += p[k];
+        }
+    }
+    let centre = sum.map(|s| s / n);
+    (!points.is_empty() && centre.iter().all(|v| v.is_finite())).then_some(centre)
+}
+
 /// Localizes one fruit from its mask points (camera frame) with Z-score rejection and eq. 20.
 pub fn localize_fruit(
     points_in_camera_m: &[[f32; 3]],
     robot_from_camera: &RigidTransform,
     config: &ZScoreConfig,
 ) -> Result<FruitPosition, LocalizationError> {
-    let finite = || {
-        points_in_camera_m
-            .iter()
-            .filter(|p| p.iter().all(|v| v.is_finite()))
-            .map(|p| p.map(f64::from))
-    };
-    let found = finite().count();
-    let needed = config.min_points.max(1);
-    if found < needed {
-        return Err(LocalizationError::TooFewPoints { found, needed });
-    }
-    let n = found as f64;
-    let mean = finite().map(|p| p[2]).sum::<f64>() / n;
-    let std = (finite().map(|p| (p[2] - mean).powi(2)).sum::<f64>() / n).sqrt();
-    let limit = config.threshold * std;
-    let mut sum = [0.0; 3];
-    let mut kept = 0usize;
-    for p in finite().filter(|p| (p[2] - mean).abs() <= limit) {
-        for k in 0..3 {
-            sum[k] += p[k];
-        }
-        kept += 1;
-    }
-    if kept < needed {
-        return Err(LocalizationError::TooFewAfterRejection {
-            found,
-            kept,
-            needed,
-        });
-    }
-    let position_in_camera_m = sum.map(|s| s / kept as f64);
+    let mut kept = Vec::new();
+    let found = reject_depth_outliers(points_in_camera_m, config, &mut kept)?;
+    let position_in_camera_m = centroid(&kept).ok_or(LocalizationError::TooFewAfterRejection {
+        found,
+        kept: 0,
+        needed: config.min_points.max(1),
+    })?;
     Ok(FruitPosition {
         position_in_camera_m,
         position_in_robot_m: robot_from_camera.apply(position_in_camera_m),
         points_in_mask: found,
-        points_kept: kept,
+        points_kept: kept.len(),
     })
 }
 

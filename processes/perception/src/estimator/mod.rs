@@ -159,7 +159,7 @@ impl EstimatorConfig {
     pub fn validate(&self) -> Result<(), EstimatorConfigError> {
         self.clustering.validate()?;
         self.sphere_fit.validate()?;
-        self.zscore.validate()
+        zscore_centroid::validate(&self.zscore)
     }
 }
 

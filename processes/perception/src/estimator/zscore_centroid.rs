@@ -1,55 +1,38 @@
 //! Centroid of the mask points after Z-score outlier rejection (LiDAR-camera fusion paper,
 //! fruit localisation: the fruit is the centre of its mask points, eq. 20 maps it to the robot).
 //!
-//! Each point's range `|p|` is standardized, `z_i = (|p_i| - mean) / std`; points with
-//! `|z_i| > threshold` are dropped and the centroid of the rest is the fruit position. Like the
-//! paper's cluster depth it carries the visible-surface bias.
+//! The rejection and the centroid are the LiDAR crate's ([`harvest_lidar::localization`], the
+//! same code behind the Table-III comparison): each point's depth is standardized and points
+//! beyond `threshold` standard deviations are dropped, once. Like the paper's cluster depth the
+//! result carries the visible-surface bias.
 
-use serde::{Deserialize, Serialize};
+use harvest_lidar::localization::{centroid, reject_depth_outliers};
 
 use super::{
     Estimator, EstimatorConfigError, EstimatorInput, EstimatorKind, PositionEstimate, check_range,
-    radius_from_lateral_spread, support_factor, to_f64,
+    radius_from_lateral_spread, support_factor,
 };
 
-/// Z-score rejection settings.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ZScoreConfig {
-    /// Points whose range deviates more than this many standard deviations are outliers.
-    pub threshold: f64,
-    /// Minimum number of points for an estimate.
-    pub min_points: usize,
-}
+pub use harvest_lidar::localization::ZScoreConfig;
 
-impl Default for ZScoreConfig {
-    fn default() -> Self {
-        Self {
-            threshold: 2.5,
-            min_points: 5,
-        }
-    }
-}
-
-impl ZScoreConfig {
-    pub fn validate(&self) -> Result<(), EstimatorConfigError> {
-        check_range("zscore.threshold", self.threshold, 0.5, 100.0)?;
-        check_range("zscore.min_points", self.min_points as f64, 1.0, 1e6)
-    }
+/// Checks the Z-score settings (config keys `estimator.zscore.*`).
+pub fn validate(config: &ZScoreConfig) -> Result<(), EstimatorConfigError> {
+    check_range("zscore.threshold", config.threshold, 0.5, 100.0)?;
+    check_range("zscore.min_points", config.min_points as f64, 1.0, 1e6)
 }
 
 /// Z-score centroid estimator.
 #[derive(Debug)]
 pub struct ZScoreCentroidEstimator {
     config: ZScoreConfig,
-    ranges: Vec<f64>,
+    kept: Vec<[f64; 3]>,
 }
 
 impl ZScoreCentroidEstimator {
     pub fn new(config: ZScoreConfig) -> Self {
         Self {
             config,
-            ranges: Vec::new(),
+            kept: Vec::new(),
         }
     }
 }
@@ -60,51 +43,14 @@ impl Estimator for ZScoreCentroidEstimator {
     }
 
     fn estimate(&mut self, input: &EstimatorInput<'_>) -> Option<PositionEstimate> {
-        let finite = |p: &&[f32; 3]| p.iter().all(|v| v.is_finite());
-        self.ranges.clear();
-        self.ranges.extend(
-            input
-                .points_in_camera_m
-                .iter()
-                .filter(finite)
-                .map(to_f64)
-                .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()),
-        );
-        let n = self.ranges.len();
-        if n < self.config.min_points {
-            return None;
-        }
-        let mean = self.ranges.iter().sum::<f64>() / n as f64;
-        let variance = self.ranges.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / n as f64;
-        let limit = self.config.threshold * variance.sqrt();
-        let kept = input
-            .points_in_camera_m
-            .iter()
-            .filter(finite)
-            .map(to_f64)
-            .zip(self.ranges.iter())
-            .filter(move |(_, r)| (**r - mean).abs() <= limit)
-            .map(|(p, _)| p);
-        let mut sum = [0.0; 3];
-        let mut count = 0usize;
-        for p in kept.clone() {
-            for axis in 0..3 {
-                sum[axis] += p[axis];
-            }
-            count += 1;
-        }
-        if count < self.config.min_points {
-            return None;
-        }
-        let c = count as f64;
-        let centroid = [sum[0] / c, sum[1] / c, sum[2] / c];
-        if centroid.iter().any(|v| !v.is_finite()) {
-            return None;
-        }
+        let found =
+            reject_depth_outliers(input.points_in_camera_m, &self.config, &mut self.kept).ok()?;
+        let centre = centroid(&self.kept)?;
+        let count = self.kept.len();
         Some(PositionEstimate {
-            position_in_camera_m: centroid,
-            radius_m: radius_from_lateral_spread(kept, centroid),
-            confidence: (c as f32 / n as f32) * support_factor(count, 30.0),
+            position_in_camera_m: centre,
+            radius_m: radius_from_lateral_spread(self.kept.iter().copied(), centre),
+            confidence: (count as f32 / found as f32) * support_factor(count, 30.0),
             points_used: count as u32,
             fallback: false,
         })
