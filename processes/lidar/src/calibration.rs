@@ -1,17 +1,20 @@
 //! Target-based LiDAR-camera extrinsic calibration (LiDAR-camera paper, section II-C-1) and its
 //! Table-I-style report.
 //!
-//! Per view: the checkerboard's inner corners detected in the image (pixels) and in the point
-//! cloud ([`crate::cloud_corners`]), matched by their index on the board; then the extrinsic
-//! minimizing eq. 3 over all views ([`crate::extrinsic_solver`]) from the CAD transform.
+//! Per view: the checkerboard's inner corners detected in the image (pixels,
+//! [`crate::image_corners`]) and in the point cloud ([`crate::cloud_corners`]), matched by their
+//! index on the board; then the extrinsic minimizing eq. 3 over all views
+//! ([`crate::extrinsic_solver`]) from the CAD transform. A view whose board was not found in
+//! either sensor is dropped with its reason (and a warning) while enough views remain.
 //!
 //! Report (Table I): the average reprojection error (AVG, pixels) of the LiDAR corners projected
 //! with the calibrated extrinsic against the image corners (the pseudo ground truth), and the
 //! normalized reprojection error (NRE): each view's error multiplied by the ratio of its board
 //! distance to the largest board distance, so near boards (large in the image, large errors in
 //! pixels) do not dominate. With generated scenes the error against the true extrinsic is
-//! reported too.
+//! reported too, and so is the image corner detector's error against the true projections.
 
+use crate::board_image::BoardImageConfig;
 use crate::calibration_scenes::{CalibrationScenes, SceneConfig, SceneError, generate_scenes};
 use crate::checkerboard::Checkerboard;
 use crate::cloud_corners::{CornerError, detect_board_corners};
@@ -19,6 +22,7 @@ use crate::extrinsic_solver::{
     Correspondence, ExtrinsicSolution, SolveError, SolverConfig, residual, rotation_error_rad,
     solve_extrinsic, translation_error_m,
 };
+use crate::image_corners::ImageCornerError;
 use harvest_hw::lidar::LidarSpec;
 use harvest_hw::lidar::mounting::{CAD_CAMERA_FROM_LIDAR, simulated_camera_from_lidar};
 use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
@@ -30,7 +34,8 @@ use std::time::Instant;
 /// One view's inputs: the image corners and the LiDAR cloud of the board.
 #[derive(Debug, Clone, Copy)]
 pub struct ViewInput<'a> {
-    pub image_corners_px: &'a [[f64; 2]],
+    /// The board's inner corners found in the image, or why they were not.
+    pub image_corners_px: Result<&'a [[f64; 2]], &'a ImageCornerError>,
     pub cloud: &'a [LidarPoint],
 }
 
@@ -58,10 +63,53 @@ pub struct CalibrationReport {
     pub average_error_px: f64,
     /// Normalized reprojection error, pixels (Table I "NRE").
     pub normalized_error_px: f64,
+    /// Image corner detection error against the true projections (generated scenes only).
+    pub image_corner_error: Option<ImageCornerAccuracy>,
     /// Errors against the true extrinsic (generated scenes only): `(initial, calibrated)`.
     pub rotation_error_deg: Option<(f64, f64)>,
     pub translation_error_mm: Option<(f64, f64)>,
     pub elapsed_s: f64,
+}
+
+/// How far the image corners found lie from the true projections (generated scenes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImageCornerAccuracy {
+    pub median_px: f64,
+    pub max_px: f64,
+    /// Corners compared, over `views` views with the board found in the image.
+    pub corners: usize,
+    pub views: usize,
+}
+
+impl ImageCornerAccuracy {
+    /// Compares the views' found corners with their true projections, index by index; views
+    /// without corners are left out. `None` when no view has corners.
+    pub fn measure<'a>(
+        views: impl IntoIterator<Item = (&'a [[f64; 2]], &'a [[f64; 2]])>,
+    ) -> Option<Self> {
+        let mut errors = Vec::new();
+        let mut count = 0;
+        for (found, truth) in views {
+            if found.is_empty() || found.len() != truth.len() {
+                continue;
+            }
+            count += 1;
+            errors.extend(
+                found
+                    .iter()
+                    .zip(truth)
+                    .map(|(f, t)| (f[0] - t[0]).hypot(f[1] - t[1])),
+            );
+        }
+        errors.sort_by(f64::total_cmp);
+        let max_px = *errors.last()?;
+        Some(Self {
+            median_px: errors[errors.len() / 2],
+            max_px,
+            corners: errors.len(),
+            views: count,
+        })
+    }
 }
 
 /// Why calibration failed.
@@ -111,10 +159,19 @@ pub fn calibrate(
             mean_error_px: f64::NAN,
             dropped: None,
         };
-        if view.image_corners_px.len() != board.corner_count() {
+        let image_corners_px = match view.image_corners_px {
+            Ok(corners) => corners,
+            Err(error) => {
+                tracing::warn!(view = index, %error, "no board corners in the image");
+                report.dropped = Some(error.to_string());
+                reports.push(report);
+                continue;
+            }
+        };
+        if image_corners_px.len() != board.corner_count() {
             report.dropped = Some(format!(
                 "{} image corners, the board has {}",
-                view.image_corners_px.len(),
+                image_corners_px.len(),
                 board.corner_count()
             ));
             tracing::warn!(view = index, reason = ?report.dropped, "view dropped");
@@ -124,11 +181,7 @@ pub fn calibrate(
         match detect_board_corners(view.cloud, board) {
             Ok(detection) => {
                 report.distance_m = detection.distance_m;
-                for (point, pixel) in detection
-                    .corners_in_lidar_m
-                    .iter()
-                    .zip(view.image_corners_px)
-                {
+                for (point, pixel) in detection.corners_in_lidar_m.iter().zip(image_corners_px) {
                     correspondences.push(Correspondence {
                         point_in_lidar_m: *point,
                         pixel: *pixel,
@@ -258,6 +311,7 @@ pub fn calibrate(
         corners_used: correspondences.len(),
         average_error_px: sum / n,
         normalized_error_px: sum_normalized / n,
+        image_corner_error: None,
         rotation_error_deg: errors.map(|e| e.0),
         translation_error_mm: errors.map(|e| e.1),
         elapsed_s: started.elapsed().as_secs_f64(),
@@ -346,17 +400,25 @@ pub fn calibrate_scenes(
         .views
         .iter()
         .map(|view| ViewInput {
-            image_corners_px: &view.image_corners_px,
+            image_corners_px: view.image_corners_px.as_deref(),
             cloud: &view.cloud,
         })
         .collect();
-    calibrate(
+    let mut report = calibrate(
         &scenes.intrinsics,
         &scenes.board,
         &inputs,
         initial,
         Some(&scenes.true_camera_from_lidar),
-    )
+    )?;
+    report.image_corner_error =
+        ImageCornerAccuracy::measure(scenes.views.iter().filter_map(|view| {
+            view.image_corners_px
+                .as_deref()
+                .ok()
+                .map(|found| (found, view.true_image_corners_px.as_slice()))
+        }));
+    Ok(report)
 }
 
 impl CalibrationReport {
@@ -402,6 +464,14 @@ impl CalibrationReport {
             "\nRMS reprojection: {:.2} px at the CAD guess -> {:.2} px calibrated; condition {:.1e}",
             self.solution.initial_rms_px, self.solution.final_rms_px, self.solution.condition
         );
+        if let Some(accuracy) = &self.image_corner_error {
+            let _ = writeln!(
+                text,
+                "image corners found vs true projections: median {:.3} px, max {:.3} px ({} \
+                 corners in {} views)",
+                accuracy.median_px, accuracy.max_px, accuracy.corners, accuracy.views
+            );
+        }
         if let (Some((r0, r1)), Some((t0, t1))) =
             (self.rotation_error_deg, self.translation_error_mm)
         {
@@ -433,9 +503,9 @@ pub struct CalibrateLidarCameraArgs {
     /// LiDAR integration per placement, seconds (the paper uses 15 s).
     #[arg(long, default_value_t = 15.0)]
     pub integration_s: f64,
-    /// Image corner noise (one sigma), pixels.
-    #[arg(long, default_value_t = 0.3)]
-    pub pixel_noise_px: f64,
+    /// Sensor noise of the rendered camera images (one sigma), grey levels of 255.
+    #[arg(long, default_value_t = 2.0)]
+    pub image_noise_grey: f64,
     /// Seed of the generated data set.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -485,7 +555,10 @@ pub fn run_calibrate_lidar_camera(
     let config = SceneConfig {
         views: args.views,
         integration_s: args.integration_s,
-        pixel_noise_px: args.pixel_noise_px,
+        image: BoardImageConfig {
+            noise_grey: args.image_noise_grey,
+            ..BoardImageConfig::default()
+        },
         seed: args.seed,
         ..SceneConfig::default()
     };
@@ -518,6 +591,8 @@ pub fn run_calibrate_lidar_camera(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::board_image::GreyImage;
+    use crate::image_corners::{ImageCornerConfig, detect_image_corners};
 
     fn scenes(views: usize, integration_s: f64, seed: u64) -> CalibrationScenes {
         let config = SceneConfig {
@@ -581,13 +656,56 @@ mod tests {
             assert!(report.normalized_error_px <= report.average_error_px);
             assert!(report.average_error_px < 3.0, "{}", report.render());
             assert!(report.render().contains("AVG/pixel"));
+            // Every view's corners were found in its rendered image, close to the truth.
+            let accuracy = report.image_corner_error.expect("generated scenes");
+            assert_eq!((accuracy.views, accuracy.corners), (8, 8 * 35));
+            assert!(accuracy.median_px < 0.3, "{}", report.render());
+            assert!(accuracy.max_px < 1.0, "{}", report.render());
+            assert!(
+                report
+                    .render()
+                    .contains("image corners found vs true projections")
+            );
         }
+    }
+
+    #[test]
+    fn a_view_without_the_board_in_its_image_is_dropped_by_name() {
+        let mut scenes = scenes(4, 2.0, 9);
+        let blank = GreyImage::filled(1920, 1080, 128);
+        scenes.views[1].image_corners_px =
+            detect_image_corners(&blank, &scenes.board, &ImageCornerConfig::default())
+                .map(|found| found.corners_px);
+        let report = calibrate_scenes(&scenes, &CAD_CAMERA_FROM_LIDAR).expect("calibrate");
+        let reason = report.views[1].dropped.as_deref().expect("view 1 dropped");
+        assert!(reason.contains("0 corner candidates"), "{reason}");
+        assert_eq!(
+            report.views.iter().filter(|v| v.dropped.is_none()).count(),
+            3
+        );
+        let accuracy = report.image_corner_error.expect("generated scenes");
+        assert_eq!(accuracy.views, 3);
+        let (_, final_deg) = report.rotation_error_deg.expect("truth");
+        assert!(final_deg < 0.5, "{}", report.render());
+        // With only two views left the calibration is refused, naming the view.
+        scenes.views[2].image_corners_px = scenes.views[1].image_corners_px.clone();
+        let error = calibrate_scenes(&scenes, &CAD_CAMERA_FROM_LIDAR).expect_err("two views");
+        assert!(
+            error
+                .to_string()
+                .contains("view 1: only 0 corner candidates"),
+            "{error}"
+        );
     }
 
     #[test]
     fn a_view_with_mismatched_corners_is_dropped_and_the_rest_calibrate() {
         let mut scenes = scenes(6, 2.0, 7);
-        for pixel in &mut scenes.views[2].image_corners_px {
+        for pixel in scenes.views[2]
+            .image_corners_px
+            .as_mut()
+            .expect("board found in the image")
+        {
             pixel[0] += 12.0;
         }
         let report = calibrate_scenes(&scenes, &CAD_CAMERA_FROM_LIDAR).expect("calibrate");
@@ -613,7 +731,7 @@ mod tests {
             .views
             .iter()
             .map(|v| ViewInput {
-                image_corners_px: &v.image_corners_px,
+                image_corners_px: v.image_corners_px.as_deref(),
                 cloud: &[],
             })
             .collect();
@@ -629,7 +747,7 @@ mod tests {
         // The same placement three times: every corner on one plane.
         let same: Vec<ViewInput<'_>> = (0..3)
             .map(|_| ViewInput {
-                image_corners_px: &scenes.views[0].image_corners_px,
+                image_corners_px: scenes.views[0].image_corners_px.as_deref(),
                 cloud: &scenes.views[0].cloud,
             })
             .collect();

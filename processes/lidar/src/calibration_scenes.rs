@@ -4,14 +4,19 @@
 //! Each view places the checkerboard ([`Checkerboard`]) at a random pose in front of the
 //! sensors (inside both fields of view, lower edge roughly level as the paper asks) and produces
 //! what the two sensors deliver:
-//! - the camera: the inner corners projected through the intrinsics and distortion, plus
-//!   Gaussian pixel noise (the corner detector's error; the image itself is not rendered);
+//! - the camera: the view rendered as a grey image ([`crate::board_image`]: the board traced
+//!   through the lens and its distortion, anti-aliased, in front of a cluttered background,
+//!   blurred, with sensor noise) and the inner corners found in it by the image corner detector
+//!   ([`crate::image_corners`], which is not told the pose); the true projections are kept for
+//!   evaluating the detector;
 //! - the LiDAR: the rosette scan of one integration window (the paper integrates 15 s per
 //!   scene) intersected with the board, with the device's range and direction noise and an
 //!   intensity of white or black paper plus noise. The board hangs in the air: rays that miss it
 //!   return nothing.
 
+use crate::board_image::{BoardImageConfig, RenderError, render_board_view};
 use crate::checkerboard::Checkerboard;
+use crate::image_corners::{ImageCornerConfig, ImageCornerError, detect_image_corners};
 use harvest_hw::lidar::LidarSpec;
 use harvest_hw::lidar::scan_pattern::{RosetteScan, direction_from_deflection};
 use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
@@ -29,8 +34,9 @@ pub struct SceneConfig {
     pub views: usize,
     /// LiDAR integration per view, seconds (paper: 15 s).
     pub integration_s: f64,
-    /// One standard deviation of the image corner error, pixels.
-    pub pixel_noise_px: f64,
+    /// How each view's camera image is rendered (paper grey levels, sensor noise, blur,
+    /// background clutter): the `[image]` table.
+    pub image: BoardImageConfig,
     /// Distance of the board centre from the camera, metres `[min, max]`.
     pub distance_m: [f64; 2],
     /// Largest tilt of the board about its horizontal and vertical axes, degrees.
@@ -50,7 +56,7 @@ impl Default for SceneConfig {
         Self {
             views: 12,
             integration_s: 15.0,
-            pixel_noise_px: 0.3,
+            image: BoardImageConfig::default(),
             distance_m: [1.5, 3.0],
             max_tilt_deg: 30.0,
             max_roll_deg: 8.0,
@@ -67,8 +73,11 @@ impl Default for SceneConfig {
 pub struct CalibrationView {
     /// True board pose (evaluation only).
     pub camera_from_board: RigidTransform,
-    /// Detected inner corners in the image, row by row like [`Checkerboard::corners_m`], pixels.
-    pub image_corners_px: Vec<[f64; 2]>,
+    /// Inner corners found in the rendered image, row by row like [`Checkerboard::corners_m`],
+    /// pixels; or why the board was not found there.
+    pub image_corners_px: Result<Vec<[f64; 2]>, ImageCornerError>,
+    /// True projections of the inner corners, same order (evaluation of the detector only).
+    pub true_image_corners_px: Vec<[f64; 2]>,
     /// The LiDAR returns of the integration window, LiDAR frame.
     pub cloud: Vec<LidarPoint>,
 }
@@ -89,6 +98,9 @@ pub enum SceneError {
     /// A configuration value is unusable.
     #[error("calibration scenes: {0}")]
     Config(String),
+    /// A view's image could not be rendered.
+    #[error("view {view}: {source}")]
+    Render { view: usize, source: RenderError },
     /// No pose put the whole board inside both fields of view.
     #[error(
         "no board pose at {distance_m:?} m puts all corners in the image and the board in the \
@@ -134,16 +146,15 @@ pub fn generate_scenes(
             )));
         }
     }
-    if !(config.pixel_noise_px.is_finite() && config.pixel_noise_px >= 0.0) {
-        return Err(SceneError::Config(format!(
-            "pixel_noise_px = {} is negative",
-            config.pixel_noise_px
-        )));
-    }
+    config
+        .image
+        .validate()
+        .map_err(|reason| SceneError::Config(format!("image.{reason}")))?;
+    let detector = ImageCornerConfig::default();
     let mut rng = SmallRng::seed_from_u64(config.seed);
     let lidar_from_camera = true_camera_from_lidar.inverse();
     let mut views = Vec::with_capacity(config.views);
-    for _ in 0..config.views {
+    for view in 0..config.views {
         let camera_from_board = sample_board_pose(
             config,
             &intrinsics,
@@ -152,25 +163,33 @@ pub fn generate_scenes(
             &lidar_from_camera,
             &mut rng,
         )?;
-        let pixel_noise = Normal::new(0.0, config.pixel_noise_px.max(1e-12))
-            .map_err(|error| SceneError::Config(error.to_string()))?;
-        let image_corners_px = board
+        let true_image_corners_px = board
             .corners_m()
             .into_iter()
             .filter_map(|[x, y]| intrinsics.project(camera_from_board.apply([x, y, 0.0])))
-            .map(|(u, v)| {
-                [
-                    u + pixel_noise.sample(&mut rng),
-                    v + pixel_noise.sample(&mut rng),
-                ]
-            })
+            .map(|(u, v)| [u, v])
             .collect();
+        let mut image_rng = SmallRng::seed_from_u64(rng.random());
+        let image = render_board_view(
+            &intrinsics,
+            &board,
+            &camera_from_board,
+            &config.image,
+            &mut image_rng,
+        )
+        .map_err(|source| SceneError::Render { view, source })?;
+        let image_corners_px =
+            detect_image_corners(&image, &board, &detector).map(|found| found.corners_px);
+        if let Err(error) = &image_corners_px {
+            tracing::debug!(view, %error, "board not found in the rendered image");
+        }
         let lidar_from_board = lidar_from_camera.compose(&camera_from_board);
         let cloud = scan_board(config, spec, &board, &lidar_from_board, &mut rng)?;
-        tracing::debug!(points = cloud.len(), "calibration view generated");
+        tracing::debug!(view, points = cloud.len(), "calibration view generated");
         views.push(CalibrationView {
             camera_from_board,
             image_corners_px,
+            true_image_corners_px,
             cloud,
         });
     }
@@ -295,4 +314,45 @@ fn scan_board(
         });
     }
     Ok(cloud)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scene_keys_take_an_image_table_and_refuse_the_old_pixel_noise() {
+        let config: SceneConfig =
+            toml::from_str("views = 4\n[image]\nnoise_grey = 5.0\nblur_px = 1.0\n")
+                .expect("image table");
+        assert_eq!(config.views, 4);
+        assert_eq!(config.image.noise_grey, 5.0);
+        assert_eq!(
+            config.image.white_grey,
+            BoardImageConfig::default().white_grey
+        );
+        let error = toml::from_str::<SceneConfig>("pixel_noise_px = 0.3\n").expect_err("old key");
+        assert!(error.to_string().contains("pixel_noise_px"), "{error}");
+        let error = toml::from_str::<SceneConfig>("[image]\nnoise_px = 1.0\n").expect_err("typo");
+        assert!(error.to_string().contains("noise_px"), "{error}");
+        let bad = SceneConfig {
+            image: BoardImageConfig {
+                noise_grey: -1.0,
+                ..BoardImageConfig::default()
+            },
+            ..SceneConfig::default()
+        };
+        let error = generate_scenes(
+            &bad,
+            CameraIntrinsics::tl460_rgb(),
+            &LidarSpec::mid70(),
+            Checkerboard::paper(),
+            RigidTransform::IDENTITY,
+        )
+        .expect_err("negative noise");
+        assert!(
+            error.to_string().contains("image.noise_grey = -1"),
+            "{error}"
+        );
+    }
 }

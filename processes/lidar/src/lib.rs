@@ -3,14 +3,16 @@
 //!
 //! - [`fusion`]: eq. 1-2, LiDAR points into the colour image: registered depth image,
 //!   colourised cloud, mask points.
-//! - [`checkerboard`], [`calibration_scenes`], [`cloud_corners`], [`extrinsic_solver`],
-//!   [`calibration`]: the target-based extrinsic calibration (section II-C-1, eq. 3-5) behind
-//!   `harvest calibrate lidar-camera`, with its Table-I-style report.
+//! - [`checkerboard`], [`board_image`], [`image_corners`], [`calibration_scenes`],
+//!   [`cloud_corners`], [`extrinsic_solver`], [`calibration`]: the target-based extrinsic
+//!   calibration (section II-C-1, eq. 3-5) behind `harvest calibrate lidar-camera`, with its
+//!   Table-I-style report; the board is rendered per view and its corners found in the image.
 //! - [`localization`]: fused fruit localization (section II-D-3, Z-score rejection, eq. 20).
 //! - [`evaluation`]: `harvest eval lidar`, the Table-III-style repeatability of fused versus ToF
 //!   localization in the simulated orchard, and the fusion time.
 //! - [`process`]: `harvest lidar`, LiDAR device -> `lidar/points`.
 
+pub mod board_image;
 pub mod calibration;
 pub mod calibration_scenes;
 pub mod checkerboard;
@@ -18,6 +20,7 @@ pub mod cloud_corners;
 pub mod evaluation;
 pub mod extrinsic_solver;
 pub mod fusion;
+pub mod image_corners;
 pub mod localization;
 pub mod process;
 
