@@ -322,28 +322,25 @@ impl SphereFitEstimator {
         }
         sphere = refine(&self.inliers, &noise, sphere, &self.refine_params(false))?;
         // Final pass with the error along the viewing rays (removes the isotropic model's pull
-        // towards the camera).
+        // towards the camera); a radius outside the prior interval is clamped and refitted.
         let lateral_sigma_per_m = 1.0 / self.context.depth_focal_px;
-        sphere = refine_along_rays(
-            &self.inliers,
-            &noise,
-            lateral_sigma_per_m,
-            sphere,
-            &self.refine_params(false),
-        )?;
-        let clamped_radius = sphere
-            .radius
-            .clamp(self.config.radius_min_m, self.config.radius_max_m);
-        let clamped = clamped_radius != sphere.radius;
-        if clamped {
-            sphere.radius = clamped_radius;
+        let mut clamped = false;
+        for fix_radius in [false, true] {
             sphere = refine_along_rays(
                 &self.inliers,
                 &noise,
                 lateral_sigma_per_m,
                 sphere,
-                &self.refine_params(true),
+                &self.refine_params(fix_radius),
             )?;
+            let clamped_radius = sphere
+                .radius
+                .clamp(self.config.radius_min_m, self.config.radius_max_m);
+            if clamped_radius == sphere.radius {
+                break;
+            }
+            sphere.radius = clamped_radius;
+            clamped = true;
         }
         self.collect_inliers(&sphere);
         let inliers = self.inliers.len();

@@ -118,6 +118,18 @@ pub(crate) struct RefineParams {
     pub fix_radius: bool,
 }
 
+/// Least-squares weight of a residual with noise `sigma`: `1 / sigma^2`, scaled down (Huber)
+/// beyond `huber_sigmas` sigmas.
+fn huber_weight(residual: f64, sigma: f64, huber_sigmas: f64) -> f64 {
+    let normalized = (residual / sigma).abs();
+    let huber = if normalized <= huber_sigmas {
+        1.0
+    } else {
+        huber_sigmas / normalized
+    };
+    huber / (sigma * sigma)
+}
+
 /// Weighted robust least squares on the sphere (Gauss-Newton):
 /// minimise `sum_i rho_huber((|p_i - c| - r) / sigma(z_i)) + ((r - r_prior) / sigma_r)^2`
 /// over centre `c` and radius `r` (or `c` alone with `fix_radius`). `sigma(z)` is the ToF noise
@@ -141,14 +153,7 @@ pub(crate) fn refine(
                 continue;
             }
             let residual = distance - sphere.radius;
-            let sigma = noise.sigma_m(p[2]);
-            let normalized = (residual / sigma).abs();
-            let huber = if normalized <= params.huber_sigmas {
-                1.0
-            } else {
-                params.huber_sigmas / normalized
-            };
-            let weight = huber / (sigma * sigma);
+            let weight = huber_weight(residual, noise.sigma_m(p[2]), params.huber_sigmas);
             let jacobian = Vector4::new(-d[0] / distance, -d[1] / distance, -d[2] / distance, -1.0);
             hessian += weight * jacobian * jacobian.transpose();
             gradient += weight * residual * jacobian;
@@ -244,13 +249,7 @@ pub(crate) fn refine_along_rays(
                     Vector4::new(offset[0] / miss, offset[1] / miss, offset[2] / miss, -1.0);
                 (miss - sphere.radius, lateral_sigma_per_m * p[2], jacobian)
             };
-            let normalized = (residual / sigma).abs();
-            let huber = if normalized <= params.huber_sigmas {
-                1.0
-            } else {
-                params.huber_sigmas / normalized
-            };
-            let weight = huber / (sigma * sigma);
+            let weight = huber_weight(residual, sigma, params.huber_sigmas);
             hessian += weight * jacobian * jacobian.transpose();
             gradient += weight * residual * jacobian;
         }
