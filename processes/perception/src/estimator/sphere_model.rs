@@ -207,7 +207,7 @@ pub(crate) fn refine_along_rays(
 ) -> Option<Sphere> {
     let mut sphere = initial;
     let centre_distance = norm(initial.centre);
-    if !(centre_distance > 0.0) {
+    if centre_distance.is_nan() || centre_distance <= 0.0 {
         return None;
     }
     let direction = initial.centre.map(|v| v / centre_distance);
@@ -266,13 +266,13 @@ pub(crate) fn refine_along_rays(
             if params.fix_radius { 0.0 } else { gradient[3] },
         );
         let determinant = h_aa * h_rr - h_ar * h_ar;
-        if !(determinant > 0.0) {
+        if determinant.is_nan() || determinant <= 0.0 {
             return None;
         }
         let step = (-(h_rr * g_a) + h_ar * g_r) / determinant;
         let radius_step = (-(h_aa * g_r) + h_ar * g_a) / determinant;
-        for k in 0..3 {
-            sphere.centre[k] += step * direction[k];
+        for (centre, along) in sphere.centre.iter_mut().zip(direction) {
+            *centre += step * along;
         }
         sphere.radius += radius_step;
         if !sphere.is_finite() {
