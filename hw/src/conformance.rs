@@ -145,6 +145,45 @@ pub fn poll_until<T>(
     }
 }
 
+/// Reads the device `samples` times, `bounds.interval` apart, after a `first` reading: every
+/// reading's stamp (`stamp_ns`) must not be earlier than the one before and the reading must
+/// pass `valid` (its error is the failure's detail). Then waits, within `bounds.timeout`, for a
+/// stamp later than `first`'s (a live device keeps sampling while nothing moves); `newer` names
+/// that reading in the failure.
+pub fn stamps_advance<T>(
+    check: &'static str,
+    bounds: PollBounds,
+    samples: usize,
+    newer: &str,
+    mut read: impl FnMut() -> Result<T, ConformanceError>,
+    stamp_ns: impl Fn(&T) -> u64,
+    valid: impl Fn(&T) -> Result<(), String>,
+) -> Result<(), ConformanceError> {
+    let first_ns = stamp_ns(&read()?);
+    let mut last_ns = first_ns;
+    for _ in 0..samples {
+        std::thread::sleep(bounds.interval);
+        let now = read()?;
+        let now_ns = stamp_ns(&now);
+        if now_ns < last_ns {
+            return Err(violated(
+                check,
+                format!("stamp went back from {last_ns} to {now_ns} ns"),
+            ));
+        }
+        valid(&now).map_err(|detail| violated(check, detail))?;
+        last_ns = now_ns;
+    }
+    poll_until(check, bounds, newer, || {
+        let now_ns = stamp_ns(&read()?);
+        Ok(if now_ns > first_ns {
+            Probe::Done(())
+        } else {
+            Probe::Waiting(format!("stamp still {now_ns} ns"))
+        })
+    })
+}
+
 /// One named check of a suite over config `C` and device `D`.
 pub type Check<C, D> = (&'static str, fn(&C, &mut D) -> Result<(), ConformanceError>);
 
@@ -275,6 +314,47 @@ mod tests {
             panic!("expected a violation, got {never:?}");
         };
         assert!(detail.contains("still 0"), "{detail}");
+    }
+
+    #[test]
+    fn stamps_advance_refuses_a_stamp_going_back_an_invalid_reading_and_a_frozen_clock() {
+        let bounds = PollBounds {
+            timeout: Duration::ZERO,
+            interval: Duration::ZERO,
+        };
+        let run = |stamps: Vec<u64>| {
+            let mut stamps = stamps.into_iter();
+            stamps_advance(
+                "t",
+                bounds,
+                3,
+                "a newer stamp",
+                || Ok(stamps.next().unwrap_or(0)),
+                |&stamp| stamp,
+                |&stamp| {
+                    if stamp == 99 {
+                        Err("stamp 99 is invalid".to_owned())
+                    } else {
+                        Ok(())
+                    }
+                },
+            )
+        };
+        assert_eq!(run(vec![1, 1, 2, 3, 4]), Ok(()));
+        // Equal stamps are allowed while sampling, but a newer one must come.
+        assert_eq!(run(vec![5, 5, 5, 6, 7]), Ok(()));
+        let Err(ConformanceError::Violated { detail, .. }) = run(vec![1, 3, 2, 4, 5]) else {
+            panic!("a stamp going back must fail");
+        };
+        assert!(detail.contains("from 3 to 2"), "{detail}");
+        let Err(ConformanceError::Violated { detail, .. }) = run(vec![1, 2, 99, 100, 101]) else {
+            panic!("an invalid reading must fail");
+        };
+        assert_eq!(detail, "stamp 99 is invalid");
+        let Err(ConformanceError::Violated { detail, .. }) = run(vec![7, 7, 7, 7, 7]) else {
+            panic!("a frozen clock must fail");
+        };
+        assert!(detail.contains("a newer stamp"), "{detail}");
     }
 
     #[test]

@@ -17,7 +17,7 @@
 use super::{ArmServos, JOINT_COUNT, JointFeedback};
 use crate::conformance::{
     Check, ConformanceError, ConformanceReport, PollBounds, Probe, call, expect_refusal,
-    poll_until, run_checks, violated,
+    poll_until, run_checks, stamps_advance, violated,
 };
 use crate::error_kind::ErrorKind;
 use std::time::Duration;
@@ -137,31 +137,15 @@ fn check_feedback<S: ArmServos>(
     servos: &mut S,
 ) -> Result<(), ConformanceError> {
     const CHECK: &str = "feedback_stamps_increase";
-    let first = feedback(CHECK, config, servos)?;
-    let mut last = first;
-    for _ in 0..config.samples {
-        std::thread::sleep(config.settle.interval);
-        let now = feedback(CHECK, config, servos)?;
-        if now.capture_ns < last.capture_ns {
-            return Err(violated(
-                CHECK,
-                format!(
-                    "stamp went back from {} to {} ns",
-                    last.capture_ns, now.capture_ns
-                ),
-            ));
-        }
-        in_limits(config, &now).map_err(|detail| violated(CHECK, detail))?;
-        last = now;
-    }
-    poll_until(CHECK, config.settle, "a newer encoder stamp", || {
-        let now = feedback(CHECK, config, servos)?;
-        Ok(if now.capture_ns > first.capture_ns {
-            Probe::Done(())
-        } else {
-            Probe::Waiting(format!("stamp still {} ns", now.capture_ns))
-        })
-    })
+    stamps_advance(
+        CHECK,
+        config.settle,
+        config.samples,
+        "a newer encoder stamp",
+        || feedback(CHECK, config, servos),
+        |sample| sample.capture_ns,
+        |sample| in_limits(config, sample),
+    )
 }
 
 /// Streams `target` until every joint is within tolerance; every sample must be approaching:

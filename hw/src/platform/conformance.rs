@@ -12,7 +12,7 @@
 use super::{Platform, PlatformAxis, PlatformPosition, PlatformTravel};
 use crate::conformance::{
     Check, ConformanceError, ConformanceReport, PollBounds, Probe, call, expect_refusal,
-    poll_until, run_checks, violated,
+    poll_until, run_checks, stamps_advance, violated,
 };
 use crate::error_kind::ErrorKind;
 use std::time::Duration;
@@ -107,6 +107,24 @@ fn target_within(travel: &PlatformTravel, from_m: [f64; 2], step_m: f64) -> [f64
     })
 }
 
+/// Waits until the stages stand still, then starts a move of `step_m` on each axis (inside the
+/// travel); returns where it started and its target, m.
+fn start_move<P: Platform>(
+    check: &'static str,
+    config: &PlatformConformanceConfig,
+    platform: &mut P,
+    step_m: f64,
+) -> Result<([f64; 2], [f64; 2]), ConformanceError> {
+    let start = as_array(&settle(check, config, platform)?);
+    let target = target_within(&platform.travel(), start, step_m);
+    call(
+        check,
+        || format!("move_to({}, {})", target[0], target[1]),
+        platform.move_to(target[0], target[1]),
+    )?;
+    Ok((start, target))
+}
+
 /// Positions finite and in the travel; stamps never go back and do advance.
 fn check_feedback<P: Platform>(
     config: &PlatformConformanceConfig,
@@ -120,41 +138,33 @@ fn check_feedback<P: Platform>(
             format!("declared travel {travel:?} is empty"),
         ));
     }
-    let first = position(CHECK, platform)?;
-    let mut last = first;
-    for _ in 0..config.samples {
-        std::thread::sleep(config.settle.interval);
-        let now = position(CHECK, platform)?;
-        if now.capture_ns < last.capture_ns {
-            return Err(violated(
-                CHECK,
-                format!(
-                    "stamp went back from {} to {} ns",
-                    last.capture_ns, now.capture_ns
-                ),
+    stamps_advance(
+        CHECK,
+        config.settle,
+        config.samples,
+        "a newer feedback stamp",
+        || position(CHECK, platform),
+        |now| now.capture_ns,
+        |now| in_travel(config, &travel, now),
+    )
+}
+
+/// Both positions finite and inside the travel (plus the tolerance).
+fn in_travel(
+    config: &PlatformConformanceConfig,
+    travel: &PlatformTravel,
+    now: &PlatformPosition,
+) -> Result<(), String> {
+    for axis in PlatformAxis::ALL {
+        let value_m = as_array(now)[axis.index()];
+        let slack = config.position_tolerance_m;
+        if !value_m.is_finite() || value_m < -slack || value_m > travel.max_m(axis) + slack {
+            return Err(format!(
+                "{axis} position {value_m} m outside travel {travel:?}"
             ));
         }
-        for axis in PlatformAxis::ALL {
-            let value_m = as_array(&now)[axis.index()];
-            let slack = config.position_tolerance_m;
-            if !value_m.is_finite() || value_m < -slack || value_m > travel.max_m(axis) + slack {
-                return Err(violated(
-                    CHECK,
-                    format!("{axis} position {value_m} m outside travel {travel:?}"),
-                ));
-            }
-        }
-        last = now;
     }
-    // The device keeps sampling while nothing moves: later feedback carries a later stamp.
-    poll_until(CHECK, config.settle, "a newer feedback stamp", || {
-        let now = position(CHECK, platform)?;
-        Ok(if now.capture_ns > first.capture_ns {
-            Probe::Done(())
-        } else {
-            Probe::Waiting(format!("stamp still {} ns", now.capture_ns))
-        })
-    })
+    Ok(())
 }
 
 /// A move reports `in_motion` at once, approaches the target on both axes without leaving the
@@ -165,13 +175,7 @@ fn check_move<P: Platform>(
     platform: &mut P,
 ) -> Result<(), ConformanceError> {
     const CHECK: &str = "move_reaches_target_without_overshoot";
-    let start = as_array(&settle(CHECK, config, platform)?);
-    let target = target_within(&platform.travel(), start, config.step_m);
-    call(
-        CHECK,
-        || format!("move_to({}, {})", target[0], target[1]),
-        platform.move_to(target[0], target[1]),
-    )?;
+    let (start, target) = start_move(CHECK, config, platform, config.step_m)?;
     let first = position(CHECK, platform)?;
     if !first.in_motion {
         return Err(violated(
@@ -296,13 +300,7 @@ fn check_stop<P: Platform>(
     platform: &mut P,
 ) -> Result<(), ConformanceError> {
     const CHECK: &str = "stop_halts_motion";
-    let start = as_array(&settle(CHECK, config, platform)?);
-    let target = target_within(&platform.travel(), start, config.long_step_m);
-    call(
-        CHECK,
-        || format!("move_to({}, {})", target[0], target[1]),
-        platform.move_to(target[0], target[1]),
-    )?;
+    let (start, target) = start_move(CHECK, config, platform, config.long_step_m)?;
     poll_until(CHECK, config.settle, "motion under way", || {
         let now = as_array(&position(CHECK, platform)?);
         let moved_m = (now[0] - start[0]).abs().max((now[1] - start[1]).abs());

@@ -130,6 +130,71 @@ fn close_all_and_settle<B: ValveBoard>(
     .map(|_| ())
 }
 
+/// `set_valve(valve, open)`; a failure names the call.
+fn set_valve<B: ValveBoard>(
+    check: &'static str,
+    board: &mut B,
+    valve: ValveId,
+    open: bool,
+) -> Result<(), ConformanceError> {
+    let position = if open { "open" } else { "closed" };
+    call(
+        check,
+        || format!("set_valve({}, {position})", valve.0),
+        board.set_valve(valve, open),
+    )
+}
+
+/// Waits until `valve` is open; meanwhile no valve may be `Stuck`.
+fn wait_open<B: ValveBoard>(
+    check: &'static str,
+    config: &ConformanceConfig,
+    board: &mut B,
+    valve: ValveId,
+) -> Result<(), ConformanceError> {
+    wait_for(
+        check,
+        config,
+        board,
+        &format!("{valve} open"),
+        |_, s| s != ValveState::Stuck,
+        |states| states.get(valve) == Some(ValveState::Open),
+    )
+    .map(|_| ())
+}
+
+/// Commands `valve` alone to `open` and waits until it is there; meanwhile it may only be
+/// moving that way and every other valve stays closed.
+fn move_alone<B: ValveBoard>(
+    check: &'static str,
+    config: &ConformanceConfig,
+    board: &mut B,
+    valve: ValveId,
+    open: bool,
+) -> Result<(), ConformanceError> {
+    set_valve(check, board, valve, open)?;
+    let (moving, end, position) = if open {
+        (ValveState::Opening, ValveState::Open, "open")
+    } else {
+        (ValveState::Closing, ValveState::Closed, "closed")
+    };
+    wait_for(
+        check,
+        config,
+        board,
+        &format!("{valve} {position}"),
+        |v, s| {
+            if v == valve {
+                s == moving || s == end
+            } else {
+                s.is_closed()
+            }
+        },
+        |states| states.get(valve) == Some(end),
+    )
+    .map(|_| ())
+}
+
 /// Two heartbeats succeed and the board clock does not run backwards.
 fn check_heartbeat<B: ValveBoard>(
     _config: &ConformanceConfig,
@@ -167,44 +232,8 @@ fn check_each_valve<B: ValveBoard>(
     const CHECK: &str = "each_valve_opens_and_closes_alone";
     close_all_and_settle(CHECK, config, board)?;
     for valve in ValveId::ALL {
-        call(
-            CHECK,
-            || format!("set_valve({}, open)", valve.0),
-            board.set_valve(valve, true),
-        )?;
-        wait_for(
-            CHECK,
-            config,
-            board,
-            &format!("{valve} open"),
-            |v, s| {
-                if v == valve {
-                    matches!(s, ValveState::Opening | ValveState::Open)
-                } else {
-                    s.is_closed()
-                }
-            },
-            |states| states.get(valve) == Some(ValveState::Open),
-        )?;
-        call(
-            CHECK,
-            || format!("set_valve({}, closed)", valve.0),
-            board.set_valve(valve, false),
-        )?;
-        wait_for(
-            CHECK,
-            config,
-            board,
-            &format!("{valve} closed"),
-            |v, s| {
-                if v == valve {
-                    matches!(s, ValveState::Closing | ValveState::Closed)
-                } else {
-                    s.is_closed()
-                }
-            },
-            all_closed,
-        )?;
+        move_alone(CHECK, config, board, valve, true)?;
+        move_alone(CHECK, config, board, valve, false)?;
     }
     Ok(())
 }
@@ -218,30 +247,11 @@ fn check_set_idempotent<B: ValveBoard>(
     const CHECK: &str = "set_is_idempotent";
     close_all_and_settle(CHECK, config, board)?;
     let valve = ValveId(2);
-    call(
-        CHECK,
-        || "set_valve(2, open)".to_owned(),
-        board.set_valve(valve, true),
-    )?;
-    wait_for(
-        CHECK,
-        config,
-        board,
-        "valve 2 open",
-        |_, s| s != ValveState::Stuck,
-        |states| states.get(valve) == Some(ValveState::Open),
-    )?;
+    set_valve(CHECK, board, valve, true)?;
+    wait_open(CHECK, config, board, valve)?;
     for _ in 0..3 {
-        call(
-            CHECK,
-            || "set_valve(2, open)".to_owned(),
-            board.set_valve(valve, true),
-        )?;
-        call(
-            CHECK,
-            || "set_valve(1, closed)".to_owned(),
-            board.set_valve(ValveId(1), false),
-        )?;
+        set_valve(CHECK, board, valve, true)?;
+        set_valve(CHECK, board, ValveId(1), false)?;
         let states = call(CHECK, || "valve_states()".to_owned(), board.valve_states())?;
         let expected = ValveStates([
             ValveState::Closed,
@@ -314,20 +324,9 @@ fn check_pressures<B: ValveBoard>(
     };
     close_all_and_settle(CHECK, config, board)?;
     sample(board)?;
-    call(
-        CHECK,
-        || "set_valve(1, open)".to_owned(),
-        board.set_valve(ValveId(1), true),
-    )?;
+    set_valve(CHECK, board, ValveId(1), true)?;
     sample(board)?;
-    wait_for(
-        CHECK,
-        config,
-        board,
-        "valve 1 open",
-        |_, s| s != ValveState::Stuck,
-        |states| states.get(ValveId(1)) == Some(ValveState::Open),
-    )?;
+    wait_open(CHECK, config, board, ValveId(1))?;
     sample(board)
 }
 
@@ -339,33 +338,10 @@ fn check_close_all_mixed<B: ValveBoard>(
 ) -> Result<(), ConformanceError> {
     const CHECK: &str = "close_all_from_mixed_states";
     close_all_and_settle(CHECK, config, board)?;
-    call(
-        CHECK,
-        || "set_valve(1, open)".to_owned(),
-        board.set_valve(ValveId(1), true),
-    )?;
-    wait_for(
-        CHECK,
-        config,
-        board,
-        "valve 1 open",
-        |_, s| s != ValveState::Stuck,
-        |states| states.get(ValveId(1)) == Some(ValveState::Open),
-    )?;
-    call(
-        CHECK,
-        || "set_valve(4, open)".to_owned(),
-        board.set_valve(ValveId(4), true),
-    )?;
+    set_valve(CHECK, board, ValveId(1), true)?;
+    wait_open(CHECK, config, board, ValveId(1))?;
+    set_valve(CHECK, board, ValveId(4), true)?;
+    // Two `close_all` in a row: this one and the one that settles.
     call(CHECK, || "close_all()".to_owned(), board.close_all())?;
-    call(CHECK, || "close_all()".to_owned(), board.close_all())?;
-    wait_for(
-        CHECK,
-        config,
-        board,
-        "all valves closed",
-        |_, s| s != ValveState::Stuck,
-        all_closed,
-    )?;
-    Ok(())
+    close_all_and_settle(CHECK, config, board)
 }

@@ -4,7 +4,9 @@
 //! `harvest arm` process that runs [`node::ArmNode`] over the channels at 200 Hz.
 
 pub mod clearance;
+pub mod control_loop;
 pub mod controller;
+pub mod failure_streak;
 pub mod harvest_events;
 pub mod joint;
 pub mod kinematics;

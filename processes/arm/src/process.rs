@@ -16,16 +16,15 @@
 //! Until the servos report encoder feedback for the first time the arm is not ready: nothing
 //! is stepped or published.
 //!
-//! The loop measures its own tick-to-tick intervals ([`PeriodStats`]): the p99 goes out with
-//! every heartbeat (`period_p99_us`), the full distribution is logged at shutdown. On SIGTERM
-//! the arm brakes and asks for its valve to be closed before exiting.
+//! The loop measures its own tick-to-tick intervals ([`run_control_loop`]): the p99 goes out
+//! with every heartbeat (`period_p99_us`), the full distribution is logged at shutdown. On
+//! SIGTERM the arm brakes and asks for its valve to be closed before exiting.
 //!
 //! The device implementation is chosen in one place, [`run`] (`--device sim`: the simulated
 //! servos behind `hw/armN/servo|encoders`), together with its timing profile
 //! ([`ArmDevice::node_config`]).
 
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 use harvest_hw::arm_servos::ArmServos;
 use harvest_hw::arm_servos::sim::SimArmServos;
@@ -35,21 +34,21 @@ use harvest_ipc::catalogue::{
 };
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
 use harvest_ipc::payloads::{
-    ArmPhase as PhaseCode, ArmState, ArmTarget, HarvestEventKind, ProcessRunState, VacuumState,
-    ValveGrant, ValveRequest,
+    ArmPhase as PhaseCode, ArmState, ArmTarget, HarvestEventKind, VacuumState, ValveGrant,
+    ValveRequest,
 };
-use harvest_ipc::{
-    Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
-};
+use harvest_ipc::{Context, Domain, Flow, HealthReporter, MonotonicClock};
 use serde::Deserialize;
 
+use crate::control_loop::{Wake, run_control_loop};
+use crate::failure_streak::FailureStreak;
 use crate::harvest_events::ArmEventReporter;
 use crate::node::{
     ArmNode, ArmNodeConfig, ArmNodeError, ArmNodeInput, EncoderSample, OtherArmInput, ServoOrder,
     arm_number,
 };
 use crate::params::{ArmId, ArmParams};
-use crate::period_stats::{PeriodStats, PeriodStatsError, PeriodSummary};
+use crate::period_stats::{PeriodStatsError, PeriodSummary};
 
 /// Which servo device drives the arm (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -261,28 +260,21 @@ fn control_loop<S: ArmServos>(
 
     let period_ns = config.control_period_us * 1000;
     let resend_ns = config.valve_request_resend_ms * 1_000_000;
-    let mut period = PeriodStats::new(period_ns)?;
-    let waiter = Waiter::new()?;
-    let tick = waiter.attach_interval(Duration::from_nanos(period_ns))?;
-    let heartbeat = waiter.attach_interval(HEARTBEAT_PERIOD)?;
 
     let mut inputs = Inputs::default();
     let mut last_request: Option<(ValveRequest, u64)> = None;
-    let mut device_errors = 0u32;
-    let mut device_errors_total = 0u64;
+    let mut device_errors = FailureStreak::new(MAX_CONSECUTIVE_DEVICE_ERRORS);
     let mut ticks = 0u64;
     tracing::info!(arm = %arm, period_us = config.control_period_us, "arm control loop running");
-    waiter
-        .run(|attachment| -> Result<Flow, ArmProcessError> {
-            if attachment.has_event_from(&tick) {
-                let now_ns = MonotonicClock::read_ns();
-                period.tick(now_ns);
+    let summary = run_control_loop(period_ns, |wake| -> Result<Flow, ArmProcessError> {
+        match wake {
+            Wake::Tick { now_ns } => {
                 ticks += 1;
 
                 // 1. Encoders.
                 let feedback = match servos.feedback() {
                     Ok(sample) => {
-                        device_errors = 0;
+                        device_errors.succeeded();
                         sample.map(|f| EncoderSample {
                             capture_ns: f.capture_ns,
                             position: f.position,
@@ -290,15 +282,10 @@ fn control_loop<S: ArmServos>(
                         })
                     }
                     Err(error) => {
-                        device_errors += 1;
-                        device_errors_total += 1;
-                        if device_errors == 1 {
-                            tracing::warn!(%error, "encoder read failed");
-                        }
-                        if device_errors >= MAX_CONSECUTIVE_DEVICE_ERRORS {
+                        if let Some(failures) = device_errors.failed("encoder read", &error) {
                             return Err(ArmProcessError::Device {
                                 arm: number,
-                                message: format!("{device_errors} encoder reads failed: {error}"),
+                                message: format!("{failures} encoder reads failed: {error}"),
                             });
                         }
                         None
@@ -408,18 +395,13 @@ fn control_loop<S: ArmServos>(
                     last_request = Some((request, now_ns));
                 }
             }
-            if attachment.has_event_from(&heartbeat) {
-                let summary = period.summary();
-                let state = if device_errors > 0 {
-                    ProcessRunState::Degraded
-                } else {
-                    ProcessRunState::Running
-                };
-                health.report(state, ticks, "period_p99_us", summary.p99_ns / 1000)?;
+            Wake::Heartbeat { period } => {
+                let state = device_errors.run_state();
+                health.report(state, ticks, "period_p99_us", period.p99_ns / 1000)?;
             }
-            Ok(Flow::Continue)
-        })
-        .map_err(harvest_ipc::RunError::flatten)?;
+        }
+        Ok(Flow::Continue)
+    })?;
 
     // Leave the arm braked with its valve closed.
     if let Err(error) = servos.hold() {
@@ -436,11 +418,10 @@ fn control_loop<S: ArmServos>(
         request_seq: last_request.map_or(0, |(r, _)| r.request_seq.wrapping_add(1)),
     };
     request_out.publish(&close)?;
-    let summary = period.summary();
     tracing::info!(
         arm = %arm,
         harvested = node.harvested_count(),
-        device_errors = device_errors_total,
+        device_errors = device_errors.total(),
         p50_us = summary.p50_ns / 1000,
         p99_us = summary.p99_ns / 1000,
         max_us = summary.max_ns / 1000,

@@ -32,67 +32,29 @@ macro_rules! with_payload_type {
     ($case:expr, $t:ident => $body:expr) => {{
         use $crate::bench_payload::{BENCH_PAYLOAD_OVERHEAD as O, BenchPayload as P};
         use $crate::payload_case::PayloadCase as C;
+        // One arm per case: `$t` is bound to the case's type, then `$body` runs.
+        macro_rules! with_type {
+            ($ty:ty) => {{
+                type $t = $ty;
+                $body
+            }};
+        }
         match $case {
-            C::Bytes64 => {
-                type $t = P<{ 64 - O }>;
-                $body
-            }
-            C::Bytes256 => {
-                type $t = P<{ 256 - O }>;
-                $body
-            }
-            C::KiB1 => {
-                type $t = P<{ 1024 - O }>;
-                $body
-            }
-            C::KiB4 => {
-                type $t = P<{ 4 * 1024 - O }>;
-                $body
-            }
-            C::KiB16 => {
-                type $t = P<{ 16 * 1024 - O }>;
-                $body
-            }
-            C::KiB64 => {
-                type $t = P<{ 64 * 1024 - O }>;
-                $body
-            }
-            C::KiB256 => {
-                type $t = P<{ 256 * 1024 - O }>;
-                $body
-            }
-            C::MiB1 => {
-                type $t = P<{ (1 << 20) - O }>;
-                $body
-            }
-            C::MiB2 => {
-                type $t = P<{ (2 << 20) - O }>;
-                $body
-            }
-            C::MiB4 => {
-                type $t = P<{ (4 << 20) - O }>;
-                $body
-            }
-            C::MiB8 => {
-                type $t = P<{ (8 << 20) - O }>;
-                $body
-            }
-            C::MiB16 => {
-                type $t = P<{ (16 << 20) - O }>;
-                $body
-            }
-            C::ScanRequest => {
-                type $t = harvest_ipc::payloads::LaserScanRequest;
-                $body
-            }
-            C::Detections => {
-                type $t = harvest_ipc::payloads::AppleDetections;
-                $body
-            }
-            C::Rgbd => {
-                type $t = harvest_ipc::payloads::RgbdFrame;
-                $body
-            }
+            C::Bytes64 => with_type!(P<{ 64 - O }>),
+            C::Bytes256 => with_type!(P<{ 256 - O }>),
+            C::KiB1 => with_type!(P<{ 1024 - O }>),
+            C::KiB4 => with_type!(P<{ 4 * 1024 - O }>),
+            C::KiB16 => with_type!(P<{ 16 * 1024 - O }>),
+            C::KiB64 => with_type!(P<{ 64 * 1024 - O }>),
+            C::KiB256 => with_type!(P<{ 256 * 1024 - O }>),
+            C::MiB1 => with_type!(P<{ (1 << 20) - O }>),
+            C::MiB2 => with_type!(P<{ (2 << 20) - O }>),
+            C::MiB4 => with_type!(P<{ (4 << 20) - O }>),
+            C::MiB8 => with_type!(P<{ (8 << 20) - O }>),
+            C::MiB16 => with_type!(P<{ (16 << 20) - O }>),
+            C::ScanRequest => with_type!(harvest_ipc::payloads::LaserScanRequest),
+            C::Detections => with_type!(harvest_ipc::payloads::AppleDetections),
+            C::Rgbd => with_type!(harvest_ipc::payloads::RgbdFrame),
         }
     }};
 }

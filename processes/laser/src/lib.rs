@@ -19,6 +19,7 @@ pub mod observed_unit;
 pub mod policy_eval;
 pub mod process;
 pub mod refinement;
+pub mod report_table;
 pub mod scan;
 pub mod selection;
 pub mod service;

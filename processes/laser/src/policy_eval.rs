@@ -6,10 +6,10 @@
 //! perception's pipeline localizes the apples; [`LaserRefiner`] (the code the perception
 //! process runs) follows them over frames, queues scan requests for the apples its policy picks
 //! and publishes refined positions for the apples whose scan has finished. The scanner takes one
-//! request at a time: the scan is computed at once by [`ScanService`] on the simulator's ALACS
-//! device, but its answer reaches perception only after the scan's modelled duration (slide
-//! travel, settling, capture and measured processing; see [`crate::refinement`]), so the frame
-//! loop never waits for it.
+//! request at a time: the scan is computed at once by
+//! [`ScanService`](crate::service::ScanService) on the simulator's ALACS device, but its answer
+//! reaches perception only after the scan's modelled duration (slide travel, settling, capture
+//! and measured processing; see [`crate::refinement`]), so the frame loop never waits for it.
 //!
 //! At the last frame of each world, the published apples are paired with the true apples
 //! (within 2 true radii, one to one). Reported: the 3D error of the ToF estimate and of the
@@ -18,21 +18,19 @@
 
 use std::fmt::Write as _;
 
-use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, alacs_camera_intrinsics};
 use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
 use harvest_perception::PerceptionConfig;
 use harvest_perception::config_file::read_config;
 use harvest_perception::laser_refiner::{LaserRefiner, ScanResultOutcome, TrackedApple};
 use harvest_perception::scan_policy::LaserScanConfig;
-use harvest_sim::World;
-use harvest_sim::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer, LocalAlacsUnit};
 use harvest_sim::process::load_scenario;
 use serde::Serialize;
 
 use crate::refinement::{
-    EvalLaserArgs, EvalLaserError, Summary, TofPath, check_args, distance, pair_with_truth,
+    EvalLaserArgs, EvalLaserError, Summary, TofPath, check_args, distance, generate_worlds,
+    pair_with_truth, simulated_alacs,
 };
-use crate::service::ScanService;
+use crate::report_table::write_summary_table;
 
 /// The evaluation's result.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -107,27 +105,8 @@ pub fn evaluate_policy(args: &EvalLaserArgs) -> Result<PolicyReport, EvalLaserEr
     let color = tof.perception.cameras().color;
     let color_focal_px = 0.5 * (color.fx_px + color.fy_px);
     let robot_from_color = tof.robot_from_color;
-    let mut service = ScanService::new(
-        AlacsDeviceConfig::default().extrinsics,
-        alacs_camera_intrinsics(),
-        ALACS_FROM_TOF_CAMERA,
-    )?;
-    let server = AlacsDeviceServer::new(AlacsDeviceConfig::default())?;
-    let worlds = (0..u64::from(args.worlds))
-        .map(|k| {
-            let seed = args.seed + k;
-            World::generate(&scenario, seed)
-                .map_err(|source| EvalLaserError::World { seed, source })
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let Some(first_world) = worlds.first() else {
-        return Err(EvalLaserError::InvalidArgument {
-            name: "worlds",
-            value: "0".into(),
-            reason: "at least one world is needed",
-        });
-    };
-    let mut unit = LocalAlacsUnit::new(server, first_world);
+    let worlds = generate_worlds(&scenario, args)?;
+    let (mut service, mut unit) = simulated_alacs(&worlds)?;
     let frame_ns = (args.frame_interval_ms * 1e6) as u64;
     let frames = ((args.duration_s * 1e9) as u64 / frame_ns.max(1)).max(1);
 
@@ -291,12 +270,6 @@ fn count_waiting(
 /// The report as readable text.
 pub fn render_policy_report(report: &PolicyReport) -> String {
     let mut out = String::new();
-    let line = |s: &Summary| {
-        format!(
-            "{:>4} {:>8.2} {:>8.2} {:>8.2} {:>8.2}",
-            s.count, s.mean, s.median, s.p95, s.max
-        )
-    };
     let p = &report.policy;
     // Writing into a String cannot fail.
     let _ = writeln!(
@@ -339,49 +312,45 @@ pub fn render_policy_report(report: &PolicyReport) -> String {
         report.scans_unanswered_at_end,
         report.waiting_at_end,
     );
-    let _ = writeln!(
-        out,
-        "3D error at each world's last frame, mm            n     mean   median      p95      max"
+    write_summary_table(
+        &mut out,
+        "3D error at each world's last frame, mm            ",
+        &[
+            (
+                "laser-refined apples: ToF estimate            ",
+                &report.refined_tof_error_mm,
+            ),
+            (
+                "laser-refined apples: published (laser)       ",
+                &report.refined_published_error_mm,
+            ),
+            (
+                "all published apples: ToF only                ",
+                &report.all_tof_error_mm,
+            ),
+            (
+                "all published apples: with the scans          ",
+                &report.all_published_error_mm,
+            ),
+        ],
     );
-    let rows = [
-        (
-            "laser-refined apples: ToF estimate      ",
-            &report.refined_tof_error_mm,
-        ),
-        (
-            "laser-refined apples: published (laser) ",
-            &report.refined_published_error_mm,
-        ),
-        (
-            "all published apples: ToF only          ",
-            &report.all_tof_error_mm,
-        ),
-        (
-            "all published apples: with the scans    ",
-            &report.all_published_error_mm,
-        ),
-    ];
-    for (name, summary) in rows {
-        let _ = writeln!(out, "{name}      {}", line(summary));
-    }
-    let _ = writeln!(
-        out,
-        "\nCost                                               n     mean   median      p95      max"
-    );
-    let _ = writeln!(
-        out,
-        "scanner busy per world, s                     {}",
-        line(&report.scanner_busy_s)
-    );
-    let _ = writeln!(
-        out,
-        "one scan that ran the slide (modelled), ms    {}",
-        line(&report.scan_ms)
-    );
-    let _ = writeln!(
-        out,
-        "refiner per frame (perception CPU), us        {}",
-        line(&report.refiner_update_us)
+    write_summary_table(
+        &mut out,
+        "\nCost                                               ",
+        &[
+            (
+                "scanner busy per world, s                     ",
+                &report.scanner_busy_s,
+            ),
+            (
+                "one scan that ran the slide (modelled), ms    ",
+                &report.scan_ms,
+            ),
+            (
+                "refiner per frame (perception CPU), us        ",
+                &report.refiner_update_us,
+            ),
+        ],
     );
     out
 }

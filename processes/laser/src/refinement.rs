@@ -39,6 +39,8 @@ use harvest_sim::process::load_scenario;
 use harvest_sim::{AppleState, RenderError, RgbdRenderer, Scenario, ScenarioError, World};
 use serde::Serialize;
 
+use crate::report_table::write_summary_table;
+
 use crate::accuracy::PAPER_MAX_ERROR_MM;
 use crate::extraction::ExtractionError;
 use crate::service::{
@@ -198,6 +200,15 @@ impl Summary {
             max: values[values.len() - 1],
         }
     }
+
+    /// The five columns of a report table row (`n mean median p95 max`, see
+    /// [`crate::report_table`]).
+    pub fn columns(&self) -> String {
+        format!(
+            "{:>4} {:>8.2} {:>8.2} {:>8.2} {:>8.2}",
+            self.count, self.mean, self.median, self.p95, self.max
+        )
+    }
 }
 
 /// The evaluation's result.
@@ -273,27 +284,25 @@ fn write_json(args: &EvalLaserArgs, report: &impl Serialize) -> Result<(), EvalL
     Ok(())
 }
 
-/// Runs the evaluation (prints nothing).
-pub fn evaluate_refinement(args: &EvalLaserArgs) -> Result<RefinementReport, EvalLaserError> {
-    check_args(args)?;
-    let scenario = load_scenario(&args.scenario).map_err(|source| EvalLaserError::Scenario {
-        scenario: args.scenario.clone(),
-        source: Box::new(source),
-    })?;
-    let worlds = (0..u64::from(args.worlds))
+/// The run's worlds, one per seed from `args.seed` on.
+pub(crate) fn generate_worlds(
+    scenario: &Scenario,
+    args: &EvalLaserArgs,
+) -> Result<Vec<World>, EvalLaserError> {
+    (0..u64::from(args.worlds))
         .map(|k| {
             let seed = args.seed + k;
-            World::generate(&scenario, seed)
-                .map_err(|source| EvalLaserError::World { seed, source })
+            World::generate(scenario, seed).map_err(|source| EvalLaserError::World { seed, source })
         })
-        .collect::<Result<Vec<_>, _>>()?;
-    let timing = TimingModel {
-        slide_speed_m_s: args.slide_speed_m_s,
-        settle_ms: args.settle_ms,
-        capture_ms: args.capture_ms,
-    };
-    let mut tof = TofPath::new(&scenario, args.estimator)?;
-    let mut service = ScanService::new(
+        .collect()
+}
+
+/// The scan service and a simulated ALACS unit (default device settings) showing the first of
+/// `worlds`.
+pub(crate) fn simulated_alacs(
+    worlds: &[World],
+) -> Result<(ScanService, LocalAlacsUnit<'_>), EvalLaserError> {
+    let service = ScanService::new(
         AlacsDeviceConfig::default().extrinsics,
         alacs_camera_intrinsics(),
         ALACS_FROM_TOF_CAMERA,
@@ -306,7 +315,24 @@ pub fn evaluate_refinement(args: &EvalLaserArgs) -> Result<RefinementReport, Eva
             reason: "at least one world is needed",
         });
     };
-    let mut unit = LocalAlacsUnit::new(server, first_world);
+    Ok((service, LocalAlacsUnit::new(server, first_world)))
+}
+
+/// Runs the evaluation (prints nothing).
+pub fn evaluate_refinement(args: &EvalLaserArgs) -> Result<RefinementReport, EvalLaserError> {
+    check_args(args)?;
+    let scenario = load_scenario(&args.scenario).map_err(|source| EvalLaserError::Scenario {
+        scenario: args.scenario.clone(),
+        source: Box::new(source),
+    })?;
+    let worlds = generate_worlds(&scenario, args)?;
+    let timing = TimingModel {
+        slide_speed_m_s: args.slide_speed_m_s,
+        settle_ms: args.settle_ms,
+        capture_ms: args.capture_ms,
+    };
+    let mut tof = TofPath::new(&scenario, args.estimator)?;
+    let (mut service, mut unit) = simulated_alacs(&worlds)?;
     let mut records = Vec::new();
     let mut apples_generated = 0;
     for (frame_seq, world) in worlds.iter().enumerate() {
@@ -614,12 +640,6 @@ fn summarise(
 pub fn render_report(report: &RefinementReport) -> String {
     let mut out = String::new();
     let t = &report.timing;
-    let line = |s: &Summary| {
-        format!(
-            "{:>4} {:>8.2} {:>8.2} {:>8.2} {:>8.2}",
-            s.count, s.mean, s.median, s.p95, s.max
-        )
-    };
     // Writing into a String cannot fail.
     let _ = writeln!(
         out,
@@ -638,39 +658,26 @@ pub fn render_report(report: &RefinementReport) -> String {
         report.out_of_reach,
         report.device_errors,
     );
-    let _ = writeln!(
-        out,
-        "3D error, mm                       n     mean   median      p95      max"
-    );
-    let _ = writeln!(
-        out,
-        "ToF, all paired apples        {}",
-        line(&report.tof_error_all_mm)
-    );
-    let _ = writeln!(
-        out,
-        "ToF, refined apples           {}",
-        line(&report.tof_error_mm)
-    );
-    let _ = writeln!(
-        out,
-        "laser answer, refined apples  {}",
-        line(&report.laser_error_mm)
-    );
-    let _ = writeln!(
-        out,
-        "  fused sphere (>= 3 circles) {}",
-        line(&report.laser_error_fused_mm)
-    );
-    let _ = writeln!(
-        out,
-        "  fewer circles: candidate   {}",
-        line(&report.laser_error_unfused_mm)
-    );
-    let _ = writeln!(
-        out,
-        "selected candidate, all      {}",
-        line(&report.selected_candidate_error_mm)
+    write_summary_table(
+        &mut out,
+        "3D error, mm                       ",
+        &[
+            ("ToF, all paired apples        ", &report.tof_error_all_mm),
+            ("ToF, refined apples           ", &report.tof_error_mm),
+            ("laser answer, refined apples  ", &report.laser_error_mm),
+            (
+                "  fused sphere (>= 3 circles) ",
+                &report.laser_error_fused_mm,
+            ),
+            (
+                "  fewer circles: candidate   ",
+                &report.laser_error_unfused_mm,
+            ),
+            (
+                "selected candidate, all      ",
+                &report.selected_candidate_error_mm,
+            ),
+        ],
     );
     let _ = writeln!(
         out,
@@ -678,8 +685,8 @@ pub fn render_report(report: &RefinementReport) -> String {
          scan's fused sphere {}.",
         report.fused,
         report.refined,
-        line(&report.tof_radius_error_mm),
-        line(&report.fused_radius_error_mm),
+        report.tof_radius_error_mm.columns(),
+        report.fused_radius_error_mm.columns(),
     );
     let axes = |a: [f64; 3]| format!("{:.2} / {:.2} / {:.2}", a[0], a[1], a[2]);
     let _ = writeln!(
@@ -700,29 +707,15 @@ pub fn render_report(report: &RefinementReport) -> String {
          processing.",
         t.slide_speed_m_s, t.settle_ms, t.capture_ms
     );
-    let _ = writeln!(
-        out,
-        "per scan                           n     mean   median      p95      max"
-    );
-    let _ = writeln!(
-        out,
-        "modelled scan time, ms        {}",
-        line(&report.modelled_scan_ms)
-    );
-    let _ = writeln!(
-        out,
-        "  of which processing, ms     {}",
-        line(&report.processing_ms)
-    );
-    let _ = writeln!(
-        out,
-        "slide travel, mm              {}",
-        line(&report.slide_travel_mm)
-    );
-    let _ = writeln!(
-        out,
-        "simulator render (not robot)  {}",
-        line(&report.simulator_ms)
+    write_summary_table(
+        &mut out,
+        "per scan                           ",
+        &[
+            ("modelled scan time, ms        ", &report.modelled_scan_ms),
+            ("  of which processing, ms     ", &report.processing_ms),
+            ("slide travel, mm              ", &report.slide_travel_mm),
+            ("simulator render (not robot)  ", &report.simulator_ms),
+        ],
     );
     out
 }

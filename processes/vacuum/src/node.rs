@@ -647,20 +647,13 @@ impl VacuumNode {
             }
         }
         self.last_set_capture_ns = set.source_capture_ns;
-        let enabled = self.config.arms_enabled;
-        let last_set = &self.last_set;
-        let reachable = &self.reachable;
-        let avoid = self.avoided(now_ns);
-        let r2 = self.config.planner.match_radius_m.powi(2);
-        let result = self.planner.replan(&self.scratch_positions, |arm, p| {
-            let radius = last_set
-                .iter()
-                .find(|(q, _)| q == p)
-                .map_or(FALLBACK_RADIUS_M, |(_, r)| *r);
-            enabled[arm.index()]
-                && reachable(arm, p, radius)
-                && !avoid[arm.index()].is_some_and(|q| squared_distance(&q, p) <= r2)
-        });
+        let assignable = assignable(
+            &self.config,
+            &self.last_set,
+            &self.reachable,
+            self.avoided(now_ns),
+        );
+        let result = self.planner.replan(&self.scratch_positions, assignable);
         match result {
             Ok(mut summary) => {
                 summary.held = held;
@@ -872,10 +865,7 @@ impl VacuumNode {
 
     /// The radius of the detection at `position_m` in the last set.
     fn radius_of(&self, position_m: &[f64; 3]) -> f64 {
-        self.last_set
-            .iter()
-            .find(|(p, _)| p == position_m)
-            .map_or(FALLBACK_RADIUS_M, |(_, r)| *r)
+        radius_in(&self.last_set, position_m)
     }
 
     /// True when `position_m` lies on the give-up list.
@@ -1144,11 +1134,7 @@ impl VacuumNode {
                     let Some(apple) = self.planner.start_next(arm) else {
                         continue;
                     };
-                    let radius_m = self
-                        .last_set
-                        .iter()
-                        .find(|(p, _)| *p == apple.position_m)
-                        .map_or(FALLBACK_RADIUS_M, |(_, r)| *r);
+                    let radius_m = self.radius_of(&apple.position_m);
                     self.target_seq += 1;
                     let target = ArmTarget {
                         header: Header {
@@ -1196,20 +1182,13 @@ impl VacuumNode {
     /// Gives the free `arm` its share of the apples queued for the other arm at once (see
     /// [`AssignmentPlanner::rebalance_for`]) instead of at the next detection set.
     fn rebalance_for(&mut self, arm: ArmId, now_ns: u64) {
-        let enabled = self.config.arms_enabled;
-        let last_set = &self.last_set;
-        let reachable = &self.reachable;
-        let avoid = self.avoided(now_ns);
-        let r2 = self.config.planner.match_radius_m.powi(2);
-        let result = self.planner.rebalance_for(arm, |arm, p| {
-            let radius = last_set
-                .iter()
-                .find(|(q, _)| q == p)
-                .map_or(FALLBACK_RADIUS_M, |(_, r)| *r);
-            enabled[arm.index()]
-                && reachable(arm, p, radius)
-                && !avoid[arm.index()].is_some_and(|q| squared_distance(&q, p) <= r2)
-        });
+        let assignable = assignable(
+            &self.config,
+            &self.last_set,
+            &self.reachable,
+            self.avoided(now_ns),
+        );
+        let result = self.planner.rebalance_for(arm, assignable);
         match result {
             Ok(true) => debug!(%arm, queued = self.planner.queue(arm).len(), "queues rebalanced"),
             Ok(false) => {}
@@ -1257,6 +1236,33 @@ fn holding_cup_m(state: &ArmState) -> Option<[f64; 3]> {
         );
     let cup = state.end_effector_in_robot_m;
     (carrying && cup.iter().all(|c| c.is_finite())).then_some(cup)
+}
+
+/// The assignment's test whether `arm` may be given the apple at `p`: the arm takes part, it
+/// reaches the apple (with the apple's radius in the last detection set), and it is not backing
+/// off from that spot (`avoid`: per arm, see [`VacuumNode::avoided`]).
+fn assignable<'a>(
+    config: &VacuumNodeConfig,
+    last_set: &'a [([f64; 3], f64)],
+    reachable: &'a Reachability,
+    avoid: [Option<[f64; 3]>; 2],
+) -> impl Fn(ArmId, &[f64; 3]) -> bool + 'a {
+    let enabled = config.arms_enabled;
+    let r2 = config.planner.match_radius_m.powi(2);
+    move |arm, p| {
+        enabled[arm.index()]
+            && reachable(arm, p, radius_in(last_set, p))
+            && !avoid[arm.index()].is_some_and(|q| squared_distance(&q, p) <= r2)
+    }
+}
+
+/// The radius of the detection at `position_m` in `last_set` (a detection set's positions and
+/// radii); [`FALLBACK_RADIUS_M`] when it is not there.
+fn radius_in(last_set: &[([f64; 3], f64)], position_m: &[f64; 3]) -> f64 {
+    last_set
+        .iter()
+        .find(|(p, _)| p == position_m)
+        .map_or(FALLBACK_RADIUS_M, |(_, r)| *r)
 }
 
 fn squared_distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {

@@ -26,9 +26,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use harvest_arm::control_loop::{Wake, run_control_loop};
+use harvest_arm::failure_streak::FailureStreak;
 use harvest_arm::node::{ArmNodeConfig, pick_reachable};
 use harvest_arm::params::ArmId as ArmNumber;
-use harvest_arm::period_stats::{PeriodStats, PeriodStatsError, PeriodSummary};
+use harvest_arm::period_stats::{PeriodStatsError, PeriodSummary};
 use harvest_arm::process::ArmDevice;
 use harvest_hw::valve_board::serial::{SerialBoardConfig, SerialValveBoard};
 use harvest_hw::valve_board::sim::SimValveBoard;
@@ -40,11 +42,9 @@ use harvest_ipc::catalogue::{
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
 use harvest_ipc::payloads::{
     ArmPhase as PhaseCode, ArmState, HarvestEvent, HarvestEventKind, HarvestEventSource,
-    ProcessRunState, ValveRequest,
+    ValveRequest,
 };
-use harvest_ipc::{
-    Context, Domain, FixedString, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
-};
+use harvest_ipc::{Context, Domain, FixedString, Flow, HealthReporter};
 use serde::Deserialize;
 
 use crate::arm_id::ArmId;
@@ -336,44 +336,31 @@ fn control_loop<B: ValveBoard>(
 
     let period_ns = config.control_period_us * 1000;
     let complete_after_ns = config.complete_after_ms * 1_000_000;
-    let mut period = PeriodStats::new(period_ns)?;
-    let waiter = Waiter::new()?;
-    let tick = waiter.attach_interval(Duration::from_nanos(period_ns))?;
-    let heartbeat = waiter.attach_interval(HEARTBEAT_PERIOD)?;
 
     let mut arm_states: [Option<ArmState>; 2] = [None; 2];
     let mut requests: [Option<ValveRequest>; 2] = [None; 2];
     let mut estop = false;
     // The position last sent to the board per valve; unknown until the first command.
     let mut applied: [Option<bool>; 4] = [None; 4];
-    let mut device_errors = 0u32;
-    let mut device_errors_total = 0u64;
+    let mut device_errors = FailureStreak::new(MAX_CONSECUTIVE_DEVICE_ERRORS);
     let mut sets = 0u64;
     let mut completion = CompletionWatch::default();
     let enabled = [true, args.arms >= 2];
     tracing::info!(policy = ?args.policy, arms = args.arms, period_us = config.control_period_us,
         "vacuum supervisor running");
-    waiter
-        .run(|attachment| -> Result<Flow, VacuumProcessError> {
-            if attachment.has_event_from(&tick) {
-                let now_ns = MonotonicClock::read_ns();
-                period.tick(now_ns);
-
+    let summary = run_control_loop(period_ns, |wake| -> Result<Flow, VacuumProcessError> {
+        match wake {
+            Wake::Tick { now_ns } => {
                 // 1. The board.
                 let readings = match read_board(&mut board, now_ns) {
                     Ok(readings) => {
-                        device_errors = 0;
+                        device_errors.succeeded();
                         Some(readings)
                     }
                     Err(message) => {
-                        device_errors += 1;
-                        device_errors_total += 1;
-                        if device_errors == 1 {
-                            tracing::warn!(%message, "valve board read failed");
-                        }
-                        if device_errors >= MAX_CONSECUTIVE_DEVICE_ERRORS {
+                        if let Some(failures) = device_errors.failed("valve board read", &message) {
                             return Err(VacuumProcessError::Device(format!(
-                                "{device_errors} reads failed in a row: {message}"
+                                "{failures} reads failed in a row: {message}"
                             )));
                         }
                         None
@@ -475,27 +462,21 @@ fn control_loop<B: ValveBoard>(
                     events_out.publish(&event)?;
                 }
             }
-            if attachment.has_event_from(&heartbeat) {
-                let summary = period.summary();
-                let state = if device_errors > 0 {
-                    ProcessRunState::Degraded
-                } else {
-                    ProcessRunState::Running
-                };
-                health.report(state, sets, "period_p99_us", summary.p99_ns / 1000)?;
+            Wake::Heartbeat { period } => {
+                let state = device_errors.run_state();
+                health.report(state, sets, "period_p99_us", period.p99_ns / 1000)?;
             }
-            Ok(Flow::Continue)
-        })
-        .map_err(harvest_ipc::RunError::flatten)?;
+        }
+        Ok(Flow::Continue)
+    })?;
 
     // Leave every tube vented and cut off from the source.
     if let Err(error) = board.close_all() {
         tracing::warn!(%error, "final close_all failed");
     }
-    let summary = period.summary();
     tracing::info!(
         detection_sets = sets,
-        device_errors = device_errors_total,
+        device_errors = device_errors.total(),
         p50_us = summary.p50_ns / 1000,
         p99_us = summary.p99_ns / 1000,
         max_us = summary.max_ns / 1000,

@@ -259,17 +259,7 @@ impl SafetyMonitor {
         self.check_deadlines(stamp_ns);
         match *event {
             TraceEvent::ValveOpened { arm, .. } => {
-                if let Some((stop_ns, valve_reported, _)) = self.stop.as_mut()
-                    && !valve_reported[arm.index()]
-                {
-                    valve_reported[arm.index()] = true;
-                    self.violations
-                        .push(Violation::ValveOpenDuringEmergencyStop {
-                            arm,
-                            stop_ns: *stop_ns,
-                            stamp_ns,
-                        });
-                }
+                self.report_valve_open_during_stop(arm, stamp_ns);
                 let other = arm.other().index();
                 if self.open[other] && !self.sealed[other] {
                     self.violations
@@ -377,18 +367,12 @@ impl SafetyMonitor {
                 }
             }
         }
-        if let Some((stop_ns, valve_reported, _)) = self.stop.as_mut()
-            && now_ns > *stop_ns + period
+        if let Some((stop_ns, _, _)) = self.stop
+            && now_ns > stop_ns + period
         {
             for arm in ArmId::ALL {
-                if self.open[arm.index()] && !valve_reported[arm.index()] {
-                    valve_reported[arm.index()] = true;
-                    self.violations
-                        .push(Violation::ValveOpenDuringEmergencyStop {
-                            arm,
-                            stop_ns: *stop_ns,
-                            stamp_ns: now_ns,
-                        });
+                if self.open[arm.index()] {
+                    self.report_valve_open_during_stop(arm, now_ns);
                 }
             }
         }
@@ -401,6 +385,22 @@ impl SafetyMonitor {
                 noticed_ns: now_ns,
             });
             self.unsealed_pair_since = Some((since_ns, true));
+        }
+    }
+
+    /// While an emergency stop is engaged, `arm`'s valve open at `stamp_ns` is a violation,
+    /// reported once per arm and engagement.
+    fn report_valve_open_during_stop(&mut self, arm: ArmId, stamp_ns: u64) {
+        if let Some((stop_ns, valve_reported, _)) = self.stop.as_mut()
+            && !valve_reported[arm.index()]
+        {
+            valve_reported[arm.index()] = true;
+            self.violations
+                .push(Violation::ValveOpenDuringEmergencyStop {
+                    arm,
+                    stop_ns: *stop_ns,
+                    stamp_ns,
+                });
         }
     }
 
@@ -440,46 +440,41 @@ mod tests {
         check_trace(events, MonitorConfig::default()).expect("ordered")
     }
 
+    fn opened(stamp_ns: u64, arm: ArmId) -> TraceEvent {
+        ValveOpened { stamp_ns, arm }
+    }
+
+    fn closed(stamp_ns: u64, arm: ArmId) -> TraceEvent {
+        ValveClosed { stamp_ns, arm }
+    }
+
+    fn attachment(stamp_ns: u64, arm: ArmId, sealed: bool) -> TraceEvent {
+        AttachmentChanged {
+            stamp_ns,
+            arm,
+            sealed,
+        }
+    }
+
+    fn failure(stamp_ns: u64, arm: ArmId, kind: FailureKind) -> TraceEvent {
+        FailureDetected {
+            stamp_ns,
+            arm,
+            kind,
+        }
+    }
+
     #[test]
     fn attempt_beside_a_sealed_apple_is_fine_beside_an_unsealed_one_is_not() {
         let ok = [
-            ValveOpened {
-                stamp_ns: 0,
-                arm: A1,
-            },
-            AttachmentChanged {
-                stamp_ns: 50 * MS,
-                arm: A1,
-                sealed: true,
-            },
-            ValveOpened {
-                stamp_ns: 50 * MS,
-                arm: A2,
-            },
-            ValveClosed {
-                stamp_ns: 300 * MS,
-                arm: A2,
-            },
-            ValveClosed {
-                stamp_ns: 2000 * MS,
-                arm: A1,
-            },
+            opened(0, A1),
+            attachment(50 * MS, A1, true),
+            opened(50 * MS, A2),
+            closed(300 * MS, A2),
+            closed(2000 * MS, A1),
         ];
         assert_eq!(check(&ok), vec![]);
-        let bad = [
-            ValveOpened {
-                stamp_ns: 0,
-                arm: A1,
-            },
-            ValveOpened {
-                stamp_ns: 10 * MS,
-                arm: A2,
-            },
-            ValveClosed {
-                stamp_ns: 12 * MS,
-                arm: A2,
-            },
-        ];
+        let bad = [opened(0, A1), opened(10 * MS, A2), closed(12 * MS, A2)];
         assert_eq!(
             check(&bad),
             vec![Violation::OpenedBesideUnsealed {
@@ -492,47 +487,20 @@ mod tests {
     #[test]
     fn a_drop_beside_an_attempt_must_be_closed_within_the_period() {
         let base = [
-            ValveOpened {
-                stamp_ns: 0,
-                arm: A1,
-            },
-            AttachmentChanged {
-                stamp_ns: 50 * MS,
-                arm: A1,
-                sealed: true,
-            },
-            ValveOpened {
-                stamp_ns: 60 * MS,
-                arm: A2,
-            },
-            AttachmentChanged {
-                stamp_ns: 100 * MS,
-                arm: A1,
-                sealed: false,
-            },
-            FailureDetected {
-                stamp_ns: 100 * MS,
-                arm: A1,
-                kind: FailureKind::Dropped,
-            },
+            opened(0, A1),
+            attachment(50 * MS, A1, true),
+            opened(60 * MS, A2),
+            attachment(100 * MS, A1, false),
+            failure(100 * MS, A1, FailureKind::Dropped),
         ];
         // Closed exactly at the deadline: fine.
         let mut on_time = base.to_vec();
-        on_time.push(ValveClosed {
-            stamp_ns: 105 * MS,
-            arm: A1,
-        });
-        on_time.push(ValveClosed {
-            stamp_ns: 400 * MS,
-            arm: A2,
-        });
+        on_time.push(closed(105 * MS, A1));
+        on_time.push(closed(400 * MS, A2));
         assert_eq!(check(&on_time), vec![]);
         // One nanosecond late: both rules fire.
         let mut late = base.to_vec();
-        late.push(ValveClosed {
-            stamp_ns: 105 * MS + 1,
-            arm: A1,
-        });
+        late.push(closed(105 * MS + 1, A1));
         let v = check(&late);
         assert!(v.contains(&Violation::FailureNotClosed {
             arm: A1,
@@ -551,21 +519,10 @@ mod tests {
     fn failure_left_open_is_caught_at_finish_and_closed_valve_failures_are_ignored() {
         let mut m = SafetyMonitor::new(MonitorConfig::default());
         for e in [
-            ValveOpened {
-                stamp_ns: 0,
-                arm: A2,
-            },
-            FailureDetected {
-                stamp_ns: 250 * MS,
-                arm: A2,
-                kind: FailureKind::AttachFailed,
-            },
+            opened(0, A2),
+            failure(250 * MS, A2, FailureKind::AttachFailed),
             // A failure reported on an arm whose valve is closed needs nothing.
-            FailureDetected {
-                stamp_ns: 250 * MS,
-                arm: A1,
-                kind: FailureKind::Dropped,
-            },
+            failure(250 * MS, A1, FailureKind::Dropped),
         ] {
             m.observe(&e).expect("ordered");
         }
@@ -651,16 +608,10 @@ mod tests {
         let stop = |stamp_ns, engaged| EmergencyStop { stamp_ns, engaged };
         // Valve closed and last set-point within the period: fine.
         let ok = [
-            ValveOpened {
-                stamp_ns: 0,
-                arm: A1,
-            },
+            opened(0, A1),
             stop(100 * MS, true),
             joint(103 * MS, A1),
-            ValveClosed {
-                stamp_ns: 105 * MS,
-                arm: A1,
-            },
+            closed(105 * MS, A1),
             EndEffectors {
                 stamp_ns: 400 * MS,
                 arm1_in_robot_m: [1.0, 0.2, 0.0],
@@ -668,25 +619,16 @@ mod tests {
             },
             stop(500 * MS, false),
             joint(510 * MS, A2),
-            ValveOpened {
-                stamp_ns: 520 * MS,
-                arm: A2,
-            },
+            opened(520 * MS, A2),
         ];
         assert_eq!(check(&ok), vec![]);
         // Valve left open, a later set-point, and a valve opened while engaged.
         let bad = [
-            ValveOpened {
-                stamp_ns: 0,
-                arm: A1,
-            },
+            opened(0, A1),
             stop(100 * MS, true),
             joint(120 * MS, A2),
             joint(125 * MS, A2),
-            ValveOpened {
-                stamp_ns: 130 * MS,
-                arm: A2,
-            },
+            opened(130 * MS, A2),
         ];
         assert_eq!(
             check(&bad),
@@ -718,16 +660,9 @@ mod tests {
     #[test]
     fn out_of_order_events_are_refused() {
         let mut m = SafetyMonitor::new(MonitorConfig::default());
-        m.observe(&ValveOpened {
-            stamp_ns: 10,
-            arm: A1,
-        })
-        .expect("first");
+        m.observe(&opened(10, A1)).expect("first");
         assert_eq!(
-            m.observe(&ValveOpened {
-                stamp_ns: 5,
-                arm: A2
-            }),
+            m.observe(&opened(5, A2)),
             Err(TraceError::OutOfOrder {
                 stamp_ns: 5,
                 previous_ns: 10
