@@ -148,9 +148,11 @@ fn check_feedback<S: ArmServos>(
     )
 }
 
-/// Streams `target` until every joint is within tolerance; every sample must be approaching:
-/// never farther from the target than at the start (plus tolerance), never past it by more
-/// than the allowed overshoot. Returns the sample that reached it.
+/// Streams `target` until every joint has been within tolerance for `config.samples`
+/// consecutive samples; every sample must be approaching: never farther from the target than at
+/// the start (plus tolerance), never past it by more than the allowed overshoot. Watching past
+/// the first sample in tolerance catches a servo that runs through the target. Returns the last
+/// sample.
 fn stream_to<S: ArmServos>(
     check: &'static str,
     config: &ServoConformanceConfig,
@@ -159,6 +161,7 @@ fn stream_to<S: ArmServos>(
 ) -> Result<JointFeedback, ConformanceError> {
     let start = feedback(check, config, servos)?.position;
     let mut last_stamp_ns = 0;
+    let mut samples_in_tolerance = 0;
     poll_until(check, config.settle, "the set-point", || {
         call(
             check,
@@ -195,7 +198,8 @@ fn stream_to<S: ArmServos>(
             }
             reached &= error.abs() <= tolerance;
         }
-        Ok(if reached {
+        samples_in_tolerance = if reached { samples_in_tolerance + 1 } else { 0 };
+        Ok(if samples_in_tolerance >= config.samples.max(1) {
             Probe::Done(now)
         } else {
             Probe::Waiting(format!("at {:?}, target {target:?}", now.position))
@@ -335,7 +339,6 @@ fn check_hold<S: ArmServos>(
 mod tests {
     use super::*;
     use crate::error_kind::DeviceError;
-    use std::time::Instant;
 
     /// What a deliberately broken servo gets wrong.
     #[derive(Debug, Clone, Copy, PartialEq)]
@@ -362,20 +365,23 @@ mod tests {
         }
     }
 
-    /// First-order servos (time constant 20 ms) advanced by the host clock on every call.
+    /// First-order servos (time constant 20 ms) advanced by a fixed 1 ms on every call: on the
+    /// host clock a loaded machine could pause between two calls for longer than the whole move,
+    /// and a servo that ignores `hold` would then pass (or a correct one fail) the hold check.
     struct FirstOrderServos {
         limits: [[f64; 2]; JOINT_COUNT],
         position: [f64; JOINT_COUNT],
         velocity: [f64; JOINT_COUNT],
         goal: [f64; JOINT_COUNT],
         last_setpoint: [f64; JOINT_COUNT],
-        last_step: Instant,
         stamp_ns: u64,
         flaw: Flaw,
     }
 
     impl FirstOrderServos {
         const TAU_S: f64 = 0.02;
+        /// Simulated time per call.
+        const STEP_S: f64 = 0.001;
 
         fn new(limits: [[f64; 2]; JOINT_COUNT], flaw: Flaw) -> Self {
             Self {
@@ -384,23 +390,17 @@ mod tests {
                 velocity: [0.0; JOINT_COUNT],
                 goal: [0.0; JOINT_COUNT],
                 last_setpoint: [0.0; JOINT_COUNT],
-                last_step: Instant::now(),
                 stamp_ns: 0,
                 flaw,
             }
         }
 
         fn advance(&mut self) {
-            let dt_s = self.last_step.elapsed().as_secs_f64();
-            self.last_step = Instant::now();
+            let dt_s = Self::STEP_S;
             let decay = (-dt_s / Self::TAU_S).exp();
             for j in 0..JOINT_COUNT {
                 let next = self.goal[j] + (self.position[j] - self.goal[j]) * decay;
-                self.velocity[j] = if dt_s > 0.0 {
-                    (next - self.position[j]) / dt_s
-                } else {
-                    0.0
-                };
+                self.velocity[j] = (next - self.position[j]) / dt_s;
                 self.position[j] = next;
             }
             self.stamp_ns += 1_000;
