@@ -92,7 +92,7 @@ pub fn evaluate_policy(args: &EvalLaserArgs) -> Result<PolicyReport, EvalLaserEr
         })?,
         None => PerceptionConfig::default(),
     };
-    perception_config.estimator.kind = args.estimator.kind();
+    perception_config.estimator.kind = args.estimator;
     let policy = perception_config.laser;
     policy
         .validate()

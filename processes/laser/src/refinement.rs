@@ -31,8 +31,8 @@ use harvest_ipc::camera_model::RigidTransform;
 use harvest_ipc::payloads::rgbd_frame::{DEPTH_PIXELS, RGB_BYTES};
 use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
 use harvest_perception::camera_setup::CameraSetup;
+use harvest_perception::estimator::EstimatorKind;
 use harvest_perception::pipeline::PerceptionSetupError;
-use harvest_perception::process::EstimatorChoice;
 use harvest_perception::{AppleEstimate, DepthView, Perception, PerceptionConfig, RgbView};
 use harvest_sim::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer, LocalAlacsUnit};
 use harvest_sim::process::load_scenario;
@@ -64,7 +64,7 @@ pub struct EvalLaserArgs {
     pub worlds: u32,
     /// Perception estimator giving the ToF (rough) positions.
     #[arg(long, value_enum, default_value = "sphere-fit")]
-    pub estimator: EstimatorChoice,
+    pub estimator: EstimatorKind,
     /// Slide speed of the time model, m/s.
     #[arg(long, default_value_t = 0.1)]
     pub slide_speed_m_s: f64,
@@ -471,7 +471,7 @@ pub(crate) struct TofPath {
 impl TofPath {
     pub(crate) fn new(
         scenario: &Scenario,
-        estimator: EstimatorChoice,
+        estimator: EstimatorKind,
     ) -> Result<Self, EvalLaserError> {
         let renderer = RgbdRenderer::new(&scenario.camera)?;
         let robot_from_color = renderer.robot_from_color();
@@ -484,7 +484,7 @@ impl TofPath {
             robot_from_camera: robot_from_color,
         };
         let mut config = PerceptionConfig::default();
-        config.estimator.kind = estimator.kind();
+        config.estimator.kind = estimator;
         Ok(Self {
             perception: Perception::new(config, cameras)?,
             renderer,
@@ -573,7 +573,7 @@ fn summarise(
         scenario: args.scenario.clone(),
         first_seed: args.seed,
         worlds: args.worlds,
-        estimator: format!("{:?}", args.estimator),
+        estimator: args.estimator.name().to_owned(),
         timing,
         apples_generated,
         apples_paired: apples.len(),
@@ -747,7 +747,7 @@ mod tests {
             scenario: "default".into(),
             seed: 1,
             worlds: 1,
-            estimator: EstimatorChoice::SphereFit,
+            estimator: EstimatorKind::SphereFit,
             slide_speed_m_s: 0.1,
             settle_ms: 50.0,
             capture_ms: 40.0,

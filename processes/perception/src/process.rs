@@ -31,24 +31,6 @@ use harvest_ipc::{
 use harvest_lidar::ExtrinsicFile;
 use std::path::PathBuf;
 
-/// Localization estimator selectable on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum EstimatorChoice {
-    /// The paper's DBSCAN cluster-depth method.
-    ClusterDepth,
-    /// Robust sphere fit with an apple-radius prior (default).
-    SphereFit,
-}
-
-impl EstimatorChoice {
-    pub fn kind(self) -> EstimatorKind {
-        match self {
-            Self::ClusterDepth => EstimatorKind::ClusterDepth,
-            Self::SphereFit => EstimatorKind::SphereFit,
-        }
-    }
-}
-
 #[derive(Debug, Clone, clap::Args)]
 pub struct PerceptionArgs {
     /// Camera calibration (TOML); default: the simulated robot's camera mounting.
