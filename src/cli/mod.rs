@@ -96,8 +96,9 @@ enum Command {
 enum CalibrateCommand {
     /// ALACS laser-camera extrinsics (alpha, L0, beta): Algorithm 1 and the Table 1 comparison.
     Laser(harvest_laser::CalibrateLaserArgs),
-    /// LiDAR-camera extrinsic (target-based, eq. 3) from generated checkerboard scenes: the
-    /// Table I report (average and normalized reprojection error).
+    /// LiDAR-camera extrinsic (target-based, eq. 3) from generated checkerboard scenes or a
+    /// recorded data set (--data DIR): the Table I report (average and normalized reprojection
+    /// error).
     LidarCamera(harvest_lidar::CalibrateLidarCameraArgs),
 }
 

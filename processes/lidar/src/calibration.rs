@@ -13,8 +13,13 @@
 //! distance to the largest board distance, so near boards (large in the image, large errors in
 //! pixels) do not dominate. With generated scenes the error against the true extrinsic is
 //! reported too, and so is the image corner detector's error against the true projections.
+//!
+//! The views come from generated scenes ([`calibrate_scenes`]) or from a recorded data-set
+//! directory ([`calibrate_data_set`], format in [`crate::calibration_data`]); both feed the same
+//! [`calibrate`], so the solve, the outlier-view rejection and the report are one code path.
 
 use crate::board_image::BoardImageConfig;
+use crate::calibration_data::{CameraFile, DataSet, DataSetError, view_name, write_data_set};
 use crate::calibration_scenes::{CalibrationScenes, SceneConfig, SceneError, generate_scenes};
 use crate::checkerboard::Checkerboard;
 use crate::cloud_corners::{CornerError, detect_board_corners};
@@ -22,7 +27,7 @@ use crate::extrinsic_solver::{
     Correspondence, ExtrinsicSolution, SolveError, SolverConfig, residual, rotation_error_rad,
     solve_extrinsic, translation_error_m,
 };
-use crate::image_corners::ImageCornerError;
+use crate::image_corners::{ImageCornerConfig, ImageCornerError, detect_image_corners};
 use harvest_hw::lidar::LidarSpec;
 use harvest_hw::lidar::mounting::{CAD_CAMERA_FROM_LIDAR, simulated_camera_from_lidar};
 use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
@@ -34,6 +39,8 @@ use std::time::Instant;
 /// One view's inputs: the image corners and the LiDAR cloud of the board.
 #[derive(Debug, Clone, Copy)]
 pub struct ViewInput<'a> {
+    /// The view's name in warnings and the report (the data set's file stem, `00`, `01`, ...).
+    pub name: &'a str,
     /// The board's inner corners found in the image, or why they were not.
     pub image_corners_px: Result<&'a [[f64; 2]], &'a ImageCornerError>,
     pub cloud: &'a [LidarPoint],
@@ -42,7 +49,10 @@ pub struct ViewInput<'a> {
 /// What happened to one view.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ViewReport {
+    /// Position among the views given.
     pub index: usize,
+    /// The view's name (file stem).
+    pub name: String,
     /// Board distance from the LiDAR, metres (0 when the view was dropped).
     pub distance_m: f64,
     pub cloud_points: usize,
@@ -68,6 +78,8 @@ pub struct CalibrationReport {
     /// Errors against the true extrinsic (generated scenes only): `(initial, calibrated)`.
     pub rotation_error_deg: Option<(f64, f64)>,
     pub translation_error_mm: Option<(f64, f64)>,
+    /// The solve started from the CAD guess (else from a given extrinsic): report wording.
+    pub initial_is_cad: bool,
     pub elapsed_s: f64,
 }
 
@@ -154,6 +166,7 @@ pub fn calibrate(
     for (index, view) in views.iter().enumerate() {
         let mut report = ViewReport {
             index,
+            name: view.name.to_owned(),
             distance_m: 0.0,
             cloud_points: view.cloud.len(),
             mean_error_px: f64::NAN,
@@ -162,7 +175,7 @@ pub fn calibrate(
         let image_corners_px = match view.image_corners_px {
             Ok(corners) => corners,
             Err(error) => {
-                tracing::warn!(view = index, %error, "no board corners in the image");
+                tracing::warn!(view = view.name, %error, "no board corners in the image, dropped");
                 report.dropped = Some(error.to_string());
                 reports.push(report);
                 continue;
@@ -174,7 +187,7 @@ pub fn calibrate(
                 image_corners_px.len(),
                 board.corner_count()
             ));
-            tracing::warn!(view = index, reason = ?report.dropped, "view dropped");
+            tracing::warn!(view = view.name, reason = ?report.dropped, "view dropped");
             reports.push(report);
             continue;
         }
@@ -191,7 +204,7 @@ pub fn calibrate(
             }
             Err(error) => {
                 let error: CornerError = error;
-                tracing::warn!(view = index, %error, "no board corners in the cloud");
+                tracing::warn!(view = view.name, %error, "no board corners in the cloud, dropped");
                 report.dropped = Some(error.to_string());
             }
         }
@@ -201,9 +214,14 @@ pub fn calibrate(
     if usable < MIN_VIEWS {
         let reasons = reports
             .iter()
-            .filter_map(|r| r.dropped.as_ref().map(|d| format!("view {}: {d}", r.index)))
+            .filter_map(|r| r.dropped.as_ref().map(|d| format!("view {}: {d}", r.name)))
             .collect::<Vec<_>>()
             .join("; ");
+        let reasons = if reasons.is_empty() {
+            "none (too few views given)".to_owned()
+        } else {
+            reasons
+        };
         return Err(CalibrationError::TooFewViews {
             usable,
             total: views.len(),
@@ -246,7 +264,7 @@ pub fn calibrate(
             break;
         }
         tracing::warn!(
-            view,
+            view = views[view].name,
             predicted_px = worst.predicted_px,
             others_rms_px = worst.others_rms_px,
             median_rms_px = median,
@@ -314,6 +332,7 @@ pub fn calibrate(
         image_corner_error: None,
         rotation_error_deg: errors.map(|e| e.0),
         translation_error_mm: errors.map(|e| e.1),
+        initial_is_cad: *initial == CAD_CAMERA_FROM_LIDAR,
         elapsed_s: started.elapsed().as_secs_f64(),
     })
 }
@@ -396,10 +415,13 @@ pub fn calibrate_scenes(
     scenes: &CalibrationScenes,
     initial: &RigidTransform,
 ) -> Result<CalibrationReport, CalibrationError> {
+    let names: Vec<String> = (0..scenes.views.len()).map(view_name).collect();
     let inputs: Vec<ViewInput<'_>> = scenes
         .views
         .iter()
-        .map(|view| ViewInput {
+        .zip(&names)
+        .map(|(view, name)| ViewInput {
+            name,
             image_corners_px: view.image_corners_px.as_deref(),
             cloud: &view.cloud,
         })
@@ -419,6 +441,49 @@ pub fn calibrate_scenes(
                 .map(|found| (found, view.true_image_corners_px.as_slice()))
         }));
     Ok(report)
+}
+
+/// Calibrates from a data-set directory ([`crate::calibration_data`]): per view the image is
+/// read and its corners found (the image is then dropped), the cloud is read, and the views go
+/// through [`calibrate`] like generated ones, without a true extrinsic. A view whose board is not
+/// found is dropped with its reason; a file that cannot be read is an error naming it.
+pub fn calibrate_data_set(
+    data: &DataSet,
+    initial: &RigidTransform,
+) -> Result<CalibrationReport, CalibrateCommandError> {
+    let detector = ImageCornerConfig::default();
+    let mut loaded = Vec::with_capacity(data.views.len());
+    for view in &data.views {
+        let image = data.read_image(view)?;
+        let corners =
+            detect_image_corners(&image, &data.board, &detector).map(|found| found.corners_px);
+        drop(image);
+        let cloud = data.read_cloud(view)?;
+        tracing::debug!(
+            view = view.name,
+            points = cloud.len(),
+            image_corners = corners.as_ref().map_or(0, Vec::len),
+            "view loaded"
+        );
+        loaded.push((corners, cloud));
+    }
+    let inputs: Vec<ViewInput<'_>> = data
+        .views
+        .iter()
+        .zip(&loaded)
+        .map(|(view, (corners, cloud))| ViewInput {
+            name: &view.name,
+            image_corners_px: corners.as_deref(),
+            cloud,
+        })
+        .collect();
+    Ok(calibrate(
+        &data.intrinsics,
+        &data.board,
+        &inputs,
+        initial,
+        None,
+    )?)
 }
 
 impl CalibrationReport {
@@ -442,11 +507,11 @@ impl CalibrationReport {
                     let _ = writeln!(
                         text,
                         "{:>4}  {:>10.2}  {:>12}  {:>13.2}",
-                        view.index, view.distance_m, view.cloud_points, view.mean_error_px
+                        view.name, view.distance_m, view.cloud_points, view.mean_error_px
                     );
                 }
                 Some(reason) => {
-                    let _ = writeln!(text, "{:>4}  dropped: {reason}", view.index);
+                    let _ = writeln!(text, "{:>4}  dropped: {reason}", view.name);
                 }
             }
         }
@@ -459,9 +524,14 @@ impl CalibrationReport {
         );
         let _ = writeln!(text, "target-based (paper)             2.03       0.78");
         let _ = writeln!(text, "target-less  (paper)             1.91       0.66");
+        let initial = if self.initial_is_cad {
+            "the CAD guess"
+        } else {
+            "the initial extrinsic"
+        };
         let _ = writeln!(
             text,
-            "\nRMS reprojection: {:.2} px at the CAD guess -> {:.2} px calibrated; condition {:.1e}",
+            "\nRMS reprojection: {:.2} px at {initial} -> {:.2} px calibrated; condition {:.1e}",
             self.solution.initial_rms_px, self.solution.final_rms_px, self.solution.condition
         );
         if let Some(accuracy) = &self.image_corner_error {
@@ -478,7 +548,8 @@ impl CalibrationReport {
             let _ = writeln!(
                 text,
                 "error vs the true extrinsic: rotation {r0:.3} deg -> {r1:.3} deg, translation \
-                 {t0:.2} mm -> {t1:.2} mm (CAD guess -> calibrated)"
+                 {t0:.2} mm -> {t1:.2} mm ({} -> calibrated)",
+                initial.trim_start_matches("the ")
             );
         }
         let t = &self.camera_from_lidar;
@@ -494,31 +565,84 @@ impl CalibrationReport {
     }
 }
 
-/// `harvest calibrate lidar-camera`.
+/// `harvest calibrate lidar-camera`: from generated checkerboard scenes (the simulated unit's
+/// extrinsic is the truth the report compares against), or with `--data DIR` from a recorded
+/// data set ([`crate::calibration_data`], described in `--help` by [`DATA_SET_HELP`]).
 #[derive(Debug, Clone, clap::Args)]
+#[command(after_long_help = DATA_SET_HELP)]
 pub struct CalibrateLidarCameraArgs {
+    /// Calibrate from this data-set directory (camera.toml, NN.png + NN.csv per view) instead of
+    /// generated scenes.
+    #[arg(long, value_name = "DIR")]
+    pub data: Option<PathBuf>,
+    /// Start from this extrinsic (a file written by --output) instead of the CAD guess.
+    #[arg(long, value_name = "FILE")]
+    pub initial_extrinsic: Option<PathBuf>,
+    /// Also write the generated scenes as a data set (camera.toml, NN.png, NN.csv) to this
+    /// directory.
+    #[arg(long, value_name = "DIR", conflicts_with = "data")]
+    pub write_generated: Option<PathBuf>,
     /// Board placements in the generated data set.
-    #[arg(long, default_value_t = 12)]
+    #[arg(long, default_value_t = Self::DEFAULT.views, conflicts_with = "data")]
     pub views: usize,
-    /// LiDAR integration per placement, seconds (the paper uses 15 s).
-    #[arg(long, default_value_t = 15.0)]
+    /// LiDAR integration per placement, seconds (the paper uses 15 s; generated data set).
+    #[arg(long, default_value_t = Self::DEFAULT.integration_s, conflicts_with = "data")]
     pub integration_s: f64,
     /// Sensor noise of the rendered camera images (one sigma), grey levels of 255.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = Self::DEFAULT.image_noise_grey, conflicts_with = "data")]
     pub image_noise_grey: f64,
     /// Seed of the generated data set.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = Self::DEFAULT.seed, conflicts_with = "data")]
     pub seed: u64,
     /// Write the calibrated `camera_from_lidar` to this TOML file.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     pub output: Option<PathBuf>,
 }
+
+impl CalibrateLidarCameraArgs {
+    /// The command-line defaults: generated scenes, no files.
+    pub const DEFAULT: Self = Self {
+        data: None,
+        initial_extrinsic: None,
+        write_generated: None,
+        views: 12,
+        integration_s: 15.0,
+        image_noise_grey: 2.0,
+        seed: 1,
+        output: None,
+    };
+}
+
+/// The data-set format as `--help` states it (after the options; the subcommand's one-line
+/// description comes from the CLI).
+pub const DATA_SET_HELP: &str = "\
+Data set (--data DIR, written by --write-generated DIR):
+  DIR/camera.toml  the colour camera and the checkerboard:
+                     [intrinsics]  width_px, height_px, fx_px, fy_px, cx_px, cy_px,
+                                   distortion = [k1, k2, p1, p2, k3]
+                     [board]       optional, default the paper's 7 x 5 inner corners of 5 cm:
+                                   inner_columns, inner_rows, square_m, border_m
+  DIR/NN.png       per view, the camera image of the board: 8-bit grey or RGB (converted
+                   to grey); the size camera.toml states
+  DIR/NN.csv       per view, the LiDAR points of the integration window, LiDAR frame: the
+                   header x_m,y_m,z_m,intensity then one point per line (metres, 0-255)
+A view is a stem NN present as both NN.png and NN.csv. Views whose board is not found in
+the image or the cloud are dropped with a warning; at least 3 must remain.";
 
 /// Errors of the calibrate command.
 #[derive(Debug, thiserror::Error)]
 pub enum CalibrateCommandError {
     #[error(transparent)]
     Calibration(#[from] CalibrationError),
+    /// The data set cannot be read (or the generated one written).
+    #[error(transparent)]
+    Data(#[from] DataSetError),
+    /// The `--initial-extrinsic` file cannot be read.
+    #[error("initial extrinsic: {0}")]
+    InitialExtrinsic(#[from] ReadExtrinsicError),
+    /// The `--initial-extrinsic` file holds no rigid transform.
+    #[error("initial extrinsic {path}: {reason}")]
+    InvalidInitialExtrinsic { path: PathBuf, reason: String },
     #[error("writing {path}: {source}")]
     Write {
         path: PathBuf,
@@ -547,30 +671,91 @@ impl ExtrinsicFile {
     }
 }
 
-/// Generates scenes from the simulated unit's extrinsic, calibrates from the CAD guess, prints
-/// the report, optionally writes the extrinsic.
+/// Reads `--initial-extrinsic` and checks it is a rigid transform (finite, rotation orthonormal
+/// within 1e-6).
+fn read_initial_extrinsic(path: &std::path::Path) -> Result<RigidTransform, CalibrateCommandError> {
+    let transform = ExtrinsicFile::read(path)?.camera_from_lidar;
+    let r = &transform.rotation;
+    let finite = r
+        .iter()
+        .flatten()
+        .chain(&transform.translation_m)
+        .all(|v| v.is_finite());
+    let orthonormal = (0..3).all(|i| {
+        (0..3).all(|j| {
+            let dot: f64 = (0..3).map(|k| r[i][k] * r[j][k]).sum();
+            (dot - if i == j { 1.0 } else { 0.0 }).abs() < 1e-6
+        })
+    });
+    let determinant = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+        - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+        + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
+    if !(finite && orthonormal && determinant > 0.0) {
+        return Err(CalibrateCommandError::InvalidInitialExtrinsic {
+            path: path.to_owned(),
+            reason: format!(
+                "camera_from_lidar.rotation = {:?} is not a finite proper rotation",
+                transform.rotation
+            ),
+        });
+    }
+    Ok(transform)
+}
+
+/// Calibrates from the data set of `--data`, or from generated scenes (from the simulated unit's
+/// extrinsic, optionally written with `--write-generated`); starts from the CAD guess or
+/// `--initial-extrinsic`; prints the report and optionally writes the extrinsic.
 pub fn run_calibrate_lidar_camera(
     args: &CalibrateLidarCameraArgs,
 ) -> Result<CalibrationReport, CalibrateCommandError> {
-    let config = SceneConfig {
-        views: args.views,
-        integration_s: args.integration_s,
-        image: BoardImageConfig {
-            noise_grey: args.image_noise_grey,
-            ..BoardImageConfig::default()
-        },
-        seed: args.seed,
-        ..SceneConfig::default()
+    let initial = match &args.initial_extrinsic {
+        Some(path) => read_initial_extrinsic(path)?,
+        None => CAD_CAMERA_FROM_LIDAR,
     };
-    let scenes = generate_scenes(
-        &config,
-        CameraIntrinsics::tl460_rgb(),
-        &LidarSpec::mid70(),
-        Checkerboard::paper(),
-        simulated_camera_from_lidar(),
-    )
-    .map_err(CalibrationError::from)?;
-    let report = calibrate_scenes(&scenes, &CAD_CAMERA_FROM_LIDAR)?;
+    let report = match &args.data {
+        Some(dir) => {
+            let data = DataSet::open(dir)?;
+            println!(
+                "data set {}: {} views, camera {} x {} px, board {} x {} inner corners",
+                dir.display(),
+                data.views.len(),
+                data.intrinsics.width_px,
+                data.intrinsics.height_px,
+                data.board.inner_columns,
+                data.board.inner_rows
+            );
+            calibrate_data_set(&data, &initial)?
+        }
+        None => {
+            let config = SceneConfig {
+                views: args.views,
+                integration_s: args.integration_s,
+                image: BoardImageConfig {
+                    noise_grey: args.image_noise_grey,
+                    ..BoardImageConfig::default()
+                },
+                seed: args.seed,
+                ..SceneConfig::default()
+            };
+            let scenes = generate_scenes(
+                &config,
+                CameraIntrinsics::tl460_rgb(),
+                &LidarSpec::mid70(),
+                Checkerboard::paper(),
+                simulated_camera_from_lidar(),
+            )
+            .map_err(CalibrationError::from)?;
+            if let Some(dir) = &args.write_generated {
+                write_scenes(dir, &scenes)?;
+                println!(
+                    "generated data set written to {} ({} views)",
+                    dir.display(),
+                    scenes.views.len()
+                );
+            }
+            calibrate_scenes(&scenes, &initial)?
+        }
+    };
     print!("{}", report.render());
     if let Some(path) = &args.output {
         let file = ExtrinsicFile {
@@ -588,11 +773,29 @@ pub fn run_calibrate_lidar_camera(
     Ok(report)
 }
 
+/// Writes generated scenes as a data set ([`crate::calibration_data`]), views named like
+/// [`calibrate_scenes`] names them.
+pub fn write_scenes(dir: &std::path::Path, scenes: &CalibrationScenes) -> Result<(), DataSetError> {
+    let camera = CameraFile {
+        intrinsics: scenes.intrinsics,
+        board: scenes.board,
+    };
+    write_data_set(
+        dir,
+        &camera,
+        scenes
+            .views
+            .iter()
+            .enumerate()
+            .map(|(index, view)| (view_name(index), &view.image, view.cloud.as_slice())),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::board_image::GreyImage;
-    use crate::image_corners::{ImageCornerConfig, detect_image_corners};
+    use crate::calibration_data::write_png_grey;
 
     fn scenes(views: usize, integration_s: f64, seed: u64) -> CalibrationScenes {
         let config = SceneConfig {
@@ -693,7 +896,7 @@ mod tests {
         assert!(
             error
                 .to_string()
-                .contains("view 1: only 0 corner candidates"),
+                .contains("view 01: only 0 corner candidates"),
             "{error}"
         );
     }
@@ -731,6 +934,7 @@ mod tests {
             .views
             .iter()
             .map(|v| ViewInput {
+                name: "empty",
                 image_corners_px: v.image_corners_px.as_deref(),
                 cloud: &[],
             })
@@ -741,12 +945,31 @@ mod tests {
             CalibrationError::TooFewViews { usable: 0, .. }
         ));
         assert!(
-            error.to_string().contains("view 0: only 0 finite points"),
+            error
+                .to_string()
+                .contains("view empty: only 0 finite points"),
+            "{error}"
+        );
+        // Two good views only: too few, and the message says none was dropped.
+        let two: Vec<ViewInput<'_>> = scenes.views[..2]
+            .iter()
+            .map(|v| ViewInput {
+                name: "good",
+                image_corners_px: v.image_corners_px.as_deref(),
+                cloud: &v.cloud,
+            })
+            .collect();
+        let error = calibrate(&k, &board, &two, &CAD_CAMERA_FROM_LIDAR, None).expect_err("two");
+        assert!(
+            error.to_string().contains(
+                "only 2 of 2 views gave corners in both sensors, need at least 3; dropped: none"
+            ),
             "{error}"
         );
         // The same placement three times: every corner on one plane.
         let same: Vec<ViewInput<'_>> = (0..3)
             .map(|_| ViewInput {
+                name: "same",
                 image_corners_px: scenes.views[0].image_corners_px.as_deref(),
                 cloud: &scenes.views[0].cloud,
             })
@@ -767,5 +990,204 @@ mod tests {
         let error = generate_scenes(&bad, k, &LidarSpec::mid70(), board, CAD_CAMERA_FROM_LIDAR)
             .expect_err("negative tilt");
         assert!(error.to_string().contains("max_tilt_deg = -1"), "{error}");
+    }
+
+    /// A fresh, empty directory under the system temp dir for one test.
+    fn temp_dir(test: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!(
+            "harvest-lidar-calibration-{}-{test}",
+            std::process::id()
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+        dir
+    }
+
+    #[test]
+    fn a_written_data_set_calibrates_like_the_generated_scenes() {
+        let scenes = scenes(6, 2.0, 4);
+        let generated = calibrate_scenes(&scenes, &CAD_CAMERA_FROM_LIDAR).expect("generated");
+        let dir = temp_dir("round-trip");
+        write_scenes(&dir, &scenes).expect("write");
+        let data = DataSet::open(&dir).expect("open");
+        assert_eq!(data.views.len(), 6);
+        assert_eq!(data.intrinsics, scenes.intrinsics);
+        let report = calibrate_data_set(&data, &CAD_CAMERA_FROM_LIDAR).expect("data set");
+        // Same extrinsic as in memory: lossless PNG and CSV, the same detector and solver.
+        let (a, b) = (&report.camera_from_lidar, &generated.camera_from_lidar);
+        assert!(
+            rotation_error_rad(a, b) < 1e-6 && translation_error_m(a, b) < 1e-6,
+            "{}\n{}",
+            report.render(),
+            generated.render()
+        );
+        assert_eq!(report.corners_used, generated.corners_used);
+        assert!((report.average_error_px - generated.average_error_px).abs() < 1e-6);
+        let names: Vec<&str> = report.views.iter().map(|v| v.name.as_str()).collect();
+        assert_eq!(names, ["00", "01", "02", "03", "04", "05"]);
+        // Close to the truth the scenes were generated with.
+        let truth = &scenes.true_camera_from_lidar;
+        assert!(rotation_error_rad(a, truth).to_degrees() < 0.5);
+        assert!(translation_error_m(a, truth) * 1e3 < 5.0);
+        // The recorded-data report has no lines that need the truth.
+        let text = report.render();
+        assert!(report.rotation_error_deg.is_none() && report.image_corner_error.is_none());
+        assert!(
+            text.contains("AVG/pixel") && text.contains("camera_from_lidar"),
+            "{text}"
+        );
+        assert!(!text.contains("true extrinsic") && !text.contains("true projections"));
+        assert!(generated.render().contains("error vs the true extrinsic"));
+
+        // A view whose image shows no board is dropped by name; the rest still calibrate.
+        let blank = GreyImage::filled(1920, 1080, 128);
+        write_png_grey(&dir.join("03.png"), &blank).expect("blank");
+        let report = calibrate_data_set(&data, &CAD_CAMERA_FROM_LIDAR).expect("five views");
+        let dropped: Vec<&str> = report
+            .views
+            .iter()
+            .filter(|v| v.dropped.is_some())
+            .map(|v| v.name.as_str())
+            .collect();
+        assert_eq!(dropped, ["03"]);
+        assert!(
+            report
+                .render()
+                .contains("  03  dropped: only 0 corner candidates")
+        );
+        // Fewer usable views than needed: refused, each dropped view named with its reason.
+        for name in ["00", "01", "02"] {
+            write_png_grey(&dir.join(format!("{name}.png")), &blank).expect("blank");
+        }
+        let error = calibrate_data_set(&data, &CAD_CAMERA_FROM_LIDAR)
+            .expect_err("two usable views")
+            .to_string();
+        assert!(
+            error.contains("only 2 of 6 views")
+                && error.contains("need at least 3")
+                && error.contains("view 00: only 0 corner candidates")
+                && error.contains("view 03: only 0 corner candidates"),
+            "{error}"
+        );
+        // A file that cannot be read stops the calibration, naming it.
+        std::fs::write(dir.join("04.png"), b"\x89PNG truncated").expect("corrupt");
+        let error = calibrate_data_set(&data, &CAD_CAMERA_FROM_LIDAR)
+            .expect_err("corrupt png")
+            .to_string();
+        assert!(error.contains("04.png: not a readable PNG"), "{error}");
+        std::fs::write(dir.join("05.csv"), "x_m,y_m,z_m,intensity\n").expect("empty cloud");
+        std::fs::remove_file(dir.join("04.png")).expect("remove");
+        std::fs::remove_file(dir.join("04.csv")).expect("remove");
+        let data = DataSet::open(&dir).expect("five views");
+        let error = calibrate_data_set(&data, &CAD_CAMERA_FROM_LIDAR)
+            .expect_err("empty cloud")
+            .to_string();
+        assert!(error.contains("05.csv: empty cloud"), "{error}");
+        std::fs::remove_dir_all(&dir).expect("clean up");
+    }
+
+    #[test]
+    fn the_command_writes_generated_scenes_and_calibrates_from_them() {
+        let dir = temp_dir("command");
+        let data_dir = dir.join("scenes");
+        let generated = CalibrateLidarCameraArgs {
+            views: 5,
+            integration_s: 2.0,
+            seed: 6,
+            write_generated: Some(data_dir.clone()),
+            output: Some(dir.join("generated.toml")),
+            ..CalibrateLidarCameraArgs::DEFAULT
+        };
+        let in_memory = run_calibrate_lidar_camera(&generated).expect("generated");
+        let recorded = CalibrateLidarCameraArgs {
+            data: Some(data_dir.clone()),
+            output: Some(dir.join("recorded.toml")),
+            ..CalibrateLidarCameraArgs::DEFAULT
+        };
+        let from_data = run_calibrate_lidar_camera(&recorded).expect("data set");
+        let written = ExtrinsicFile::read(&dir.join("recorded.toml")).expect("output");
+        assert_eq!(written.camera_from_lidar, from_data.camera_from_lidar);
+        let (a, b) = (&from_data.camera_from_lidar, &in_memory.camera_from_lidar);
+        assert!(rotation_error_rad(a, b) < 1e-6 && translation_error_m(a, b) < 1e-6);
+        // Starting from the calibrated extrinsic converges to the same one.
+        let restarted = CalibrateLidarCameraArgs {
+            initial_extrinsic: Some(dir.join("generated.toml")),
+            output: None,
+            ..recorded.clone()
+        };
+        let again = run_calibrate_lidar_camera(&restarted).expect("from --initial-extrinsic");
+        assert!(again.solution.initial_rms_px < from_data.solution.initial_rms_px);
+        assert!(from_data.render().contains("px at the CAD guess ->"));
+        assert!(again.render().contains("px at the initial extrinsic ->"));
+        let c = &again.camera_from_lidar;
+        assert!(rotation_error_rad(a, c) < 1e-6 && translation_error_m(a, c) < 1e-6);
+        // An initial extrinsic that is not a rotation, or missing, is refused by name.
+        let mut skewed = written;
+        skewed.camera_from_lidar.rotation[0][1] += 0.2;
+        std::fs::write(
+            dir.join("skewed.toml"),
+            toml::to_string(&skewed).expect("toml"),
+        )
+        .expect("write");
+        for (file, expected) in [
+            ("skewed.toml", "skewed.toml: camera_from_lidar.rotation"),
+            ("missing.toml", "missing.toml"),
+        ] {
+            let args = CalibrateLidarCameraArgs {
+                initial_extrinsic: Some(dir.join(file)),
+                ..recorded.clone()
+            };
+            let error = run_calibrate_lidar_camera(&args)
+                .expect_err(file)
+                .to_string();
+            assert!(error.contains(expected), "{error}");
+        }
+        let args = CalibrateLidarCameraArgs {
+            data: Some(dir.join("no-such-dir")),
+            ..CalibrateLidarCameraArgs::DEFAULT
+        };
+        let error = run_calibrate_lidar_camera(&args)
+            .expect_err("missing dir")
+            .to_string();
+        assert!(error.contains("no-such-dir"), "{error}");
+        std::fs::remove_dir_all(&dir).expect("clean up");
+    }
+
+    #[test]
+    fn help_documents_the_data_set_and_data_excludes_the_scene_options() {
+        use clap::{Args as _, FromArgMatches as _};
+        // As the CLI's subcommand derive builds it: the variant's one-line doc comment is
+        // applied after the arguments (and resets the long description).
+        let command = || {
+            CalibrateLidarCameraArgs::augment_args(clap::Command::new("lidar-camera"))
+                .about("variant about")
+                .long_about(None::<&str>)
+        };
+        let help = command().render_long_help().to_string();
+        for needed in [
+            "--data <DIR>",
+            "--initial-extrinsic <FILE>",
+            "--write-generated <DIR>",
+            "camera.toml",
+            "NN.png",
+            "x_m,y_m,z_m,intensity",
+            "[intrinsics]",
+            "[default: 12]",
+            "[default: 15]",
+        ] {
+            assert!(help.contains(needed), "{needed} missing from:\n{help}");
+        }
+        let matches = command()
+            .try_get_matches_from(["lidar-camera", "--data", "captures", "--output", "x.toml"])
+            .expect("data");
+        let args = CalibrateLidarCameraArgs::from_arg_matches(&matches).expect("args");
+        assert_eq!(args.data, Some(PathBuf::from("captures")));
+        assert_eq!(args.views, CalibrateLidarCameraArgs::DEFAULT.views);
+        for conflicting in ["--views", "--seed", "--write-generated"] {
+            let error = command()
+                .try_get_matches_from(["lidar-camera", "--data", "d", conflicting, "3"])
+                .expect_err(conflicting)
+                .to_string();
+            assert!(error.contains("cannot be used with"), "{error}");
+        }
     }
 }

@@ -14,7 +14,7 @@
 //!   intensity of white or black paper plus noise. The board hangs in the air: rays that miss it
 //!   return nothing.
 
-use crate::board_image::{BoardImageConfig, RenderError, render_board_view};
+use crate::board_image::{BoardImageConfig, GreyImage, RenderError, render_board_view};
 use crate::checkerboard::Checkerboard;
 use crate::image_corners::{ImageCornerConfig, ImageCornerError, detect_image_corners};
 use harvest_hw::lidar::LidarSpec;
@@ -78,6 +78,9 @@ pub struct CalibrationView {
     pub image_corners_px: Result<Vec<[f64; 2]>, ImageCornerError>,
     /// True projections of the inner corners, same order (evaluation of the detector only).
     pub true_image_corners_px: Vec<[f64; 2]>,
+    /// The rendered camera image the corners were found in (kept for writing the scenes as a
+    /// data set, [`crate::calibration_data`]).
+    pub image: GreyImage,
     /// The LiDAR returns of the integration window, LiDAR frame.
     pub cloud: Vec<LidarPoint>,
 }
@@ -190,6 +193,7 @@ pub fn generate_scenes(
             camera_from_board,
             image_corners_px,
             true_image_corners_px,
+            image,
             cloud,
         });
     }

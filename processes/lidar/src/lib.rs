@@ -7,6 +7,9 @@
 //!   [`cloud_corners`], [`extrinsic_solver`], [`calibration`]: the target-based extrinsic
 //!   calibration (section II-C-1, eq. 3-5) behind `harvest calibrate lidar-camera`, with its
 //!   Table-I-style report; the board is rendered per view and its corners found in the image.
+//!   [`calibration_data`]: the data-set directory (camera.toml, NN.png + NN.csv per view) that
+//!   recorded captures are calibrated from (`--data`) and generated scenes are written to
+//!   (`--write-generated`).
 //! - [`localization`]: fused fruit localization (section II-D-3, Z-score rejection, eq. 20).
 //! - [`evaluation`]: `harvest eval lidar`, the Table-III-style repeatability of fused versus ToF
 //!   localization in the simulated orchard, and the fusion time.
@@ -14,6 +17,7 @@
 
 pub mod board_image;
 pub mod calibration;
+pub mod calibration_data;
 pub mod calibration_scenes;
 pub mod checkerboard;
 pub mod cloud_corners;

@@ -2,7 +2,7 @@
 
 use std::fmt::Write;
 
-use crate::perception::report::{EstimatorReport, PerceptionReport, ScenarioReport};
+use crate::perception::report::{BinReport, EstimatorReport, PerceptionReport, ScenarioReport};
 use crate::perception::stats::Summary;
 
 fn number(value: Option<f64>, decimals: usize) -> String {
@@ -69,6 +69,32 @@ pub fn render_tables(report: &PerceptionReport) -> String {
         out.push_str(&repeatability.render());
     }
     out
+}
+
+/// One table row per bin of `bins_of` (the same bins for every estimator), one cell per
+/// estimator: `median / p95 / max (matched/visible)`.
+fn render_bins(
+    out: &mut String,
+    s: &ScenarioReport,
+    bins_of: impl Fn(&EstimatorReport) -> &Vec<BinReport>,
+) {
+    let Some(first) = s.estimators.first() else {
+        return;
+    };
+    for (b, first_bin) in bins_of(first).iter().enumerate() {
+        let mut row = format!("| {} |", first_bin.bin);
+        for e in &s.estimators {
+            let bin = &bins_of(e)[b];
+            let _ = write!(
+                row,
+                " {} ({}/{}) |",
+                spread(&bin.error_mm, 1),
+                bin.matched,
+                bin.truth_visible
+            );
+        }
+        let _ = writeln!(out, "{row}");
+    }
 }
 
 fn render_scenario(out: &mut String, s: &ScenarioReport) {
@@ -151,44 +177,13 @@ fn render_scenario(out: &mut String, s: &ScenarioReport) {
         "\n### 3D error by depth of the true centre (colour camera z), median / p95 / max mm \
          (matched/visible)\n\n| depth, m |{header}\n|---|{rule}"
     );
-    let bins = s.estimators.first().map_or(0, |e| e.error_by_depth.len());
-    for b in 0..bins {
-        let mut row = format!("| {} |", s.estimators[0].error_by_depth[b].bin);
-        for e in &s.estimators {
-            let bin = &e.error_by_depth[b];
-            let _ = write!(
-                row,
-                " {} ({}/{}) |",
-                spread(&bin.error_mm, 1),
-                bin.matched,
-                bin.truth_visible
-            );
-        }
-        let _ = writeln!(out, "{row}");
-    }
+    render_bins(out, s, |e| &e.error_by_depth);
     let _ = writeln!(
         out,
         "\n### 3D error by visible fraction of the silhouette, median / p95 / max mm \
          (matched/visible)\n\n| visible |{header}\n|---|{rule}"
     );
-    let bins = s
-        .estimators
-        .first()
-        .map_or(0, |e| e.error_by_visibility.len());
-    for b in 0..bins {
-        let mut row = format!("| {} |", s.estimators[0].error_by_visibility[b].bin);
-        for e in &s.estimators {
-            let bin = &e.error_by_visibility[b];
-            let _ = write!(
-                row,
-                " {} ({}/{}) |",
-                spread(&bin.error_mm, 1),
-                bin.matched,
-                bin.truth_visible
-            );
-        }
-        let _ = writeln!(out, "{row}");
-    }
+    render_bins(out, s, |e| &e.error_by_visibility);
     let _ = writeln!(
         out,
         "\n### 3D error by failure condition (from the world's ground truth; an apple can be in \
