@@ -65,6 +65,11 @@ impl RgbdCamera {
             color_from_depth,
         })
     }
+
+    /// The renderer behind the camera (poses, intrinsics, label images).
+    pub fn renderer(&mut self) -> &mut RgbdRenderer {
+        &mut self.renderer
+    }
 }
 
 impl CameraRenderer for RgbdCamera {

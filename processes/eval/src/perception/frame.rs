@@ -2,12 +2,11 @@
 //! receives, rendered by the simulator exactly as `harvest sim` fills a loaned frame.
 
 use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
-use harvest_ipc::payloads::{RgbdFrame, RgbdFrameMeta};
+use harvest_ipc::payloads::RgbdFrame;
+use harvest_sim::render_thread::{CameraRenderer, RgbdCamera};
 use harvest_sim::scenario::CameraConfig;
-use harvest_sim::{RenderError, RgbdRenderer, World};
+use harvest_sim::{RenderError, World};
 
-/// Exposure written into the frame metadata, as the simulated camera device does.
-const EXPOSURE_US: u32 = 10_000;
 /// Nominal frame period used for the capture stamps (30 Hz).
 const FRAME_PERIOD_NS: u64 = 33_333_333;
 
@@ -16,37 +15,26 @@ pub fn zeroed_frame() -> Box<RgbdFrame> {
     harvest_ipc::payload::boxed_zeroed()
 }
 
-/// The simulator's RGB-D renderer plus the frame metadata the simulated camera sends.
-#[derive(Debug)]
+/// The simulator's ToF camera ([`RgbdCamera`], what `harvest sim` renders into a loaned frame)
+/// plus the capture stamps of a 30 Hz stream.
 pub struct FrameRenderer {
-    renderer: RgbdRenderer,
-    meta: RgbdFrameMeta,
+    camera: RgbdCamera,
 }
 
 impl FrameRenderer {
     pub fn new(camera: &CameraConfig) -> Result<Self, RenderError> {
-        let renderer = RgbdRenderer::new(camera)?;
-        let color_from_depth = renderer
-            .robot_from_color()
-            .inverse()
-            .compose(&renderer.robot_from_depth());
-        let meta = RgbdFrameMeta {
-            rgb_intrinsics: *renderer.color_intrinsics(),
-            depth_intrinsics: *renderer.depth_intrinsics(),
-            color_from_depth,
-            exposure_us: EXPOSURE_US,
-            flags: 0,
-        };
-        Ok(Self { renderer, meta })
+        Ok(Self {
+            camera: RgbdCamera::new(camera)?,
+        })
     }
 
     /// True pose of the colour sensor in the robot frame.
-    pub fn robot_from_color(&self) -> RigidTransform {
-        self.renderer.robot_from_color()
+    pub fn robot_from_color(&mut self) -> RigidTransform {
+        self.camera.renderer().robot_from_color()
     }
 
-    pub fn color_intrinsics(&self) -> CameraIntrinsics {
-        *self.renderer.color_intrinsics()
+    pub fn color_intrinsics(&mut self) -> CameraIntrinsics {
+        *self.camera.renderer().color_intrinsics()
     }
 
     /// Renders colour and depth of `world` into `frame` with sequence number `frame_seq` (which
@@ -57,10 +45,7 @@ impl FrameRenderer {
         frame_seq: u64,
         frame: &mut RgbdFrame,
     ) -> Result<(), RenderError> {
-        self.renderer.render_color(world, &mut frame.rgb)?;
-        self.renderer
-            .render_depth(world, frame_seq, &mut frame.depth_mm)?;
-        frame.meta = self.meta;
+        self.camera.render(world, frame_seq, frame)?;
         frame.header.msg_seq = frame_seq;
         frame.header.capture_ns = frame_seq * FRAME_PERIOD_NS;
         frame.header.publish_ns = frame.header.capture_ns;
@@ -69,6 +54,6 @@ impl FrameRenderer {
 
     /// Renders the per-pixel labels of `world` at colour resolution.
     pub fn render_labels(&mut self, world: &World, labels: &mut [u32]) -> Result<(), RenderError> {
-        self.renderer.render_labels(world, labels)
+        self.camera.renderer().render_labels(world, labels)
     }
 }
