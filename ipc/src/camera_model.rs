@@ -121,6 +121,35 @@ impl CameraIntrinsics {
         [x * depth_m, y * depth_m, depth_m]
     }
 
+    /// What makes these intrinsics unusable (an empty image, a focal length that is not a
+    /// positive number, a non-finite principal point or distortion coefficient), naming the key
+    /// and value; `None` when they describe a camera.
+    pub fn problem(&self) -> Option<String> {
+        if self.width_px == 0 || self.height_px == 0 {
+            return Some(format!(
+                "intrinsics size {} x {} px is empty",
+                self.width_px, self.height_px
+            ));
+        }
+        for (key, value) in [("fx_px", self.fx_px), ("fy_px", self.fy_px)] {
+            if !(value.is_finite() && value > 0.0) {
+                return Some(format!("intrinsics {key} = {value} is not positive"));
+            }
+        }
+        for (key, value) in [("cx_px", self.cx_px), ("cy_px", self.cy_px)] {
+            if !value.is_finite() {
+                return Some(format!("intrinsics {key} = {value} is not finite"));
+            }
+        }
+        if !self.distortion.iter().all(|c| c.is_finite()) {
+            return Some(format!(
+                "intrinsics distortion = {:?} is not finite",
+                self.distortion
+            ));
+        }
+        None
+    }
+
     /// True when the pixel lies inside the image.
     pub fn contains(&self, u_px: f64, v_px: f64) -> bool {
         u_px >= -0.5
@@ -150,6 +179,27 @@ impl RigidTransform {
         rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
         translation_m: [0.0; 3],
     };
+
+    /// True when every entry is finite and the rotation is proper: orthonormal rows (to 1e-6)
+    /// and determinant +1.
+    pub fn is_rigid(&self) -> bool {
+        let r = &self.rotation;
+        let finite = r
+            .iter()
+            .flatten()
+            .chain(&self.translation_m)
+            .all(|v| v.is_finite());
+        let orthonormal = (0..3).all(|i| {
+            (0..3).all(|j| {
+                let dot: f64 = (0..3).map(|k| r[i][k] * r[j][k]).sum();
+                (dot - if i == j { 1.0 } else { 0.0 }).abs() < 1e-6
+            })
+        });
+        let determinant = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+            - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+            + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
+        finite && orthonormal && determinant > 0.0
+    }
 
     /// A pure translation.
     pub fn from_translation(translation_m: [f64; 3]) -> Self {
@@ -240,6 +290,35 @@ impl RigidTransform {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unusable_intrinsics_and_improper_rotations_are_named() {
+        assert_eq!(CameraIntrinsics::tl460_rgb().problem(), None);
+        let mut k = CameraIntrinsics::tl460_rgb();
+        k.fy_px = -1.0;
+        assert_eq!(
+            k.problem().as_deref(),
+            Some("intrinsics fy_px = -1 is not positive")
+        );
+        k = CameraIntrinsics::tl460_rgb();
+        k.height_px = 0;
+        assert!(k.problem().is_some_and(|p| p.contains("is empty")));
+        k = CameraIntrinsics::tl460_rgb();
+        k.distortion[4] = f64::NAN;
+        assert!(k.problem().is_some_and(|p| p.contains("distortion")));
+
+        let pose = RigidTransform::from_rpy_translation(0.1, -0.2, 0.3, [1.0, 2.0, 3.0]);
+        assert!(pose.is_rigid());
+        let mut mirrored = pose;
+        mirrored.rotation[2] = mirrored.rotation[2].map(|v| -v);
+        assert!(!mirrored.is_rigid(), "a reflection is not a rotation");
+        let mut skewed = pose;
+        skewed.rotation[0][1] += 0.01;
+        assert!(!skewed.is_rigid());
+        let mut nan = pose;
+        nan.translation_m[1] = f64::NAN;
+        assert!(!nan.is_rigid());
+    }
 
     #[test]
     fn project_unproject_round_trip_with_distortion() {

@@ -125,20 +125,15 @@ fn intrinsics_sane(
             "{which} intrinsics are {size:?} px, the buffer is {width}x{height}"
         ));
     }
-    let finite = [
-        intrinsics.fx_px,
-        intrinsics.fy_px,
-        intrinsics.cx_px,
-        intrinsics.cy_px,
-    ]
-    .iter()
-    .chain(&intrinsics.distortion)
-    .all(|v| v.is_finite());
+    if let Some(problem) = intrinsics.problem() {
+        return Err(format!("{which} {problem}"));
+    }
     let inside = (0.0..width as f64).contains(&intrinsics.cx_px)
         && (0.0..height as f64).contains(&intrinsics.cy_px);
-    if !finite || intrinsics.fx_px <= 0.0 || intrinsics.fy_px <= 0.0 || !inside {
+    if !inside {
         return Err(format!(
-            "{which} intrinsics are not a camera: {intrinsics:?}"
+            "{which} principal point ({}, {}) px lies outside the {width}x{height} image",
+            intrinsics.cx_px, intrinsics.cy_px
         ));
     }
     Ok(())
@@ -146,23 +141,11 @@ fn intrinsics_sane(
 
 /// Rotation orthonormal with determinant +1 (to 1e-6), translation under `max_baseline_m`.
 fn registration_rigid(transform: &RigidTransform, max_baseline_m: f64) -> Result<(), String> {
-    let r = transform.rotation;
-    for i in 0..3 {
-        for j in 0..3 {
-            let dot: f64 = (0..3).map(|k| r[i][k] * r[j][k]).sum();
-            let expected = if i == j { 1.0 } else { 0.0 };
-            if (dot - expected).abs() > 1e-6 {
-                return Err(format!(
-                    "color_from_depth rotation is not orthonormal: {r:?}"
-                ));
-            }
-        }
-    }
-    let det = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
-        - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
-        + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
-    if (det - 1.0).abs() > 1e-6 {
-        return Err(format!("color_from_depth rotation has determinant {det}"));
+    if !transform.is_rigid() {
+        return Err(format!(
+            "color_from_depth is not a rigid transform (orthonormal rotation, determinant +1): \
+             {transform:?}"
+        ));
     }
     let baseline_m = transform
         .translation_m

@@ -675,22 +675,7 @@ impl ExtrinsicFile {
 /// within 1e-6).
 fn read_initial_extrinsic(path: &std::path::Path) -> Result<RigidTransform, CalibrateCommandError> {
     let transform = ExtrinsicFile::read(path)?.camera_from_lidar;
-    let r = &transform.rotation;
-    let finite = r
-        .iter()
-        .flatten()
-        .chain(&transform.translation_m)
-        .all(|v| v.is_finite());
-    let orthonormal = (0..3).all(|i| {
-        (0..3).all(|j| {
-            let dot: f64 = (0..3).map(|k| r[i][k] * r[j][k]).sum();
-            (dot - if i == j { 1.0 } else { 0.0 }).abs() < 1e-6
-        })
-    });
-    let determinant = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
-        - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
-        + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
-    if !(finite && orthonormal && determinant > 0.0) {
+    if !transform.is_rigid() {
         return Err(CalibrateCommandError::InvalidInitialExtrinsic {
             path: path.to_owned(),
             reason: format!(

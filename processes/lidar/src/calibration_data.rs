@@ -70,28 +70,8 @@ impl CameraFile {
     /// Checks what the TOML types cannot: positive sizes and focal lengths, finite values, a
     /// usable board. The message names the key and value.
     pub fn validate(&self) -> Result<(), String> {
-        let k = &self.intrinsics;
-        if k.width_px == 0 || k.height_px == 0 {
-            return Err(format!(
-                "intrinsics size {} x {} px is empty",
-                k.width_px, k.height_px
-            ));
-        }
-        for (key, value) in [("fx_px", k.fx_px), ("fy_px", k.fy_px)] {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(format!("intrinsics {key} = {value} is not positive"));
-            }
-        }
-        for (key, value) in [("cx_px", k.cx_px), ("cy_px", k.cy_px)] {
-            if !value.is_finite() {
-                return Err(format!("intrinsics {key} = {value} is not finite"));
-            }
-        }
-        if !k.distortion.iter().all(|c| c.is_finite()) {
-            return Err(format!(
-                "intrinsics distortion = {:?} is not finite",
-                k.distortion
-            ));
+        if let Some(problem) = self.intrinsics.problem() {
+            return Err(problem);
         }
         self.board.validate()
     }

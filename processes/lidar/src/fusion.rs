@@ -182,14 +182,8 @@ impl Fusion {
     /// Allocates the buffers for `config.intrinsics`' image size.
     pub fn new(config: FusionConfig) -> Result<Self, FusionError> {
         let k = &config.intrinsics;
-        let finite = [k.fx_px, k.fy_px, k.cx_px, k.cy_px]
-            .iter()
-            .chain(&k.distortion)
-            .all(|v| v.is_finite());
-        if k.width_px == 0 || k.height_px == 0 || !finite || k.fx_px <= 0.0 || k.fy_px <= 0.0 {
-            return Err(FusionError::Setup(format!(
-                "intrinsics {k:?} need a non-empty image and positive finite focal lengths"
-            )));
+        if let Some(problem) = k.problem() {
+            return Err(FusionError::Setup(problem));
         }
         let t = &config.camera_from_lidar;
         if !t

@@ -34,7 +34,8 @@ pub enum CameraSetupError {
         cy_px: f64,
         distortion: [f64; 5],
     },
-    /// A transform with non-finite entries or a rotation that is not orthonormal (tolerance 1e-6).
+    /// A transform with non-finite entries or a rotation that is not proper (orthonormal to
+    /// 1e-6, determinant +1).
     #[error("transform {name} is not a finite rigid transform: {transform:?}")]
     InvalidTransform {
         name: &'static str,
@@ -74,16 +75,8 @@ impl CameraSetup {
 const MAX_IMAGE_PIXELS: u64 = 1 << 26;
 
 fn check_intrinsics(camera: &'static str, k: &CameraIntrinsics) -> Result<(), CameraSetupError> {
-    let valid = k.width_px > 0
-        && k.height_px > 0
-        && u64::from(k.width_px) * u64::from(k.height_px) <= MAX_IMAGE_PIXELS
-        && k.fx_px.is_finite()
-        && k.fy_px.is_finite()
-        && k.fx_px > 0.0
-        && k.fy_px > 0.0
-        && k.cx_px.is_finite()
-        && k.cy_px.is_finite()
-        && k.distortion.iter().all(|c| c.is_finite());
+    let valid =
+        k.problem().is_none() && u64::from(k.width_px) * u64::from(k.height_px) <= MAX_IMAGE_PIXELS;
     if valid {
         Ok(())
     } else {
@@ -101,19 +94,7 @@ fn check_intrinsics(camera: &'static str, k: &CameraIntrinsics) -> Result<(), Ca
 }
 
 fn check_transform(name: &'static str, t: &RigidTransform) -> Result<(), CameraSetupError> {
-    let finite = t.rotation.iter().flatten().all(|v| v.is_finite())
-        && t.translation_m.iter().all(|v| v.is_finite());
-    let orthonormal = finite && {
-        let r = &t.rotation;
-        (0..3).all(|i| {
-            (0..3).all(|j| {
-                let dot: f64 = (0..3).map(|k| r[i][k] * r[j][k]).sum();
-                let expected = if i == j { 1.0 } else { 0.0 };
-                (dot - expected).abs() < 1e-6
-            })
-        })
-    };
-    if orthonormal {
+    if t.is_rigid() {
         Ok(())
     } else {
         Err(CameraSetupError::InvalidTransform {
