@@ -49,13 +49,6 @@ impl GreyImage {
         }
         self.pixels.get(v * self.width_px + u).copied()
     }
-
-    /// The image as binary PGM (P5), for looking at a rendered view.
-    pub fn to_pgm(&self) -> Vec<u8> {
-        let mut bytes = format!("P5\n{} {}\n255\n", self.width_px, self.height_px).into_bytes();
-        bytes.extend_from_slice(&self.pixels);
-        bytes
-    }
 }
 
 /// How a view is rendered.

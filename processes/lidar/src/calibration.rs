@@ -780,7 +780,7 @@ pub fn write_scenes(dir: &std::path::Path, scenes: &CalibrationScenes) -> Result
 mod tests {
     use super::*;
     use crate::board_image::GreyImage;
-    use crate::calibration_data::write_png_grey;
+    use crate::calibration_data::{temp_dir, write_png_grey};
 
     fn scenes(views: usize, integration_s: f64, seed: u64) -> CalibrationScenes {
         let config = SceneConfig {
@@ -975,16 +975,6 @@ mod tests {
         let error = generate_scenes(&bad, k, &LidarSpec::mid70(), board, CAD_CAMERA_FROM_LIDAR)
             .expect_err("negative tilt");
         assert!(error.to_string().contains("max_tilt_deg = -1"), "{error}");
-    }
-
-    /// A fresh, empty directory under the system temp dir for one test.
-    fn temp_dir(test: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!(
-            "harvest-lidar-calibration-{}-{test}",
-            std::process::id()
-        ));
-        let _ = std::fs::remove_dir_all(&dir);
-        dir
     }
 
     #[test]

@@ -440,18 +440,19 @@ pub fn write_png_grey(path: &Path, image: &GreyImage) -> Result<(), DataSetError
         .map_err(|error| write_error(error.to_string()))
 }
 
+/// A fresh, empty directory under the system temp dir for one test of this crate.
+#[cfg(test)]
+pub(crate) fn temp_dir(test: &str) -> PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("harvest-lidar-data-{}-{test}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A fresh, empty directory under the system temp dir for one test.
-    fn temp_dir(test: &str) -> PathBuf {
-        let dir =
-            std::env::temp_dir().join(format!("harvest-lidar-data-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("temp dir");
-        dir
-    }
 
     fn camera() -> CameraFile {
         CameraFile {

@@ -928,6 +928,7 @@ fn line_angle_between(a_rad: f64, b_rad: f64) -> f64 {
 mod tests {
     use super::*;
     use crate::board_image::{BoardImageConfig, render_board_view};
+    use crate::calibration::ImageCornerAccuracy;
     use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
     use rand::SeedableRng;
     use rand::rngs::SmallRng;
@@ -961,18 +962,6 @@ mod tests {
         .expect("render")
     }
 
-    /// Errors of the detected corners against the true projections, index by index, pixels.
-    fn errors(found: &[[f64; 2]], truth: &[[f64; 2]]) -> Vec<f64> {
-        assert_eq!(found.len(), truth.len());
-        let mut errors: Vec<f64> = found
-            .iter()
-            .zip(truth)
-            .map(|(f, t)| (f[0] - t[0]).hypot(f[1] - t[1]))
-            .collect();
-        errors.sort_by(f64::total_cmp);
-        errors
-    }
-
     #[test]
     fn all_corners_in_board_order_within_a_third_of_a_pixel_at_1_5_and_3_m() {
         let intrinsics = CameraIntrinsics::tl460_rgb();
@@ -993,9 +982,11 @@ mod tests {
             let detection = detect_image_corners(&image, &board, &config)
                 .unwrap_or_else(|error| panic!("placement {k}: {error}"));
             let truth = true_corners(&intrinsics, &board, &pose);
-            let errors = errors(&detection.corners_px, &truth);
-            let median = errors[errors.len() / 2];
-            let max = errors[errors.len() - 1];
+            assert_eq!(detection.corners_px.len(), truth.len());
+            let accuracy =
+                ImageCornerAccuracy::measure([(detection.corners_px.as_slice(), truth.as_slice())])
+                    .expect("corners compared");
+            let (median, max) = (accuracy.median_px, accuracy.max_px);
             assert!(median < 0.3, "placement {k}: median error {median:.3} px");
             // In order: every corner is far closer to its own truth than to any neighbour's.
             assert!(max < 1.0, "placement {k}: max error {max:.3} px");
