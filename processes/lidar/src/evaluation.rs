@@ -23,6 +23,7 @@
 //! D455 spread grows with distance), which this simulation does not model.
 
 use crate::fusion::{Fusion, FusionConfig, FusionError, FusionTiming, measure_fusion_time};
+use crate::integration_window::{max_window_s, window_returns};
 use crate::localization::{ZScoreConfig, localize_fruit};
 use harvest_hw::lidar::scan_pattern::coverage_fraction;
 use harvest_hw::lidar::{LidarSpec, RosetteScan};
@@ -193,15 +194,14 @@ pub fn evaluate(args: &EvalLidarArgs) -> Result<EvalLidarReport, EvalLidarError>
         noise_seed: args.seed,
         ..LidarDeviceConfig::default()
     };
-    let rate = device_config.spec.point_rate_hz;
-    let capacity_s = harvest_ipc::payloads::point_cloud::POINT_CLOUD_CAPACITY as f64 / rate;
-    if !(args.integration_s > 0.0 && args.integration_s <= capacity_s + 1e-9) {
+    let Some(per_window) = window_returns(&device_config.spec, args.integration_s) else {
         return Err(EvalLidarError::Config(format!(
-            "integration_s = {} outside (0, {capacity_s}] (one cloud holds {} points)",
+            "integration_s = {} outside (0, {}] (one cloud holds {} points)",
             args.integration_s,
+            max_window_s(&device_config.spec),
             harvest_ipc::payloads::point_cloud::POINT_CLOUD_CAPACITY
         )));
-    }
+    };
     if args.trials < 2 {
         return Err(EvalLidarError::Config(format!(
             "trials = {} (a standard deviation needs at least 2)",
@@ -254,7 +254,6 @@ pub fn evaluate(args: &EvalLidarArgs) -> Result<EvalLidarReport, EvalLidarError>
             FusionConfig::new(color, device_config.camera_from_lidar)
                 .with_range_noise(device_config.spec.range_sigma_m),
         )?;
-        let per_window = (args.integration_s * rate).round() as usize;
         let (mut lidar_positions, mut lidar_points) = (Vec::new(), 0usize);
         for _ in 0..args.trials {
             cloud.clear();

@@ -25,6 +25,7 @@ pub mod evaluation;
 pub mod extrinsic_solver;
 pub mod fusion;
 pub mod image_corners;
+pub mod integration_window;
 pub mod localization;
 pub mod process;
 

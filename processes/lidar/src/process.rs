@@ -4,9 +4,10 @@
 //! serves the heartbeat and shutdown), writes each integrated cloud straight into a loaned
 //! sample and sends it. Fusion with the camera runs in the consumer (see [`crate::fusion`]).
 
+use crate::integration_window::max_window_s;
 use harvest_hw::lidar::Lidar;
+use harvest_hw::lidar::LidarSpec;
 use harvest_hw::lidar::sim::SimLidar;
-use harvest_hw::lidar::spec::MID70_POINT_RATE_HZ;
 use harvest_ipc::catalogue::LIDAR_POINTS;
 use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::payloads::point_cloud::POINT_CLOUD_CAPACITY;
@@ -56,7 +57,7 @@ harvest_ipc::from_ipc_errors!(LidarProcessError);
 
 /// Runs the LiDAR process until SIGINT/SIGTERM.
 pub fn run(args: &LidarArgs, domain: &Domain, process_name: &str) -> Result<(), LidarProcessError> {
-    let max_s = POINT_CLOUD_CAPACITY as f64 / MID70_POINT_RATE_HZ;
+    let max_s = max_window_s(&LidarSpec::mid70());
     if !(args.integration_s >= 0.1 && args.integration_s <= max_s) {
         return Err(LidarProcessError::BadIntegration {
             integration_s: args.integration_s,

@@ -147,12 +147,12 @@ impl PerceptionNode {
             &mut self.tracked,
         );
         out.processing_ns = stats.timings.total_us * 1000;
+        let depth_source = if depth_mm_override.is_some() {
+            DepthSourceCode::LidarFused
+        } else {
+            DepthSourceCode::Tof
+        };
         for (apple, tracked) in apples.iter().zip(&self.tracked).take(MAX_APPLES_PER_FRAME) {
-            let depth_source = if depth_mm_override.is_some() {
-                DepthSourceCode::LidarFused
-            } else {
-                DepthSourceCode::Tof
-            };
             let (method, depth_source, position_in_camera_m, position_in_robot_m) =
                 match tracked.laser_position_m {
                     Some((camera, robot)) => (

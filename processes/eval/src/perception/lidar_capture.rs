@@ -8,8 +8,8 @@
 //! (`harvest calibrate lidar-camera`).
 
 use harvest_ipc::payload::boxed_zeroed;
-use harvest_ipc::payloads::point_cloud::POINT_CLOUD_CAPACITY;
 use harvest_ipc::payloads::{PointCloud, RgbdFrameMeta};
+use harvest_lidar::integration_window::window_returns;
 use harvest_perception::depth_source::FusedDepth;
 use harvest_sim::World;
 use harvest_sim::lidar_device::{LidarDeviceConfig, LidarDeviceServer};
@@ -31,15 +31,12 @@ impl LidarCapture {
             noise_seed: seed,
             ..LidarDeviceConfig::default()
         };
-        let rate_hz = config.spec.point_rate_hz;
-        let capacity_s = POINT_CLOUD_CAPACITY as f64 / rate_hz;
-        if !(integration_s.is_finite() && integration_s > 0.0 && integration_s <= capacity_s) {
-            return Err(EvalError::BadArgument {
+        let returns_per_window =
+            window_returns(&config.spec, integration_s).ok_or_else(|| EvalError::BadArgument {
                 argument: "--lidar-integration-s",
                 value: integration_s.to_string(),
                 reason: "must be positive and at most one cloud's capacity (1 s at 100k points/s)",
-            });
-        }
+            })?;
         let device = LidarDeviceServer::new(config).map_err(|source| EvalError::Lidar {
             source: Box::new(source),
         })?;
@@ -47,7 +44,7 @@ impl LidarCapture {
             device,
             cloud: boxed_zeroed(),
             fused: FusedDepth::new(config.camera_from_lidar),
-            returns_per_window: (integration_s * rate_hz).round() as usize,
+            returns_per_window,
         })
     }
 

@@ -63,18 +63,8 @@ pub fn evaluate(args: &EvalPerceptionArgs) -> Result<PerceptionReport, EvalError
             reason: "seed + frames overflows u64",
         });
     }
-    let mut kinds: Vec<EstimatorKind> = Vec::new();
-    for estimator in &args.estimators {
-        if !kinds.contains(estimator) {
-            kinds.push(*estimator);
-        }
-    }
-    let mut depth_sources: Vec<DepthSource> = Vec::new();
-    for source in &args.depth_sources {
-        if !depth_sources.contains(source) {
-            depth_sources.push(*source);
-        }
-    }
+    let kinds = first_occurrences(&args.estimators);
+    let depth_sources = first_occurrences(&args.depth_sources);
     if depth_sources.is_empty() {
         return Err(EvalError::BadArgument {
             argument: "--depth-sources",
@@ -147,6 +137,17 @@ pub fn evaluate(args: &EvalPerceptionArgs) -> Result<PerceptionReport, EvalError
         scenarios,
         repeatability,
     })
+}
+
+/// `values` without repeats, in the order of their first occurrence.
+fn first_occurrences<T: Copy + PartialEq>(values: &[T]) -> Vec<T> {
+    let mut unique = Vec::with_capacity(values.len());
+    for value in values {
+        if !unique.contains(value) {
+            unique.push(*value);
+        }
+    }
+    unique
 }
 
 /// The depth image a variant localizes from: the fused one for `lidar_fused`, else the frame's.

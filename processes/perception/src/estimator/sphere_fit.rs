@@ -828,8 +828,8 @@ mod range_noise_tests {
         let (median, bias) = errors(DepthNoiseModel::TL460, 1.0, 1);
         assert!(median < 0.002, "ToF median error {median} m");
         assert!(bias.abs() < 0.001, "ToF mean depth error {bias} m");
-        // LiDAR-like: 2 cm range noise, a quarter of the samples. The isotropic fit alone put
-        // the centre some 2 cm in front of the truth here.
+        // LiDAR-like: 2 cm range noise, a quarter of the samples (the isotropic fit alone puts
+        // the centre about sigma^2 / r in front of the truth).
         let lidar = DepthNoiseModel {
             base_m: 0.02,
             fraction_of_depth: 0.0,
