@@ -2,6 +2,7 @@
 //! the simulated robot, camera, perception, both arms and the vacuum supervisor picks a small
 //! orchard, prints per-apple events and the summary, and exits clean; bad targets published on
 //! an arm's target channel are refused with a reason on `harvest/events` and the arm holds.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -18,7 +19,7 @@ use std::time::{Duration, Instant};
 
 /// The `ideal` preset with `apples` apples: a grid, no occlusion, no failures.
 fn small_orchard(apples: u32) -> String {
-    let ideal = include_str!("../processes/sim/scenarios/ideal.toml");
+    let ideal = include_str!("../sim/scenarios/ideal.toml");
     assert!(ideal.contains("count = 16"), "the ideal preset changed");
     ideal.replace("count = 16", &format!("count = {apples}"))
 }
@@ -61,6 +62,7 @@ restart = "never"
 [[process]]
 name = "perception"
 command = "perception"
+args = ["--calibration", "SIM_CAMERA_CALIBRATION"]
 restart = "never"
 
 [[process]]
@@ -68,7 +70,9 @@ name = "vacuum"
 command = "vacuum"
 args = ["--policy", "2024", "--arms", "2"]
 restart = "never"
-"#,
+"#
+            .replace("SIM_CAMERA_CALIBRATION", SIM_CAMERA_CALIBRATION)
+            .as_str(),
         );
     }
     text

@@ -1,6 +1,7 @@
 //! Record-and-replay debugging: camera frames recorded from a running stack are replayed into a
 //! stack without camera or simulator; perception re-runs on them, and two replays of the same
 //! recording give the same detections for every frame both processed.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -53,7 +54,8 @@ fn replay_into_perception(
     let launch = dir.write(
         &format!("perception{run}.toml"),
         &format!(
-            "[[process]]\nname = \"perception\"\ncommand = \"perception\"\n\n[[process]]\nname = \"recorder\"\n\
+            "[[process]]\nname = \"perception\"\ncommand = \"perception\"\n\
+             args = [\"--calibration\", \"{SIM_CAMERA_CALIBRATION}\"]\n\n[[process]]\nname = \"recorder\"\n\
              command = \"recorder\"\nargs = [\"--output-dir\", \"{}\", \"--include\", \"perception/*\"]\n",
             out_dir.display()
         ),

@@ -1,5 +1,6 @@
 //! `harvest up` with the real processes over real shared memory: frames flow, children are
 //! restarted, shutdown is clean, domains are separate.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -129,7 +130,10 @@ fn two_domains_do_not_cross_talk() {
     // hardware channel it would publish frames.
     let no_sim = dir.write(
         "no_sim.toml",
-        "[[process]]\nname = \"camera\"\ncommand = \"camera\"\n\n[[process]]\nname = \"perception\"\ncommand = \"perception\"\n",
+        &format!(
+            "[[process]]\nname = \"camera\"\ncommand = \"camera\"\n\n[[process]]\nname = \"perception\"\n\
+             command = \"perception\"\nargs = [\"--calibration\", \"{SIM_CAMERA_CALIBRATION}\"]\n"
+        ),
     );
     let domain_a = unique_domain("a");
     let domain_b = unique_domain("b");

@@ -1,4 +1,5 @@
 //! Supervisor behaviour with fault-injection fixtures: real processes, real shared memory.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -29,10 +30,13 @@ fn up_with_launch(tag: &str, launch_toml: &str, duration: &str) -> (ExitStatus, 
 
 #[test]
 fn crash_at_start_exhausts_restart_budget_and_exits_nonzero() {
+    let fixture = fixture_executable();
     let (status, stderr, domain) = up_with_launch(
         "crash",
-        "[[process]]\nname = \"crasher\"\ncommand = \"fixture\"\nargs = [\"always-crash\"]\n\
-         restart = \"on-failure\"\nmax_restarts = 2\nbackoff_initial_ms = 50\nbackoff_max_ms = 100\n",
+        &format!(
+            "[[process]]\nname = \"crasher\"\nexecutable = \"{fixture}\"\nargs = [\"always-crash\"]\n\
+         restart = \"on-failure\"\nmax_restarts = 2\nbackoff_initial_ms = 50\nbackoff_max_ms = 100\n"
+        ),
         "20s",
     );
     assert!(!status.success(), "must fail; stderr:\n{stderr}");
@@ -46,11 +50,14 @@ fn crash_at_start_exhausts_restart_budget_and_exits_nonzero() {
 
 #[test]
 fn hung_process_is_killed_and_restarted() {
+    let fixture = fixture_executable();
     let (status, stderr, domain) = up_with_launch(
         "hang",
-        "[stack]\nhang_timeout_ms = 1500\nstartup_grace_ms = 1500\n\n[[process]]\nname = \"hanger\"\n\
-         command = \"fixture\"\nargs = [\"hang-after-init\"]\nrestart = \"on-failure\"\n\
-         max_restarts = 10\nbackoff_initial_ms = 50\n",
+        &format!(
+            "[stack]\nhang_timeout_ms = 1500\nstartup_grace_ms = 1500\n\n[[process]]\nname = \"hanger\"\n\
+         executable = \"{fixture}\"\nargs = [\"hang-after-init\"]\nrestart = \"on-failure\"\n\
+         max_restarts = 10\nbackoff_initial_ms = 50\n"
+        ),
         "7s",
     );
     assert!(status.success(), "{stderr}");
@@ -65,10 +72,13 @@ fn hung_process_is_killed_and_restarted() {
 
 #[test]
 fn sigterm_ignoring_process_is_killed_after_grace() {
+    let fixture = fixture_executable();
     let (status, stderr, domain) = up_with_launch(
         "ignore",
-        "[stack]\nshutdown_grace_ms = 500\n\n[[process]]\nname = \"stubborn\"\ncommand = \"fixture\"\n\
-         args = [\"ignore-sigterm\"]\n",
+        &format!(
+            "[stack]\nshutdown_grace_ms = 500\n\n[[process]]\nname = \"stubborn\"\nexecutable = \"{fixture}\"\n\
+         args = [\"ignore-sigterm\"]\n"
+        ),
         "2s",
     );
     assert!(status.success(), "{stderr}");

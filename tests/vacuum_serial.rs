@@ -1,6 +1,7 @@
 //! The vacuum supervisor process driving the serial valve-board driver (`harvest vacuum --device
 //! serial --port ...`) against the fake board on a pseudo-terminal: the same process the stack
 //! runs on the robot, with its board reached over a real serial line.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -3,6 +3,7 @@
 
 pub mod alacs;
 pub mod arm_servos;
+#[cfg(any(test, feature = "testing"))]
 pub mod conformance;
 pub mod error_kind;
 pub mod lidar;

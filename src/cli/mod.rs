@@ -1,6 +1,5 @@
 //! The `harvest` command line.
 
-mod fixture;
 pub mod logging;
 
 use anyhow::{Context as _, Result};
@@ -39,39 +38,44 @@ enum Command {
         until_harvested: bool,
     },
     /// Simulated robot: the orchard world serving the hardware channels.
+    #[cfg(feature = "sim-tools")]
     Sim(harvest_sim::process::SimArgs),
     /// Camera process: device frames -> camera/rgbd.
     Camera(harvest_camera::CameraArgs),
     /// Perception process: camera/rgbd -> perception/apples.
-    Perception(harvest_perception::process::PerceptionArgs),
+    Perception(harvest_perception_process::PerceptionArgs),
     /// Arm process: one arm's 200 Hz control loop (targets -> servos, state, valve requests).
-    Arm(harvest_arm::process::ArmArgs),
+    Arm(harvest_arm_process::ArmArgs),
     /// Vacuum process: valves, attachment inference, coordination policy and apple assignment.
-    Vacuum(harvest_vacuum::process::VacuumArgs),
+    Vacuum(harvest_vacuum_process::process::VacuumArgs),
     /// Calibrate a sensor and print the comparison of methods.
+    #[cfg(feature = "sim-tools")]
     #[command(subcommand)]
     Calibrate(CalibrateCommand),
     /// Benchmarks (latency of the transport and of the running stack).
+    #[cfg(feature = "sim-tools")]
     #[command(subcommand)]
     Bench(BenchCommand),
     /// The sending process of one benchmark case (started by `harvest bench ipc`).
+    #[cfg(feature = "sim-tools")]
     #[command(name = "bench-peer", hide = true)]
     BenchPeer(harvest_bench::BenchPeerArgs),
     /// Evaluations against the simulator's ground truth.
+    #[cfg(feature = "sim-tools")]
     #[command(subcommand)]
     Eval(EvalCommand),
     /// Laser process: answers scan requests with the ALACS unit.
-    Laser(harvest_laser::LaserArgs),
+    Laser(harvest_laser_process::LaserArgs),
     /// LiDAR process: integrated point clouds of the solid-state LiDAR -> lidar/points.
-    Lidar(harvest_lidar::LidarArgs),
+    Lidar(harvest_lidar_process::LidarArgs),
     /// Recorder process: every channel of the domain -> MCAP files.
     Recorder(harvest_recorder::RecorderArgs),
     /// Republish a recording into the channels at recorded timing.
-    Replay(harvest_recorder::ReplayArgs),
+    Replay(harvest_rec::ReplayArgs),
     /// Recording tools: info, cat, export, recover.
     Rec {
         #[command(subcommand)]
-        command: harvest_recorder::RecCommand,
+        command: harvest_rec::RecCommand,
     },
     /// Remove stale iceoryx2 resources of dead processes in the domain.
     Clean {
@@ -84,24 +88,20 @@ enum Command {
     Monitor(harvest_monitor::MonitorArgs),
     /// List the channel catalogue.
     Channels,
-    /// Fault-injection fixtures for supervisor tests.
-    #[command(hide = true)]
-    Fixture {
-        #[arg(value_enum)]
-        behaviour: fixture::Behaviour,
-    },
 }
 
+#[cfg(feature = "sim-tools")]
 #[derive(Debug, Subcommand)]
 enum CalibrateCommand {
     /// ALACS laser-camera extrinsics (alpha, L0, beta): Algorithm 1 and the Table 1 comparison.
-    Laser(harvest_laser::CalibrateLaserArgs),
+    Laser(harvest_calibrate::CalibrateLaserArgs),
     /// LiDAR-camera extrinsic (target-based, eq. 3) from generated checkerboard scenes or a
     /// recorded data set (--data DIR): the Table I report (average and normalized reprojection
     /// error).
-    LidarCamera(harvest_lidar::CalibrateLidarCameraArgs),
+    LidarCamera(harvest_calibrate::CalibrateLidarCameraArgs),
 }
 
+#[cfg(feature = "sim-tools")]
 #[derive(Debug, Subcommand)]
 enum BenchCommand {
     /// One-way latency between separate processes: our layer vs raw iceoryx2 vs a copying
@@ -112,6 +112,7 @@ enum BenchCommand {
     Pipeline(harvest_bench::BenchPipelineArgs),
 }
 
+#[cfg(feature = "sim-tools")]
 #[derive(Debug, Subcommand)]
 enum EvalCommand {
     /// Detection precision/recall, 3D error and processing time per estimator, on rendered frames.
@@ -120,10 +121,10 @@ enum EvalCommand {
     /// clock): cycle times per apple and per attempt, success, per-apple events.
     Harvest(harvest_eval::harvest::EvalHarvestArgs),
     /// Laser refinement of ToF apple positions: error before/after and the time a scan costs.
-    Laser(harvest_laser::EvalLaserArgs),
+    Laser(harvest_eval::laser::EvalLaserArgs),
     /// Fused LiDAR-camera vs ToF fruit localization repeatability per distance (Table III
     /// style) and the fusion time.
-    Lidar(harvest_lidar::EvalLidarArgs),
+    Lidar(harvest_eval::lidar::EvalLidarArgs),
 }
 
 impl Cli {
@@ -136,6 +137,7 @@ impl Cli {
         }
         match &self.command {
             Command::Up { .. } => "supervisor",
+            #[cfg(feature = "sim-tools")]
             Command::Sim(_) => "sim",
             Command::Camera(_) => "camera",
             Command::Perception(_) => "perception",
@@ -147,19 +149,22 @@ impl Cli {
                 }
             }
             Command::Vacuum(_) => "vacuum",
+            #[cfg(feature = "sim-tools")]
             Command::Calibrate(_) => "calibrate",
+            #[cfg(feature = "sim-tools")]
             Command::Bench(_) => "bench",
+            #[cfg(feature = "sim-tools")]
             Command::Eval(_) => "eval",
             Command::Recorder(_) => "recorder",
             Command::Laser(_) => "laser",
             Command::Lidar(_) => "lidar",
             Command::Replay(_) => "replay",
             Command::Rec { .. } => "rec",
+            #[cfg(feature = "sim-tools")]
             Command::BenchPeer(_) => "bench-peer",
             Command::Clean { .. } => "clean",
             Command::Monitor(_) => "monitor",
             Command::Channels => "channels",
-            Command::Fixture { .. } => "fixture",
         }
         .to_owned()
     }
@@ -173,20 +178,21 @@ impl Cli {
                 until_harvested,
             } => up(launch, duration, until_harvested, domain),
             Command::Arm(args) => {
-                harvest_arm::process::run(&args, &domain, process_name).context("arm process")?;
+                harvest_arm_process::run(&args, &domain, process_name).context("arm process")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Vacuum(args) => {
-                harvest_vacuum::process::run(&args, &domain, process_name)
+                harvest_vacuum_process::process::run(&args, &domain, process_name)
                     .context("vacuum process")?;
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::Sim(args) => {
                 harvest_sim::process::run(&args, &domain, process_name).context("sim process")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Perception(args) => {
-                harvest_perception::process::run(&args, &domain, process_name)
+                harvest_perception_process::run(&args, &domain, process_name)
                     .context("perception process")?;
                 Ok(ExitCode::SUCCESS)
             }
@@ -194,30 +200,35 @@ impl Cli {
                 harvest_camera::run(&args, &domain, process_name).context("camera process")?;
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::Calibrate(CalibrateCommand::Laser(args)) => {
-                harvest_laser::run_calibrate_laser(&args).context("laser calibration")?;
+                harvest_calibrate::run_calibrate_laser(&args).context("laser calibration")?;
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::Ipc(args)) => {
                 let report = harvest_bench::run_bench_ipc(&args).context("ipc benchmark")?;
                 print!("{}", report.table());
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::Pipeline(args)) => {
                 let report = harvest_bench::run_bench_pipeline(&args, &domain)
                     .context("pipeline benchmark")?;
                 print!("{}", report.table());
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::Eval(EvalCommand::Perception(args)) => {
                 harvest_eval::run_eval_perception(&args).context("perception evaluation")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Laser(args) => {
-                harvest_laser::process::run(&args, &domain, process_name)
+                harvest_laser_process::process::run(&args, &domain, process_name)
                     .context("laser process")?;
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::Eval(EvalCommand::Harvest(args)) => {
                 let report =
                     harvest_eval::harvest::run_eval_harvest(&args).context("harvest evaluation")?;
@@ -225,21 +236,24 @@ impl Cli {
                 Ok(ExitCode::SUCCESS)
             }
             Command::Lidar(args) => {
-                harvest_lidar::process::run(&args, &domain, process_name)
+                harvest_lidar_process::process::run(&args, &domain, process_name)
                     .context("lidar process")?;
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::Calibrate(CalibrateCommand::LidarCamera(args)) => {
-                harvest_lidar::run_calibrate_lidar_camera(&args)
+                harvest_calibrate::run_calibrate_lidar_camera(&args)
                     .context("lidar-camera calibration")?;
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::Eval(EvalCommand::Lidar(args)) => {
-                harvest_lidar::run_eval_lidar(&args).context("lidar evaluation")?;
+                harvest_eval::lidar::run_eval_lidar(&args).context("lidar evaluation")?;
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::Eval(EvalCommand::Laser(args)) => {
-                harvest_laser::run_eval_laser(&args).context("laser evaluation")?;
+                harvest_eval::laser::run_eval_laser(&args).context("laser evaluation")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Recorder(args) => {
@@ -248,14 +262,15 @@ impl Cli {
                 Ok(ExitCode::SUCCESS)
             }
             Command::Replay(args) => {
-                let report = harvest_recorder::run_replay(&args, &domain).context("replay")?;
+                let report = harvest_rec::run_replay(&args, &domain).context("replay")?;
                 eprint!("{report}");
                 Ok(ExitCode::SUCCESS)
             }
             Command::Rec { command } => {
-                harvest_recorder::run_rec(&command).context("harvest rec")?;
+                harvest_rec::run_rec(&command).context("harvest rec")?;
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::BenchPeer(args) => {
                 harvest_bench::run_bench_peer(&args).context("benchmark peer")?;
                 Ok(ExitCode::SUCCESS)
@@ -283,10 +298,6 @@ impl Cli {
                         spec.description
                     );
                 }
-                Ok(ExitCode::SUCCESS)
-            }
-            Command::Fixture { behaviour } => {
-                fixture::run(behaviour, &domain, process_name)?;
                 Ok(ExitCode::SUCCESS)
             }
         }

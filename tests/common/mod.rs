@@ -9,6 +9,22 @@ use std::time::{Duration, Instant};
 
 pub const HARVEST: &str = env!("CARGO_BIN_EXE_harvest");
 
+/// The simulated robot's camera calibration, which perception needs (`--calibration`).
+pub const SIM_CAMERA_CALIBRATION: &str =
+    concat!(env!("CARGO_MANIFEST_DIR"), "/sim/camera_calibration.toml");
+
+/// The test-only fault-injection fixture (`tools/fixtures`, binary `harvest-fixture`), built
+/// beside `harvest` by `cargo test --workspace`; launch files start it with `executable = ...`.
+pub fn fixture_executable() -> String {
+    let path = std::path::Path::new(HARVEST).with_file_name("harvest-fixture");
+    assert!(
+        path.exists(),
+        "{} is missing: build it with `cargo build -p harvest-test-fixtures` (the same profile as the tests)",
+        path.display()
+    );
+    path.display().to_string()
+}
+
 /// Whole stacks render full-resolution frames: tests that run one take this lock so they do
 /// not run at once on a 2-core machine (cargo runs a file's tests in parallel threads).
 pub fn one_stack_at_a_time() -> std::sync::MutexGuard<'static, ()> {

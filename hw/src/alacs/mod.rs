@@ -3,31 +3,23 @@
 //! - [`AlacsUnit`]: the device trait every implementation provides.
 //! - [`extrinsics`]: the laser-camera extrinsics `(alpha, L0, beta)`, the slide stroke and the
 //!   laser plane as a function of the slide position (eq. 4-8).
-//! - [`scene`] and [`render`]: a pure renderer of the camera image (apples, leaves, laser
-//!   stripe) used by the simulator and by [`rendered_unit`].
-//! - [`rendered_unit`]: an in-process unit that renders a fixed scene (tests, offline runs).
 //! - [`conformance`]: the behaviour every implementation must show, generic over the trait.
 //! - [`camera`]: the default ALACS camera intrinsics.
 //! - [`mounting`]: where the unit sits relative to the ToF camera (`alacs_from_tof_camera`).
 //! - [`sim`]: the driver of the simulated unit over the `hw/alacs/*` channels.
 
 pub mod camera;
+#[cfg(any(test, feature = "testing"))]
 pub mod conformance;
 pub mod error;
 pub mod extrinsics;
 pub mod mounting;
-pub mod render;
-pub mod rendered_unit;
-pub mod scene;
 pub mod sim;
 
 pub use camera::alacs_camera_intrinsics;
 pub use error::{AlacsError, AlacsPart};
 pub use extrinsics::{AlacsExtrinsics, LaserPlane, SLIDE_STROKE_M, check_slide_position};
 pub use mounting::ALACS_FROM_TOF_CAMERA;
-pub use render::{AlacsRenderer, LaserRenderParams, RenderStats, render_laser_line};
-pub use rendered_unit::{RenderedAlacs, RenderedAlacsConfig};
-pub use scene::{AlacsScene, AppleSphere, LeafDisc, SurfaceHit, SurfaceId};
 pub use sim::SimAlacsUnit;
 
 use harvest_ipc::camera_model::CameraIntrinsics;

@@ -7,6 +7,7 @@
 //! controller's capture time. Commands are expected at >= 200 Hz; a servo controller that stops
 //! receiving them holds position.
 
+#[cfg(any(test, feature = "testing"))]
 pub mod conformance;
 pub mod sim;
 

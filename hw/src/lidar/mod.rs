@@ -10,12 +10,10 @@
 //! colour comes from fusing with the camera (`harvest-lidar`).
 //!
 //! - [`spec`]: the Mid-70 parameters as constants and a typed configuration.
-//! - [`scan_pattern`]: the rosette scan directions over time.
 //! - [`mounting`]: the LiDAR frame convention and the CAD pose of the LiDAR on the camera.
 //! - [`sim`]: the driver of the simulated device (frames on `hw/lidar/points`).
 
 pub mod mounting;
-pub mod scan_pattern;
 pub mod sim;
 pub mod spec;
 
@@ -24,7 +22,6 @@ use harvest_ipc::payloads::PointCloud;
 use std::time::Duration;
 
 pub use mounting::{CAD_CAMERA_FROM_LIDAR, OPTICAL_FROM_LIDAR};
-pub use scan_pattern::RosetteScan;
 pub use spec::LidarSpec;
 
 /// An integrated point-cloud source the `lidar` process drives.

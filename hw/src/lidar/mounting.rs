@@ -20,18 +20,6 @@ pub const CAD_CAMERA_FROM_LIDAR: RigidTransform = RigidTransform {
     translation_m: [0.0, -0.08, 0.0],
 };
 
-/// The unit as the simulator builds it: the CAD pose off by a plausible assembly error
-/// (about 0.5-1 deg and a few millimetres per axis). The calibration must recover this one.
-pub fn simulated_camera_from_lidar() -> RigidTransform {
-    let error = RigidTransform::from_rpy_translation(
-        0.6_f64.to_radians(),
-        -0.8_f64.to_radians(),
-        0.5_f64.to_radians(),
-        [0.004, -0.006, 0.003],
-    );
-    error.compose(&CAD_CAMERA_FROM_LIDAR)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

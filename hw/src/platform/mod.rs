@@ -13,6 +13,7 @@
 //! - [`sim`]: the driver of the simulated platform over `hw/platform/*`.
 //! - [`conformance`]: the behaviour every implementation must show.
 
+#[cfg(any(test, feature = "testing"))]
 pub mod conformance;
 pub mod sim;
 pub mod travel;

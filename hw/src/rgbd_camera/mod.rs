@@ -6,6 +6,7 @@
 //! come from two sensors a few centimetres apart, related by the registration in the frame's
 //! metadata. Frames free-run at the device's rate; the capture time is the device's.
 
+#[cfg(any(test, feature = "testing"))]
 pub mod conformance;
 pub mod sim;
 

@@ -13,9 +13,11 @@
 //! - [`conformance`]: the behaviour every implementation must show, generic over the trait.
 //! - [`dyn_board`]: a type-erased board for `Box<dyn ValveBoard<...>>` use.
 
+#[cfg(any(test, feature = "testing"))]
 pub mod conformance;
 pub mod dyn_board;
 #[cfg(unix)]
+#[cfg(any(test, feature = "testing"))]
 pub mod fake_board;
 pub mod line_assembler;
 pub mod protocol;

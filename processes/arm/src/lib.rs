@@ -1,19 +1,7 @@
-//! harvest-arm: kinematics, trajectories, tracking control and the picking cycle of one 4-DOF
-//! tube arm of the dual-arm apple harvester (paper 003, sections 2.2, 3.2 and 3.3). The logic
-//! modules are pure (no IPC, no clock reads; time is passed in by the caller); [`process`] is the
-//! `harvest arm` process that runs [`node::ArmNode`] over the channels at 200 Hz.
+//! `harvest arm --id 1|2`: one arm's 200 Hz control loop. Reads the encoders through
+//! `harvest_hw::arm_servos::ArmServos`, steps `harvest_arm::node::ArmNode`, commands the servos
+//! and publishes the arm's state, events and heartbeat.
 
-pub mod clearance;
-pub mod control_loop;
-pub mod controller;
-pub mod failure_streak;
-pub mod harvest_events;
-pub mod joint;
-pub mod kinematics;
-pub mod node;
-pub mod params;
-pub mod period_stats;
-pub mod picking_cycle;
 pub mod process;
-pub mod servo_model;
-pub mod trajectory;
+
+pub use process::{ArmArgs, ArmDevice, ArmProcessError, run};

@@ -40,15 +40,15 @@ use harvest_ipc::payloads::{
 use harvest_ipc::{Context, Domain, Flow, HealthReporter, MonotonicClock};
 use serde::Deserialize;
 
-use crate::control_loop::{Wake, run_control_loop};
-use crate::failure_streak::FailureStreak;
-use crate::harvest_events::ArmEventReporter;
-use crate::node::{
+use harvest_arm::harvest_events::ArmEventReporter;
+use harvest_arm::node::{
     ArmNode, ArmNodeConfig, ArmNodeError, ArmNodeInput, EncoderSample, OtherArmInput, ServoOrder,
     arm_number,
 };
-use crate::params::{ArmId, ArmParams};
-use crate::period_stats::{PeriodStatsError, PeriodSummary};
+use harvest_ipc::control_loop::{Wake, run_control_loop};
+use harvest_ipc::failure_streak::FailureStreak;
+use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
+use harvest_robot_model::params::{ArmId, ArmParams};
 
 /// Which servo device drives the arm (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

@@ -7,7 +7,7 @@
 //! runs, or the supervisor would take the busy process for a hung one.
 //!
 //! Frames: requests carry the rough centre in the ToF colour-camera frame; results come back in
-//! the same frame (see [`crate::service`]).
+//! the same frame (see [`harvest_laser::service`]).
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -20,9 +20,9 @@ use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT};
 use harvest_ipc::payloads::{LaserScanResult, ProcessRunState};
 use harvest_ipc::{Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, Waiter};
 
-use crate::calibration::{CalibrationFileError, read_calibration_file};
-use crate::extraction::ExtractionError;
-use crate::service::{STATUS_DEVICE_ERROR, STATUS_OK, ScanService};
+use harvest_laser::calibration::{CalibrationFileError, read_calibration_file};
+use harvest_laser::extraction::ExtractionError;
+use harvest_laser::service::{STATUS_DEVICE_ERROR, STATUS_OK, ScanService};
 
 /// Arguments of `harvest laser`.
 #[derive(Debug, Clone, PartialEq, clap::Args)]

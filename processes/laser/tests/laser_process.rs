@@ -6,6 +6,7 @@
 //! Checks: a known apple's request is answered with status 0 within a few millimetres of the
 //! truth (ToF colour-camera frame, as requested) and echoes the request's ids; an apple out of
 //! the slide's reach gets status 2 without moving the device; the loop stops cleanly.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -18,9 +19,9 @@ use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsExtrinsics};
 use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT, PROCESS_HEALTH};
 use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
 use harvest_ipc::{Context, Payload, Subscriber};
-use harvest_laser::process::{LaserArgs, run_until};
 use harvest_laser::service::{STATUS_OK, STATUS_OUT_OF_REACH};
 use harvest_laser::{ScanConfig, ScanPlanner};
+use harvest_laser_process::process::{LaserArgs, run_until};
 use harvest_sim::alacs_device::robot_from_tof_color;
 
 /// Watchdog on every wait of the test.

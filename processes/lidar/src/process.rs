@@ -2,9 +2,8 @@
 //!
 //! The loop blocks in the device's integrating capture (the device paces it; a timeout only
 //! serves the heartbeat and shutdown), writes each integrated cloud straight into a loaned
-//! sample and sends it. Fusion with the camera runs in the consumer (see [`crate::fusion`]).
+//! sample and sends it. Fusion with the camera runs in the consumer (see [`harvest_lidar::fusion`]).
 
-use crate::integration_window::max_window_s;
 use harvest_hw::lidar::Lidar;
 use harvest_hw::lidar::LidarSpec;
 use harvest_hw::lidar::sim::SimLidar;
@@ -12,6 +11,7 @@ use harvest_ipc::catalogue::LIDAR_POINTS;
 use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::payloads::point_cloud::POINT_CLOUD_CAPACITY;
 use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD, HealthReporter};
+use harvest_lidar::integration_window::max_window_s;
 use std::time::{Duration, Instant};
 
 /// Which LiDAR device to drive (the one place the implementation is chosen).

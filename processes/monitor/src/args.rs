@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use harvest_ipc::Domain;
-use harvest_vacuum::safety_monitor::MonitorConfig;
+use harvest_safety::safety_monitor::MonitorConfig;
 
 use crate::error::MonitorError;
 use crate::live::run_live;
@@ -88,7 +88,7 @@ pub fn run_monitor(
     process_name: &str,
 ) -> Result<MonitorReport, MonitorError> {
     let (mapping, checks) = args.configs()?;
-    let print = |v: &harvest_vacuum::safety_monitor::Violation| println!("VIOLATION {v}");
+    let print = |v: &harvest_safety::safety_monitor::Violation| println!("VIOLATION {v}");
     match &args.recording {
         Some(_) if args.engage_stop_after.is_some() => Err(MonitorError::InvalidArgument {
             arg: "--engage-stop-after",

@@ -1,8 +1,8 @@
 //! harvest-monitor: `harvest monitor`, the independent safety monitor of issue 5 run on the
 //! stack's channels, live or from a recording.
 //!
-//! The checker itself is [`harvest_vacuum::safety_monitor::SafetyMonitor`], which judges a
-//! stream of [`harvest_vacuum::trace::TraceEvent`]s and shares no logic with the policies. This
+//! The checker itself is [`harvest_safety::safety_monitor::SafetyMonitor`], which judges a
+//! stream of [`harvest_safety::trace::TraceEvent`]s and shares no logic with the policies. This
 //! crate only turns what the stack publishes into those events and feeds them:
 //!
 //! - [`mapping`]: the one place where stack channels become trace events (`vacuum/state`,

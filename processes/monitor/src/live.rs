@@ -10,8 +10,8 @@ use harvest_ipc::payloads::EmergencyStop;
 use harvest_ipc::{
     Context, Domain, FixedString, Flow, MonotonicClock, Payload, Subscriber, Waiter,
 };
-use harvest_vacuum::ArmId;
-use harvest_vacuum::safety_monitor::{MonitorConfig, Violation};
+use harvest_robot_model::ArmId;
+use harvest_safety::safety_monitor::{MonitorConfig, Violation};
 
 use crate::error::MonitorError;
 use crate::mapping::MappingConfig;

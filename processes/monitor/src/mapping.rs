@@ -20,13 +20,13 @@
 //! configured with ([`DEFAULT_ATTACH_WINDOW_NS`]), and then requires the valve to close within
 //! the reaction deadline.
 
-use harvest_arm::params::ArmParams;
 use harvest_ipc::payloads::{
     ArmCommand, ArmPhase as PhaseCode, ArmState, EmergencyStop, VacuumState,
 };
-use harvest_vacuum::ArmId;
-use harvest_vacuum::arm_phase::ArmPhase;
-use harvest_vacuum::trace::{FailureKind, JointId, TraceEvent};
+use harvest_robot_model::ArmId;
+use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::params::ArmParams;
+use harvest_safety::trace::{FailureKind, JointId, TraceEvent};
 
 /// The vacuum supervisor's attach timeout with the simulated valve box (500 ms,
 /// `harvest_vacuum::process::SIM_ATTACH_TIMEOUT_NS`) plus two control periods for the report to

@@ -1,5 +1,5 @@
 //! `harvest monitor --recording FILE.mcap`: the monitored channels of a recording, in file
-//! order, through the recorder's damage-tolerant scanner ([`harvest_recorder::scan`]) and the
+//! order, through the recorder's damage-tolerant scanner ([`harvest_recording::scan`]) and the
 //! payload codec, judged as the live monitor judges them (receive time = the message's
 //! `log_time`). A message whose schema is not the catalogue's for its topic, or that does not
 //! decode, is skipped and counted.
@@ -9,10 +9,10 @@ use std::path::Path;
 
 use harvest_ipc::catalogue::{ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, VACUUM_STATE};
 use harvest_ipc::{Channel, Payload};
-use harvest_recorder::scan::{ScanItem, ScanOptions, ScannedMessage, scan_file};
-use harvest_recorder::schema::TopicInfo;
-use harvest_vacuum::ArmId;
-use harvest_vacuum::safety_monitor::{MonitorConfig, Violation};
+use harvest_recording::scan::{ScanItem, ScanOptions, ScannedMessage, scan_file};
+use harvest_recording::schema::TopicInfo;
+use harvest_robot_model::ArmId;
+use harvest_safety::safety_monitor::{MonitorConfig, Violation};
 
 use crate::error::MonitorError;
 use crate::mapping::MappingConfig;

@@ -1,14 +1,14 @@
 //! The mapping ([`crate::mapping`]) and the independent checker
-//! ([`harvest_vacuum::safety_monitor::SafetyMonitor`]) fed message by message, with counts.
+//! ([`harvest_safety::safety_monitor::SafetyMonitor`]) fed message by message, with counts.
 
 use std::fmt::Write as _;
 
 use harvest_ipc::payloads::{
     ArmCommand, ArmPhase as PhaseCode, ArmState, EmergencyStop, VacuumState,
 };
-use harvest_vacuum::ArmId;
-use harvest_vacuum::safety_monitor::{MonitorConfig, SafetyMonitor, TraceError, Violation};
-use harvest_vacuum::trace::TraceEvent;
+use harvest_robot_model::ArmId;
+use harvest_safety::safety_monitor::{MonitorConfig, SafetyMonitor, TraceError, Violation};
+use harvest_safety::trace::TraceEvent;
 
 use crate::mapping::{MappingConfig, StackTraceMapper};
 

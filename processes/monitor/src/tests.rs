@@ -3,15 +3,15 @@
 
 use std::path::{Path, PathBuf};
 
-use harvest_arm::params::ArmParams;
 use harvest_ipc::catalogue::{ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, VACUUM_STATE};
 use harvest_ipc::payloads::{ArmCommand, ArmState, EmergencyStop, VacuumState};
 use harvest_ipc::{Channel, Payload};
-use harvest_recorder::schema::TopicInfo;
-use harvest_recorder::segment_writer::{ChunkCompression, ChunkSettings, SegmentWriter};
-use harvest_vacuum::ArmId;
-use harvest_vacuum::safety_monitor::{MonitorConfig, Violation};
-use harvest_vacuum::trace::JointId;
+use harvest_recording::schema::TopicInfo;
+use harvest_recording::segment_writer::{ChunkCompression, ChunkSettings, SegmentWriter};
+use harvest_robot_model::ArmId;
+use harvest_robot_model::params::ArmParams;
+use harvest_safety::safety_monitor::{MonitorConfig, Violation};
+use harvest_safety::trace::JointId;
 
 use crate::mapping::{MappingConfig, STACK_REACTION_NS};
 use crate::recording::check_recording;

@@ -12,15 +12,8 @@
 //! process also subscribes to `lidar/points`; before each frame the newest cloud that has arrived
 //! (if any) is fused into the process's depth image ([`FusedDepth`]) with the frame's geometry,
 //! and the frame is localized from that image. The extrinsic is `--lidar-extrinsic FILE` (written
-//! by `harvest calibrate lidar-camera --output`), else the simulated unit's
-//! ([`harvest_lidar::simulated_camera_from_lidar`], what `harvest sim --lidar` renders with).
+//! by `harvest calibrate lidar-camera --output`); it is required, as the camera calibration is.
 
-use crate::calibration::Calibration;
-use crate::config_file::{ConfigFileError, read_config};
-use crate::depth_source::{DepthSource, FusedDepth};
-use crate::estimator::EstimatorKind;
-use crate::node::PerceptionNode;
-use crate::pipeline::PerceptionConfig;
 use harvest_ipc::catalogue::{
     CAMERA_RGBD, LASER_SCAN_REQUEST, LASER_SCAN_RESULT, LIDAR_POINTS, PERCEPTION_APPLES,
 };
@@ -29,29 +22,36 @@ use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
 };
 use harvest_lidar::ExtrinsicFile;
+use harvest_perception::calibration::Calibration;
+use harvest_perception::config_file::{ConfigFileError, read_config};
+use harvest_perception::depth_source::{DepthSource, FusedDepth};
+use harvest_perception::estimator::EstimatorKind;
+use harvest_perception::node::PerceptionNode;
+use harvest_perception::pipeline::PerceptionConfig;
 use std::path::PathBuf;
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct PerceptionArgs {
-    /// Camera calibration (TOML); default: the simulated robot's camera mounting.
+    /// Camera calibration (TOML: `[camera.robot_from_camera]`), required: where the camera sits
+    /// on this robot. The simulated robot's is `sim/camera_calibration.toml`.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
     /// Perception configuration (TOML, every key optional; see
-    /// processes/perception/config/default.toml); default: the built-in values.
+    /// domain/perception/config/default.toml); default: the built-in values.
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Localization estimator (overrides the config's `estimator.kind`; default there:
     /// sphere fit).
-    #[arg(long, value_enum)]
+    #[arg(long)]
     pub estimator: Option<EstimatorKind>,
     /// Ask the laser scanner for no scans (overrides the config's `laser.enabled`).
     #[arg(long)]
     pub no_laser: bool,
     /// Depth image to localize from (overrides the config's `depth_source`).
-    #[arg(long, value_enum)]
+    #[arg(long)]
     pub depth_source: Option<DepthSource>,
-    /// LiDAR extrinsic for `lidar-fused` (TOML from `harvest calibrate lidar-camera --output`);
-    /// default: the simulated unit's extrinsic.
+    /// LiDAR extrinsic (TOML from `harvest calibrate lidar-camera --output`), required with the
+    /// `lidar-fused` depth source. The simulated unit's is `sim/lidar_extrinsic.toml`.
     #[arg(long)]
     pub lidar_extrinsic: Option<PathBuf>,
 }
@@ -62,6 +62,12 @@ pub enum PerceptionProcessError {
     /// message).
     #[error(transparent)]
     Config(#[from] ConfigFileError),
+    /// A file this robot needs was not given: no production default stands in for it.
+    #[error("{flag} FILE is required: {what}")]
+    MissingFile {
+        flag: &'static str,
+        what: &'static str,
+    },
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
@@ -75,10 +81,14 @@ pub fn run(
     domain: &Domain,
     process_name: &str,
 ) -> Result<(), PerceptionProcessError> {
-    let calibration = match &args.calibration {
-        Some(path) => Calibration::from_path(path)?,
-        None => Calibration::default_calibration()?,
-    };
+    let calibration_path =
+        args.calibration
+            .as_deref()
+            .ok_or(PerceptionProcessError::MissingFile {
+                flag: "--calibration",
+                what: "the camera's pose on the robot (robot_from_camera)",
+            })?;
+    let calibration = Calibration::from_path(calibration_path)?;
     let mut config = match &args.config {
         Some(path) => read_config(path)?,
         None => PerceptionConfig::default(),
@@ -95,10 +105,14 @@ pub fn run(
     let mut fused_depth = match config.depth_source {
         DepthSource::Tof => None,
         DepthSource::LidarFused => {
-            let camera_from_lidar = match &args.lidar_extrinsic {
-                Some(path) => ExtrinsicFile::read(path)?.camera_from_lidar,
-                None => harvest_lidar::simulated_camera_from_lidar(),
-            };
+            let extrinsic_path =
+                args.lidar_extrinsic
+                    .as_deref()
+                    .ok_or(PerceptionProcessError::MissingFile {
+                        flag: "--lidar-extrinsic",
+                        what: "the LiDAR's pose on the camera, for the lidar-fused depth source",
+                    })?;
+            let camera_from_lidar = ExtrinsicFile::read(extrinsic_path)?.camera_from_lidar;
             Some(FusedDepth::new(camera_from_lidar))
         }
     };

@@ -6,13 +6,7 @@
 //! watches the writer and the stop flag. SIGINT/SIGTERM end the loop; the recorder then drains
 //! what is still queued, writes per-channel drop counts and finishes the file.
 
-use crate::metadata;
-use crate::schema::{TopicInfo, catalogue_topics, layer_name};
-use crate::segment_writer::{ChunkCompression, ChunkSettings};
 use crate::tap::{Tap, TapCounts, TypedTap};
-use crate::topic_filter::TopicFilter;
-use crate::units::{format_bytes, parse_duration, parse_size_bytes};
-use crate::wall_clock::{ClockPair, format_utc_iso};
 use crate::writer_thread::{OutputSettings, WriteError, WriterHandle};
 use harvest_ipc::catalogue::{self, Layer};
 use harvest_ipc::payloads::ProcessRunState;
@@ -20,6 +14,12 @@ use harvest_ipc::{
     Channel, ChannelVisitor, Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, Payload,
     RunEnd, RunError, Waiter,
 };
+use harvest_recording::metadata;
+use harvest_recording::schema::{TopicInfo, catalogue_topics, layer_name};
+use harvest_recording::segment_writer::{ChunkCompression, ChunkSettings};
+use harvest_recording::topic_filter::TopicFilter;
+use harvest_recording::units::{format_bytes, parse_duration, parse_size_bytes};
+use harvest_recording::wall_clock::{ClockPair, format_utc_iso};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -54,7 +54,7 @@ pub struct RecorderArgs {
     pub prefix: String,
     /// Chunk compression. LZ4 by default: it keeps up with 30 Hz frames (205 MB/s) on two
     /// cores, zstd level 1 (about 170 MB/s there) does not for long.
-    #[arg(long, value_enum, default_value = "lz4")]
+    #[arg(long, default_value = "lz4")]
     pub compression: ChunkCompression,
     /// Compression level (default: zstd 1, lz4 0 = fast default).
     #[arg(long)]

@@ -7,12 +7,12 @@
 //! dropped and counted, so a slow disk never stalls receiving (nor, through iceoryx2's safe
 //! overflow, any publisher).
 
-use crate::mcap_error::mcap_error_text;
-use crate::metadata;
 use crate::output_dir::{create_segment, enforce_size_bound};
-use crate::schema::TopicInfo;
-use crate::segment_writer::{ChunkSettings, SegmentWriter};
-use crate::wall_clock::{ClockPair, format_utc_compact, format_utc_iso};
+use harvest_recording::mcap_error::mcap_error_text;
+use harvest_recording::metadata;
+use harvest_recording::schema::TopicInfo;
+use harvest_recording::segment_writer::{ChunkSettings, SegmentWriter};
+use harvest_recording::wall_clock::{ClockPair, format_utc_compact, format_utc_iso};
 use mcap::records::Metadata;
 use std::collections::BTreeMap;
 use std::fs::File;

@@ -1,21 +1,22 @@
 //! Bad input never panics: non-MCAP files, truncation anywhere, corrupted bytes, unknown
 //! schemas, recordings of another payload version, a full disk. Errors are clear and whatever
 //! is valid is still read.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
 use common::*;
 use harvest_ipc::Context;
 use harvest_ipc::catalogue::{ARM_STATE, VACUUM_STATE};
-use harvest_recorder::export::{ExportError, ExportOptions, export};
-use harvest_recorder::rec_cat::{CatError, CatOptions, cat};
-use harvest_recorder::rec_info::{InfoError, info};
-use harvest_recorder::recording_file::ReadError;
-use harvest_recorder::recover::{RecoverError, recover};
-use harvest_recorder::replay::{ReplayArgs, ReplayError, run_replay_with};
-use harvest_recorder::scan::{ScanEnd, ScanOptions, scan_file};
-use harvest_recorder::schema::catalogue_topics;
-use harvest_recorder::segment_writer::{ChunkCompression, ChunkSettings, SegmentWriter};
+use harvest_rec::replay::{ReplayArgs, ReplayError, run_replay_with};
+use harvest_recording::export::{ExportError, ExportOptions, export};
+use harvest_recording::rec_cat::{CatError, CatOptions, cat};
+use harvest_recording::rec_info::{InfoError, info};
+use harvest_recording::recording_file::ReadError;
+use harvest_recording::recover::{RecoverError, recover};
+use harvest_recording::scan::{ScanEnd, ScanOptions, scan_file};
+use harvest_recording::schema::catalogue_topics;
+use harvest_recording::segment_writer::{ChunkCompression, ChunkSettings, SegmentWriter};
 use std::collections::BTreeMap;
 use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
@@ -160,10 +161,10 @@ fn a_damaged_chunk_is_skipped_and_the_others_are_read() {
     let mut total = 0u64;
     scan_file(&original, ScanOptions::default(), |item| {
         match item {
-            harvest_recorder::scan::ScanItem::Chunk(chunk) => {
+            harvest_recording::scan::ScanItem::Chunk(chunk) => {
                 chunks.push((chunk.offset, chunk.record_bytes, 0u64))
             }
-            harvest_recorder::scan::ScanItem::Message(_) => {
+            harvest_recording::scan::ScanItem::Message(_) => {
                 total += 1;
                 if let Some(last) = chunks.last_mut() {
                     last.2 += 1;
@@ -360,7 +361,7 @@ fn a_full_disk_is_a_clear_error_and_the_written_part_is_recoverable() {
     };
     let mut writer = SegmentWriter::new(disk, &settings, topics.len()).expect("writer");
     let mut frame =
-        harvest_recorder::payload_codec::zeroed_box::<harvest_ipc::payloads::RgbdFrame>();
+        harvest_recording::payload_codec::zeroed_box::<harvest_ipc::payloads::RgbdFrame>();
     let mut written = 0u64;
     let error = loop {
         fill_frame(&mut frame, written as u32);
@@ -379,7 +380,7 @@ fn a_full_disk_is_a_clear_error_and_the_written_part_is_recoverable() {
         }
         assert!(written < 100, "the disk must fill up");
     };
-    let text = harvest_recorder::mcap_error::mcap_error_text(&error);
+    let text = harvest_recording::mcap_error::mcap_error_text(&error);
     assert!(text.contains("disk is full"), "{text}");
     // What reached the disk: take it out without finishing (the disk is full).
     let dir = TempDir::new("full");

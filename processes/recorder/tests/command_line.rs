@@ -1,9 +1,11 @@
 //! The clap definitions the `harvest` binary embeds parse the documented command lines.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use clap::{CommandFactory, Parser, Subcommand};
+use harvest_rec::{RecCommand, ReplayArgs};
+use harvest_recorder::RecorderArgs;
 use harvest_recorder::recorder::LayerArg;
-use harvest_recorder::segment_writer::ChunkCompression;
-use harvest_recorder::{RecCommand, RecorderArgs, ReplayArgs};
+use harvest_recording::segment_writer::ChunkCompression;
 use std::time::Duration;
 
 #[derive(Debug, Parser)]

@@ -4,16 +4,17 @@
 //!
 //! The killed recorder is a real process: this test binary re-runs itself as the child
 //! (`recorder_child`, ignored unless the parent sets its environment).
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
 use common::*;
 use harvest_ipc::payloads::ArmState;
 use harvest_ipc::{Context, Domain, Payload};
-use harvest_recorder::rec_cat::{CatOptions, cat};
-use harvest_recorder::rec_info::info;
-use harvest_recorder::recover::{RecoverError, recover};
-use harvest_recorder::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
+use harvest_recording::rec_cat::{CatOptions, cat};
+use harvest_recording::rec_info::info;
+use harvest_recording::recover::{RecoverError, recover};
+use harvest_recording::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
 use std::io::{BufRead, BufReader};
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};

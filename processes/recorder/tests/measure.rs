@@ -2,6 +2,7 @@
 //! disk bandwidth measured in the same run, and replay speed in `--fast` mode.
 //!
 //! `cargo test -p harvest-recorder --release --test measure -- --ignored --nocapture`
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -9,9 +10,9 @@ use common::*;
 use harvest_ipc::Context;
 use harvest_ipc::catalogue::CAMERA_RGBD;
 use harvest_ipc::payloads::RgbdFrame;
-use harvest_recorder::payload_codec::zeroed_box;
-use harvest_recorder::replay::{ReplayArgs, run_replay_with};
-use harvest_recorder::segment_writer::ChunkCompression;
+use harvest_rec::replay::{ReplayArgs, run_replay_with};
+use harvest_recording::payload_codec::zeroed_box;
+use harvest_recording::segment_writer::ChunkCompression;
 use std::io::Write;
 use std::path::Path;
 use std::time::{Duration, Instant};

@@ -1,6 +1,7 @@
 //! The recorder taps real channels (publishers in the test thread, the recorder on its own
 //! thread and node) and the Python `mcap` reader, an independent implementation, reads the
 //! result back.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -9,9 +10,9 @@ use harvest_ipc::catalogue::{CAMERA_RGBD, HW_CAMERA_RGBD};
 use harvest_ipc::codec::ENCODING;
 use harvest_ipc::payloads::{ArmState, RgbdFrame};
 use harvest_ipc::{Context, Payload};
-use harvest_recorder::payload_codec::zeroed_box;
 use harvest_recorder::recorder::LayerArg;
-use harvest_recorder::segment_writer::ChunkCompression;
+use harvest_recording::payload_codec::zeroed_box;
+use harvest_recording::segment_writer::ChunkCompression;
 use std::sync::atomic::Ordering;
 
 fn messages_of<'a>(read: &'a serde_json::Value, topic: &str) -> Vec<&'a serde_json::Value> {

@@ -1,5 +1,6 @@
 //! `replay` republishes a recording into another domain: subscribers there receive the
 //! recorded messages, identical but for the transport's fresh `publish_ns`.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -9,8 +10,8 @@ use harvest_ipc::catalogue::{
 };
 use harvest_ipc::payloads::RgbdFrame;
 use harvest_ipc::{Context, Payload, Subscriber};
-use harvest_recorder::payload_codec::zeroed_box;
-use harvest_recorder::replay::{ReplayArgs, ReplayEnd, ReplayReport, run_replay_with};
+use harvest_rec::replay::{ReplayArgs, ReplayEnd, ReplayReport, run_replay_with};
+use harvest_recording::payload_codec::zeroed_box;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -130,8 +131,8 @@ fn replay_selects_topics_and_a_time_window() {
     // The arm messages' recorded times, from the file itself.
     let mut arm_times = Vec::new();
     let mut first_ns = u64::MAX;
-    harvest_recorder::scan::scan_file(&file, Default::default(), |item| {
-        if let harvest_recorder::scan::ScanItem::Message(message) = item {
+    harvest_recording::scan::scan_file(&file, Default::default(), |item| {
+        if let harvest_recording::scan::ScanItem::Message(message) = item {
             first_ns = first_ns.min(message.log_time);
             if message.channel.topic == "arm1/state" {
                 arm_times.push(message.log_time);

@@ -1,4 +1,5 @@
 //! `rec info`, `rec cat` and `rec export` on a real recording.
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -8,10 +9,10 @@ use harvest_ipc::payloads::RgbdFrame;
 use harvest_ipc::payloads::rgbd_frame::{
     DEPTH_HEIGHT_PX, DEPTH_WIDTH_PX, RGB_HEIGHT_PX, RGB_WIDTH_PX,
 };
-use harvest_recorder::export::{ExportOptions, export};
-use harvest_recorder::payload_codec::zeroed_box;
-use harvest_recorder::rec_cat::{CatOptions, cat};
-use harvest_recorder::rec_info::info;
+use harvest_recording::export::{ExportOptions, export};
+use harvest_recording::payload_codec::zeroed_box;
+use harvest_recording::rec_cat::{CatOptions, cat};
+use harvest_recording::rec_info::info;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
@@ -71,7 +72,7 @@ fn info_cat_and_export_describe_the_recording() {
     );
 
     // The command-line entry point prints the same.
-    harvest_recorder::run_rec(&harvest_recorder::RecCommand::Info {
+    harvest_rec::run_rec(&harvest_rec::RecCommand::Info {
         files: vec![file.clone()],
     })
     .expect("rec info");

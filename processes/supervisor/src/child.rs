@@ -11,13 +11,20 @@ use std::process::{Child, Command};
 /// Environment variable carrying a child's launch name (its node name and log prefix).
 pub const PROCESS_NAME_ENV: &str = "HARVEST_PROCESS_NAME";
 
-/// Starts `spec` as `executable <command> <args>` in its own process group (so a terminal's
+/// Starts `spec` as `executable <command> <args>` (or as `spec.executable <args>` when the
+/// launch file names a program) in its own process group (so a terminal's
 /// Ctrl-C reaches only the supervisor, which then stops children in order), with the parent-death
 /// signal set so children never outlive a killed supervisor.
 pub fn spawn(executable: &Path, spec: &ProcessSpec, domain: &Domain) -> std::io::Result<Child> {
-    let mut command = Command::new(executable);
+    let mut command = match &spec.executable {
+        Some(program) => Command::new(program),
+        None => {
+            let mut command = Command::new(executable);
+            command.arg(&spec.command);
+            command
+        }
+    };
     command
-        .arg(&spec.command)
         .args(&spec.args)
         .env(harvest_ipc::domain::DOMAIN_ENV, domain.name())
         .env(PROCESS_NAME_ENV, &spec.name)

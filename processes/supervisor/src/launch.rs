@@ -7,8 +7,9 @@
 //!
 //! [[process]]
 //! name = "camera"               # unique; also the iceoryx2 node name
-//! command = "camera"            # a `harvest` subcommand
-//! args = ["--rate-hz", "30"]
+//! command = "camera"            # a `harvest` subcommand, or instead:
+//! # executable = "/path/to/program"  # any other program (test fixtures, vendor tools)
+//! args = ["--rate-hz", "30"]     # `${launch_dir}` expands to the launch file's directory
 //! restart = "on-failure"        # never | on-failure | always
 //! max_restarts = 5              # within restart_window_s, else the process failed for good
 //! restart_window_s = 60
@@ -22,6 +23,14 @@ use std::time::Duration;
 
 /// The launch file used when none is given: the whole stack against simulated hardware.
 pub const DEFAULT_LAUNCH: &str = include_str!("../launch/default.toml");
+/// What `${launch_dir}` in a process's `args` expands to: the directory of the launch file, so a
+/// launch file names the files next to it (calibrations, settings) wherever `harvest up` runs.
+/// For the embedded launch files it is their source directory in this repository.
+pub const LAUNCH_DIR_VARIABLE: &str = "${launch_dir}";
+
+/// The directory the embedded launch files come from.
+pub const EMBEDDED_LAUNCH_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/launch");
+
 /// Name shown for the embedded default launch file in errors.
 pub const DEFAULT_LAUNCH_NAME: &str = "<embedded launch/default.toml>";
 
@@ -35,7 +44,7 @@ pub const KNOWN_COMMANDS: &[&str] = &[
     "laser",
     "lidar",
     "recorder",
-    "fixture",
+    "monitor",
 ];
 
 /// When a process that exited is started again.
@@ -80,7 +89,10 @@ impl Default for StackSettings {
 #[serde(deny_unknown_fields)]
 struct RawProcess {
     name: toml::Spanned<String>,
-    command: toml::Spanned<String>,
+    #[serde(default)]
+    command: Option<toml::Spanned<String>>,
+    #[serde(default)]
+    executable: Option<PathBuf>,
     #[serde(default)]
     args: Vec<String>,
     #[serde(default = "default_restart")]
@@ -115,7 +127,11 @@ fn default_backoff_max_ms() -> u64 {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ProcessSpec {
     pub name: String,
+    /// The `harvest` subcommand, or the executable's path when [`Self::executable`] is set
+    /// (for display).
     pub command: String,
+    /// A program started instead of a `harvest` subcommand (`executable = ...`).
+    pub executable: Option<PathBuf>,
     pub args: Vec<String>,
     pub restart: RestartPolicy,
     pub max_restarts: u32,
@@ -190,16 +206,33 @@ impl Launch {
             path: path.to_owned(),
             source,
         })?;
-        Self::parse(&text, &path.display().to_string())
+        let dir = match path.parent() {
+            Some(parent) if !parent.as_os_str().is_empty() => parent.to_owned(),
+            _ => PathBuf::from("."),
+        };
+        let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
+        Self::parse_in(&text, &path.display().to_string(), &dir)
     }
 
     /// The embedded default launch file.
     pub fn default_stack() -> Result<Self, LaunchError> {
-        Self::parse(DEFAULT_LAUNCH, DEFAULT_LAUNCH_NAME)
+        Self::parse_in(
+            DEFAULT_LAUNCH,
+            DEFAULT_LAUNCH_NAME,
+            Path::new(EMBEDDED_LAUNCH_DIR),
+        )
     }
 
-    /// Parses and validates launch-file text; `file` names it in errors.
+    /// Parses and validates an embedded launch file (`${launch_dir}` is
+    /// [`EMBEDDED_LAUNCH_DIR`]); `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<Self, LaunchError> {
+        Self::parse_in(text, file, Path::new(EMBEDDED_LAUNCH_DIR))
+    }
+
+    /// Parses and validates launch-file text whose `${launch_dir}` is `launch_dir`; `file` names
+    /// it in errors.
+    pub fn parse_in(text: &str, file: &str, launch_dir: &Path) -> Result<Self, LaunchError> {
+        let launch_dir_text = launch_dir.display().to_string();
         let raw: RawLaunch = toml::from_str(text).map_err(|error| LaunchError::Parse {
             file: file.to_owned(),
             message: error.to_string(),
@@ -231,17 +264,35 @@ impl Launch {
                     name,
                 });
             }
-            let command_line = line_of(process.command.span().start);
-            let command = process.command.into_inner();
-            if !KNOWN_COMMANDS.contains(&command.as_str()) {
-                return Err(LaunchError::UnknownCommand {
-                    file: file.to_owned(),
-                    line: command_line,
-                    name,
-                    command,
-                    known: KNOWN_COMMANDS.join(", "),
-                });
-            }
+            let command = match (process.command, &process.executable) {
+                (Some(command), None) => {
+                    let command_line = line_of(command.span().start);
+                    let command = command.into_inner();
+                    if !KNOWN_COMMANDS.contains(&command.as_str()) {
+                        return Err(LaunchError::UnknownCommand {
+                            file: file.to_owned(),
+                            line: command_line,
+                            name,
+                            command,
+                            known: KNOWN_COMMANDS.join(", "),
+                        });
+                    }
+                    command
+                }
+                (None, Some(executable)) => executable.display().to_string(),
+                (command, _) => {
+                    return Err(LaunchError::BadValue {
+                        file: file.to_owned(),
+                        line: name_line,
+                        name,
+                        message: if command.is_some() {
+                            "give either `command` or `executable`, not both".to_owned()
+                        } else {
+                            "missing `command` (a harvest subcommand) or `executable`".to_owned()
+                        },
+                    });
+                }
+            };
             if process.backoff_initial_ms > process.backoff_max_ms || process.restart_window_s == 0
             {
                 return Err(LaunchError::BadValue {
@@ -256,7 +307,12 @@ impl Launch {
             processes.push(ProcessSpec {
                 name,
                 command,
-                args: process.args,
+                executable: process.executable,
+                args: process
+                    .args
+                    .iter()
+                    .map(|arg| arg.replace(LAUNCH_DIR_VARIABLE, &launch_dir_text))
+                    .collect(),
                 restart: process.restart,
                 max_restarts: process.max_restarts,
                 restart_window: Duration::from_secs(process.restart_window_s),

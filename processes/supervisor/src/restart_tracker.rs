@@ -96,6 +96,7 @@ mod tests {
         ProcessSpec {
             name: "p".into(),
             command: "camera".into(),
+            executable: None,
             args: vec![],
             restart,
             max_restarts,

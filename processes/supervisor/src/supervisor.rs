@@ -6,7 +6,7 @@
 //! path; the processes' own loops are event-driven.
 //!
 //! The harvest itself is followed on `harvest/events`: each event worth showing becomes a line
-//! on stdout ([`harvest_vacuum::harvest_log::HarvestLog`]), and the harvest summary (attempted,
+//! on stdout ([`harvest_log::HarvestLog`]), and the harvest summary (attempted,
 //! harvested, success rate, first-attempt successes, cycle times) is part of the final
 //! [`Summary`]. With [`UpOptions::until_harvested`] the stack stops once the vacuum supervisor
 //! reports that nothing is left to pick.
@@ -17,7 +17,7 @@ use crate::restart_tracker::{RestartDecision, RestartTracker};
 use crate::status::{self, ProcessPhase, ProcessStatus};
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH};
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, RunEnd, Waiter};
-use harvest_vacuum::harvest_log::{HarvestLog, HarvestLogSummary};
+use harvest_log::{HarvestLog, HarvestLogSummary};
 use nix::sys::signal::Signal;
 use std::io::IsTerminal;
 use std::io::Write as _;

@@ -1,7 +1,7 @@
 //! The coordination policy as chosen on a command line (`harvest vacuum --policy`,
 //! `harvest eval harvest --policy`).
 
-use crate::policy::PolicyKind;
+use harvest_vacuum::policy::PolicyKind;
 use serde::Serialize;
 
 /// A vacuum coordination policy (paper 003, section 4.2 and Fig. 12).

@@ -26,12 +26,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use harvest_arm::control_loop::{Wake, run_control_loop};
-use harvest_arm::failure_streak::FailureStreak;
 use harvest_arm::node::{ArmNodeConfig, pick_reachable};
-use harvest_arm::params::ArmId as ArmNumber;
-use harvest_arm::period_stats::{PeriodStatsError, PeriodSummary};
-use harvest_arm::process::ArmDevice;
 use harvest_hw::valve_board::serial::{SerialBoardConfig, SerialValveBoard};
 use harvest_hw::valve_board::sim::SimValveBoard;
 use harvest_hw::valve_board::{ValveBoard, ValveId, ValveState};
@@ -40,18 +35,24 @@ use harvest_ipc::catalogue::{
     VALVE_GRANT, VALVE_REQUEST,
 };
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
+use harvest_ipc::control_loop::{Wake, run_control_loop};
+use harvest_ipc::failure_streak::FailureStreak;
 use harvest_ipc::payloads::{
     ArmPhase as PhaseCode, ArmState, HarvestEvent, HarvestEventKind, HarvestEventSource,
     ValveRequest,
 };
+use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
 use harvest_ipc::{Context, Domain, FixedString, Flow, HealthReporter};
+use harvest_robot_model::params::ArmId as ArmNumber;
 use serde::Deserialize;
 
-use crate::arm_id::ArmId;
-use crate::harvest_events::{ArmContext, vacuum_event};
-use crate::node::{BoardReadings, VacuumNode, VacuumNodeConfig, VacuumNodeError, VacuumNodeEvent};
 use crate::policy_arg::PolicyArg;
-use crate::pressure::PressureConfig;
+use harvest_robot_model::arm_id::ArmId;
+use harvest_vacuum::harvest_events::{ArmContext, vacuum_event};
+use harvest_vacuum::node::{
+    BoardReadings, VacuumNode, VacuumNodeConfig, VacuumNodeError, VacuumNodeEvent,
+};
+use harvest_vacuum::pressure::PressureConfig;
 
 /// Which valve board the supervisor drives (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -67,12 +68,12 @@ pub enum VacuumDevice {
 /// 0.25 s source lag the arm vacuum needs up to about 0.4 s to cross the seal thresholds after
 /// the other arm's failed attempt sagged the source (the evaluation's scenario timing profile,
 /// `harvest_eval::harvest::timing`); the arm waits 50 ms longer
-/// (`harvest_arm::process::SIM_ATTACH_TIMEOUT_S`).
+/// (`harvest_arm_process::process::SIM_ATTACH_TIMEOUT_S`).
 pub const SIM_ATTACH_TIMEOUT_NS: u64 = 500_000_000;
 impl VacuumDevice {
     /// The attachment inference thresholds for this device. The simulated valve box is the
     /// nominal valve line the default ratio thresholds are derived from
-    /// (`crate::pressure`); only the attach timeout follows the simulated tube's lag.
+    /// (`harvest_vacuum::pressure`); only the attach timeout follows the simulated tube's lag.
     pub fn pressure_config(self) -> PressureConfig {
         match self {
             Self::Sim => PressureConfig {
@@ -83,12 +84,11 @@ impl VacuumDevice {
         }
     }
 
-    /// The arm settings of the same robot (for the reachability test).
+    /// The arm settings of the same robot for the reachability test. Reachability depends on
+    /// the geometry only (contact gap, stand-off, clearance), which the simulated robot shares
+    /// with the real one; the arm process's device-specific timing does not enter it.
     pub fn arm_node_config(self) -> ArmNodeConfig {
-        match self {
-            Self::Sim => ArmDevice::Sim.node_config(),
-            Self::Serial => ArmNodeConfig::default(),
-        }
+        ArmNodeConfig::default()
     }
 }
 
@@ -389,7 +389,7 @@ fn control_loop<B: ValveBoard>(
                 }
 
                 // 3. The node.
-                let input = crate::node::VacuumNodeInput {
+                let input = harvest_vacuum::node::VacuumNodeInput {
                     now_ns,
                     arm_states: [arm_states[0].as_ref(), arm_states[1].as_ref()],
                     valve_requests: [requests[0].as_ref(), requests[1].as_ref()],
@@ -543,7 +543,7 @@ mod tests {
         assert!(!watch.update(0, true, 100 * ms));
         assert!(!watch.update(200 * ms, true, 100 * ms));
         let replanned = VacuumNodeEvent::Replanned {
-            summary: crate::replan::ReplanSummary::default(),
+            summary: harvest_vacuum::replan::ReplanSummary::default(),
             queued: [0, 0],
             invalid: 0,
             given_up: 0,

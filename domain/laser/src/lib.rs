@@ -1,0 +1,26 @@
+//! harvest-laser: the ALACS laser scanner's algorithms (paper 000): triangulation (eq. 7-8,
+//! eq. 10), laser-line extraction, per-image position candidates and their selection, the
+//! interval scan, extrinsic calibration (Algorithm 1 and the section 5.1 comparison).
+//!
+//! Transport-free: [`service`] answers one scan request on any ALACS unit; the `harvest laser`
+//! process (crate `harvest-laser-process`) runs it over the channels. The calibration command
+//! is in `harvest-calibrate`, the evaluations (`harvest eval laser`) in `harvest-eval`.
+
+pub mod calibration;
+pub mod candidate;
+pub mod extraction;
+pub mod fusion;
+pub mod observed_unit;
+pub mod scan;
+pub mod selection;
+pub mod service;
+pub mod triangulation;
+
+pub use candidate::{CandidateConfig, PositionCandidate, TargetHint};
+pub use extraction::{ExtractionConfig, LaserLineExtractor, PixelRoi, StripePoint};
+pub use scan::{
+    ProcessorConfig, ScanConfig, ScanError, ScanPlan, ScanPlanner, ScanProcessor, ScanResult,
+    run_scan,
+};
+pub use service::{ScanRequestError, ScanService};
+pub use triangulation::{LaserTriangulator, TriangulationModel};

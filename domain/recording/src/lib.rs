@@ -1,0 +1,32 @@
+//! harvest-recording: the stack's MCAP recording format, as pure file work (no ports).
+//!
+//! Recording layout: one MCAP channel per topic, `message_encoding` and schema encoding
+//! [`harvest_ipc::codec::ENCODING`], schema named `<TYPE_NAME>.v<VERSION>` with the payload's
+//! layout text as data (see [`schema`]); `log_time` = receive time and `publish_time` =
+//! `header.publish_ns`, both `CLOCK_MONOTONIC` ns, with a `harvest.clock` metadata record
+//! mapping them to UTC (see [`metadata`]).
+//!
+//! Writing: [`segment_writer`]. Reading damaged files as far as they are valid: [`scan`],
+//! [`recording_file`]; [`recover`] rewrites what is valid. Tools' back ends: [`rec_info`],
+//! [`rec_cat`], [`export`] (JSON, PNG, Foxglove). Users: the recorder process, `harvest rec`,
+//! `harvest replay` and `harvest monitor --recording`.
+
+pub mod base64;
+pub mod export;
+pub mod foxglove_export;
+pub mod json_schema;
+pub mod mcap_error;
+pub mod metadata;
+pub mod payload_codec;
+pub mod png_export;
+pub mod rec_cat;
+pub mod rec_info;
+pub mod recording_file;
+pub mod recover;
+pub mod scan;
+pub mod schema;
+pub mod segment_writer;
+pub mod time_window;
+pub mod topic_filter;
+pub mod units;
+pub mod wall_clock;

@@ -1,0 +1,18 @@
+//! harvest-robot-model: what the arm, the vacuum supervisor, the safety monitor and the
+//! simulator share about the robot (paper 003, section 2.2): which arm, the picking phases the
+//! coordination reasons about, the failure kinds, the Table 1 parameters with the joint limits,
+//! eq. 1-2 kinematics (forward, inverse, Jacobian) and the swept-tube clearance between the arms.
+//!
+//! Pure: no transport, no clock, no simulator.
+
+pub mod arm_id;
+pub mod arm_phase;
+pub mod clearance;
+pub mod failure_kind;
+pub mod joint;
+pub mod kinematics;
+pub mod params;
+
+pub use arm_id::ArmId;
+pub use arm_phase::ArmPhase;
+pub use failure_kind::FailureKind;

@@ -1,0 +1,10 @@
+//! harvest-safety: the independent safety monitor (paper 003's safety requirements of the
+//! coordination, eq. 7-12). It judges a stream of time-stamped observations ([`trace`]) and
+//! shares no logic with the coordination policies it judges: this crate does not depend on
+//! `harvest-vacuum`, so the monitor is never compiled with what it checks.
+
+pub mod safety_monitor;
+pub mod trace;
+
+pub use safety_monitor::{MonitorConfig, SafetyMonitor, Violation, check_trace};
+pub use trace::{JointId, TraceEvent};

@@ -1,0 +1,33 @@
+//! harvest-sim: the simulated orchard world of the dual-arm vacuum harvester.
+//!
+//! Pure, seeded logic without IPC: scenario files ([`scenario`]), generation of the canopy, apples
+//! and occluders ([`orchard`]), rendering of the ToF camera's RGB and depth frames
+//! ([`render_rgbd`]), the vacuum and contact physics plus joint servo dynamics ([`physics`]) and
+//! the evaluation-only ground truth ([`ground_truth`]).
+//!
+//! The `harvest sim` process ([`process`]) serves the hardware channels from two threads: the
+//! 200 Hz physics ([`physics_thread`]) and the renderers ([`render_thread`]), linked by a world
+//! snapshot ([`thread_link`]).
+
+pub mod alacs;
+pub mod alacs_device;
+pub mod ground_truth;
+pub mod lidar_device;
+pub mod orchard;
+pub mod physics;
+pub mod physics_thread;
+pub mod platform_device;
+pub mod process;
+pub mod render_rate;
+pub mod render_rgbd;
+pub mod render_thread;
+pub mod robot;
+pub mod rosette_scan;
+pub mod scenario;
+pub mod thread_link;
+
+pub use ground_truth::{AppleTruth, GroundTruth};
+pub use orchard::{Apple, AppleId, AppleState, OrchardError, World};
+pub use physics::{Arm, DropCause, ReleaseOutcome, StepError, StepInputs, WorldEvent};
+pub use render_rgbd::{RenderError, RgbdRenderer};
+pub use scenario::{Scenario, ScenarioError};

@@ -1,0 +1,10 @@
+//! harvest-rec: the recording tools: `harvest rec info|cat|export|recover` ([`rec`]) and
+//! `harvest replay` ([`replay`]), which republishes a recording into a domain's channels at
+//! recorded timing (space pauses, arrows step: [`keyboard`]).
+
+pub mod keyboard;
+pub mod rec;
+pub mod replay;
+
+pub use rec::{RecCommand, RecError, run_rec};
+pub use replay::{ReplayArgs, ReplayError, ReplayReport, run_replay};

@@ -1,0 +1,177 @@
+//! `harvest rec info|cat|export|recover`: the recording tools' command line.
+
+use harvest_recording::export::{ExportError, ExportOptions, export};
+use harvest_recording::metadata;
+use harvest_recording::rec_cat::{CatError, CatOptions, cat};
+use harvest_recording::rec_info::{InfoError, info};
+use harvest_recording::recover::{RecoverError, recover};
+use harvest_recording::units::parse_duration;
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// `harvest rec` subcommands.
+#[derive(Debug, Clone, clap::Subcommand)]
+pub enum RecCommand {
+    /// Channels, types, counts, rates, duration, size, compression and metadata.
+    Info {
+        #[arg(required = true, value_name = "FILE")]
+        files: Vec<PathBuf>,
+    },
+    /// Messages as JSON lines.
+    Cat {
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+        /// Only topics matching one of these globs; repeatable.
+        #[arg(long = "topic", value_name = "GLOB")]
+        topics: Vec<String>,
+        /// Skip messages before this offset from the first message (e.g. 2.5s).
+        #[arg(long, value_parser = parse_duration)]
+        start: Option<Duration>,
+        /// Stop at this offset from the first message.
+        #[arg(long, value_parser = parse_duration)]
+        end: Option<Duration>,
+    },
+    /// Camera frames as PNG and/or the recording as a Foxglove-readable MCAP (JSON).
+    Export {
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+        /// Write each RGB-D frame as `<topic>-<n>-rgb.png` and `-depth.png` (16-bit mm) here.
+        #[arg(long, value_name = "DIR")]
+        png: Option<PathBuf>,
+        /// Write a JSON-encoded MCAP with foxglove.RawImage/CameraCalibration for frames.
+        #[arg(long, value_name = "OUT.mcap")]
+        foxglove: Option<PathBuf>,
+        /// Only topics matching one of these globs; repeatable.
+        #[arg(long = "topic", value_name = "GLOB")]
+        topics: Vec<String>,
+        #[arg(long, value_parser = parse_duration)]
+        start: Option<Duration>,
+        #[arg(long, value_parser = parse_duration)]
+        end: Option<Duration>,
+    },
+    /// Rewrite a truncated, index-less or damaged recording into a valid file; report the loss.
+    Recover {
+        #[arg(value_name = "IN")]
+        input: PathBuf,
+        #[arg(value_name = "OUT")]
+        output: PathBuf,
+        /// Overwrite OUT if it exists.
+        #[arg(long)]
+        force: bool,
+    },
+}
+
+/// A `rec` tool failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecError {
+    #[error(transparent)]
+    Info(#[from] InfoError),
+    #[error(transparent)]
+    Cat(#[from] CatError),
+    #[error(transparent)]
+    Export(#[from] ExportError),
+    #[error(transparent)]
+    Recover(#[from] RecoverError),
+    /// Printing to stdout failed.
+    #[error("writing to stdout: {0}")]
+    Stdout(std::io::Error),
+}
+
+/// Runs one `harvest rec` command, printing to stdout (reports) and stderr (warnings).
+pub fn run_rec(command: &RecCommand) -> Result<(), RecError> {
+    let stdout = std::io::stdout();
+    match command {
+        RecCommand::Info { files } => {
+            let mut out = stdout.lock();
+            for (index, file) in files.iter().enumerate() {
+                let recording = info(file)?;
+                if index > 0 {
+                    writeln!(out).map_err(RecError::Stdout)?;
+                }
+                write!(out, "{recording}").map_err(RecError::Stdout)?;
+                if let Some(version) = recording
+                    .software_version()
+                    .filter(|v| *v != metadata::SOFTWARE_VERSION)
+                {
+                    tracing::warn!(
+                        file = %file.display(),
+                        recorded_with = version,
+                        "recording made by another software version: payloads of another layout version will not decode"
+                    );
+                }
+            }
+        }
+        RecCommand::Cat {
+            file,
+            topics,
+            start,
+            end,
+        } => {
+            let options = CatOptions {
+                topics: topics.clone(),
+                start: *start,
+                end: *end,
+            };
+            let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
+            let report = cat(file, &options, &mut out)?;
+            for (topic, (count, reason)) in &report.undecodable {
+                eprintln!("rec cat: skipped {count} message(s) of {topic}: {reason}");
+            }
+            if let Some(reason) = &report.incomplete {
+                eprintln!("rec cat: {}: {reason}", file.display());
+            }
+        }
+        RecCommand::Export {
+            file,
+            png,
+            foxglove,
+            topics,
+            start,
+            end,
+        } => {
+            let options = ExportOptions {
+                png_dir: png.clone(),
+                foxglove: foxglove.clone(),
+                topics: topics.clone(),
+                start: *start,
+                end: *end,
+            };
+            let report = export(file, &options)?;
+            let mut out = stdout.lock();
+            if let Some(dir) = png {
+                writeln!(
+                    out,
+                    "{} frame(s) written to {}",
+                    report.png_frames,
+                    dir.display()
+                )
+                .map_err(RecError::Stdout)?;
+            }
+            if let Some(path) = foxglove {
+                writeln!(
+                    out,
+                    "{} message(s) written to {}",
+                    report.foxglove_messages,
+                    path.display()
+                )
+                .map_err(RecError::Stdout)?;
+            }
+            for (topic, (count, reason)) in &report.skipped {
+                eprintln!("rec export: skipped {count} message(s) of {topic}: {reason}");
+            }
+            if let Some(reason) = &report.incomplete {
+                eprintln!("rec export: {}: {reason}", file.display());
+            }
+        }
+        RecCommand::Recover {
+            input,
+            output,
+            force,
+        } => {
+            let report = recover(input, output, *force)?;
+            write!(stdout.lock(), "{report}").map_err(RecError::Stdout)?;
+        }
+    }
+    Ok(())
+}
