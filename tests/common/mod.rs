@@ -13,16 +13,10 @@ pub const HARVEST: &str = env!("CARGO_BIN_EXE_harvest");
 pub const SIM_CAMERA_CALIBRATION: &str =
     concat!(env!("CARGO_MANIFEST_DIR"), "/sim/camera_calibration.toml");
 
-/// The test-only fault-injection fixture (`tools/fixtures`, binary `harvest-fixture`), built
-/// beside `harvest` by `cargo test --workspace`; launch files start it with `executable = ...`.
+/// The test-only fault-injection fixture (`tests/fixtures/harvest_fixture.rs`, binary
+/// `harvest-fixture`); launch files start it with `executable = ...`.
 pub fn fixture_executable() -> String {
-    let path = std::path::Path::new(HARVEST).with_file_name("harvest-fixture");
-    assert!(
-        path.exists(),
-        "{} is missing: build it with `cargo build -p harvest-test-fixtures` (the same profile as the tests)",
-        path.display()
-    );
-    path.display().to_string()
+    env!("CARGO_BIN_EXE_harvest-fixture").to_owned()
 }
 
 /// Whole stacks render full-resolution frames: tests that run one take this lock so they do

@@ -342,9 +342,6 @@ mod tests {
     }
 
     #[test]
-    fn durations_parse_like_the_rest_of_the_cli() {}
-
-    #[test]
     fn peer_command_line_parses_back() {
         use clap::Parser;
         #[derive(clap::Parser)]
