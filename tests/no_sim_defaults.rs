@@ -33,5 +33,11 @@ fn perception_without_its_calibration_names_the_flag() {
         stderr.contains("--lidar-extrinsic FILE is required"),
         "{stderr}"
     );
+    let (status, _, stderr) = run_harvest(&domain, &["laser"], Duration::from_secs(30));
+    assert!(!status.success(), "{stderr}");
+    assert!(
+        stderr.contains("--calibration FILE is required"),
+        "{stderr}"
+    );
     assert_eq!(leftover_files(&domain), "");
 }

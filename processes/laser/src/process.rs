@@ -27,9 +27,8 @@ use harvest_laser::service::{STATUS_DEVICE_ERROR, STATUS_OK, ScanService};
 /// Arguments of `harvest laser`.
 #[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct LaserArgs {
-    /// ALACS calibration file (TOML, as written by `harvest calibrate laser --write`). Default:
-    /// the paper's calibrated extrinsics (Table 1, method 4: alpha 19.07 deg, L0 381.98 mm,
-    /// beta 0.69 deg), which are also the simulated unit's true values.
+    /// ALACS calibration file (TOML, as written by `harvest calibrate laser --write`), required:
+    /// the unit's laser-camera extrinsics. The simulated unit's is `sim/alacs_calibration.toml`.
     #[arg(long, value_name = "PATH")]
     pub calibration: Option<PathBuf>,
     /// Longest wait for one answer of the ALACS device (the simulator renders an image per
@@ -41,6 +40,9 @@ pub struct LaserArgs {
 /// Why the laser process stopped with an error.
 #[derive(Debug, thiserror::Error)]
 pub enum LaserProcessError {
+    /// No calibration file was given: no production default stands in for it.
+    #[error("--calibration FILE is required: the ALACS unit's laser-camera extrinsics")]
+    MissingCalibration,
     /// The calibration file could not be read or holds unusable extrinsics.
     #[error(transparent)]
     Calibration(#[from] CalibrationFileError),
@@ -62,18 +64,19 @@ pub enum LaserProcessError {
 
 harvest_ipc::from_ipc_errors!(LaserProcessError);
 
-/// The extrinsics the process triangulates with: the calibration file's, else the paper's.
-pub fn load_extrinsics(args: &LaserArgs) -> Result<AlacsExtrinsics, CalibrationFileError> {
+/// The extrinsics the process triangulates with: the calibration file's.
+pub fn load_extrinsics(args: &LaserArgs) -> Result<AlacsExtrinsics, LaserProcessError> {
     let Some(path) = &args.calibration else {
-        return Ok(AlacsExtrinsics::paper_table1());
+        return Err(LaserProcessError::MissingCalibration);
     };
     let file = read_calibration_file(path)?;
     // `read_calibration_file` has already refused unusable values.
-    file.alacs_extrinsics()
-        .ok_or_else(|| CalibrationFileError::InvalidExtrinsics {
+    file.alacs_extrinsics().ok_or_else(|| {
+        LaserProcessError::Calibration(CalibrationFileError::InvalidExtrinsics {
             path: path.clone(),
             values: file.extrinsics,
         })
+    })
 }
 
 /// Runs until SIGINT/SIGTERM.
@@ -220,5 +223,37 @@ impl ScanCounters {
         } else {
             ProcessRunState::Running
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(calibration: Option<PathBuf>) -> LaserArgs {
+        LaserArgs {
+            calibration,
+            device_timeout_ms: 2000,
+        }
+    }
+
+    /// The simulated robot's calibration file holds the extrinsics the simulator renders with.
+    #[test]
+    fn sim_calibration_file_holds_the_simulated_units_extrinsics() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../sim/alacs_calibration.toml"
+        );
+        let loaded = load_extrinsics(&args(Some(path.into()))).expect("sim calibration");
+        let truth = AlacsExtrinsics::paper_table1();
+        assert!((loaded.alpha_rad - truth.alpha_rad).abs() < 1e-12);
+        assert!((loaded.l0_m - truth.l0_m).abs() < 1e-12);
+        assert!((loaded.beta_rad - truth.beta_rad).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_missing_calibration_names_the_flag() {
+        let error = load_extrinsics(&args(None)).expect_err("no default");
+        assert!(error.to_string().contains("--calibration"), "{error}");
     }
 }

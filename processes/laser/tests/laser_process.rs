@@ -75,7 +75,13 @@ fn laser_process_answers_scan_requests() {
         let (domain, stop) = (domain.clone(), Arc::clone(&stop));
         std::thread::spawn(move || {
             let args = LaserArgs {
-                calibration: None,
+                calibration: Some(
+                    concat!(
+                        env!("CARGO_MANIFEST_DIR"),
+                        "/../../sim/alacs_calibration.toml"
+                    )
+                    .into(),
+                ),
                 device_timeout_ms: 2900,
             };
             run_until(&args, &domain, "laser", &stop).map_err(|e| e.to_string())
