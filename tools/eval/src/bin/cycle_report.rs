@@ -1,8 +1,8 @@
-//! Prints the cycle-model numbers of harvest-vacuum: Fig. 12 per-apple cycle times of the three
-//! policies on the ideal scenario, and single-arm vs. dual-arm time per attempt with the field
-//! failure rates (Tables 2-3).
+//! Prints the cycle-model numbers of the harvest-vacuum policies: Fig. 12 per-apple cycle times
+//! of the three policies on the ideal scenario, and single-arm vs. dual-arm time per attempt with
+//! the field failure rates (Tables 2-3).
 //!
-//! `cargo run -p harvest-vacuum --release --bin cycle_report`
+//! `cargo run -p harvest-eval --release --bin cycle_report`
 
 use harvest_eval::cycle_model::{CycleEpisode, FailureRates, fig12, run_episode, single_vs_dual};
 use harvest_vacuum::policy::{PolicyKind, new_policy};
