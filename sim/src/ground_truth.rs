@@ -18,14 +18,18 @@ pub struct AppleTruth {
     pub overexposed: bool,
 }
 
-/// The true state of every apple, in [`AppleId`] order.
+/// The true state of every apple of the simulated world, in [`AppleId`] order, as the simulator
+/// holds it in process: everything it knows about each apple (stem strength, cluster, occlusion,
+/// exposure) for the in-process evaluations. Not the `sim/ground_truth` payload
+/// `harvest_ipc::payloads::GroundTruth`, which carries a bounded subset of it (id, state, centre,
+/// radius) to evaluation tools in other processes (`physics_thread.rs` fills it from this).
 #[derive(Debug, Clone, PartialEq)]
-pub struct GroundTruth {
+pub struct WorldTruth {
     pub time_s: f64,
     pub apples: Vec<AppleTruth>,
 }
 
-impl GroundTruth {
+impl WorldTruth {
     /// How many apples are in `state`.
     pub fn count(&self, state: AppleState) -> usize {
         self.apples
@@ -37,8 +41,8 @@ impl GroundTruth {
 
 impl World {
     /// True apple centres, radii and states (evaluation only).
-    pub fn ground_truth(&self) -> GroundTruth {
-        GroundTruth {
+    pub fn ground_truth(&self) -> WorldTruth {
+        WorldTruth {
             time_s: self.time_s(),
             apples: self
                 .apples()

@@ -26,7 +26,7 @@ pub mod rosette_scan;
 pub mod scenario;
 pub mod thread_link;
 
-pub use ground_truth::{AppleTruth, GroundTruth};
+pub use ground_truth::{AppleTruth, WorldTruth};
 pub use orchard::{Apple, AppleId, AppleState, OrchardError, World};
 pub use physics::{Arm, DropCause, ReleaseOutcome, StepError, StepInputs, WorldEvent};
 pub use render_rgbd::{RenderError, RgbdRenderer};

@@ -25,7 +25,7 @@ use rand::{Rng, SeedableRng};
 
 use crate::orchard::{AppleId, AppleState, World};
 use crate::scenario::{VacuumConfig, norm, sub};
-use vacuum::{VacuumState, inlet_valve};
+use vacuum::{VacuumPlantState, inlet_valve};
 
 /// One of the two arms (paper numbering: arm 1 is served by valves 1-2, arm 2 by valves 3-4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -159,7 +159,7 @@ struct ArmContact {
 /// Mutable physics state inside [`World`].
 #[derive(Debug, Clone)]
 pub(crate) struct PhysicsState {
-    vacuum: VacuumState,
+    vacuum: VacuumPlantState,
     arms: [ArmContact; 2],
     rng: SmallRng,
     time_s: f64,
@@ -171,7 +171,7 @@ const PHYSICS_STREAM: u64 = 0x9e37_79b9_7f4a_7c15;
 impl PhysicsState {
     pub(crate) fn new(config: &VacuumConfig, seed: u64) -> Self {
         Self {
-            vacuum: VacuumState::at_rest(config),
+            vacuum: VacuumPlantState::at_rest(config),
             arms: [ArmContact::default(); 2],
             rng: SmallRng::seed_from_u64(seed ^ PHYSICS_STREAM),
             time_s: 0.0,
@@ -181,7 +181,7 @@ impl PhysicsState {
 
 impl World {
     /// Pressures and valve positions (what the three pressure sensors would read).
-    pub fn vacuum(&self) -> VacuumState {
+    pub fn vacuum(&self) -> VacuumPlantState {
         self.physics.vacuum
     }
 

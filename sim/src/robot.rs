@@ -29,13 +29,13 @@ use harvest_robot_model::kinematics::forward;
 use harvest_robot_model::params::ArmParams;
 
 use crate::orchard::{OrchardError, World};
-use crate::physics::servo::{JointCommand, JointLimits, ServoError, ServoModel};
-use crate::physics::vacuum::VacuumState;
+use crate::physics::servo::{ServoCommand, ServoError, ServoModel};
+use crate::physics::vacuum::VacuumPlantState;
 use crate::physics::{Arm, StepError, StepInputs, WorldEvent};
 use crate::scenario::Scenario;
 
 /// Joints per arm: `[D m, theta rad, phi rad, twist rad]`.
-pub const ARM_JOINTS: usize = 4;
+pub const ARM_JOINTS: usize = crate::physics::servo::JOINTS;
 
 /// Valves on the valve board (1-2 serve arm 1, 3-4 serve arm 2).
 pub const VALVES: usize = 4;
@@ -141,22 +141,19 @@ enum DriveOrder {
 #[derive(Debug, Clone)]
 struct SimArm {
     params: ArmParams,
-    servo: ServoModel<ARM_JOINTS>,
+    servo: ServoModel,
     order: DriveOrder,
 }
 
 impl SimArm {
     fn new(arm: Arm, params: ArmParams, config: &SimRobotConfig) -> Result<Self, SimRobotError> {
-        let lo = params.position_limits.min.to_array();
-        let hi = params.position_limits.max.to_array();
-        let rate = params.rate_limits.to_array();
-        let limits = std::array::from_fn(|j| JointLimits {
-            min_position: lo[j],
-            max_position: hi[j],
-            max_velocity: rate[j],
-        });
-        let servo = ServoModel::new(limits, config.servo_time_constant_s, params.home.to_array())
-            .map_err(|source| SimRobotError::Servo { arm, source })?;
+        let servo = ServoModel::new(
+            params.position_limits,
+            params.rate_limits,
+            config.servo_time_constant_s,
+            params.home,
+        )
+        .map_err(|source| SimRobotError::Servo { arm, source })?;
         Ok(Self {
             params,
             servo,
@@ -173,27 +170,27 @@ impl SimArm {
     }
 
     /// The drive's rate commands at `now_ns` (see the module documentation).
-    fn commands(&mut self, now_ns: u64, config: &SimRobotConfig) -> [JointCommand; ARM_JOINTS] {
+    fn commands(&mut self, now_ns: u64, config: &SimRobotConfig) -> [ServoCommand; ARM_JOINTS] {
         let DriveOrder::Track {
             position,
             velocity,
             since_ns,
         } = self.order
         else {
-            return [JointCommand::Velocity(0.0); ARM_JOINTS];
+            return [ServoCommand::Velocity(0.0); ARM_JOINTS];
         };
         let elapsed_s = now_ns.saturating_sub(since_ns) as f64 * 1e-9;
         if elapsed_s > config.setpoint_timeout_s {
             tracing::trace!(arm = ?self.params.arm, elapsed_s, "set-point timeout: braking");
             self.order = DriveOrder::Hold;
-            return [JointCommand::Velocity(0.0); ARM_JOINTS];
+            return [ServoCommand::Velocity(0.0); ARM_JOINTS];
         }
         let q = self.servo.positions();
-        let limits = self.servo.limits();
+        let limits = self.servo.position_limits();
+        let (lo, hi) = (limits.min.to_array(), limits.max.to_array());
         std::array::from_fn(|j| {
-            let reference = (position[j] + velocity[j] * elapsed_s)
-                .clamp(limits[j].min_position, limits[j].max_position);
-            JointCommand::Velocity(velocity[j] + config.position_gain_per_s * (reference - q[j]))
+            let reference = (position[j] + velocity[j] * elapsed_s).clamp(lo[j], hi[j]);
+            ServoCommand::Velocity(velocity[j] + config.position_gain_per_s * (reference - q[j]))
         })
     }
 }
@@ -296,9 +293,10 @@ impl SimRobot {
         velocity: [f64; ARM_JOINTS],
     ) -> Result<(), SimRobotError> {
         let sim_arm = &mut self.arms[arm.index()];
-        let limits = sim_arm.servo.limits();
+        let limits = sim_arm.servo.position_limits();
+        let (lo, hi) = (limits.min.to_array(), limits.max.to_array());
         for j in 0..ARM_JOINTS {
-            let (min, max) = (limits[j].min_position, limits[j].max_position);
+            let (min, max) = (lo[j], hi[j]);
             let ok = position[j].is_finite()
                 && velocity[j].is_finite()
                 && (min..=max).contains(&position[j]);
@@ -346,7 +344,7 @@ impl SimRobot {
     /// travelling to it, and the vacuum (mmH2O below atmosphere) inside arm 1, inside arm 2 and
     /// at the source.
     pub fn valve_readings(&self) -> ([bool; VALVES], [bool; VALVES], [f32; 3]) {
-        let vacuum: VacuumState = self.world.vacuum();
+        let vacuum: VacuumPlantState = self.world.vacuum();
         let in_transit = std::array::from_fn(|i| {
             let end = if self.valves_open[i] { 1.0 } else { 0.0 };
             (vacuum.valve_opening[i] - end).abs() > 1e-9

@@ -8,5 +8,6 @@ pub mod controller;
 pub mod harvest_events;
 pub mod node;
 pub mod picking_cycle;
+pub mod reported_phase;
 pub mod servo_model;
 pub mod trajectory;

@@ -48,6 +48,7 @@ use crate::picking_cycle::{
     CycleConfig, CycleConfigError, CycleEvent, CycleInput, CyclePhase, OtherArmState, PickingCycle,
     TargetDecision, TargetRejection, TargetRequest, ValveRequest as CycleValve,
 };
+use crate::reported_phase::{cycle_phase_of_reported, reported_phase};
 use harvest_robot_model::clearance::SweptPath;
 use harvest_robot_model::joint::{JointPosition, JointVelocity};
 use harvest_robot_model::kinematics::{forward, inverse};
@@ -109,17 +110,6 @@ fn other_arm(arm: ArmId) -> ArmId {
     match arm {
         ArmId::Arm1 => ArmId::Arm2,
         ArmId::Arm2 => ArmId::Arm1,
-    }
-}
-
-/// The picking cycle phase as published in `ArmState::phase`.
-pub fn phase_code(phase: CyclePhase) -> PhaseCode {
-    match phase {
-        CyclePhase::Idle => PhaseCode::Idle,
-        CyclePhase::Approach => PhaseCode::Approach,
-        CyclePhase::Attach => PhaseCode::AttachDetach,
-        CyclePhase::Retract => PhaseCode::Retract,
-        CyclePhase::Release => PhaseCode::Release,
     }
 }
 
@@ -515,14 +505,7 @@ impl ArmNode {
     /// while it approaches or attaches, the picking point of its target.
     pub fn other_arm_view(&self, other: &OtherArmInput<'_>) -> OtherArmState {
         let state = other.state;
-        let phase = match PhaseCode::from_code(state.phase) {
-            Some(PhaseCode::Approach) => CyclePhase::Approach,
-            Some(PhaseCode::AttachDetach) => CyclePhase::Attach,
-            Some(PhaseCode::Retract) => CyclePhase::Retract,
-            Some(PhaseCode::Release) => CyclePhase::Release,
-            // Idle, stopped (braked where it is) or unknown: only its current pose counts.
-            _ => CyclePhase::Idle,
-        };
+        let phase = cycle_phase_of_reported(PhaseCode::from_code(state.phase));
         let goal_m = other
             .target
             .filter(|t| t.apple_id == state.apple_id)
@@ -594,7 +577,7 @@ impl ArmNode {
         if let Some(event) = out.event {
             self.on_cycle_event(event);
         }
-        self.set_phase(phase_code(out.phase));
+        self.set_phase(reported_phase(out.phase));
         self.set_valve(match out.valve_request {
             CycleValve::Open => ValveRequestKind::OpenForAttach,
             CycleValve::Closed => ValveRequestKind::Close,

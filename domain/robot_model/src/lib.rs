@@ -6,13 +6,13 @@
 //! Pure: no transport, no clock, no simulator.
 
 pub mod arm_id;
-pub mod arm_phase;
 pub mod clearance;
+pub mod coordination_phase;
 pub mod failure_kind;
 pub mod joint;
 pub mod kinematics;
 pub mod params;
 
 pub use arm_id::ArmId;
-pub use arm_phase::ArmPhase;
+pub use coordination_phase::CoordinationPhase;
 pub use failure_kind::FailureKind;

@@ -8,7 +8,7 @@
 
 pub use harvest_robot_model::FailureKind;
 use harvest_robot_model::arm_id::ArmId;
-use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::coordination_phase::CoordinationPhase;
 use serde::{Deserialize, Serialize};
 
 /// Joints of one 4-DOF tube arm (paper 003, section 2.2 and eq. 1).
@@ -66,7 +66,7 @@ pub enum TraceEvent {
         /// Which arm.
         arm: ArmId,
         /// The new phase.
-        phase: ArmPhase,
+        phase: CoordinationPhase,
     },
     /// A joint position command sent to a servo, with the limits it must respect.
     JointCommand {

@@ -58,7 +58,7 @@ use harvest_ipc::payloads::{
     ValveRequest, ValveRequestKind,
 };
 use harvest_robot_model::arm_id::ArmId;
-use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::coordination_phase::CoordinationPhase;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use tracing::{debug, info, trace, warn};
@@ -446,20 +446,20 @@ impl std::fmt::Debug for VacuumNode {
 
 /// The policy's view of an arm's phase from its published state. A missing or stopped arm is
 /// treated as away from the drop-off (it may be anywhere).
-fn policy_phase(state: Option<&ArmState>, track: &ArmTrack) -> ArmPhase {
+fn policy_phase(state: Option<&ArmState>, track: &ArmTrack) -> CoordinationPhase {
     if track.dispatched.is_some() {
-        return ArmPhase::Approaching;
+        return CoordinationPhase::Approaching;
     }
     match state.and_then(|s| PhaseCode::from_code(s.phase)) {
-        Some(PhaseCode::Idle) => ArmPhase::Ready,
-        Some(PhaseCode::Approach) => ArmPhase::Approaching,
-        Some(PhaseCode::AttachDetach) if track.valve_open => ArmPhase::Attaching,
+        Some(PhaseCode::Idle) => CoordinationPhase::Ready,
+        Some(PhaseCode::Approach) => CoordinationPhase::Approaching,
+        Some(PhaseCode::AttachDetach) if track.valve_open => CoordinationPhase::Attaching,
         // Closed again after the valve was granted: the attempt is over, the arm returns.
-        Some(PhaseCode::AttachDetach) if track.opened_in_cycle => ArmPhase::Retracting,
-        Some(PhaseCode::AttachDetach) => ArmPhase::AtApple,
-        Some(PhaseCode::Retract) => ArmPhase::Retracting,
-        Some(PhaseCode::Release) => ArmPhase::Releasing,
-        Some(PhaseCode::Stopped) | None => ArmPhase::Approaching,
+        Some(PhaseCode::AttachDetach) if track.opened_in_cycle => CoordinationPhase::Retracting,
+        Some(PhaseCode::AttachDetach) => CoordinationPhase::AtApple,
+        Some(PhaseCode::Retract) => CoordinationPhase::Retracting,
+        Some(PhaseCode::Release) => CoordinationPhase::Releasing,
+        Some(PhaseCode::Stopped) | None => CoordinationPhase::Approaching,
     }
 }
 

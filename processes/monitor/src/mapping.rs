@@ -24,7 +24,7 @@ use harvest_ipc::payloads::{
     ArmCommand, ArmPhase as PhaseCode, ArmState, EmergencyStop, VacuumState,
 };
 use harvest_robot_model::ArmId;
-use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::coordination_phase::CoordinationPhase;
 use harvest_robot_model::params::ArmParams;
 use harvest_safety::trace::{FailureKind, JointId, TraceEvent};
 
@@ -223,13 +223,7 @@ impl StackTraceMapper {
                 out.push(TraceEvent::PhaseChanged {
                     stamp_ns,
                     arm,
-                    phase: match phase {
-                        PhaseCode::Idle | PhaseCode::Stopped => ArmPhase::Ready,
-                        PhaseCode::Approach => ArmPhase::Approaching,
-                        PhaseCode::AttachDetach => ArmPhase::Attaching,
-                        PhaseCode::Retract => ArmPhase::Retracting,
-                        PhaseCode::Release => ArmPhase::Releasing,
-                    },
+                    phase: CoordinationPhase::from_reported(phase),
                 });
             }
         }

@@ -1,27 +1,27 @@
-//! First-order servo dynamics of arm joints (Teknic integrated servos, paper 003 section 2.2).
+//! First-order servo dynamics of one arm's four joints (Teknic integrated servos, paper 003
+//! section 2.2).
 //!
 //! Each joint follows its command with a first-order lag of time constant `tau`:
 //! - position command `p*`: `p(t + dt) = p* + (p(t) - p*) exp(-dt / tau)`, the implied velocity
-//!   limited to `max_velocity`;
+//!   limited to the joint's rate limit;
 //! - velocity command `v*`: `v(t + dt) = v* + (v(t) - v*) exp(-dt / tau)`, then `p += v dt`.
 //!
-//! Positions are clamped to the joint limits (the velocity drops to zero at a limit). Joint units
-//! are metres for a prismatic joint and radians for a revolute one.
+//! Positions are clamped to the joint limits (the velocity drops to zero at a limit). The limits
+//! are the robot model's: position ranges as [`JointLimits`] and rate limits as a
+//! [`JointVelocity`] of magnitudes, the two fields of
+//! [`harvest_robot_model::params::ArmParams`] (Table 1). Joint units are metres for the
+//! prismatic joint and radians for the revolute ones, in `[D, theta, phi, twist]` order.
 
-/// Limits of one joint.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct JointLimits {
-    /// Lower travel limit (m or rad).
-    pub min_position: f64,
-    /// Upper travel limit (m or rad).
-    pub max_position: f64,
-    /// Largest speed (m/s or rad/s).
-    pub max_velocity: f64,
-}
+use harvest_robot_model::joint::{Joint, JointPosition, JointVelocity};
+use harvest_robot_model::params::JointLimits;
 
-/// What one joint is told to do for the next step.
+/// Joints of one arm: `[D m, theta rad, phi rad, twist rad]`.
+pub const JOINTS: usize = Joint::ALL.len();
+
+/// What one joint's servo drive is told to do for the next step (not the arm controller's
+/// rate command for all four servos, `harvest_arm::controller::JointCommand`).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum JointCommand {
+pub enum ServoCommand {
     /// Go to this position (m or rad).
     Position(f64),
     /// Move at this velocity (m/s or rad/s).
@@ -32,8 +32,20 @@ pub enum JointCommand {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ServoError {
     /// A joint's limits are empty, inverted or not finite.
-    #[error("joint {joint}: invalid limits {limits:?} (need min < max and max_velocity > 0)")]
-    InvalidLimits { joint: usize, limits: JointLimits },
+    #[error(
+        "joint {joint}: invalid limits [{min_position}, {max_position}], rate {max_velocity} \
+         (need min < max and a rate limit > 0)"
+    )]
+    InvalidLimits {
+        /// The joint.
+        joint: Joint,
+        /// Lower travel limit (m or rad).
+        min_position: f64,
+        /// Upper travel limit (m or rad).
+        max_position: f64,
+        /// Rate limit (m/s or rad/s).
+        max_velocity: f64,
+    },
     /// The time constant is not a positive finite number of seconds.
     #[error("servo time constant {time_constant_s} s must be > 0")]
     InvalidTimeConstant { time_constant_s: f64 },
@@ -42,57 +54,72 @@ pub enum ServoError {
     InvalidTimeStep { dt_s: f64 },
     /// A command value is NaN or infinite.
     #[error("joint {joint}: command {command:?} is not finite")]
-    NonFiniteCommand { joint: usize, command: JointCommand },
+    NonFiniteCommand { joint: Joint, command: ServoCommand },
 }
 
-/// `N` joints driven by first-order servos.
+/// The four joints of one arm driven by first-order servos.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ServoModel<const N: usize> {
-    limits: [JointLimits; N],
+pub struct ServoModel {
+    position_limits: JointLimits,
+    /// Rate limit magnitude of each joint, `[D, theta, phi, twist]`.
+    max_velocity: [f64; JOINTS],
     time_constant_s: f64,
-    position: [f64; N],
-    velocity: [f64; N],
+    position: [f64; JOINTS],
+    velocity: [f64; JOINTS],
 }
 
-impl<const N: usize> ServoModel<N> {
-    /// Joints at rest at `initial_position` (clamped to the limits).
+impl ServoModel {
+    /// Joints at rest at `initial_position` (clamped to `position_limits`), each rate limited
+    /// to the magnitude in `rate_limits`.
     pub fn new(
-        limits: [JointLimits; N],
+        position_limits: JointLimits,
+        rate_limits: JointVelocity,
         time_constant_s: f64,
-        initial_position: [f64; N],
+        initial_position: JointPosition,
     ) -> Result<Self, ServoError> {
-        for (joint, l) in limits.iter().enumerate() {
-            let valid = l.min_position < l.max_position
-                && l.min_position.is_finite()
-                && l.max_position.is_finite()
-                && l.max_velocity > 0.0
-                && l.max_velocity.is_finite();
+        let (lo, hi) = (
+            position_limits.min.to_array(),
+            position_limits.max.to_array(),
+        );
+        let max_velocity = rate_limits.to_array();
+        for joint in Joint::ALL {
+            let k = joint.index();
+            let valid = lo[k] < hi[k]
+                && lo[k].is_finite()
+                && hi[k].is_finite()
+                && max_velocity[k] > 0.0
+                && max_velocity[k].is_finite();
             if !valid {
-                return Err(ServoError::InvalidLimits { joint, limits: *l });
+                return Err(ServoError::InvalidLimits {
+                    joint,
+                    min_position: lo[k],
+                    max_position: hi[k],
+                    max_velocity: max_velocity[k],
+                });
             }
         }
         if !(time_constant_s > 0.0 && time_constant_s.is_finite()) {
             return Err(ServoError::InvalidTimeConstant { time_constant_s });
         }
-        let position = std::array::from_fn(|k| {
-            initial_position[k].clamp(limits[k].min_position, limits[k].max_position)
-        });
+        let initial = initial_position.to_array();
+        let position = std::array::from_fn(|k| initial[k].clamp(lo[k], hi[k]));
         Ok(Self {
-            limits,
+            position_limits,
+            max_velocity,
             time_constant_s,
             position,
-            velocity: [0.0; N],
+            velocity: [0.0; JOINTS],
         })
     }
 
     /// Advances every joint by `dt_s` under its command.
-    pub fn step(&mut self, dt_s: f64, commands: &[JointCommand; N]) -> Result<(), ServoError> {
+    pub fn step(&mut self, dt_s: f64, commands: &[ServoCommand; JOINTS]) -> Result<(), ServoError> {
         if !(dt_s > 0.0 && dt_s.is_finite()) {
             return Err(ServoError::InvalidTimeStep { dt_s });
         }
-        for (joint, command) in commands.iter().enumerate() {
+        for (joint, command) in Joint::ALL.into_iter().zip(commands) {
             let value = match command {
-                JointCommand::Position(p) | JointCommand::Velocity(p) => *p,
+                ServoCommand::Position(p) | ServoCommand::Velocity(p) => *p,
             };
             if !value.is_finite() {
                 return Err(ServoError::NonFiniteCommand {
@@ -102,41 +129,47 @@ impl<const N: usize> ServoModel<N> {
             }
         }
         let decay = (-dt_s / self.time_constant_s).exp();
+        let (lo, hi) = (
+            self.position_limits.min.to_array(),
+            self.position_limits.max.to_array(),
+        );
         for (joint, command) in commands.iter().enumerate() {
-            let limits = self.limits[joint];
+            let (min_position, max_position) = (lo[joint], hi[joint]);
+            let max_velocity = self.max_velocity[joint];
             let position = self.position[joint];
             let velocity = match *command {
-                JointCommand::Position(target) => {
-                    let target = target.clamp(limits.min_position, limits.max_position);
+                ServoCommand::Position(target) => {
+                    let target = target.clamp(min_position, max_position);
                     let next = target + (position - target) * decay;
                     (next - position) / dt_s
                 }
-                JointCommand::Velocity(target) => {
-                    let target = target.clamp(-limits.max_velocity, limits.max_velocity);
+                ServoCommand::Velocity(target) => {
+                    let target = target.clamp(-max_velocity, max_velocity);
                     target + (self.velocity[joint] - target) * decay
                 }
             }
-            .clamp(-limits.max_velocity, limits.max_velocity);
+            .clamp(-max_velocity, max_velocity);
             let next = position + velocity * dt_s;
-            let clamped = next.clamp(limits.min_position, limits.max_position);
+            let clamped = next.clamp(min_position, max_position);
             self.position[joint] = clamped;
             self.velocity[joint] = if clamped == next { velocity } else { 0.0 };
         }
         Ok(())
     }
 
-    /// Joint positions (m or rad).
-    pub fn positions(&self) -> [f64; N] {
+    /// Joint positions `[D, theta, phi, twist]` (m or rad).
+    pub fn positions(&self) -> [f64; JOINTS] {
         self.position
     }
 
-    /// Joint velocities (m/s or rad/s).
-    pub fn velocities(&self) -> [f64; N] {
+    /// Joint velocities `[D, theta, phi, twist]` (m/s or rad/s).
+    pub fn velocities(&self) -> [f64; JOINTS] {
         self.velocity
     }
 
-    pub fn limits(&self) -> &[JointLimits; N] {
-        &self.limits
+    /// The joint position ranges the servos stop at.
+    pub fn position_limits(&self) -> &JointLimits {
+        &self.position_limits
     }
 }
 
@@ -144,42 +177,50 @@ impl<const N: usize> ServoModel<N> {
 mod tests {
     use super::*;
 
-    const LIMITS: JointLimits = JointLimits {
-        min_position: -1.0,
-        max_position: 1.0,
-        max_velocity: 100.0,
-    };
+    /// Every joint in `[-1, 1]` with a rate limit of `max_velocity`.
+    fn limits(max_velocity: f64) -> (JointLimits, JointVelocity) {
+        (
+            JointLimits {
+                min: JointPosition::from_array([-1.0; JOINTS]),
+                max: JointPosition::from_array([1.0; JOINTS]),
+            },
+            JointVelocity::from_array([max_velocity; JOINTS]),
+        )
+    }
+
+    fn servo(max_velocity: f64, tau: f64) -> ServoModel {
+        let (position_limits, rate_limits) = limits(max_velocity);
+        ServoModel::new(position_limits, rate_limits, tau, JointPosition::default()).expect("servo")
+    }
 
     #[test]
     fn position_step_response_is_first_order() {
         let tau = 0.05;
-        let mut servo = ServoModel::new([LIMITS], tau, [0.0]).expect("servo");
+        let mut servo = servo(100.0, tau);
         let dt = 0.001;
         let steps = (tau / dt).round() as usize;
         for _ in 0..steps {
             servo
-                .step(dt, &[JointCommand::Position(0.5)])
+                .step(dt, &[ServoCommand::Position(0.5); JOINTS])
                 .expect("step");
         }
         // After one time constant: 1 - 1/e of the step.
         let expected = 0.5 * (1.0 - (-1.0f64).exp());
-        assert!(
-            (servo.positions()[0] - expected).abs() < 1e-9,
-            "{:?}",
-            servo.positions()
-        );
+        for position in servo.positions() {
+            assert!(
+                (position - expected).abs() < 1e-9,
+                "{:?}",
+                servo.positions()
+            );
+        }
     }
 
     #[test]
     fn velocity_is_limited_and_positions_stop_at_limits() {
-        let limits = JointLimits {
-            max_velocity: 0.2,
-            ..LIMITS
-        };
-        let mut servo = ServoModel::new([limits], 0.01, [0.0]).expect("servo");
+        let mut servo = servo(0.2, 0.01);
         for _ in 0..100 {
             servo
-                .step(0.01, &[JointCommand::Position(0.9)])
+                .step(0.01, &[ServoCommand::Position(0.9); JOINTS])
                 .expect("step");
         }
         // One second at 0.2 m/s at most.
@@ -187,32 +228,71 @@ mod tests {
         assert!((servo.velocities()[0] - 0.2).abs() < 1e-9);
         for _ in 0..2000 {
             servo
-                .step(0.01, &[JointCommand::Velocity(5.0)])
+                .step(0.01, &[ServoCommand::Velocity(5.0); JOINTS])
                 .expect("step");
         }
-        assert_eq!(servo.positions()[0], 1.0);
-        assert_eq!(servo.velocities()[0], 0.0);
+        assert_eq!(servo.positions(), [1.0; JOINTS]);
+        assert_eq!(servo.velocities(), [0.0; JOINTS]);
+    }
+
+    #[test]
+    fn table_1_limits_are_the_servo_limits() {
+        let params = harvest_robot_model::params::ArmParams::arm1();
+        let mut servo = ServoModel::new(
+            params.position_limits,
+            params.rate_limits,
+            0.02,
+            params.home,
+        )
+        .expect("servo");
+        for _ in 0..5000 {
+            servo
+                .step(0.01, &[ServoCommand::Velocity(f64::MAX); JOINTS])
+                .expect("step");
+        }
+        assert_eq!(servo.positions(), params.position_limits.max.to_array());
+        assert_eq!(servo.position_limits(), &params.position_limits);
     }
 
     #[test]
     fn bad_inputs_are_refused() {
-        assert!(ServoModel::new([LIMITS], 0.0, [0.0]).is_err());
-        let inverted = JointLimits {
-            min_position: 1.0,
-            max_position: -1.0,
-            max_velocity: 1.0,
-        };
+        let (position_limits, rate_limits) = limits(100.0);
+        let home = JointPosition::default();
+        assert!(ServoModel::new(position_limits, rate_limits, 0.0, home).is_err());
+        let mut inverted = position_limits;
+        inverted.min.phi_rad = 1.0;
+        inverted.max.phi_rad = -1.0;
         assert!(matches!(
-            ServoModel::new([inverted], 0.1, [0.0]),
-            Err(ServoError::InvalidLimits { joint: 0, .. })
+            ServoModel::new(inverted, rate_limits, 0.1, home),
+            Err(ServoError::InvalidLimits {
+                joint: Joint::Yaw,
+                ..
+            })
         ));
-        let mut servo = ServoModel::new([LIMITS], 0.1, [0.0]).expect("servo");
-        assert!(servo.step(0.0, &[JointCommand::Position(0.0)]).is_err());
+        let mut no_rate = rate_limits;
+        no_rate.twist_rad_per_s = 0.0;
+        assert!(matches!(
+            ServoModel::new(position_limits, no_rate, 0.1, home),
+            Err(ServoError::InvalidLimits {
+                joint: Joint::Twist,
+                ..
+            })
+        ));
+        let mut servo = ServoModel::new(position_limits, rate_limits, 0.1, home).expect("servo");
         assert!(
             servo
-                .step(0.01, &[JointCommand::Velocity(f64::NAN)])
+                .step(0.0, &[ServoCommand::Position(0.0); JOINTS])
                 .is_err()
         );
-        assert_eq!(servo.positions(), [0.0]);
+        let mut commands = [ServoCommand::Velocity(0.0); JOINTS];
+        commands[1] = ServoCommand::Velocity(f64::NAN);
+        assert!(matches!(
+            servo.step(0.01, &commands),
+            Err(ServoError::NonFiniteCommand {
+                joint: Joint::Pitch,
+                ..
+            })
+        ));
+        assert_eq!(servo.positions(), [0.0; JOINTS]);
     }
 }

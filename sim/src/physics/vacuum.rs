@@ -31,9 +31,12 @@ pub fn vent_valve(arm: usize) -> usize {
     2 * arm + 1
 }
 
-/// Pressures and valve positions of the vacuum system.
+/// Pressures and valve positions of the simulated vacuum plant: the physical state this model
+/// integrates (continuous valve openings, pressures as `f64`). Not the `vacuum/state` payload
+/// `harvest_ipc::payloads::VacuumState`, which is what the vacuum supervisor reports (commanded
+/// valves, sensor readings, inferred attachment, active policy).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct VacuumState {
+pub struct VacuumPlantState {
     /// Opening of valves 1-4, 0 = shut, 1 = fully open.
     pub valve_opening: [f64; 4],
     /// Vacuum at the source sensor, mmH2O.
@@ -42,7 +45,7 @@ pub struct VacuumState {
     pub arm_mmh2o: [f64; 2],
 }
 
-impl VacuumState {
+impl VacuumPlantState {
     /// Source at full vacuum, both arms vented (inlets shut, vents open).
     pub fn at_rest(config: &VacuumConfig) -> Self {
         Self {
@@ -100,7 +103,12 @@ impl VacuumState {
 mod tests {
     use super::*;
 
-    fn settle(state: &mut VacuumState, config: &VacuumConfig, valves: [bool; 4], cups: [f64; 2]) {
+    fn settle(
+        state: &mut VacuumPlantState,
+        config: &VacuumConfig,
+        valves: [bool; 4],
+        cups: [f64; 2],
+    ) {
         for _ in 0..2000 {
             state.step(config, 0.005, valves, cups);
         }
@@ -109,7 +117,7 @@ mod tests {
     #[test]
     fn closed_inlets_keep_the_source_at_its_maximum() {
         let config = VacuumConfig::default();
-        let mut state = VacuumState::at_rest(&config);
+        let mut state = VacuumPlantState::at_rest(&config);
         settle(
             &mut state,
             &config,
@@ -127,14 +135,14 @@ mod tests {
     fn sealed_arm_holds_near_source_pressure_and_open_arm_leaks() {
         let config = VacuumConfig::default();
         let open_1 = [true, false, false, true];
-        let mut sealed = VacuumState::at_rest(&config);
+        let mut sealed = VacuumPlantState::at_rest(&config);
         settle(
             &mut sealed,
             &config,
             open_1,
             [config.sealed_cup_conductance, config.open_cup_conductance],
         );
-        let mut leaking = VacuumState::at_rest(&config);
+        let mut leaking = VacuumPlantState::at_rest(&config);
         settle(
             &mut leaking,
             &config,
@@ -157,9 +165,9 @@ mod tests {
     fn a_second_open_unsealed_arm_lowers_the_first_arms_vacuum() {
         let config = VacuumConfig::default();
         let cups = [config.sealed_cup_conductance, config.open_cup_conductance];
-        let mut alone = VacuumState::at_rest(&config);
+        let mut alone = VacuumPlantState::at_rest(&config);
         settle(&mut alone, &config, [true, false, false, true], cups);
-        let mut both = VacuumState::at_rest(&config);
+        let mut both = VacuumPlantState::at_rest(&config);
         settle(&mut both, &config, [true, false, true, false], cups);
         assert!(both.arm_mmh2o[0] < 0.6 * alone.arm_mmh2o[0]);
         assert!(both.holding_force_n(&config, 0) < alone.holding_force_n(&config, 0));
@@ -168,7 +176,7 @@ mod tests {
     #[test]
     fn valves_take_their_travel_time_and_pressure_lags() {
         let config = VacuumConfig::default();
-        let mut state = VacuumState::at_rest(&config);
+        let mut state = VacuumPlantState::at_rest(&config);
         let cups = [config.sealed_cup_conductance, config.open_cup_conductance];
         let dt = 0.01;
         let steps = (config.valve_travel_time_s / 2.0 / dt).round() as usize;

@@ -18,7 +18,7 @@ fn kind_round_trips_through_the_factory() {
 fn own_workflow_preconditions_are_enforced_by_every_policy() {
     let ready_no_apple = ArmStatus::ready(false);
     let approaching = ArmStatus {
-        phase: ArmPhase::Approaching,
+        phase: CoordinationPhase::Approaching,
         ..ArmStatus::ready(true)
     };
     let idle_other = ArmStatus::ready(false);
@@ -40,7 +40,7 @@ fn own_workflow_preconditions_are_enforced_by_every_policy() {
                 &PairStatus([approaching, idle_other])
             ),
             Decision::Refuse(RefuseReason::NotReady {
-                phase: ArmPhase::Approaching
+                phase: CoordinationPhase::Approaching
             }),
             "{k}"
         );
@@ -51,7 +51,7 @@ fn own_workflow_preconditions_are_enforced_by_every_policy() {
                 &PairStatus([approaching, idle_other])
             ),
             Decision::Refuse(RefuseReason::NotAtApple {
-                phase: ArmPhase::Approaching
+                phase: CoordinationPhase::Approaching
             }),
             "{k}"
         );
@@ -67,7 +67,7 @@ fn own_workflow_preconditions_are_enforced_by_every_policy() {
             "{k}"
         );
         let waiting = ArmStatus {
-            phase: ArmPhase::AtApple,
+            phase: CoordinationPhase::AtApple,
             ..ready
         };
         assert_eq!(
@@ -85,13 +85,13 @@ fn own_workflow_preconditions_are_enforced_by_every_policy() {
 #[test]
 fn every_policy_releases_at_the_drop_off_and_leaves_closed_valves_alone() {
     let at_drop_off = ArmStatus {
-        phase: ArmPhase::Releasing,
+        phase: CoordinationPhase::Releasing,
         valve_open: true,
         attachment: AttachmentState::Sealed,
         apple_assigned: false,
     };
     let carrying = ArmStatus {
-        phase: ArmPhase::Retracting,
+        phase: CoordinationPhase::Retracting,
         valve_open: true,
         attachment: AttachmentState::Sealed,
         apple_assigned: true,

@@ -19,7 +19,7 @@ use super::{
 };
 use crate::pressure::AttachmentState;
 use harvest_robot_model::arm_id::ArmId;
-use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::coordination_phase::CoordinationPhase;
 
 /// The failure-aware temporal-logic policy of eq. 7-12.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -35,7 +35,7 @@ impl FailureAware2024 {
             },
             (_, AttachmentState::AttachFailed) => CloseReason::AttachFailed,
             (_, AttachmentState::Dropped) => CloseReason::Dropped,
-            _ if status.phase == ArmPhase::Releasing => CloseReason::Release,
+            _ if status.phase == CoordinationPhase::Releasing => CloseReason::Release,
             _ => CloseReason::NoSealAtRetract,
         }
     }
@@ -79,7 +79,11 @@ impl VacuumPolicy for FailureAware2024 {
 mod tests {
     use super::*;
 
-    fn status(phase: ArmPhase, valve_open: bool, attachment: AttachmentState) -> ArmStatus {
+    fn status(
+        phase: CoordinationPhase,
+        valve_open: bool,
+        attachment: AttachmentState,
+    ) -> ArmStatus {
         ArmStatus {
             phase,
             valve_open,
@@ -89,7 +93,7 @@ mod tests {
     }
 
     const WAITING: ArmStatus = ArmStatus {
-        phase: ArmPhase::AtApple,
+        phase: CoordinationPhase::AtApple,
         valve_open: false,
         attachment: AttachmentState::Closed,
         apple_assigned: true,
@@ -98,14 +102,18 @@ mod tests {
     #[test]
     fn second_arm_waits_while_the_first_attempts_and_goes_once_it_seals() {
         let p = FailureAware2024;
-        let attempting = status(ArmPhase::Attaching, true, AttachmentState::OpenToAtmosphere);
+        let attempting = status(
+            CoordinationPhase::Attaching,
+            true,
+            AttachmentState::OpenToAtmosphere,
+        );
         let pair = PairStatus([attempting, WAITING]);
         assert_eq!(
             p.decide(ArmId::Arm2, Request::OpenValve, &pair),
             Decision::Refuse(RefuseReason::OtherArmAttempting)
         );
         // Just granted, inference not yet updated (attachment still Closed): still attempting.
-        let just_opened = status(ArmPhase::Attaching, true, AttachmentState::Closed);
+        let just_opened = status(CoordinationPhase::Attaching, true, AttachmentState::Closed);
         assert_eq!(
             p.decide(
                 ArmId::Arm2,
@@ -115,9 +123,9 @@ mod tests {
             Decision::Refuse(RefuseReason::OtherArmAttempting)
         );
         for sealed_phase in [
-            ArmPhase::Attaching,
-            ArmPhase::Retracting,
-            ArmPhase::Releasing,
+            CoordinationPhase::Attaching,
+            CoordinationPhase::Retracting,
+            CoordinationPhase::Releasing,
         ] {
             let sealed = status(sealed_phase, true, AttachmentState::Sealed);
             assert_eq!(
@@ -131,7 +139,11 @@ mod tests {
             );
         }
         // Other arm's valve closed after a failure, still moving: free.
-        let returning = status(ArmPhase::Retracting, false, AttachmentState::Closed);
+        let returning = status(
+            CoordinationPhase::Retracting,
+            false,
+            AttachmentState::Closed,
+        );
         assert_eq!(
             p.decide(
                 ArmId::Arm2,
@@ -147,41 +159,57 @@ mod tests {
         let p = FailureAware2024;
         let cases = [
             (
-                status(ArmPhase::Attaching, true, AttachmentState::AttachFailed),
+                status(
+                    CoordinationPhase::Attaching,
+                    true,
+                    AttachmentState::AttachFailed,
+                ),
                 ValveOrder::ForceClose(CloseReason::AttachFailed),
             ),
             (
-                status(ArmPhase::Retracting, true, AttachmentState::Dropped),
+                status(
+                    CoordinationPhase::Retracting,
+                    true,
+                    AttachmentState::Dropped,
+                ),
                 ValveOrder::ForceClose(CloseReason::Dropped),
             ),
             (
-                status(ArmPhase::Attaching, true, AttachmentState::Dropped),
+                status(CoordinationPhase::Attaching, true, AttachmentState::Dropped),
                 ValveOrder::ForceClose(CloseReason::Dropped),
             ),
             (
                 status(
-                    ArmPhase::Retracting,
+                    CoordinationPhase::Retracting,
                     true,
                     AttachmentState::OpenToAtmosphere,
                 ),
                 ValveOrder::ForceClose(CloseReason::NoSealAtRetract),
             ),
             (
-                status(ArmPhase::Releasing, true, AttachmentState::Sealed),
+                status(CoordinationPhase::Releasing, true, AttachmentState::Sealed),
                 ValveOrder::ForceClose(CloseReason::Release),
             ),
             (
-                status(ArmPhase::AtApple, true, AttachmentState::OpenToAtmosphere),
+                status(
+                    CoordinationPhase::AtApple,
+                    true,
+                    AttachmentState::OpenToAtmosphere,
+                ),
                 ValveOrder::ForceClose(CloseReason::OutOfWorkflow {
-                    phase: ArmPhase::AtApple,
+                    phase: CoordinationPhase::AtApple,
                 }),
             ),
             (
-                status(ArmPhase::Retracting, true, AttachmentState::Sealed),
+                status(CoordinationPhase::Retracting, true, AttachmentState::Sealed),
                 ValveOrder::Keep,
             ),
             (
-                status(ArmPhase::Attaching, true, AttachmentState::OpenToAtmosphere),
+                status(
+                    CoordinationPhase::Attaching,
+                    true,
+                    AttachmentState::OpenToAtmosphere,
+                ),
                 ValveOrder::Keep,
             ),
         ];
@@ -196,12 +224,12 @@ mod tests {
         // Exhaustive over the other arm's status: a grant implies the other arm is closed or
         // sealed (the key property of eq. 11 clauses 3-4).
         let phases = [
-            ArmPhase::Ready,
-            ArmPhase::Approaching,
-            ArmPhase::AtApple,
-            ArmPhase::Attaching,
-            ArmPhase::Retracting,
-            ArmPhase::Releasing,
+            CoordinationPhase::Ready,
+            CoordinationPhase::Approaching,
+            CoordinationPhase::AtApple,
+            CoordinationPhase::Attaching,
+            CoordinationPhase::Retracting,
+            CoordinationPhase::Releasing,
         ];
         let attachments = [
             AttachmentState::Closed,

@@ -35,7 +35,7 @@ pub use tl_node::{Propositions, TlNode};
 
 use crate::pressure::AttachmentState;
 use harvest_robot_model::arm_id::ArmId;
-use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::coordination_phase::CoordinationPhase;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
@@ -43,7 +43,7 @@ use std::fmt;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ArmStatus {
     /// Workflow phase reported by the arm.
-    pub phase: ArmPhase,
+    pub phase: CoordinationPhase,
     /// Commanded state of the arm's source valve (`Open_Valve_i`).
     pub valve_open: bool,
     /// State inferred from the pressure sensors (`Apple_Attached_i` is `Sealed`).
@@ -56,7 +56,7 @@ impl ArmStatus {
     /// An arm at its drop-off, valve closed, with or without an apple waiting.
     pub const fn ready(apple_assigned: bool) -> Self {
         ArmStatus {
-            phase: ArmPhase::Ready,
+            phase: CoordinationPhase::Ready,
             valve_open: false,
             attachment: AttachmentState::Closed,
             apple_assigned,
@@ -109,14 +109,14 @@ pub enum RefuseReason {
     /// The requesting arm is not at the drop-off ready for a new cycle (eq. 8, first clause).
     NotReady {
         /// Its phase.
-        phase: ArmPhase,
+        phase: CoordinationPhase,
     },
     /// No apple is assigned to the requesting arm (eq. 8, first clause).
     NoAppleAssigned,
     /// The requesting arm is not at its apple (eq. 8, second clause).
     NotAtApple {
         /// Its phase.
-        phase: ArmPhase,
+        phase: CoordinationPhase,
     },
     /// The requesting arm's valve is already open.
     ValveAlreadyOpen,
@@ -128,12 +128,12 @@ pub enum RefuseReason {
     /// 2023 policy: the other arm holds the vacuum from its attach to the end of its release.
     VacuumHeldByOther {
         /// The other arm's phase.
-        other_phase: ArmPhase,
+        other_phase: CoordinationPhase,
     },
     /// Baseline: the other arm is in the middle of its cycle; the arms run one after the other.
     OtherArmActive {
         /// The other arm's phase.
-        other_phase: ArmPhase,
+        other_phase: CoordinationPhase,
     },
 }
 
@@ -181,7 +181,7 @@ pub enum CloseReason {
     /// The valve is open in a phase where the workflow never opens it (eq. 8, second clause).
     OutOfWorkflow {
         /// The arm's phase.
-        phase: ArmPhase,
+        phase: CoordinationPhase,
     },
 }
 
@@ -260,7 +260,7 @@ pub fn new_policy(kind: PolicyKind) -> Box<dyn VacuumPolicy + Send + Sync> {
 pub fn own_preconditions(own: &ArmStatus, request: Request) -> Result<(), RefuseReason> {
     match request {
         Request::StartApproach => {
-            if own.phase != ArmPhase::Ready {
+            if own.phase != CoordinationPhase::Ready {
                 Err(RefuseReason::NotReady { phase: own.phase })
             } else if own.valve_open {
                 Err(RefuseReason::ValveAlreadyOpen)
@@ -271,7 +271,7 @@ pub fn own_preconditions(own: &ArmStatus, request: Request) -> Result<(), Refuse
             }
         }
         Request::OpenValve => {
-            if own.phase != ArmPhase::AtApple {
+            if own.phase != CoordinationPhase::AtApple {
                 Err(RefuseReason::NotAtApple { phase: own.phase })
             } else if own.valve_open {
                 Err(RefuseReason::ValveAlreadyOpen)
@@ -290,11 +290,11 @@ pub fn workflow_close(own: &ArmStatus) -> ValveOrder {
         return ValveOrder::Keep;
     }
     match own.phase {
-        ArmPhase::Releasing => ValveOrder::ForceClose(CloseReason::Release),
-        ArmPhase::Ready | ArmPhase::Approaching | ArmPhase::AtApple => {
+        CoordinationPhase::Releasing => ValveOrder::ForceClose(CloseReason::Release),
+        CoordinationPhase::Ready | CoordinationPhase::Approaching | CoordinationPhase::AtApple => {
             ValveOrder::ForceClose(CloseReason::OutOfWorkflow { phase: own.phase })
         }
-        ArmPhase::Attaching | ArmPhase::Retracting => ValveOrder::Keep,
+        CoordinationPhase::Attaching | CoordinationPhase::Retracting => ValveOrder::Keep,
     }
 }
 

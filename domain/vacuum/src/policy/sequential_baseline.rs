@@ -9,7 +9,7 @@ use super::{
     own_preconditions, workflow_close,
 };
 use harvest_robot_model::arm_id::ArmId;
-use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::coordination_phase::CoordinationPhase;
 
 /// The sequential, uncoordinated baseline.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -27,7 +27,7 @@ impl VacuumPolicy for SequentialBaseline {
         match request {
             Request::StartApproach => {
                 let other = arms.arm(arm.other());
-                if other.phase == ArmPhase::Ready && !other.valve_open {
+                if other.phase == CoordinationPhase::Ready && !other.valve_open {
                     Decision::Grant
                 } else {
                     Decision::Refuse(RefuseReason::OtherArmActive {
@@ -63,11 +63,11 @@ mod tests {
             Decision::Grant
         );
         for phase in [
-            ArmPhase::Approaching,
-            ArmPhase::AtApple,
-            ArmPhase::Attaching,
-            ArmPhase::Retracting,
-            ArmPhase::Releasing,
+            CoordinationPhase::Approaching,
+            CoordinationPhase::AtApple,
+            CoordinationPhase::Attaching,
+            CoordinationPhase::Retracting,
+            CoordinationPhase::Releasing,
         ] {
             let busy = ArmStatus {
                 phase,

@@ -11,7 +11,7 @@ use super::{
     own_preconditions, workflow_close,
 };
 use harvest_robot_model::arm_id::ArmId;
-use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::coordination_phase::CoordinationPhase;
 
 /// The 2023 staggered policy.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -33,7 +33,9 @@ impl VacuumPolicy for Staggered2023 {
                 let holds_vacuum = other.valve_open
                     || matches!(
                         other.phase,
-                        ArmPhase::Attaching | ArmPhase::Retracting | ArmPhase::Releasing
+                        CoordinationPhase::Attaching
+                            | CoordinationPhase::Retracting
+                            | CoordinationPhase::Releasing
                     );
                 if holds_vacuum {
                     Decision::Refuse(RefuseReason::VacuumHeldByOther {
@@ -61,19 +63,19 @@ mod tests {
     fn vacuum_is_exclusive_until_the_other_release_is_done() {
         let p = Staggered2023;
         let waiting = ArmStatus {
-            phase: ArmPhase::AtApple,
+            phase: CoordinationPhase::AtApple,
             valve_open: false,
             attachment: AttachmentState::Closed,
             apple_assigned: true,
         };
         for (phase, valve_open, granted) in [
-            (ArmPhase::Approaching, false, true),
-            (ArmPhase::AtApple, false, true),
-            (ArmPhase::Attaching, true, false),
-            (ArmPhase::Retracting, true, false),
+            (CoordinationPhase::Approaching, false, true),
+            (CoordinationPhase::AtApple, false, true),
+            (CoordinationPhase::Attaching, true, false),
+            (CoordinationPhase::Retracting, true, false),
             // Valve already closed for the release, apple still falling: still exclusive.
-            (ArmPhase::Releasing, false, false),
-            (ArmPhase::Ready, false, true),
+            (CoordinationPhase::Releasing, false, false),
+            (CoordinationPhase::Ready, false, true),
         ] {
             let other = ArmStatus {
                 phase,
@@ -98,7 +100,7 @@ mod tests {
     fn ignores_pressure_failures_until_the_drop_off() {
         let p = Staggered2023;
         let failed = ArmStatus {
-            phase: ArmPhase::Retracting,
+            phase: CoordinationPhase::Retracting,
             valve_open: true,
             attachment: AttachmentState::AttachFailed,
             apple_assigned: false,

@@ -11,7 +11,7 @@
 
 use super::ArmStatus;
 use crate::pressure::AttachmentState;
-use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::coordination_phase::CoordinationPhase;
 use std::fmt;
 
 /// The atomic propositions of eq. 7-12 for one arm.
@@ -92,10 +92,12 @@ impl TlNode {
     pub const fn classify(status: &ArmStatus) -> TlNode {
         if !status.valve_open {
             return match status.phase {
-                ArmPhase::Ready | ArmPhase::Releasing => TlNode::Idle,
-                ArmPhase::Approaching => TlNode::Approaching,
-                ArmPhase::AtApple => TlNode::AwaitingVacuum,
-                ArmPhase::Attaching | ArmPhase::Retracting => TlNode::ReturningEmpty,
+                CoordinationPhase::Ready | CoordinationPhase::Releasing => TlNode::Idle,
+                CoordinationPhase::Approaching => TlNode::Approaching,
+                CoordinationPhase::AtApple => TlNode::AwaitingVacuum,
+                CoordinationPhase::Attaching | CoordinationPhase::Retracting => {
+                    TlNode::ReturningEmpty
+                }
             };
         }
         if status.attachment.failure_kind().is_some() {
@@ -103,12 +105,19 @@ impl TlNode {
         }
         let sealed = matches!(status.attachment, AttachmentState::Sealed);
         match (status.phase, sealed) {
-            (ArmPhase::Attaching, false) => TlNode::Attempting,
-            (ArmPhase::Attaching, true) => TlNode::Detaching,
-            (ArmPhase::Retracting, true) => TlNode::CarryingApple,
-            (ArmPhase::Releasing, true) => TlNode::AtDropOffWithApple,
-            (ArmPhase::Retracting | ArmPhase::Releasing, false) => TlNode::Failing,
-            (ArmPhase::Ready | ArmPhase::Approaching | ArmPhase::AtApple, _) => TlNode::Invalid,
+            (CoordinationPhase::Attaching, false) => TlNode::Attempting,
+            (CoordinationPhase::Attaching, true) => TlNode::Detaching,
+            (CoordinationPhase::Retracting, true) => TlNode::CarryingApple,
+            (CoordinationPhase::Releasing, true) => TlNode::AtDropOffWithApple,
+            (CoordinationPhase::Retracting | CoordinationPhase::Releasing, false) => {
+                TlNode::Failing
+            }
+            (
+                CoordinationPhase::Ready
+                | CoordinationPhase::Approaching
+                | CoordinationPhase::AtApple,
+                _,
+            ) => TlNode::Invalid,
         }
     }
 
@@ -163,13 +172,13 @@ impl fmt::Display for TlNode {
 mod tests {
     use super::*;
 
-    const PHASES: [ArmPhase; 6] = [
-        ArmPhase::Ready,
-        ArmPhase::Approaching,
-        ArmPhase::AtApple,
-        ArmPhase::Attaching,
-        ArmPhase::Retracting,
-        ArmPhase::Releasing,
+    const PHASES: [CoordinationPhase; 6] = [
+        CoordinationPhase::Ready,
+        CoordinationPhase::Approaching,
+        CoordinationPhase::AtApple,
+        CoordinationPhase::Attaching,
+        CoordinationPhase::Retracting,
+        CoordinationPhase::Releasing,
     ];
     const ATTACHMENTS: [AttachmentState; 5] = [
         AttachmentState::Closed,
@@ -222,7 +231,9 @@ mod tests {
                     p.open_valve
                         && matches!(
                             s.phase,
-                            ArmPhase::Ready | ArmPhase::Approaching | ArmPhase::AtApple
+                            CoordinationPhase::Ready
+                                | CoordinationPhase::Approaching
+                                | CoordinationPhase::AtApple
                         )
                 }
             };

@@ -1,10 +1,10 @@
-//! Prints the cycle-model numbers of harvest-vacuum: Fig. 12 per-apple cycle times of the three
-//! policies on the ideal scenario, and single-arm vs. dual-arm time per attempt with the field
-//! failure rates (Tables 2-3).
+//! Prints the cycle-model numbers of the harvest-vacuum policies: Fig. 12 per-apple cycle times
+//! of the three policies on the ideal scenario, and single-arm vs. dual-arm time per attempt with
+//! the field failure rates (Tables 2-3).
 //!
-//! `cargo run -p harvest-vacuum --release --bin cycle_report`
+//! `cargo run -p harvest-eval --release --bin cycle_report`
 
-use harvest_eval::cycle_model::{FailureRates, Scenario, fig12, run_episode, single_vs_dual};
+use harvest_eval::cycle_model::{CycleEpisode, FailureRates, fig12, run_episode, single_vs_dual};
 use harvest_vacuum::policy::{PolicyKind, new_policy};
 
 const APPLES_PER_ARM: u32 = 40;
@@ -41,11 +41,11 @@ fn main() -> anyhow::Result<()> {
         "jitter", "policy", "single s/att", "dual s/att", "less %", "success"
     );
     for jitter in [0.0, 0.5] {
-        let base = Scenario {
+        let base = CycleEpisode {
             failures: rates,
             movement_jitter: jitter,
             seed: SEED,
-            ..Scenario::ideal(0)
+            ..CycleEpisode::ideal(0)
         };
         for policy in PolicyKind::ALL {
             let c = single_vs_dual(policy, &base, ATTEMPTS)?;
@@ -65,24 +65,24 @@ fn main() -> anyhow::Result<()> {
     println!("2024 dual arm with uneven loads (jitter 0.5): share of attempts on the busier arm");
     let single = single_vs_dual(
         PolicyKind::V2024,
-        &Scenario {
+        &CycleEpisode {
             failures: rates,
             movement_jitter: 0.5,
             seed: SEED,
-            ..Scenario::ideal(0)
+            ..CycleEpisode::ideal(0)
         },
         ATTEMPTS,
     )?;
     for share_pct in [50u32, 60, 72, 80] {
         let busy = ATTEMPTS * share_pct / 100;
-        let scenario = Scenario {
+        let episode = CycleEpisode {
             failures: rates,
             movement_jitter: 0.5,
             seed: SEED,
             attempts_per_arm: [busy, ATTEMPTS - busy],
-            ..Scenario::ideal(0)
+            ..CycleEpisode::ideal(0)
         };
-        let r = run_episode(new_policy(PolicyKind::V2024).as_ref(), &scenario)?;
+        let r = run_episode(new_policy(PolicyKind::V2024).as_ref(), &episode)?;
         let dual = r.seconds_per_attempt().unwrap_or(f64::NAN);
         println!(
             "  {share_pct:>3} %: {dual:.3} s/attempt, {:.1} % less than one arm",

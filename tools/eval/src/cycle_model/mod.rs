@@ -12,15 +12,17 @@
 //! concluded), then motion completions; after each event the policy is consulted until
 //! nothing changes: orders first, then waiting requests in the order they were made.
 
+mod episode;
 mod report;
-mod scenario;
 
+pub use episode::{
+    CycleEpisode, CycleEpisodeError, DetectionTimes, FailureRates, PhaseTimes, seconds,
+};
 pub use report::{Fig12Row, SingleDualComparison, fig12, single_vs_dual, steady_state_interval_ns};
-pub use scenario::{DetectionTimes, FailureRates, PhaseTimes, Scenario, ScenarioError, seconds};
 
 use harvest_robot_model::FailureKind;
 use harvest_robot_model::arm_id::ArmId;
-use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::coordination_phase::CoordinationPhase;
 use harvest_safety::trace::TraceEvent;
 use harvest_vacuum::policy::{
     ArmStatus, Decision, PairStatus, PolicyKind, Request, VacuumPolicy, ValveOrder,
@@ -49,9 +51,9 @@ pub enum AttemptOutcome {
 /// Why an episode could not be completed.
 #[derive(Debug, Clone, Copy, PartialEq, Error)]
 pub enum CycleModelError {
-    /// The scenario is invalid.
+    /// The episode is invalid.
     #[error(transparent)]
-    InvalidScenario(#[from] ScenarioError),
+    InvalidEpisode(#[from] CycleEpisodeError),
     /// No event is left but an arm still waits for a grant or has attempts left.
     #[error(
         "{policy} policy deadlocked at {stamp_ns} ns: arm phases {phases:?}, waiting requests {waiting:?}"
@@ -62,7 +64,7 @@ pub enum CycleModelError {
         /// Time of the last event, ns.
         stamp_ns: u64,
         /// Phases of both arms.
-        phases: [ArmPhase; 2],
+        phases: [CoordinationPhase; 2],
         /// Requests still waiting.
         waiting: [Option<Request>; 2],
     },
@@ -123,13 +125,13 @@ impl EpisodeResult {
     }
 }
 
-/// Run one episode of `scenario` under `policy`.
+/// Run `episode` under `policy`.
 pub fn run_episode(
     policy: &dyn VacuumPolicy,
-    scenario: &Scenario,
+    episode: &CycleEpisode,
 ) -> Result<EpisodeResult, CycleModelError> {
-    scenario.validate()?;
-    let model = Model::new(policy, scenario);
+    episode.validate()?;
+    let model = Model::new(policy, episode);
     model.run()
 }
 
@@ -174,7 +176,7 @@ struct ArmSim {
 
 struct Model<'a> {
     policy: &'a dyn VacuumPolicy,
-    scenario: &'a Scenario,
+    episode: &'a CycleEpisode,
     arms: [ArmSim; 2],
     events: BinaryHeap<Reverse<Event>>,
     seq: u64,
@@ -183,11 +185,11 @@ struct Model<'a> {
 }
 
 impl<'a> Model<'a> {
-    fn new(policy: &'a dyn VacuumPolicy, scenario: &'a Scenario) -> Self {
-        let mut rng = SmallRng::seed_from_u64(scenario.seed);
+    fn new(policy: &'a dyn VacuumPolicy, episode: &'a CycleEpisode) -> Self {
+        let mut rng = SmallRng::seed_from_u64(episode.seed);
         let arms = ArmId::ALL.map(|arm| {
-            let plans: VecDeque<AttemptPlan> = (0..scenario.attempts_per_arm[arm.index()])
-                .map(|_| draw_plan(&mut rng, scenario))
+            let plans: VecDeque<AttemptPlan> = (0..episode.attempts_per_arm[arm.index()])
+                .map(|_| draw_plan(&mut rng, episode))
                 .collect();
             ArmSim {
                 status: ArmStatus::ready(!plans.is_empty()),
@@ -199,7 +201,7 @@ impl<'a> Model<'a> {
         });
         Model {
             policy,
-            scenario,
+            episode,
             arms,
             events: BinaryHeap::new(),
             seq: 0,
@@ -231,7 +233,7 @@ impl<'a> Model<'a> {
             self.settle()?;
         }
         let idle = self.arms.iter().all(|a| {
-            a.pending.is_none() && a.plans.is_empty() && a.status.phase == ArmPhase::Ready
+            a.pending.is_none() && a.plans.is_empty() && a.status.phase == CoordinationPhase::Ready
         });
         if !idle {
             return Err(CycleModelError::Deadlock {
@@ -251,14 +253,14 @@ impl<'a> Model<'a> {
     }
 
     fn snapshot(&mut self) {
-        if self.scenario.record_trace {
+        if self.episode.record_trace {
             let pair = self.pair();
             self.result.snapshots.push((self.now_ns, pair));
         }
     }
 
     fn emit(&mut self, event: TraceEvent) {
-        if self.scenario.record_trace {
+        if self.episode.record_trace {
             self.result.trace.push(event);
         }
     }
@@ -275,7 +277,7 @@ impl<'a> Model<'a> {
         self.events.push(Reverse(event));
     }
 
-    fn set_phase(&mut self, arm: ArmId, phase: ArmPhase) {
+    fn set_phase(&mut self, arm: ArmId, phase: CoordinationPhase) {
         self.arms[arm.index()].status.phase = phase;
         let stamp_ns = self.now_ns;
         self.emit(TraceEvent::PhaseChanged {
@@ -349,18 +351,18 @@ impl<'a> Model<'a> {
                 }
             }
             EventKind::ApproachDone => {
-                self.set_phase(arm, ArmPhase::AtApple);
+                self.set_phase(arm, CoordinationPhase::AtApple);
                 self.arms[i].pending = Some((Request::OpenValve, self.now_ns));
             }
             EventKind::AttachDone => {
-                self.set_phase(arm, ArmPhase::Retracting);
+                self.set_phase(arm, CoordinationPhase::Retracting);
                 if let Some(plan) = self.arms[i].current {
                     self.schedule(arm, EventKind::RetractDone, plan.retract_ns);
                     if matches!(
                         plan.outcome,
                         AttemptOutcome::DetachLoss | AttemptOutcome::HoldingLoss
                     ) {
-                        let after = plan.loss_after_ns + self.scenario.detection.drop_ns;
+                        let after = plan.loss_after_ns + self.episode.detection.drop_ns;
                         self.schedule(arm, EventKind::LossDetected, after);
                     }
                 }
@@ -368,15 +370,15 @@ impl<'a> Model<'a> {
             EventKind::RetractDone => {
                 if status.valve_open {
                     // At the drop-off with the valve open: the policy must order the release.
-                    self.set_phase(arm, ArmPhase::Releasing);
+                    self.set_phase(arm, CoordinationPhase::Releasing);
                     self.schedule(
                         arm,
                         EventKind::ReleaseDone,
-                        self.scenario.phase_times.release_ns,
+                        self.episode.phase_times.release_ns,
                     );
                 } else {
                     // Valve already closed after a failure: nothing to release (Fig. 9a).
-                    self.set_phase(arm, ArmPhase::Ready);
+                    self.set_phase(arm, CoordinationPhase::Ready);
                     self.arms[i].current = None;
                     self.request_next_approach(arm);
                 }
@@ -394,7 +396,7 @@ impl<'a> Model<'a> {
                     self.result.harvested += 1;
                     self.result.release_times_ns.push(self.now_ns);
                 }
-                self.set_phase(arm, ArmPhase::Ready);
+                self.set_phase(arm, CoordinationPhase::Ready);
                 self.request_next_approach(arm);
             }
         }
@@ -474,21 +476,21 @@ impl<'a> Model<'a> {
                 sim.attempt += 1;
                 sim.status.apple_assigned = !sim.plans.is_empty();
                 self.result.attempts += 1;
-                self.set_phase(arm, ArmPhase::Approaching);
+                self.set_phase(arm, CoordinationPhase::Approaching);
                 self.schedule(arm, EventKind::ApproachDone, plan.approach_ns);
             }
             Request::OpenValve => {
                 self.result.vacuum_wait_ns[i] += waited_ns;
-                let detection = self.scenario.detection;
+                let detection = self.episode.detection;
                 self.arms[i].status.valve_open = true;
                 self.arms[i].status.attachment = AttachmentState::OpenToAtmosphere;
                 let stamp_ns = self.now_ns;
                 self.emit(TraceEvent::ValveOpened { stamp_ns, arm });
-                self.set_phase(arm, ArmPhase::Attaching);
+                self.set_phase(arm, CoordinationPhase::Attaching);
                 self.schedule(
                     arm,
                     EventKind::AttachDone,
-                    self.scenario.phase_times.attach_ns,
+                    self.episode.phase_times.attach_ns,
                 );
                 self.schedule(arm, EventKind::AttachTimeout, detection.attach_timeout_ns);
                 if self.arms[i]
@@ -504,8 +506,8 @@ impl<'a> Model<'a> {
 }
 
 /// Draw one attempt: outcome, movement times and loss time.
-fn draw_plan(rng: &mut SmallRng, scenario: &Scenario) -> AttemptPlan {
-    let f = &scenario.failures;
+fn draw_plan(rng: &mut SmallRng, episode: &CycleEpisode) -> AttemptPlan {
+    let f = &episode.failures;
     let u: f64 = rng.random();
     let outcome = if u < f.no_seal {
         AttemptOutcome::NoSeal
@@ -516,17 +518,17 @@ fn draw_plan(rng: &mut SmallRng, scenario: &Scenario) -> AttemptPlan {
     } else {
         AttemptOutcome::Success
     };
-    let j = scenario.movement_jitter;
+    let j = episode.movement_jitter;
     let factor = if j > 0.0 {
         rng.random_range(1.0 - j..=1.0 + j)
     } else {
         1.0
     };
-    let p = &scenario.phase_times;
+    let p = &episode.phase_times;
     let approach_ns = ((p.approach_ns as f64) * factor).round().max(1.0) as u64;
     let retract_ns = ((p.retract_ns as f64) * factor).round().max(1.0) as u64;
     // The loss must be detected before the arm reaches the drop-off.
-    let window_ns = retract_ns.saturating_sub(scenario.detection.drop_ns + 1) as f64;
+    let window_ns = retract_ns.saturating_sub(episode.detection.drop_ns + 1) as f64;
     let fraction: f64 = match outcome {
         AttemptOutcome::DetachLoss => rng.random_range(0.0..0.1),
         AttemptOutcome::HoldingLoss => rng.random_range(0.1..1.0),
@@ -551,10 +553,10 @@ mod tests {
 
     #[test]
     fn single_apple_timeline_is_exact() {
-        let mut sc = Scenario::ideal(1);
-        sc.attempts_per_arm = [1, 0];
-        sc.record_trace = true;
-        let r = run_episode(&FailureAware2024, &sc).expect("runs");
+        let mut episode = CycleEpisode::ideal(1);
+        episode.attempts_per_arm = [1, 0];
+        episode.record_trace = true;
+        let r = run_episode(&FailureAware2024, &episode).expect("runs");
         assert_eq!(r.makespan_ns, PhaseTimes::FIG12.cycle_ns());
         assert_eq!(r.release_times_ns, vec![PhaseTimes::FIG12.cycle_ns()]);
         assert_eq!((r.attempts, r.harvested), (1, 1));
@@ -575,10 +577,10 @@ mod tests {
 
     #[test]
     fn ideal_per_apple_cycle_times_come_out_of_the_policies() {
-        let sc = Scenario::ideal(20);
+        let episode = CycleEpisode::ideal(20);
         let mut per_apple = Vec::new();
         for kind in PolicyKind::ALL {
-            let r = run_episode(new_policy(kind).as_ref(), &sc).expect("runs");
+            let r = run_episode(new_policy(kind).as_ref(), &episode).expect("runs");
             assert_eq!(r.harvested, 40);
             per_apple.push(steady_state_interval_ns(&r.release_times_ns).expect("enough"));
         }
@@ -588,11 +590,11 @@ mod tests {
     #[test]
     fn a_failed_attempt_frees_the_vacuum_at_once_only_under_2024() {
         // Arm 1's only attempt fails to seal; arm 2 arrives at the same time and waits.
-        let mut sc = Scenario::ideal(1);
-        sc.failures.no_seal = 1.0;
-        sc.attempts_per_arm = [1, 1];
-        let r24 = run_episode(&FailureAware2024, &sc).expect("runs");
-        let r23 = run_episode(&Staggered2023, &sc).expect("runs");
+        let mut episode = CycleEpisode::ideal(1);
+        episode.failures.no_seal = 1.0;
+        episode.attempts_per_arm = [1, 1];
+        let r24 = run_episode(&FailureAware2024, &episode).expect("runs");
+        let r23 = run_episode(&Staggered2023, &episode).expect("runs");
         // 2024: arm 2 waits only for arm 1's attach timeout (0.25 s).
         assert_eq!(r24.vacuum_wait_ns, [0, 250_000_000]);
         // 2023: arm 2 waits for arm 1's attach, retraction and release (4.5 - 2.0 s).
@@ -603,29 +605,33 @@ mod tests {
 
     #[test]
     fn baseline_never_moves_both_arms_at_once() {
-        let mut sc = Scenario::ideal(5);
-        sc.failures = FailureRates::field_2024();
-        sc.movement_jitter = 0.4;
-        sc.record_trace = true;
-        let r = run_episode(&SequentialBaseline, &sc).expect("runs");
+        let mut episode = CycleEpisode::ideal(5);
+        episode.failures = FailureRates::field_2024();
+        episode.movement_jitter = 0.4;
+        episode.record_trace = true;
+        let r = run_episode(&SequentialBaseline, &episode).expect("runs");
         for (_, pair) in &r.snapshots {
-            let active = pair.0.iter().filter(|a| a.phase != ArmPhase::Ready).count();
+            let active = pair
+                .0
+                .iter()
+                .filter(|a| a.phase != CoordinationPhase::Ready)
+                .count();
             assert!(active <= 1, "{pair:?}");
         }
     }
 
     #[test]
     fn same_seed_same_episode_and_outcomes_shared_across_policies() {
-        let mut sc = Scenario::ideal(30);
-        sc.failures = FailureRates::field_2024();
-        sc.movement_jitter = 0.5;
-        sc.seed = 11;
-        let a = run_episode(&FailureAware2024, &sc).expect("runs");
-        let b = run_episode(&FailureAware2024, &sc).expect("runs");
+        let mut episode = CycleEpisode::ideal(30);
+        episode.failures = FailureRates::field_2024();
+        episode.movement_jitter = 0.5;
+        episode.seed = 11;
+        let a = run_episode(&FailureAware2024, &episode).expect("runs");
+        let b = run_episode(&FailureAware2024, &episode).expect("runs");
         assert_eq!(a, b);
         // Every policy sees the same draws, so the same apples are harvested.
         for kind in PolicyKind::ALL {
-            let r = run_episode(new_policy(kind).as_ref(), &sc).expect("runs");
+            let r = run_episode(new_policy(kind).as_ref(), &episode).expect("runs");
             assert_eq!(r.harvested, a.harvested, "{kind}");
             assert_eq!(r.attempts, 60);
         }
@@ -636,16 +642,16 @@ mod tests {
     #[test]
     fn policy_2024_runs_inside_its_automaton() {
         for seed in 0..200 {
-            let mut sc = Scenario::ideal(6);
-            sc.failures = FailureRates {
+            let mut episode = CycleEpisode::ideal(6);
+            episode.failures = FailureRates {
                 no_seal: 0.3,
                 detach_loss: 0.1,
                 holding_loss: 0.1,
             };
-            sc.movement_jitter = 0.6;
-            sc.seed = seed;
-            sc.record_trace = true;
-            let r = run_episode(&FailureAware2024, &sc).expect("runs");
+            episode.movement_jitter = 0.6;
+            episode.seed = seed;
+            episode.record_trace = true;
+            let r = run_episode(&FailureAware2024, &episode).expect("runs");
             for w in r.snapshots.windows(2) {
                 for arm in ArmId::ALL {
                     let from = TlNode::classify(w[0].1.arm(arm));

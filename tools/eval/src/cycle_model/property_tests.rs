@@ -6,7 +6,7 @@
 //! open; and a test-only policy that grants everything must be caught opening two unsealed
 //! valves (so every vacuum rule of the monitor is shown to fire).
 
-use crate::cycle_model::{DetectionTimes, FailureRates, PhaseTimes, Scenario, run_episode};
+use crate::cycle_model::{CycleEpisode, DetectionTimes, FailureRates, PhaseTimes, run_episode};
 use harvest_robot_model::arm_id::ArmId;
 use harvest_safety::safety_monitor::{MonitorConfig, Violation, check_trace};
 use harvest_vacuum::policy::{
@@ -18,12 +18,12 @@ use rand::{Rng, SeedableRng};
 const MS: u64 = 1_000_000;
 const EPISODES: u64 = 3000;
 
-/// A random valid scenario: phase times, latencies, failure rates, jitter and counts.
-fn random_scenario(rng: &mut SmallRng, seed: u64) -> Scenario {
+/// A random valid episode: phase times, latencies, failure rates, jitter and counts.
+fn random_episode(rng: &mut SmallRng, seed: u64) -> CycleEpisode {
     let attach_ns = rng.random_range(100..600) * MS;
     let attach_timeout_ns = rng.random_range(80..700) * MS;
     let seal_ns = rng.random_range(5..attach_ns.min(attach_timeout_ns) / MS) * MS;
-    Scenario {
+    CycleEpisode {
         phase_times: PhaseTimes {
             approach_ns: rng.random_range(300..3000) * MS,
             attach_ns,
@@ -52,16 +52,16 @@ fn random_scenario(rng: &mut SmallRng, seed: u64) -> Scenario {
 fn violation_counts(policy: &dyn VacuumPolicy) -> [usize; 4] {
     let mut rng = SmallRng::seed_from_u64(2024);
     let mut counts = [0; 4];
-    for episode in 0..EPISODES {
-        let scenario = random_scenario(&mut rng, episode);
-        let result = match run_episode(policy, &scenario) {
+    for index in 0..EPISODES {
+        let episode = random_episode(&mut rng, index);
+        let result = match run_episode(policy, &episode) {
             Ok(r) => r,
-            Err(e) => panic!("episode {episode} {scenario:?}: {e}"),
+            Err(e) => panic!("episode {index} {episode:?}: {e}"),
         };
         assert_eq!(
             result.attempts,
-            scenario.attempts_per_arm.iter().sum::<u32>(),
-            "episode {episode}: every attempt is made"
+            episode.attempts_per_arm.iter().sum::<u32>(),
+            "episode {index}: every attempt is made"
         );
         let violations =
             check_trace(&result.trace, MonitorConfig::default()).expect("model emits in order");

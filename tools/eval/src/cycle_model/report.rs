@@ -1,7 +1,7 @@
 //! The numbers the cycle model is for: Fig. 12 (ideal per-apple cycle time of each policy) and
 //! the single-arm vs. dual-arm time per attempt with field failure rates (section 4.2).
 
-use super::{CycleModelError, Scenario, run_episode, seconds};
+use super::{CycleEpisode, CycleModelError, run_episode, seconds};
 use harvest_vacuum::policy::{PolicyKind, new_policy};
 
 /// One bar of Fig. 12.
@@ -18,14 +18,14 @@ pub struct Fig12Row {
     pub paper_s_per_apple: f64,
 }
 
-/// Run the ideal scenario of Fig. 12 with `apples_per_arm` apples per arm under each policy.
+/// Run the ideal episode of Fig. 12 with `apples_per_arm` apples per arm under each policy.
 pub fn fig12(apples_per_arm: u32) -> Result<Vec<Fig12Row>, CycleModelError> {
-    let scenario = Scenario::ideal(apples_per_arm);
+    let episode = CycleEpisode::ideal(apples_per_arm);
     PolicyKind::ALL
         .into_iter()
         .zip([4.5, 2.5, 2.25])
         .map(|(policy, paper_s_per_apple)| {
-            let r = run_episode(new_policy(policy).as_ref(), &scenario)?;
+            let r = run_episode(new_policy(policy).as_ref(), &episode)?;
             Ok(Fig12Row {
                 policy,
                 steady_state_s_per_apple: steady_state_interval_ns(&r.release_times_ns)
@@ -71,15 +71,15 @@ pub struct SingleDualComparison {
 /// ignored).
 pub fn single_vs_dual(
     policy: PolicyKind,
-    base: &Scenario,
+    base: &CycleEpisode,
     attempts: u32,
 ) -> Result<SingleDualComparison, CycleModelError> {
-    let single = Scenario {
+    let single = CycleEpisode {
         attempts_per_arm: [attempts, 0],
         record_trace: false,
         ..*base
     };
-    let dual = Scenario {
+    let dual = CycleEpisode {
         attempts_per_arm: [attempts / 2, attempts - attempts / 2],
         record_trace: false,
         ..*base
@@ -125,7 +125,7 @@ mod tests {
 
     #[test]
     fn dual_arm_2024_beats_single_arm_with_field_failures() {
-        let mut base = Scenario::ideal(0);
+        let mut base = CycleEpisode::ideal(0);
         base.failures = FailureRates::field_2024();
         base.movement_jitter = 0.5;
         base.seed = 5;

@@ -43,9 +43,12 @@ pub enum FailureCause {
     Other,
 }
 
-/// One event of the log.
+/// One entry of an episode's event log (what the report prints and writes to JSON): when, which
+/// arm and true apple, and a description of what happened (an arm node, vacuum node or world
+/// event). Not the `harvest/events` payload `harvest_ipc::payloads::HarvestEvent`, which the
+/// stack's processes publish with typed codes.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct HarvestEvent {
+pub struct EpisodeLogEntry {
     /// Simulated time since the episode started, s.
     pub t_s: f64,
     /// Arm number (1 or 2), if the event concerns an arm.
@@ -135,7 +138,7 @@ pub struct AppleRecord {
 pub struct Recorder {
     keep_events: bool,
     /// The event log (only when `keep_events`).
-    pub events: Vec<HarvestEvent>,
+    pub events: Vec<EpisodeLogEntry>,
     /// Every attempt.
     pub attempts: Vec<AttemptRecord>,
     current: [Option<usize>; 2],
@@ -168,7 +171,7 @@ impl Recorder {
             .and_then(|a| self.current[usize::from(a) - 1])
             .and_then(|i| self.attempts.get(i))
             .and_then(|r| r.apple);
-        self.events.push(HarvestEvent {
+        self.events.push(EpisodeLogEntry {
             t_s,
             arm,
             apple,

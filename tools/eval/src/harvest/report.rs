@@ -35,7 +35,7 @@ use super::args::{EvalHarvestArgs, PolicyArg, TimingArg};
 use super::calibration::pressure_for;
 use super::detections::DetectionModel;
 use super::error::HarvestEvalError;
-use super::records::{AppleRecord, AttemptRecord, HarvestEvent};
+use super::records::{AppleRecord, AttemptRecord, EpisodeLogEntry};
 use super::runner::{EmergencyStopReaction, EpisodeConfig, EpisodeOutcome, run_episode};
 use super::timing::apply_timing;
 
@@ -321,7 +321,7 @@ pub struct EpisodeReport {
     /// Per attempt.
     pub attempts: Vec<AttemptRecord>,
     /// The event log.
-    pub events: Vec<HarvestEvent>,
+    pub events: Vec<EpisodeLogEntry>,
     /// Safety violations, described.
     pub violations: Vec<String>,
     /// Emergency-stop measurement, if requested.

@@ -5,9 +5,8 @@
 //! all stamped with the tick's time.
 
 use harvest_arm::node::{ArmNodeEvent, ServoOrder};
-use harvest_ipc::payloads::ArmPhase as PhaseCode;
 use harvest_robot_model::ArmId;
-use harvest_robot_model::arm_phase::ArmPhase;
+use harvest_robot_model::coordination_phase::CoordinationPhase;
 use harvest_robot_model::params::ArmParams;
 use harvest_safety::safety_monitor::{MonitorConfig, SafetyMonitor, TraceError, Violation};
 use harvest_safety::trace::{JointId, TraceEvent};
@@ -116,17 +115,10 @@ impl SafetyTrace {
     ) -> Result<(), TraceError> {
         for event in events {
             if let ArmNodeEvent::PhaseChanged { to, .. } = event {
-                let phase = match to {
-                    PhaseCode::Idle | PhaseCode::Stopped => ArmPhase::Ready,
-                    PhaseCode::Approach => ArmPhase::Approaching,
-                    PhaseCode::AttachDetach => ArmPhase::Attaching,
-                    PhaseCode::Retract => ArmPhase::Retracting,
-                    PhaseCode::Release => ArmPhase::Releasing,
-                };
                 self.observe(TraceEvent::PhaseChanged {
                     stamp_ns,
                     arm,
-                    phase,
+                    phase: CoordinationPhase::from_reported(*to),
                 })?;
             }
         }

@@ -127,10 +127,12 @@ impl FailureRates {
     }
 }
 
-/// One episode of the cycle model.
+/// The inputs of one episode of the cycle model: phase times, detection latencies, failure
+/// rates, attempts per arm, jitter and seed. Not a simulated orchard (`harvest_sim::Scenario`,
+/// a scenario file): the cycle model has no world, only these timings and probabilities.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Scenario {
+pub struct CycleEpisode {
     /// Nominal phase times.
     pub phase_times: PhaseTimes,
     /// Detection latencies of the pressure inference.
@@ -150,10 +152,10 @@ pub struct Scenario {
     pub record_trace: bool,
 }
 
-impl Scenario {
-    /// The ideal scenario of Fig. 12: uniform distances, every attempt successful.
+impl CycleEpisode {
+    /// The ideal episode of Fig. 12: uniform distances, every attempt successful.
     pub fn ideal(apples_per_arm: u32) -> Self {
-        Scenario {
+        CycleEpisode {
             phase_times: PhaseTimes::FIG12,
             detection: DetectionTimes::default(),
             failures: FailureRates::NONE,
@@ -164,8 +166,8 @@ impl Scenario {
         }
     }
 
-    /// Check the scenario can be simulated.
-    pub fn validate(&self) -> Result<(), ScenarioError> {
+    /// Check the episode can be simulated.
+    pub fn validate(&self) -> Result<(), CycleEpisodeError> {
         let p = &self.phase_times;
         for (key, value) in [
             ("phase_times.approach_ns", p.approach_ns),
@@ -180,19 +182,19 @@ impl Scenario {
             ("detection.drop_ns", self.detection.drop_ns),
         ] {
             if value == 0 {
-                return Err(ScenarioError::ZeroDuration { key });
+                return Err(CycleEpisodeError::ZeroDuration { key });
             }
         }
         let d = &self.detection;
         if d.seal_ns >= d.attach_timeout_ns.min(p.attach_ns) {
-            return Err(ScenarioError::SealTooLate {
+            return Err(CycleEpisodeError::SealTooLate {
                 seal_ns: d.seal_ns,
                 limit_ns: d.attach_timeout_ns.min(p.attach_ns),
             });
         }
         let min_retract_ns = (p.retract_ns as f64 * (1.0 - self.movement_jitter)) as u64;
         if d.drop_ns >= min_retract_ns {
-            return Err(ScenarioError::DropDetectionTooSlow {
+            return Err(CycleEpisodeError::DropDetectionTooSlow {
                 drop_ns: d.drop_ns,
                 min_retract_ns,
             });
@@ -204,34 +206,34 @@ impl Scenario {
             ("failures.holding_loss", f.holding_loss),
         ] {
             if !(0.0..=1.0).contains(&value) {
-                return Err(ScenarioError::BadProbability { key, value });
+                return Err(CycleEpisodeError::BadProbability { key, value });
             }
         }
         if f.total() > 1.0 {
-            return Err(ScenarioError::BadProbability {
+            return Err(CycleEpisodeError::BadProbability {
                 key: "failures (sum)",
                 value: f.total(),
             });
         }
         if !(0.0..1.0).contains(&self.movement_jitter) {
-            return Err(ScenarioError::BadJitter(self.movement_jitter));
+            return Err(CycleEpisodeError::BadJitter(self.movement_jitter));
         }
         Ok(())
     }
 }
 
-/// A scenario the model cannot run.
+/// An episode the model cannot run.
 #[derive(Debug, Clone, Copy, PartialEq, Error)]
-pub enum ScenarioError {
+pub enum CycleEpisodeError {
     /// A duration is zero.
-    #[error("scenario key `{key}` is 0 ns: durations must be positive")]
+    #[error("episode key `{key}` is 0 ns: durations must be positive")]
     ZeroDuration {
         /// The offending key.
         key: &'static str,
     },
     /// A seal would be confirmed after the attach window or the attach timeout.
     #[error(
-        "scenario: `detection.seal_ns` = {seal_ns} must be below both the attach phase and the attach timeout ({limit_ns} ns)"
+        "episode: `detection.seal_ns` = {seal_ns} must be below both the attach phase and the attach timeout ({limit_ns} ns)"
     )]
     SealTooLate {
         /// The seal latency, ns.
@@ -241,7 +243,7 @@ pub enum ScenarioError {
     },
     /// A drop would be detected after the shortest possible retraction.
     #[error(
-        "scenario: `detection.drop_ns` = {drop_ns} must be below the shortest retraction ({min_retract_ns} ns)"
+        "episode: `detection.drop_ns` = {drop_ns} must be below the shortest retraction ({min_retract_ns} ns)"
     )]
     DropDetectionTooSlow {
         /// The drop latency, ns.
@@ -250,7 +252,7 @@ pub enum ScenarioError {
         min_retract_ns: u64,
     },
     /// A probability is outside [0, 1] or the rates sum above 1.
-    #[error("scenario key `{key}` = {value}: must be a probability in [0, 1]")]
+    #[error("episode key `{key}` = {value}: must be a probability in [0, 1]")]
     BadProbability {
         /// The offending key.
         key: &'static str,
@@ -258,7 +260,7 @@ pub enum ScenarioError {
         value: f64,
     },
     /// The jitter is outside [0, 1).
-    #[error("scenario key `movement_jitter` = {0}: must lie in [0, 1)")]
+    #[error("episode key `movement_jitter` = {0}: must lie in [0, 1)")]
     BadJitter(f64),
 }
 
@@ -286,8 +288,8 @@ mod tests {
 
     #[test]
     fn validation_names_the_bad_key() {
-        assert_eq!(Scenario::ideal(3).validate(), Ok(()));
-        let mut s = Scenario::ideal(3);
+        assert_eq!(CycleEpisode::ideal(3).validate(), Ok(()));
+        let mut s = CycleEpisode::ideal(3);
         s.failures.no_seal = 1.5;
         assert!(
             s.validate()
@@ -296,17 +298,17 @@ mod tests {
                 .unwrap_or_default()
                 .contains("no_seal")
         );
-        let mut s = Scenario::ideal(3);
+        let mut s = CycleEpisode::ideal(3);
         s.detection.seal_ns = 300_000_000;
         assert!(matches!(
             s.validate(),
-            Err(ScenarioError::SealTooLate { .. })
+            Err(CycleEpisodeError::SealTooLate { .. })
         ));
-        let mut s = Scenario::ideal(3);
+        let mut s = CycleEpisode::ideal(3);
         s.phase_times.release_ns = 0;
         assert_eq!(
             s.validate(),
-            Err(ScenarioError::ZeroDuration {
+            Err(CycleEpisodeError::ZeroDuration {
                 key: "phase_times.release_ns"
             })
         );
