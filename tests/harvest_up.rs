@@ -10,11 +10,8 @@ use common::*;
 use harvest_ipc::catalogue::{ARM_STATE, ARM_TARGET, HARVEST_EVENTS, SIM_GROUND_TRUTH};
 use harvest_ipc::payloads::{ArmPhase, ArmTarget, HarvestCause, HarvestEvent, HarvestEventKind};
 use harvest_ipc::{Context, Domain, MonotonicClock};
-use std::io::Read;
-use std::process::{Child, ExitStatus};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 /// The `ideal` preset with `apples` apples: a grid, no occlusion, no failures.
@@ -158,58 +155,6 @@ fn harvest_up_picks_a_small_orchard_and_summarizes_it() {
         "",
         "iceoryx2 resources left behind"
     );
-}
-
-/// A `harvest` child whose output is read from the start (a full pipe would block its
-/// processes' logging and stall them while the test works).
-struct Drained {
-    child: Child,
-    stdout: JoinHandle<String>,
-    stderr: JoinHandle<String>,
-}
-
-fn read_all(mut pipe: impl Read + Send + 'static) -> JoinHandle<String> {
-    std::thread::spawn(move || {
-        let mut text = String::new();
-        let _ = pipe.read_to_string(&mut text);
-        text
-    })
-}
-
-impl Drained {
-    fn spawn(domain: &str, args: &[&str]) -> Self {
-        let mut child = spawn_harvest(domain, args);
-        let stdout = read_all(child.stdout.take().expect("stdout piped"));
-        let stderr = read_all(child.stderr.take().expect("stderr piped"));
-        Self {
-            child,
-            stdout,
-            stderr,
-        }
-    }
-
-    /// SIGINT, then waits (killing the child after `limit`).
-    fn interrupt_and_wait(mut self, limit: Duration) -> (ExitStatus, String, String) {
-        let _ = nix::sys::signal::kill(
-            nix::unistd::Pid::from_raw(self.child.id() as i32),
-            nix::sys::signal::Signal::SIGINT,
-        );
-        let deadline = Instant::now() + limit;
-        let status = loop {
-            if let Some(status) = self.child.try_wait().expect("try_wait") {
-                break status;
-            }
-            if Instant::now() > deadline {
-                let _ = self.child.kill();
-                let _ = self.child.wait();
-                panic!("watchdog: harvest did not stop within {limit:?}");
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        };
-        let stdout = self.stdout.join().unwrap_or_default();
-        let stderr = self.stderr.join().unwrap_or_default();
-        (status, stdout, stderr)
-    }
 }
 
 /// Waits until `arm1/state` shows an idle arm with finite joints and `arm2/state` is flowing;

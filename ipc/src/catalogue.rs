@@ -5,6 +5,18 @@
 //! oldest sample), so no subscriber, the recorder included, can ever block a publisher; drops
 //! are seen as `msg_seq` gaps and counted by [`crate::Subscriber`]. Buffers are sized per
 //! channel for the subscribers that must not lose messages (the recorder asks for the maximum).
+//!
+//! Writer policy: a channel accepts as many publishers as it has legitimate writers. The presets
+//! allow one ([`Qos::max_publishers`] = 1): a second process creating a publisher on such a
+//! channel (a stray `harvest arm --id 1` beside a running stack's arm 1, a second stack in the
+//! same domain) fails at port creation, naming the channel, instead of becoming a second voice
+//! on the servos or valves. Channels with several writers say so with
+//! [`Qos::with_max_publishers`] and name their writers: `vacuum/valve_request` (the two arms),
+//! `harvest/events` (arms and vacuum supervisor), `system/health` (every process). A crashed
+//! writer's port is removed by the supervisor's stale-resource cleanup before its restart
+//! ([`crate::cleanup::remove_dead_nodes`]), so restarts still find the slot free. Replaying a
+//! recording into a domain where the stack runs is refused per channel for the channels the
+//! stack writes (`harvest replay` reports them as skipped with the publisher-limit error).
 
 use crate::payload::Payload;
 use crate::payloads::*;
@@ -21,6 +33,8 @@ pub struct Qos {
     pub default_buffer_size: usize,
     /// Drop the oldest sample when a subscriber's buffer is full (never block the publisher).
     pub safe_overflow: bool,
+    /// Publishers the channel accepts at once: its legitimate writers (1 in every preset; see
+    /// the module's writer policy). Also the event companion's notifier limit.
     pub max_publishers: usize,
     pub max_subscribers: usize,
     pub max_nodes: usize,
@@ -29,33 +43,48 @@ pub struct Qos {
 }
 
 impl Qos {
-    /// Small messages: generous buffers, many participants.
+    /// Small messages: generous buffers, many readers, one writer.
     pub const SMALL: Self = Self {
         history_size: 0,
         subscriber_max_buffer_size: 256,
         default_buffer_size: 64,
         safe_overflow: true,
-        max_publishers: 4,
+        max_publishers: 1,
         max_subscribers: 8,
         max_nodes: 16,
         max_loans: 2,
     };
-    /// Latched state (late joiners get the last value).
+    /// Latched state (late joiners get the last value), one writer.
     pub const STATE: Self = Self {
         history_size: 1,
         ..Self::SMALL
     };
-    /// Multi-megabyte frames: every buffer slot is a frame in shared memory (see FIELD-NOTES).
+    /// Multi-megabyte frames: every buffer slot is a frame in shared memory (see FIELD-NOTES),
+    /// one writer.
     pub const FRAMES: Self = Self {
         history_size: 0,
         subscriber_max_buffer_size: 8,
         default_buffer_size: 2,
         safe_overflow: true,
-        max_publishers: 2,
+        max_publishers: 1,
         max_subscribers: 4,
         max_nodes: 8,
         max_loans: 2,
     };
+
+    /// This QoS for a channel with `max_publishers` legitimate writers (name them in the
+    /// channel's description).
+    pub const fn with_max_publishers(self, max_publishers: usize) -> Self {
+        Self {
+            max_publishers,
+            ..self
+        }
+    }
+
+    /// Whether exactly one process may write the channel (a second publisher is refused).
+    pub const fn single_writer(&self) -> bool {
+        self.max_publishers == 1
+    }
 }
 
 /// Which layer a channel belongs to.
@@ -234,8 +263,8 @@ pub const ARM_STATE: [Channel<ArmState>; 2] = [
 ];
 pub const VALVE_REQUEST: Channel<ValveRequest> = Channel::new(
     "vacuum/valve_request",
-    Qos::SMALL,
-    "arms ask to open or close their valves",
+    Qos::SMALL.with_max_publishers(2),
+    "arms ask to open or close their valves (writers: arm1, arm2)",
 );
 pub const VALVE_GRANT: Channel<ValveGrant> = Channel::new(
     "vacuum/valve_grant",
@@ -247,28 +276,27 @@ pub const VACUUM_STATE: Channel<VacuumState> = Channel::new(
     Qos::STATE,
     "valves, 3 pressures and inferred attachment per arm",
 );
+/// One writer, the owner of the stop: the safety monitor (`harvest monitor`). Anyone else who
+/// must stop the robot asks the owner; nobody else can engage or release it.
 pub const EMERGENCY_STOP: Channel<EmergencyStop> = Channel::new(
     "safety/emergency_stop",
     Qos::STATE,
-    "engaged: all arms stop, all valves close",
+    "engaged: all arms stop, all valves close (writer: the safety monitor)",
 );
 pub const HARVEST_EVENTS: Channel<HarvestEvent> = Channel::new(
     "harvest/events",
-    Qos {
-        max_publishers: 6,
-        ..Qos::SMALL
-    },
+    // arm1, arm2 and the vacuum supervisor, with room for diagnostic tools.
+    Qos::SMALL.with_max_publishers(6),
     "per-apple harvest events of the arms and the vacuum supervisor (assigned, phases, result, \
 rejected targets with a reason)",
 );
 pub const PROCESS_HEALTH: Channel<ProcessHealth> = Channel::new(
     "system/health",
     Qos {
-        max_publishers: 24,
         max_nodes: 32,
-        ..Qos::SMALL
+        ..Qos::SMALL.with_max_publishers(24)
     },
-    "heartbeat of every process, 2 Hz",
+    "heartbeat of every process, 2 Hz (writers: every process)",
 );
 
 /// The simulated (or real) camera device's frame output, read by the camera driver.
@@ -444,6 +472,23 @@ mod tests {
             );
             assert!(spec.qos.default_buffer_size <= spec.qos.subscriber_max_buffer_size);
         }
+    }
+
+    #[test]
+    fn only_channels_with_several_writers_accept_several_publishers() {
+        let several: Vec<(&str, usize)> = all_specs()
+            .iter()
+            .filter(|spec| !spec.qos.single_writer())
+            .map(|spec| (spec.topic, spec.qos.max_publishers))
+            .collect();
+        assert_eq!(
+            several,
+            [
+                ("vacuum/valve_request", 2),
+                ("harvest/events", 6),
+                ("system/health", 24)
+            ]
+        );
     }
 
     #[test]

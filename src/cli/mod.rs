@@ -26,6 +26,10 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Run the whole stack under the process supervisor (default: simulated robot).
+    ///
+    /// One stack per domain: refused while another `harvest up` (or a process of its stack)
+    /// runs in the domain; the lock is <iceoryx2 root>/harvest-up/<domain>.lock
+    /// (/tmp/iceoryx2/harvest-up/), holding the running supervisor's pid.
     Up {
         /// Launch file (TOML); the embedded default runs the whole stack in simulation.
         #[arg(long)]
@@ -178,26 +182,29 @@ impl Cli {
                 until_harvested,
             } => up(launch, duration, until_harvested, domain),
             Command::Arm(args) => {
-                harvest_arm_process::run(&args, &domain, process_name).context("arm process")?;
+                harvest_arm_process::run(&args, &domain, process_name)
+                    .with_context(|| stack_process_context("arm process", &domain))?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Vacuum(args) => {
                 harvest_vacuum_process::process::run(&args, &domain, process_name)
-                    .context("vacuum process")?;
+                    .with_context(|| stack_process_context("vacuum process", &domain))?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
             Command::Sim(args) => {
-                harvest_sim::process::run(&args, &domain, process_name).context("sim process")?;
+                harvest_sim::process::run(&args, &domain, process_name)
+                    .with_context(|| stack_process_context("sim process", &domain))?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Perception(args) => {
                 harvest_perception_process::run(&args, &domain, process_name)
-                    .context("perception process")?;
+                    .with_context(|| stack_process_context("perception process", &domain))?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Camera(args) => {
-                harvest_camera::run(&args, &domain, process_name).context("camera process")?;
+                harvest_camera::run(&args, &domain, process_name)
+                    .with_context(|| stack_process_context("camera process", &domain))?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
@@ -225,7 +232,7 @@ impl Cli {
             }
             Command::Laser(args) => {
                 harvest_laser_process::process::run(&args, &domain, process_name)
-                    .context("laser process")?;
+                    .with_context(|| stack_process_context("laser process", &domain))?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
@@ -237,7 +244,7 @@ impl Cli {
             }
             Command::Lidar(args) => {
                 harvest_lidar_process::process::run(&args, &domain, process_name)
-                    .context("lidar process")?;
+                    .with_context(|| stack_process_context("lidar process", &domain))?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
@@ -289,18 +296,35 @@ impl Cli {
             Command::Channels => {
                 for spec in harvest_ipc::catalogue::all_specs() {
                     println!(
-                        "{:<24} {:<26} v{} {:?} buffer<= {:<3} {}",
+                        "{:<24} {:<26} v{} {:?} buffer<= {:<3} writers<= {:<2} {}",
                         spec.topic,
                         spec.type_name,
                         spec.version,
                         spec.layer,
                         spec.qos.subscriber_max_buffer_size,
+                        spec.qos.max_publishers,
                         spec.description
                     );
                 }
                 Ok(ExitCode::SUCCESS)
             }
         }
+    }
+}
+
+/// The context of a failed stack process: its role, and when it was started by hand in a domain
+/// where `harvest up` runs a stack, that stack's supervisor. Its processes already write the
+/// channels this one would write, and single-writer channels (`harvest channels`: `writers<= 1`)
+/// refuse a second publisher.
+fn stack_process_context(role: &str, domain: &Domain) -> String {
+    match harvest_supervisor::DomainLock::running_supervisor(domain) {
+        Some(pid) if pid != nix::unistd::getppid().as_raw() => format!(
+            "{role} (a stack is already running in domain {:?}: `harvest up` pid {pid}; its \
+processes write this process's channels, and a channel with one writer accepts no second \
+publisher)",
+            domain.name()
+        ),
+        _ => role.to_owned(),
     }
 }
 

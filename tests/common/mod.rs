@@ -5,6 +5,7 @@
 use std::io::Read;
 use std::path::PathBuf;
 use std::process::{Child, Command, ExitStatus, Stdio};
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 pub const HARVEST: &str = env!("CARGO_BIN_EXE_harvest");
@@ -107,6 +108,123 @@ pub fn wait_with_watchdog(mut child: Child, limit: Duration) -> (ExitStatus, Str
     let stderr = stderr_reader.join().unwrap_or_default();
     let stdout = stdout_reader.join().unwrap_or_default();
     (status, stdout, stderr)
+}
+
+/// A `harvest` child whose output is read from the start (a full pipe would block its
+/// processes' logging and stall them while the test works). Killed on drop if still running
+/// (a failed test leaves no stack behind: the supervisor's children get SIGTERM when it dies).
+pub struct Drained {
+    child: Child,
+    stdout: Option<JoinHandle<String>>,
+    stderr: Option<JoinHandle<String>>,
+}
+
+fn read_all(mut pipe: impl Read + Send + 'static) -> JoinHandle<String> {
+    std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = pipe.read_to_string(&mut text);
+        text
+    })
+}
+
+impl Drained {
+    pub fn spawn(domain: &str, args: &[&str]) -> Self {
+        let mut child = spawn_harvest(domain, args);
+        let stdout = read_all(child.stdout.take().expect("stdout piped"));
+        let stderr = read_all(child.stderr.take().expect("stderr piped"));
+        Self {
+            child,
+            stdout: Some(stdout),
+            stderr: Some(stderr),
+        }
+    }
+
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// SIGINT, then waits (killing the child after `limit`).
+    pub fn interrupt_and_wait(self, limit: Duration) -> (ExitStatus, String, String) {
+        self.signal(nix::sys::signal::Signal::SIGINT);
+        self.wait(limit)
+    }
+
+    /// SIGKILL and reap: a crash of the process itself (its children are not signalled here).
+    pub fn kill9_and_wait(self) -> (ExitStatus, String, String) {
+        self.signal(nix::sys::signal::Signal::SIGKILL);
+        self.wait(Duration::from_secs(10))
+    }
+
+    fn signal(&self, signal: nix::sys::signal::Signal) {
+        let _ = nix::sys::signal::kill(nix::unistd::Pid::from_raw(self.child.id() as i32), signal);
+    }
+
+    /// Waits for the child to end, killing it after `limit`; returns its status and output.
+    pub fn wait(mut self, limit: Duration) -> (ExitStatus, String, String) {
+        let deadline = Instant::now() + limit;
+        let status = loop {
+            if let Some(status) = self.child.try_wait().expect("try_wait") {
+                break status;
+            }
+            if Instant::now() > deadline {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+                panic!("watchdog: harvest did not stop within {limit:?}");
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        let stdout = self.stdout.take().map(|h| h.join().unwrap_or_default());
+        let stderr = self.stderr.take().map(|h| h.join().unwrap_or_default());
+        (
+            status,
+            stdout.unwrap_or_default(),
+            stderr.unwrap_or_default(),
+        )
+    }
+}
+
+impl Drop for Drained {
+    fn drop(&mut self) {
+        if matches!(self.child.try_wait(), Ok(None)) {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// Whether process `pid` still runs (gone and zombie processes do not).
+pub fn process_running(pid: u32) -> bool {
+    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        Ok(stat) => stat
+            .rsplit_once(") ")
+            .and_then(|(_, rest)| rest.chars().next())
+            .is_some_and(|state| state != 'Z'),
+        Err(_) => false,
+    }
+}
+
+/// Pids of the running children of `parent` (from `/proc/<pid>/stat`'s ppid field).
+pub fn children_of(parent: u32) -> Vec<u32> {
+    let mut children = Vec::new();
+    for entry in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+            continue;
+        };
+        let Some((_, rest)) = stat.rsplit_once(") ") else {
+            continue;
+        };
+        let mut fields = rest.split_whitespace();
+        let state = fields.next();
+        let ppid = fields.next().and_then(|ppid| ppid.parse::<u32>().ok());
+        if ppid == Some(parent) && state != Some("Z") {
+            children.push(pid);
+        }
+    }
+    children.sort_unstable();
+    children
 }
 
 /// Runs `harvest <args>` to completion under a watchdog.

@@ -4,6 +4,7 @@ use crate::launch::ProcessSpec;
 use harvest_ipc::Domain;
 use nix::sys::signal::{Signal, killpg};
 use nix::unistd::Pid;
+use std::os::fd::RawFd;
 use std::os::unix::process::CommandExt;
 use std::path::Path;
 use std::process::{Child, Command};
@@ -14,8 +15,15 @@ pub const PROCESS_NAME_ENV: &str = "HARVEST_PROCESS_NAME";
 /// Starts `spec` as `executable <command> <args>` (or as `spec.executable <args>` when the
 /// launch file names a program) in its own process group (so a terminal's
 /// Ctrl-C reaches only the supervisor, which then stops children in order), with the parent-death
-/// signal set so children never outlive a killed supervisor.
-pub fn spawn(executable: &Path, spec: &ProcessSpec, domain: &Domain) -> std::io::Result<Child> {
+/// signal set so children never outlive a killed supervisor. The child keeps `domain_lock_fd`
+/// open across exec ([`crate::domain_lock::DomainLock::inheritable_fd`]): the domain stays held
+/// until the last process of the stack is gone.
+pub fn spawn(
+    executable: &Path,
+    spec: &ProcessSpec,
+    domain: &Domain,
+    domain_lock_fd: RawFd,
+) -> std::io::Result<Child> {
     let mut command = match &spec.executable {
         Some(program) => Command::new(program),
         None => {
@@ -29,11 +37,15 @@ pub fn spawn(executable: &Path, spec: &ProcessSpec, domain: &Domain) -> std::io:
         .env(harvest_ipc::domain::DOMAIN_ENV, domain.name())
         .env(PROCESS_NAME_ENV, &spec.name)
         .process_group(0);
-    // SAFETY: the closure runs in the forked child before exec and only calls prctl, which is
-    // async-signal-safe.
+    // SAFETY: the closure runs in the forked child before exec and only calls prctl and fcntl,
+    // which are async-signal-safe. Clearing FD_CLOEXEC changes the child's descriptor table only.
     unsafe {
-        command.pre_exec(|| {
-            nix::sys::prctl::set_pdeathsig(Some(Signal::SIGTERM)).map_err(std::io::Error::from)
+        command.pre_exec(move || {
+            nix::sys::prctl::set_pdeathsig(Some(Signal::SIGTERM)).map_err(std::io::Error::from)?;
+            if nix::libc::fcntl(domain_lock_fd, nix::libc::F_SETFD, 0) == -1 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
         });
     }
     command.spawn()

@@ -1,10 +1,12 @@
 //! The process supervisor behind `harvest up`.
 
 pub mod child;
+pub mod domain_lock;
 pub mod launch;
 pub mod restart_tracker;
 pub mod status;
 pub mod supervisor;
 
+pub use domain_lock::{DomainLock, DomainLockError};
 pub use launch::{Launch, LaunchError};
 pub use supervisor::{Summary, SupervisorError, UpOptions, run};

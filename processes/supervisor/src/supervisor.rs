@@ -12,6 +12,7 @@
 //! reports that nothing is left to pick.
 
 use crate::child;
+use crate::domain_lock::{DomainLock, DomainLockError, STOPPING_STACK_WAIT};
 use crate::launch::{Launch, ProcessSpec};
 use crate::restart_tracker::{RestartDecision, RestartTracker};
 use crate::status::{self, ProcessPhase, ProcessStatus};
@@ -97,6 +98,9 @@ impl Summary {
 /// Why the supervisor could not run at all.
 #[derive(Debug, thiserror::Error)]
 pub enum SupervisorError {
+    /// Another stack runs in the domain (or its processes are still stopping).
+    #[error(transparent)]
+    DomainTaken(#[from] DomainLockError),
     #[error("supervisor node: {0}")]
     Node(#[from] harvest_ipc::error::NodeError),
     #[error("supervisor channel: {0}")]
@@ -119,10 +123,24 @@ struct Managed {
     count_at_last_status: u64,
 }
 
-/// Runs the stack until a signal, `--duration`, or a process failing for good.
+/// Runs the stack until a signal, `--duration`, or a process failing for good. Refuses to start
+/// when a stack already runs in the domain ([`DomainLock`], taken before anything else and held
+/// until the stack is stopped).
 pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     let domain = &options.domain;
-    clean_dead_nodes(domain)?;
+    let domain_lock = DomainLock::acquire(domain, STOPPING_STACK_WAIT)?;
+    tracing::debug!(path = %domain_lock.file_path().display(), "domain lock taken");
+    // Only now: no other stack runs in the domain. (The cleanup removes dead nodes only, but
+    // nothing of this stack may start while another one might.)
+    let alive_nodes = clean_dead_nodes(domain)?;
+    if alive_nodes > 0 {
+        tracing::warn!(
+            domain = %domain,
+            alive_nodes,
+            "processes outside any stack are already in the domain (started by hand?): a channel \
+        with one writer refuses this stack's process if one of them writes it"
+        );
+    }
     let context = Context::new(domain, "supervisor")?;
     let health = context.subscriber_with_buffer(PROCESS_HEALTH, 256)?;
     let waiter = Waiter::new()?;
@@ -225,7 +243,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         for process in processes.iter_mut() {
             match process.status.phase.clone() {
                 ProcessPhase::WaitingToRestart { until } if now >= until => {
-                    start(process, &options, now);
+                    start(process, &options, &domain_lock, now);
                 }
                 ProcessPhase::Running { .. } => {
                     let exited = process
@@ -328,21 +346,29 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     );
     drop(health);
     drop(context);
-    clean_dead_nodes(domain)?;
+    let _alive_nodes = clean_dead_nodes(domain)?;
     if let Some(error) = run_error {
         return Err(error);
     }
-    Ok(Summary {
+    let summary = Summary {
         processes: processes.into_iter().map(|p| p.status).collect(),
         failure,
         ended_by,
         leftover_files: harvest_ipc::cleanup::leftover_files(domain),
         harvest: (harvest_events > 0).then(|| harvest_log.summary()),
-    })
+    };
+    // Every process of the stack is stopped: the domain is free for the next `harvest up`.
+    drop(domain_lock);
+    Ok(summary)
 }
 
-fn start(process: &mut Managed, options: &UpOptions, now: Instant) {
-    match child::spawn(&options.executable, &process.spec, &options.domain) {
+fn start(process: &mut Managed, options: &UpOptions, domain_lock: &DomainLock, now: Instant) {
+    match child::spawn(
+        &options.executable,
+        &process.spec,
+        &options.domain,
+        domain_lock.inheritable_fd(),
+    ) {
         Ok(child) => {
             tracing::info!(process = %process.spec.name, pid = child.id(), "started");
             process.status.phase = ProcessPhase::Running { pid: child.id() };
@@ -442,7 +468,8 @@ fn shutdown(processes: &mut [Managed], grace: Duration) {
     }
 }
 
-fn clean_dead_nodes(domain: &Domain) -> Result<(), SupervisorError> {
+/// Removes the resources of the domain's dead nodes; returns how many nodes are alive.
+fn clean_dead_nodes(domain: &Domain) -> Result<usize, SupervisorError> {
     let report = harvest_ipc::cleanup::remove_dead_nodes(domain)?;
     if !report.removed_nodes.is_empty() {
         tracing::info!(nodes = ?report.removed_nodes, "removed stale iceoryx2 resources of dead nodes");
@@ -450,5 +477,5 @@ fn clean_dead_nodes(domain: &Domain) -> Result<(), SupervisorError> {
     for (node, reason) in &report.failed_nodes {
         tracing::warn!(%node, %reason, "could not remove stale resources");
     }
-    Ok(())
+    Ok(report.alive_nodes)
 }
