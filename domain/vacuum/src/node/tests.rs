@@ -1,5 +1,11 @@
 use super::*;
-use harvest_ipc::payloads::AppleDetection;
+use crate::policy::{CloseReason, PolicyKind, RefuseReason};
+use crate::replan::AttemptResult;
+use harvest_ipc::payloads::arm::TargetStatus;
+use harvest_ipc::payloads::{
+    AppleDetection, AppleDetections, ArmPhase as PhaseCode, ArmState, ArmTarget, ValveRequest,
+    ValveRequestKind,
+};
 
 const MS: u64 = 1_000_000;
 const LEFT: [f64; 3] = [1.3, 0.15, 0.3];
