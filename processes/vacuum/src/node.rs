@@ -56,8 +56,8 @@ use crate::replan::{
 use harvest_ipc::Header;
 use harvest_ipc::payloads::arm::TargetStatus;
 use harvest_ipc::payloads::{
-    AppleDetections, ArmPhase as PhaseCode, ArmState, ArmTarget, VacuumState, ValveGrant,
-    ValveRequest, ValveRequestKind,
+    AppleDetections, ArmAttachment, ArmPhase as PhaseCode, ArmState, ArmTarget, VacuumPolicyCode,
+    VacuumState, ValveGrant, ValveRequest, ValveRequestKind,
 };
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -84,24 +84,24 @@ pub fn refuse_reason_code(reason: &RefuseReason) -> u8 {
     }
 }
 
-/// The policy code of `VacuumState::policy` (0 baseline, 1 2023, 2 2024).
-pub fn policy_code(kind: PolicyKind) -> u8 {
+/// The policy as published in `VacuumState::policy`.
+pub fn policy_code(kind: PolicyKind) -> VacuumPolicyCode {
     match kind {
-        PolicyKind::Baseline => 0,
-        PolicyKind::V2023 => 1,
-        PolicyKind::V2024 => 2,
+        PolicyKind::Baseline => VacuumPolicyCode::Baseline,
+        PolicyKind::V2023 => VacuumPolicyCode::Policy2023,
+        PolicyKind::V2024 => VacuumPolicyCode::Policy2024,
     }
 }
 
-/// The attachment code of `VacuumState::arm_attachment` (0 closed, 1 open, 2 sealed; a latched
-/// failure is open and unsealed).
-pub fn attachment_code(state: AttachmentState) -> u8 {
+/// The attachment as published in `VacuumState::arm_attachment` (a latched failure is open and
+/// unsealed).
+pub fn attachment_code(state: AttachmentState) -> ArmAttachment {
     match state {
-        AttachmentState::Closed => 0,
-        AttachmentState::Sealed => 2,
+        AttachmentState::Closed => ArmAttachment::Closed,
+        AttachmentState::Sealed => ArmAttachment::Sealed,
         AttachmentState::OpenToAtmosphere
         | AttachmentState::AttachFailed
-        | AttachmentState::Dropped => 1,
+        | AttachmentState::Dropped => ArmAttachment::Open,
     }
 }
 
@@ -450,7 +450,8 @@ fn policy_phase(state: Option<&ArmState>, track: &ArmTrack) -> ArmPhase {
     if track.dispatched.is_some() {
         return ArmPhase::Approaching;
     }
-    match state.and_then(|s| PhaseCode::from_code(s.phase)) {
+    // An unknown phase code is treated like a missing state.
+    match state.and_then(|s| s.phase.get().ok()) {
         Some(PhaseCode::Idle) => ArmPhase::Ready,
         Some(PhaseCode::Approach) => ArmPhase::Approaching,
         Some(PhaseCode::AttachDetach) if track.valve_open => ArmPhase::Attaching,
@@ -682,7 +683,7 @@ impl VacuumNode {
         for arm in ArmId::ALL {
             let i = arm.index();
             let state = input.arm_states[i];
-            let phase = state.and_then(|s| PhaseCode::from_code(s.phase));
+            let phase = state.and_then(|s| s.phase.get().ok());
             if matches!(phase, Some(PhaseCode::Idle | PhaseCode::Approach)) {
                 self.arms[i].opened_in_cycle = false;
             }
@@ -702,7 +703,7 @@ impl VacuumNode {
                 } else {
                     if let Some(status) = state
                         .filter(|s| s.target_apple_id == wire_id(d.apple.id))
-                        .and_then(|s| TargetStatus::from_code(s.target_status))
+                        .and_then(|s| s.target_status.get().ok())
                         && status != TargetStatus::None
                     {
                         self.on_target_status(arm, d, status, now_ns);
@@ -1002,7 +1003,7 @@ impl VacuumNode {
         for arm in ArmId::ALL {
             let track = &mut self.arms[arm.index()];
             match input.valve_requests[arm.index()] {
-                Some(r) if r.kind == ValveRequestKind::OpenForAttach as u8 => {
+                Some(r) if r.kind == ValveRequestKind::OpenForAttach => {
                     if track.open_request_since_ns.map(|(seq, _)| seq) != Some(r.request_seq) {
                         track.open_request_since_ns = Some((r.request_seq, now_ns));
                     }
@@ -1022,8 +1023,9 @@ impl VacuumNode {
             if request.arm_id != arm.index() as u8 + 1 {
                 continue;
             }
-            match ValveRequestKind::from_code(request.kind) {
-                Some(ValveRequestKind::Close) | None => {
+            // An unknown request kind is taken as a request to close (the safe side).
+            match request.kind.get() {
+                Ok(ValveRequestKind::Close) | Err(_) => {
                     if self.arms[i].valve_open {
                         self.arms[i].valve_open = false;
                         debug!(%arm, "valve closed on the arm's request");
@@ -1033,7 +1035,7 @@ impl VacuumNode {
                         });
                     }
                 }
-                Some(ValveRequestKind::OpenForAttach) => self.answer_open(input, arm, request),
+                Ok(ValveRequestKind::OpenForAttach) => self.answer_open(input, arm, request),
             }
         }
     }
@@ -1105,7 +1107,7 @@ impl VacuumNode {
                 continue;
             };
             let track = self.arms[i];
-            let idle = state.phase == PhaseCode::Idle as u8
+            let idle = state.phase == PhaseCode::Idle
                 && track.dispatched.is_none()
                 && track.active.is_none()
                 && self.planner.in_progress(arm).is_none();
@@ -1212,8 +1214,8 @@ impl VacuumNode {
             valve_open: readings.valve_open.map(u8::from),
             valve_in_transit: readings.valve_in_transit.map(u8::from),
             pressure_mmh2o: readings.pressure_mmh2o,
-            arm_attachment: ArmId::ALL.map(|arm| attachment_code(self.inference.state(arm))),
-            policy: policy_code(self.config.policy),
+            arm_attachment: ArmId::ALL.map(|arm| attachment_code(self.inference.state(arm)).into()),
+            policy: policy_code(self.config.policy).into(),
             _reserved: 0,
         };
     }
@@ -1231,8 +1233,8 @@ pub fn wire_id(id: AppleId) -> u32 {
 fn holding_cup_m(state: &ArmState) -> Option<[f64; 3]> {
     let carrying = state.holding != 0
         || matches!(
-            PhaseCode::from_code(state.phase),
-            Some(PhaseCode::Retract | PhaseCode::Release)
+            state.phase.get(),
+            Ok(PhaseCode::Retract | PhaseCode::Release)
         );
     let cup = state.end_effector_in_robot_m;
     (carrying && cup.iter().all(|c| c.is_finite())).then_some(cup)
