@@ -13,7 +13,9 @@
 //! and its "last signal" slot is consumed by whoever reads it first. The stack therefore runs
 //! its wait sets and nodes with `SignalHandlingMode::Disabled`, and [`install_handler`] lets
 //! iceoryx2 install its handlers first so that ours, installed over them for SIGINT and
-//! SIGTERM, stays in place for the life of the process.
+//! SIGTERM, stays in place for the life of the process. A side effect, as in every wait-set
+//! process before: iceoryx2's handlers catch the other signals it fetches (SIGTSTP, SIGQUIT,
+//! SIGUSR1, ...), so Ctrl-Z does not suspend a stack process.
 //!
 //! A signal is seen at the latest when the loop next wakes: a signal delivered to another
 //! thread does not interrupt the loop's wait, so loops attach an interval (heartbeats do).
