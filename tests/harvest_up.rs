@@ -8,7 +8,9 @@ mod common;
 
 use common::*;
 use harvest_ipc::catalogue::{ARM_STATE, ARM_TARGET, HARVEST_EVENTS, SIM_GROUND_TRUTH};
-use harvest_ipc::payloads::{ArmPhase, ArmTarget, HarvestCause, HarvestEvent, HarvestEventKind};
+use harvest_ipc::payloads::{
+    ArmPhase, ArmTarget, HarvestCause, HarvestEvent, HarvestEventKind, TrueAppleState,
+};
 use harvest_ipc::{Context, Domain, MonotonicClock};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -98,7 +100,11 @@ fn harvest_up_picks_a_small_orchard_and_summarizes_it() {
             let truth = context.subscriber(SIM_GROUND_TRUTH).expect("subscriber");
             while !stop.load(Ordering::SeqCst) {
                 if let Ok(Some(sample)) = truth.receive_latest() {
-                    let harvested = sample.apples.iter().filter(|a| a.state == 4).count();
+                    let harvested = sample
+                        .apples
+                        .iter()
+                        .filter(|a| a.state == TrueAppleState::Harvested)
+                        .count();
                     *truth_harvested.lock().expect("lock") = Some(harvested);
                 }
                 std::thread::sleep(Duration::from_millis(50));
@@ -173,7 +179,7 @@ fn wait_for_idle_arm(context: &Context, limit: Duration) -> Result<[f64; 4], Str
             }
         }
         if let [Some(one), Some(_)] = seen
-            && one.phase == ArmPhase::Idle as u8
+            && one.phase == ArmPhase::Idle
             && one.joint_position.iter().all(|q| q.is_finite())
         {
             return Ok(one.joint_position);
@@ -255,12 +261,12 @@ fn bad_targets_are_rejected_with_a_reason_and_the_arm_holds() {
             let deadline = Instant::now() + Duration::from_secs(10);
             while Instant::now() < deadline && !rejections.iter().any(|e| e.apple_id == apple_id) {
                 while let Ok(Some(event)) = events.receive() {
-                    if event.kind() == Some(HarvestEventKind::TargetRejected) {
+                    if event.kind == HarvestEventKind::TargetRejected {
                         rejections.push(*event);
                     }
                     assert_ne!(
-                        event.kind(),
-                        Some(HarvestEventKind::TargetAccepted),
+                        event.kind,
+                        HarvestEventKind::TargetAccepted,
                         "a bad target was accepted: {:?}",
                         *event
                     );
@@ -287,7 +293,7 @@ fn bad_targets_are_rejected_with_a_reason_and_the_arm_holds() {
             .iter()
             .find(|e| e.apple_id == apple_id)
             .unwrap_or_else(|| panic!("no rejection of target {apple_id}: {rejections:?}"));
-        assert_eq!(event.cause(), Some(cause), "{event:?}");
+        assert_eq!(event.cause, cause, "{event:?}");
         assert_eq!(event.arm_id, 1);
         assert_eq!(
             event.harvested, 0,

@@ -10,7 +10,7 @@ mod common;
 
 use common::*;
 use harvest_ipc::catalogue::{PERCEPTION_APPLES, SIM_GROUND_TRUTH};
-use harvest_ipc::payloads::DepthSourceCode;
+use harvest_ipc::payloads::{DepthSourceCode, TrueAppleState};
 use harvest_ipc::{Context, Domain};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -74,7 +74,14 @@ fn run_profile(launch: &str) -> (std::process::ExitStatus, String, String, Seen)
                         .apples
                         .iter()
                         // On the tree or held by an arm (perception sees both).
-                        .filter(|a| a.state <= 2)
+                        .filter(|a| {
+                            matches!(
+                                a.state.get(),
+                                Ok(TrueAppleState::OnTree
+                                    | TrueAppleState::OnArm1
+                                    | TrueAppleState::OnArm2)
+                            )
+                        })
                         .map(|a| a.center_in_robot_m)
                         .collect();
                 }
@@ -82,8 +89,7 @@ fn run_profile(launch: &str) -> (std::process::ExitStatus, String, String, Seen)
                     let mut seen = seen.lock().expect("lock");
                     let mut fused = 0;
                     for apple in message.apples.iter() {
-                        let is_fused = DepthSourceCode::from_code(apple.depth_source)
-                            == Some(DepthSourceCode::LidarFused);
+                        let is_fused = apple.depth_source == DepthSourceCode::LidarFused;
                         let p = apple.position_in_robot_m;
                         if is_fused {
                             fused += 1;

@@ -6,11 +6,15 @@ use serde::ser::SerializeSeq;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 /// Up to `N` items of `T`; only the first `len` are meaningful. Serializes as a sequence of the
-/// meaningful items only.
+/// meaningful items only (so `_reserved` is not part of the encoding).
+///
+/// In memory: `len` (u32), 4 reserved bytes, then the items, which thus start at offset 8 for
+/// any item of alignment up to 8, with no padding.
 #[repr(C)]
-#[derive(Clone, Copy, ZeroCopySend)]
+#[derive(Clone, Copy, ZeroCopySend, crate::AnyBitPattern)]
 pub struct BoundedVec<T: Copy + Default + ZeroCopySend, const N: usize> {
     len: u32,
+    _reserved: u32,
     items: [T; N],
 }
 
@@ -20,6 +24,7 @@ impl<T: Copy + Default + ZeroCopySend, const N: usize> BoundedVec<T, N> {
     pub fn new() -> Self {
         Self {
             len: 0,
+            _reserved: 0,
             items: [T::default(); N],
         }
     }

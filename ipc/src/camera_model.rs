@@ -12,7 +12,9 @@ use serde::{Deserialize, Serialize};
 
 /// Intrinsic parameters of one camera (or of the LiDAR-camera projection).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, ZeroCopySend, Serialize, Deserialize, crate::AnyBitPattern,
+)]
 #[serde(deny_unknown_fields)]
 pub struct CameraIntrinsics {
     pub width_px: u32,
@@ -161,7 +163,9 @@ impl CameraIntrinsics {
 
 /// A rigid transform `target_from_source`: rotation (row-major) then translation in metres.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, ZeroCopySend, Serialize, Deserialize, crate::AnyBitPattern,
+)]
 #[serde(deny_unknown_fields)]
 pub struct RigidTransform {
     pub rotation: [[f64; 3]; 3],

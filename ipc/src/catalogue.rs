@@ -59,8 +59,9 @@ impl Qos {
         history_size: 1,
         ..Self::SMALL
     };
-    /// Multi-megabyte frames: every buffer slot is a frame in shared memory (see FIELD-NOTES),
-    /// one writer.
+    /// Multi-megabyte frames. iceoryx2 pre-allocates each publisher's data segment for the
+    /// worst case, (subscribers x buffer + history + loans) x payload size, so every buffer slot
+    /// costs a whole frame of shared memory: buffers here are small on purpose. One writer.
     pub const FRAMES: Self = Self {
         history_size: 0,
         subscriber_max_buffer_size: 8,

@@ -16,48 +16,125 @@ pub enum NodeError {
     },
 }
 
-/// Opening a channel (service + its event companion) failed.
+/// Opening a channel (service + its event companion) or one of its ports failed. The variants
+/// are chosen from iceoryx2's error enums (see `crate::context`), never from their text.
 #[derive(Debug, thiserror::Error)]
 pub enum OpenChannelError {
+    /// The channel's service exists with another payload type, layout version, iceoryx2 version
+    /// or a smaller QoS than the catalogue's.
     #[error(
-        "channel {topic:?} exists with an incompatible payload type or QoS \
-(expected {type_name} v{version}): {reason}. A process of another version or a crashed stack \
-left it behind: stop the other stack, or run `harvest clean --domain {domain}`"
+        "channel {topic:?} in domain {domain:?} exists, but {mismatch} (this process expects \
+{type_name} v{version}). A process of another version or a crashed stack left it behind: stop \
+the other stack, or run `harvest clean --domain {domain}`"
     )]
     Incompatible {
         topic: &'static str,
         type_name: &'static str,
         version: u32,
         domain: String,
-        reason: String,
+        mismatch: Incompatibility,
     },
+    /// The channel already has as many ports of this kind as its QoS allows.
     #[error(
-        "channel {topic:?} has no room for another {port}: {reason}. The catalogue's QoS \
-(max publishers/subscribers/nodes) is exceeded; a stale process may still hold ports"
+        "channel {topic:?} has no room for another {port}: its service allows {limit} \
+(catalogue QoS); a stale process may still hold ports (`harvest clean`)"
     )]
-    Exhausted {
+    PortLimit {
         topic: &'static str,
-        port: &'static str,
-        reason: String,
+        port: PortKind,
+        /// The service's limit for `port`.
+        limit: usize,
     },
+    /// Shared memory for the port could not be allocated.
     #[error(
-        "channel {topic:?}: cannot create {port}: {reason}. Shared memory may be exhausted (`df -h /dev/shm`)"
+        "channel {topic:?}: no shared memory for the {port}'s data segment (`df -h /dev/shm`; \
+its size is the payload size times subscribers x buffer + history + loans)"
     )]
+    OutOfMemory { topic: &'static str, port: PortKind },
+    /// Another failure creating a port.
+    #[error("channel {topic:?}: cannot create the {port}: {reason}")]
     Port {
         topic: &'static str,
-        port: &'static str,
+        port: PortKind,
         reason: String,
     },
+    /// Another failure opening or creating the channel's services.
     #[error("channel {topic:?}: {reason}")]
     Service { topic: &'static str, reason: String },
+}
+
+/// The kind of iceoryx2 port (or participant) a channel operation concerns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PortKind {
+    Publisher,
+    Subscriber,
+    /// The event notifier paired with every publisher.
+    Notifier,
+    /// The event listener paired with every subscriber.
+    Listener,
+    /// A node (process) attached to the channel's service.
+    Node,
+}
+
+impl std::fmt::Display for PortKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Publisher => "publisher",
+            Self::Subscriber => "subscriber",
+            Self::Notifier => "notifier",
+            Self::Listener => "listener",
+            Self::Node => "node",
+        })
+    }
+}
+
+/// How an existing service differs from what the catalogue asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Incompatibility {
+    /// Another payload type or layout version (iceoryx2 type name, size or alignment).
+    PayloadType,
+    /// Created by another iceoryx2 version.
+    Iceoryx2Version,
+    /// Another messaging pattern (a service of the same name that is not publish-subscribe, or
+    /// an event companion that is not an event service).
+    MessagingPattern,
+    /// Other service attributes.
+    Attributes,
+    /// A smaller QoS setting than requested (names which).
+    Qos(&'static str),
+}
+
+impl std::fmt::Display for Incompatibility {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::PayloadType => f.write_str("with another payload type or layout version"),
+            Self::Iceoryx2Version => f.write_str("created by another iceoryx2 version"),
+            Self::MessagingPattern => f.write_str("with another messaging pattern"),
+            Self::Attributes => f.write_str("with other service attributes"),
+            Self::Qos(setting) => write!(f, "with a smaller {setting} than the catalogue's QoS"),
+        }
+    }
 }
 
 /// Sending failed.
 #[derive(Debug, thiserror::Error)]
 pub enum SendError {
+    /// The publisher already holds as many loans as the channel's QoS allows.
     #[error(
-        "channel {topic:?}: cannot loan a sample: {reason} (all loans in use, or shared memory exhausted)"
+        "channel {topic:?}: cannot loan a sample: all {max_loans} loans of the publisher are in \
+use (send or drop a loan first)"
     )]
+    LoansExhausted {
+        topic: &'static str,
+        max_loans: usize,
+    },
+    /// Every sample of the publisher's data segment is in use (held by subscribers or loans).
+    #[error(
+        "channel {topic:?}: cannot loan a sample: every sample of the publisher's data segment is \
+in use (subscribers hold them longer than the QoS budgets)"
+    )]
+    OutOfMemory { topic: &'static str },
+    #[error("channel {topic:?}: cannot loan a sample: {reason}")]
     Loan { topic: &'static str, reason: String },
     #[error("channel {topic:?}: send failed: {reason}")]
     Send { topic: &'static str, reason: String },

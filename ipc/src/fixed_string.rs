@@ -5,7 +5,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 /// Up to `N` bytes of UTF-8, zero padded. Longer input is truncated at a character boundary.
 #[repr(C)]
-#[derive(Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[derive(Clone, Copy, PartialEq, Eq, ZeroCopySend, crate::AnyBitPattern)]
 pub struct FixedString<const N: usize> {
     bytes: [u8; N],
 }

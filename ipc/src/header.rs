@@ -13,7 +13,18 @@ use serde::{Deserialize, Serialize};
 ///
 /// Both stamps are on the stack clock (see [`crate::clock`]).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    Eq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.Header.v1")]
 pub struct Header {
     pub msg_seq: u64,

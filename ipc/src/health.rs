@@ -43,7 +43,7 @@ impl HealthReporter {
             .publish_with(MonotonicClock::read_ns(), |health| {
                 health.process_name = process_name;
                 health.pid = pid;
-                health.run_state = run_state as u8;
+                health.run_state.set(run_state);
                 health._reserved = [0; 3];
                 health.main_channel_count = main_channel_count;
                 health.detail = FixedString::new(detail);

@@ -5,7 +5,14 @@
 //! - [`Context`], [`Publisher`], [`Subscriber`], [`Waiter`]: typed ports and the event loop.
 //! - [`clock`]: which clock stamps mean, and the clocks process logic is handed.
 //! - [`codec`]: the one encoding used by recordings and copying transports.
+//! - [`any_bit_pattern`], [`wire_code`]: the payload memory contract, checked at compile time, and
+//!   enums carried as typed codes.
+//! - [`termination`]: the one SIGINT/SIGTERM mechanism of every loop.
 
+// The derives name `::harvest_ipc::...`; this lets them work inside this crate too.
+extern crate self as harvest_ipc;
+
+pub mod any_bit_pattern;
 pub mod bounded_vec;
 pub mod camera_model;
 pub mod catalogue;
@@ -29,7 +36,9 @@ pub mod publisher;
 pub mod subscriber;
 pub mod termination;
 pub mod waiter;
+pub mod wire_code;
 
+pub use any_bit_pattern::AnyBitPattern;
 pub use bounded_vec::BoundedVec;
 pub use catalogue::{ArmId, Channel, ChannelSpec, ChannelVisitor, Qos};
 pub use clock::{Clock, ManualClock, MonotonicClock};
@@ -42,6 +51,10 @@ pub use payload::Payload;
 pub use publisher::{Loan, Publisher};
 pub use subscriber::{Received, Subscriber};
 pub use waiter::{Flow, RunEnd, RunError, Waiter};
+pub use wire_code::{UnknownCode, WireCode, WireEnum};
+
+/// `#[derive(AnyBitPattern)]` and `#[derive(WireEnum)]` (see the traits of the same names).
+pub use harvest_ipc_derive::{AnyBitPattern, WireEnum};
 
 /// Re-exported so processes attach listeners and intervals without naming iceoryx2 paths.
 pub use iceoryx2::prelude::{WaitSetAttachmentId, WaitSetGuard};

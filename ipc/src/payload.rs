@@ -1,23 +1,26 @@
 //! What every message type carried by the stack implements.
 
+use crate::any_bit_pattern::AnyBitPattern;
 use crate::codec::CodecError;
 use crate::header::Header;
 use iceoryx2::prelude::ZeroCopySend;
 
 /// A message type of the channel catalogue.
 ///
-/// # Safety
-/// Implementors must be `#[repr(C)]` plain data for which **every bit pattern is a valid value**
-/// (integers, floats, fixed arrays and structs of those; enums travel as integer codes). The
-/// transport relies on this to hand out loaned shared memory as `&mut Self` without first
-/// building a value: the segment bytes are always initialized (zero-filled by the kernel when the
-/// segment is created, earlier samples afterwards), so large frames are written in place and
-/// never built on the stack or copied.
-pub unsafe trait Payload: ZeroCopySend + std::fmt::Debug + Sized + 'static {
-    /// Stable type name, also the MCAP schema name, e.g. `harvest.RgbdFrame`.
+/// The memory contract is [`AnyBitPattern`] (derived, so checked at compile time): `#[repr(C)]`
+/// plain data without padding for which every bit pattern is a valid value (integers, floats,
+/// arrays and structs of those; enums travel as [`crate::wire_code::WireCode`]s). The transport
+/// relies on it to hand out loaned shared memory as `&mut Self` without first building a value:
+/// the segment bytes are always initialized (zero-filled by the kernel when the segment is
+/// created, earlier samples afterwards), so large frames are written in place and never built on
+/// the stack or copied.
+pub trait Payload: AnyBitPattern + ZeroCopySend + std::fmt::Debug {
+    /// Stable type name, e.g. `harvest.RgbdFrame`.
     const TYPE_NAME: &'static str;
-    /// Layout version; bumped on any change of fields. Part of the iceoryx2 type name, so a
-    /// stale service of another version fails to open with a clear error.
+    /// Layout version; bumped on any change of fields. With the type name it forms the iceoryx2
+    /// type name (`#[type_name("harvest.RgbdFrame.v1")]`) and the MCAP schema name, both
+    /// [`schema_name`]`(TYPE_NAME, VERSION)`, so a stale service of another version fails to
+    /// open with a clear error.
     const VERSION: u32;
     /// Field-by-field description of the encoded form (see [`crate::codec`]), stored as MCAP
     /// schema data.
@@ -38,9 +41,7 @@ pub unsafe trait Payload: ZeroCopySend + std::fmt::Debug + Sized + 'static {
 #[macro_export]
 macro_rules! serde_payload {
     ($ty:ty, $name:literal, $version:literal, $schema:expr) => {
-        // SAFETY: the type is #[repr(C)] plain data made of integers, floats and arrays/structs
-        // of those (checked by review of the type; enums travel as integer codes).
-        unsafe impl $crate::payload::Payload for $ty {
+        impl $crate::payload::Payload for $ty {
             const TYPE_NAME: &'static str = $name;
             const VERSION: u32 = $version;
             const SCHEMA: &'static str = $schema;
@@ -67,17 +68,25 @@ macro_rules! serde_payload {
     };
 }
 
+/// The name under which a payload type and version is known to iceoryx2 (its `#[type_name]`)
+/// and in recordings (the MCAP schema name): `harvest.RgbdFrame` version 1 ->
+/// `harvest.RgbdFrame.v1`.
+pub fn schema_name(type_name: &str, version: u32) -> String {
+    format!("{type_name}.v{version}")
+}
+
 /// A zero-filled `T` on the heap, for the few places that hold a payload outside shared memory
 /// (tests, evaluation, decoding recordings): multi-megabyte payloads never live on the stack.
-pub fn boxed_zeroed<T: Payload>() -> Box<T> {
+pub fn boxed_zeroed<T: AnyBitPattern>() -> Box<T> {
+    let () = T::LAYOUT_CHECK;
     let layout = std::alloc::Layout::new::<T>();
     if layout.size() == 0 {
         // Every payload holds a header, so this does not happen in practice.
         // SAFETY: for a zero-sized T any non-null aligned pointer is a valid Box<T>.
         return unsafe { Box::from_raw(std::ptr::NonNull::<T>::dangling().as_ptr()) };
     }
-    // SAFETY: the layout is not zero-sized; all-zero bytes are a valid `T` by the `Payload`
-    // contract; the pointer comes from the global allocator with `T`'s layout, as
+    // SAFETY: the layout is not zero-sized; all-zero bytes are a valid `T` by the
+    // `AnyBitPattern` contract; the pointer comes from the global allocator with `T`'s layout, as
     // `Box::from_raw` requires.
     unsafe {
         let pointer = std::alloc::alloc_zeroed(layout).cast::<T>();

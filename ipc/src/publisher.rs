@@ -5,6 +5,7 @@ use crate::clock::MonotonicClock;
 use crate::context::Ipc;
 use crate::error::SendError;
 use crate::payload::Payload;
+use iceoryx2::port::LoanError;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::sample_mut::SampleMut;
 use std::ops::{Deref, DerefMut};
@@ -62,12 +63,21 @@ impl<T: Payload> Publisher<T> {
     /// Loans a sample in shared memory. Its bytes are whatever the slot held before (see
     /// [`Payload`]'s safety contract): the caller writes every field it means to send.
     pub fn loan(&self) -> Result<Loan<T>, SendError> {
-        let uninit = self.port.loan_uninit().map_err(|error| SendError::Loan {
-            topic: self.channel.spec.topic,
-            reason: format!("{error:?}"),
+        let topic = self.channel.spec.topic;
+        let uninit = self.port.loan_uninit().map_err(|error| match error {
+            LoanError::ExceedsMaxLoans => SendError::LoansExhausted {
+                topic,
+                max_loans: self.channel.spec.qos.max_loans,
+            },
+            LoanError::OutOfMemory => SendError::OutOfMemory { topic },
+            other => SendError::Loan {
+                topic,
+                reason: other.to_string(),
+            },
         })?;
-        // SAFETY: `T: Payload` guarantees every bit pattern is a valid `T`, and the loaned
-        // shared-memory bytes are initialized (kernel zero-fill or an earlier sample).
+        // SAFETY: `T: Payload` requires `T: AnyBitPattern` (derived, so checked at compile
+        // time): every bit pattern is a valid `T`, and the loaned shared-memory bytes are
+        // initialized (kernel zero-fill or an earlier sample).
         let sample = unsafe { uninit.assume_init() };
         Ok(Loan { sample })
     }
@@ -83,7 +93,7 @@ impl<T: Payload> Publisher<T> {
         }
         loan.sample.send().map_err(|error| SendError::Send {
             topic: self.channel.spec.topic,
-            reason: format!("{error:?}"),
+            reason: error.to_string(),
         })?;
         self.last_seq = msg_seq;
         // A failed wake-up is not a lost message: subscribers still find it at their next wake.

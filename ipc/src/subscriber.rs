@@ -1,5 +1,11 @@
 //! Typed subscriber: received samples are read in place in shared memory; sequence gaps are
 //! counted as drops.
+//!
+//! After a wake-up, a loop must take *every* pending sample: the wake-up events are consumed
+//! with the first take, so a sample left behind waits for the next publication. The
+//! [`Subscriber::drain`] family does this by construction (all pending samples, and the pending
+//! wake-ups, whatever the handler does); [`Subscriber::receive_latest`] keeps only the newest.
+//! [`Subscriber::receive`] takes one sample and leaves the loop to the caller.
 
 use crate::catalogue::Channel;
 use crate::context::Ipc;
@@ -61,7 +67,7 @@ impl<T: Payload> Subscriber<T> {
 
     /// Takes the next sample, if any. The first call after a wake also consumes the pending
     /// wake-up events (before looking at the queue, so no wake-up is lost): after each wake,
-    /// call it until it returns `None`.
+    /// call it until it returns `None`, or use [`Self::drain`], which cannot stop early.
     pub fn receive(&self) -> Result<Option<Received<T>>, ReceiveError> {
         if self.batch_done.replace(false) {
             self.drain_events();
@@ -107,6 +113,41 @@ impl<T: Payload> Subscriber<T> {
             self.count(sample.origin().value(), sample.payload().header().msg_seq);
             Received { sample }
         }))
+    }
+
+    /// Hands every pending sample, oldest first, to `on_sample`, after consuming the pending
+    /// wake-up events; returns how many it handed. Nothing is left queued when it returns `Ok`.
+    pub fn drain(&self, mut on_sample: impl FnMut(&T)) -> Result<usize, ReceiveError> {
+        self.try_drain(|sample| {
+            on_sample(sample);
+            Ok::<(), ReceiveError>(())
+        })
+    }
+
+    /// [`Self::drain`] with a handler that can fail. After the first failure the remaining
+    /// pending samples are still taken, and dropped unhandled (counted as received), so the
+    /// queue is empty either way; the first error is returned. A receive error stops the drain
+    /// (iceoryx2 could not hand out a sample) and is returned as `E`.
+    pub fn try_drain<E: From<ReceiveError>>(
+        &self,
+        mut on_sample: impl FnMut(&T) -> Result<(), E>,
+    ) -> Result<usize, E> {
+        self.drain_events();
+        self.batch_done.set(true);
+        let mut handed = 0;
+        let mut failure = None;
+        while let Some(sample) = self.take()? {
+            if failure.is_none() {
+                handed += 1;
+                if let Err(error) = on_sample(&sample) {
+                    failure = Some(error);
+                }
+            }
+        }
+        match failure {
+            Some(error) => Err(error),
+            None => Ok(handed),
+        }
     }
 
     /// Takes every queued sample and returns only the newest (for state-like channels).
@@ -155,6 +196,59 @@ mod tests {
         count
     }
 
+    fn publish_engaged(publisher: &mut crate::Publisher<EmergencyStop>, values: &[u8]) {
+        for &engaged in values {
+            publisher
+                .publish_with(1, |message: &mut EmergencyStop| message.engaged = engaged)
+                .expect("publish");
+        }
+    }
+
+    #[test]
+    fn drain_hands_every_sample_and_consumes_the_wake_ups() {
+        let domain = Domain::unique("drain");
+        let context = Context::new(&domain, "drain-test").expect("context");
+        let channel = Channel::<EmergencyStop>::ad_hoc("test/drain", Qos::SMALL);
+        let subscriber = context.subscriber(channel).expect("subscriber");
+        let mut publisher = context.publisher(channel).expect("publisher");
+        publish_engaged(&mut publisher, &[1, 0, 1]);
+        let mut seen = Vec::new();
+        let handed = subscriber
+            .drain(|message| seen.push((message.engaged, message.header().msg_seq)))
+            .expect("drain");
+        assert_eq!(handed, 3);
+        assert_eq!(seen, vec![(1, 1), (0, 2), (1, 3)]);
+        assert_eq!(pending_events(subscriber.listener()), 0);
+        assert!(subscriber.receive().expect("receive").is_none());
+    }
+
+    #[test]
+    fn a_failing_handler_still_leaves_nothing_queued() {
+        let domain = Domain::unique("trydrain");
+        let context = Context::new(&domain, "try-drain-test").expect("context");
+        let channel = Channel::<EmergencyStop>::ad_hoc("test/try_drain", Qos::SMALL);
+        let subscriber = context.subscriber(channel).expect("subscriber");
+        let mut publisher = context.publisher(channel).expect("publisher");
+        publish_engaged(&mut publisher, &[1, 2, 3, 4]);
+        let mut handled = Vec::new();
+        let result = subscriber.try_drain(|message| {
+            handled.push(message.engaged);
+            if message.engaged == 2 {
+                return Err(crate::error::ReceiveError {
+                    topic: "test/try_drain",
+                    reason: "handler refused 2".to_owned(),
+                });
+            }
+            Ok(())
+        });
+        let error = result.expect_err("the handler failed");
+        assert_eq!(error.reason, "handler refused 2");
+        assert_eq!(handled, vec![1, 2]);
+        assert_eq!(subscriber.received_count(), 4);
+        assert_eq!(pending_events(subscriber.listener()), 0);
+        assert!(subscriber.receive().expect("receive").is_none());
+    }
+
     #[test]
     fn poll_takes_every_sample_and_drains_the_wake_ups_once_idle() {
         let domain = Domain::unique("poll");
@@ -164,11 +258,7 @@ mod tests {
         let mut publisher = context.publisher(channel).expect("publisher");
         // The first empty poll consumes whatever was pending before anything was sent.
         assert!(subscriber.poll().expect("poll").is_none());
-        for engaged in [1u8, 0, 1] {
-            publisher
-                .publish_with(1, |message: &mut EmergencyStop| message.engaged = engaged)
-                .expect("publish");
-        }
+        publish_engaged(&mut publisher, &[1, 0, 1]);
         let mut seen = Vec::new();
         while let Some(sample) = subscriber.poll().expect("poll") {
             seen.push((sample.engaged, sample.header().msg_seq));

@@ -1,8 +1,9 @@
 //! The event loop of every process: an iceoryx2 wait set that wakes on channel events and
-//! timers, and ends on SIGINT/SIGTERM. No sleeping, no polling.
+//! timers, and ends on SIGINT/SIGTERM through [`crate::termination`]. No sleeping, no polling.
 
 use crate::context::Ipc;
 use crate::error::WaitError;
+use crate::termination;
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
 
@@ -22,15 +23,20 @@ pub enum RunEnd {
     Stopped,
 }
 
-/// A wait set that handles termination signals.
+/// A wait set that ends on SIGINT/SIGTERM ([`crate::termination`]).
 pub struct Waiter {
     waitset: WaitSet<Ipc>,
 }
 
 impl Waiter {
+    /// Creates the wait set and installs the termination handler.
     pub fn new() -> Result<Self, WaitError> {
+        termination::install_handler().map_err(|error| WaitError {
+            reason: format!("cannot install the SIGINT/SIGTERM handler: {error}"),
+        })?;
+        // iceoryx2's own signal handling stays off: `crate::termination` is the one mechanism.
         let waitset = WaitSetBuilder::new()
-            .signal_handling_mode(SignalHandlingMode::HandleTerminationRequests)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<Ipc>()
             .map_err(|error| WaitError {
                 reason: format!("cannot create wait set: {error:?}"),
@@ -68,35 +74,43 @@ impl Waiter {
             })
     }
 
-    /// Runs until a signal, or until `on_wake` returns `Stop` or an error (which is returned).
+    /// Runs until SIGINT/SIGTERM ([`crate::termination::requested`], checked before every
+    /// wait), or until `on_wake` returns `Stop` or an error (which is returned).
     pub fn run<E>(
         &self,
         mut on_wake: impl FnMut(WaitSetAttachmentId<Ipc>) -> Result<Flow, E>,
     ) -> Result<RunEnd, RunError<E>> {
         let mut failure = None;
-        let result = self
-            .waitset
-            .wait_and_process(|attachment| match on_wake(attachment) {
-                Ok(Flow::Continue) => CallbackProgression::Continue,
-                Ok(Flow::Stop) => CallbackProgression::Stop,
+        loop {
+            if termination::requested() {
+                return Ok(RunEnd::Signal);
+            }
+            let result =
+                self.waitset
+                    .wait_and_process_once(|attachment| match on_wake(attachment) {
+                        Ok(Flow::Continue) => CallbackProgression::Continue,
+                        Ok(Flow::Stop) => CallbackProgression::Stop,
+                        Err(error) => {
+                            failure = Some(error);
+                            CallbackProgression::Stop
+                        }
+                    });
+            if let Some(error) = failure.take() {
+                return Err(RunError::Callback(error));
+            }
+            match result {
+                // A signal interrupted the wait (the loop's check says whether it was one of
+                // ours), or a batch of wake-ups was handled: wait again.
+                Ok(WaitSetRunResult::Interrupt | WaitSetRunResult::AllEventsHandled) => {}
+                // Not produced with signal handling disabled; it means the same if it were.
+                Ok(WaitSetRunResult::TerminationRequest) => return Ok(RunEnd::Signal),
+                Ok(WaitSetRunResult::StopRequest) => return Ok(RunEnd::Stopped),
                 Err(error) => {
-                    failure = Some(error);
-                    CallbackProgression::Stop
+                    return Err(RunError::Wait(WaitError {
+                        reason: error.to_string(),
+                    }));
                 }
-            });
-        if let Some(error) = failure {
-            return Err(RunError::Callback(error));
-        }
-        match result {
-            Ok(WaitSetRunResult::Interrupt | WaitSetRunResult::TerminationRequest) => {
-                Ok(RunEnd::Signal)
             }
-            Ok(WaitSetRunResult::StopRequest | WaitSetRunResult::AllEventsHandled) => {
-                Ok(RunEnd::Stopped)
-            }
-            Err(error) => Err(RunError::Wait(WaitError {
-                reason: format!("{error:?}"),
-            })),
         }
     }
 }

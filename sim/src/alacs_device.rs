@@ -36,7 +36,6 @@
 use crate::alacs::{
     AlacsRenderer, AlacsScene, AppleSphere, LaserRenderParams, LeafDisc, RenderStats,
 };
-use harvest_hw::alacs::sim::{STATUS_DEVICE_FAULT, STATUS_OK, STATUS_SLIDE_OUT_OF_STROKE};
 use harvest_hw::alacs::{
     ALACS_FROM_TOF_CAMERA, AlacsError, AlacsExtrinsics, AlacsFrameInfo, AlacsUnit, LaserPlane,
     SLIDE_STROKE_M, alacs_camera_intrinsics, check_slide_position,
@@ -44,7 +43,7 @@ use harvest_hw::alacs::{
 use harvest_ipc::MonotonicClock;
 use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
 use harvest_ipc::payloads::alacs::ALACS_RGB_BYTES;
-use harvest_ipc::payloads::{AlacsCommand, AlacsImage};
+use harvest_ipc::payloads::{AlacsCommand, AlacsImage, AlacsStatus};
 use serde::{Deserialize, Serialize};
 
 use crate::orchard::{AppleState, World};
@@ -279,11 +278,11 @@ impl AlacsDeviceServer {
             }
         };
         out.header.capture_ns = MonotonicClock::read_ns();
-        out.status = match outcome {
-            CommandOutcome::Done { .. } => STATUS_OK,
-            CommandOutcome::SlideOutOfStroke => STATUS_SLIDE_OUT_OF_STROKE,
-            CommandOutcome::Fault => STATUS_DEVICE_FAULT,
-        };
+        out.status.set(match outcome {
+            CommandOutcome::Done { .. } => AlacsStatus::Ok,
+            CommandOutcome::SlideOutOfStroke => AlacsStatus::SlideOutOfStroke,
+            CommandOutcome::Fault => AlacsStatus::DeviceFault,
+        });
         out.laser_on = u8::from(self.laser_on);
         out.slide_position_m = self.slide_position_m;
         tracing::trace!(
@@ -600,8 +599,13 @@ mod tests {
         let outcome = server.handle(&world, &command, &mut out);
         assert_eq!(outcome, CommandOutcome::Done { render: None });
         assert_eq!(
-            (out.request_seq, out.status, out.has_image, out.laser_on),
-            (7, 0, 0, 1)
+            (
+                out.request_seq,
+                out.status.get(),
+                out.has_image,
+                out.laser_on
+            ),
+            (7, Ok(AlacsStatus::Ok), 0, 1)
         );
         assert!((out.slide_position_m - 0.05123).abs() < 1e-12);
         let refused = AlacsCommand {
@@ -614,7 +618,10 @@ mod tests {
             server.handle(&world, &refused, &mut out),
             CommandOutcome::SlideOutOfStroke
         );
-        assert_eq!((out.request_seq, out.status, out.laser_on), (8, 1, 1));
+        assert_eq!(
+            (out.request_seq, out.status.get(), out.laser_on),
+            (8, Ok(AlacsStatus::SlideOutOfStroke), 1)
+        );
         assert!((out.slide_position_m - 0.05123).abs() < 1e-12);
     }
 

@@ -23,7 +23,8 @@ use harvest_ipc::catalogue::{
 };
 use harvest_ipc::error::{IpcError, OpenChannelError};
 use harvest_ipc::payloads::{
-    EncoderFeedback, GroundTruth, ServoSetpoint, TrueApple, ValveBoardCommand, ValveBoardReadings,
+    EncoderFeedback, GroundTruth, ServoSetpoint, TrueApple, TrueAppleState, ValveBoardCommand,
+    ValveBoardReadings,
 };
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, Publisher, Subscriber, Waiter};
 use std::time::{Duration, Instant};
@@ -145,15 +146,15 @@ impl PhysicsPorts {
                 message.apples.clear();
                 for apple in &truth.apples {
                     let state = match apple.state {
-                        AppleState::OnTree => 0,
-                        AppleState::Attached { arm: Arm::One, .. } => 1,
-                        AppleState::Attached { arm: Arm::Two, .. } => 2,
-                        AppleState::Dropped => 3,
-                        AppleState::Harvested => 4,
+                        AppleState::OnTree => TrueAppleState::OnTree,
+                        AppleState::Attached { arm: Arm::One, .. } => TrueAppleState::OnArm1,
+                        AppleState::Attached { arm: Arm::Two, .. } => TrueAppleState::OnArm2,
+                        AppleState::Dropped => TrueAppleState::Dropped,
+                        AppleState::Harvested => TrueAppleState::Harvested,
                     };
                     let entry = TrueApple {
                         apple_id: apple.id.0,
-                        state,
+                        state: state.into(),
                         _reserved: [0; 3],
                         center_in_robot_m: apple.center_in_robot_m,
                         radius_m: apple.radius_m,

@@ -30,7 +30,7 @@
 use harvest_hw::error_kind::{DeviceError, ErrorKind};
 use harvest_hw::platform::{Platform, PlatformAxis, PlatformPosition, PlatformTravel};
 use harvest_ipc::catalogue::{HW_PLATFORM_COMMAND, HW_PLATFORM_FEEDBACK};
-use harvest_ipc::payloads::platform::{PLATFORM_STATUS_OK, PLATFORM_STATUS_REFUSED};
+use harvest_ipc::payloads::PlatformStatus;
 use harvest_ipc::payloads::{PlatformCommand, PlatformFeedback};
 use harvest_ipc::{Context, MonotonicClock, Publisher, Subscriber};
 use serde::{Deserialize, Serialize};
@@ -126,7 +126,7 @@ pub struct PlatformStages {
     velocity_m_per_s: [f64; 2],
     target_m: [f64; 2],
     last_command_ns: u64,
-    status: u8,
+    status: PlatformStatus,
 }
 
 impl PlatformStages {
@@ -139,7 +139,7 @@ impl PlatformStages {
             velocity_m_per_s: [0.0; 2],
             target_m: config.start_m,
             last_command_ns: 0,
-            status: PLATFORM_STATUS_OK,
+            status: PlatformStatus::Ok,
         })
     }
 
@@ -165,16 +165,16 @@ impl PlatformStages {
         if stop {
             self.target_m = self.position_m;
             self.velocity_m_per_s = [0.0; 2];
-            self.status = PLATFORM_STATUS_OK;
+            self.status = PlatformStatus::Ok;
             return true;
         }
         if let Some((axis, value_m)) = self.config.travel.first_violation(target_m) {
             tracing::warn!(%axis, value_m, "platform target outside the travel refused");
-            self.status = PLATFORM_STATUS_REFUSED;
+            self.status = PlatformStatus::Refused;
             return false;
         }
         self.target_m = target_m;
-        self.status = PLATFORM_STATUS_OK;
+        self.status = PlatformStatus::Ok;
         true
     }
 
@@ -211,7 +211,7 @@ impl PlatformStages {
         feedback.target_up_down_m = self.target_m[1];
         feedback.last_command_ns = self.last_command_ns;
         feedback.in_motion = u8::from(self.in_motion());
-        feedback.status = self.status;
+        feedback.status.set(self.status);
         feedback._reserved = [0; 6];
     }
 }
@@ -417,7 +417,7 @@ mod tests {
         assert!(!stages.apply(false, [0.6, 0.1], 2));
         let mut feedback = PlatformFeedback::default();
         stages.write_feedback(&mut feedback);
-        assert_eq!(feedback.status, PLATFORM_STATUS_REFUSED);
+        assert_eq!(feedback.status, PlatformStatus::Refused);
         assert_eq!(feedback.target_in_out_m, 0.2, "previous target kept");
         assert!(stages.apply(true, [0.0; 2], 3));
         stages.step(1.0);

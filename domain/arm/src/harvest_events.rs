@@ -204,9 +204,9 @@ impl ArmEventReporter {
             ),
         };
         let mut out = HarvestEvent::new(now_ns, self.source, kind, self.number, apple_id);
-        out.phase = phase as u8;
+        out.phase.set(phase);
         out.harvested = u8::from(flag);
-        out.cause = cause as u8;
+        out.cause.set(cause);
         if let Some(t) = target {
             out.position_in_robot_m = t.position_in_robot_m;
         }
@@ -242,7 +242,7 @@ mod tests {
                 Some(&t),
             )
             .expect("event");
-        assert_eq!(accepted.kind(), Some(HarvestEventKind::TargetAccepted));
+        assert_eq!(accepted.kind, HarvestEventKind::TargetAccepted);
         assert_eq!(accepted.apple_id, 5);
         assert_eq!(accepted.position_in_robot_m, t.position_in_robot_m);
         assert_eq!(r.current_target().map(|t| t.apple_id), Some(5));
@@ -258,7 +258,7 @@ mod tests {
             )
             .expect("event");
         assert_eq!(phase.apple_id, 5);
-        assert_eq!(phase.phase, PhaseCode::Retract as u8);
+        assert_eq!(phase.phase, PhaseCode::Retract);
         let ended = r
             .convert(
                 30,
@@ -271,7 +271,7 @@ mod tests {
                 None,
             )
             .expect("event");
-        assert_eq!(ended.cause(), Some(HarvestCause::NoAttachment));
+        assert_eq!(ended.cause, HarvestCause::NoAttachment);
         assert_eq!(ended.harvested, 0);
         assert_eq!(ended.header.capture_ns, 30);
         assert!(r.current_target().is_none());
@@ -298,8 +298,8 @@ mod tests {
                 Some(&t),
             )
             .expect("event");
-        assert_eq!(event.cause(), Some(HarvestCause::OutsideWorkspace));
-        assert_eq!(event.source(), Some(HarvestEventSource::Arm2));
+        assert_eq!(event.cause, HarvestCause::OutsideWorkspace);
+        assert_eq!(event.source, HarvestEventSource::Arm2);
         assert_eq!(event.arm_id, 2);
         assert!(event.reason.as_str().contains("unreachable"), "{event:?}");
         assert!(

@@ -26,7 +26,7 @@
 //!   only once the inlet gate of this arm is at its open end stop and the vent closed (granted
 //!   and arrived), "closed" only once the inlet is at its closed end stop and the tube vented
 //!   below [`ArmNodeConfig::vented_vacuum_mmh2o`] (the apple falls only then). The attachment
-//!   is the vacuum supervisor's debounced pressure inference (`arm_attachment == 2`).
+//!   is the vacuum supervisor's debounced pressure inference (`ArmAttachment::Sealed`).
 //! - **Emergency stop.** While engaged: the drives brake, the valve request is `Close`, the
 //!   phase is `Stopped`, any running cycle is abandoned (its attempt ends with cause
 //!   [`AttemptFailure::EmergencyStop`]) and targets received meanwhile are dropped. After
@@ -38,8 +38,8 @@
 use harvest_ipc::Header;
 use harvest_ipc::payloads::arm::TargetStatus;
 use harvest_ipc::payloads::{
-    ArmPhase as PhaseCode, ArmState, ArmTarget, VacuumState, ValveGrant, ValveRequest,
-    ValveRequestKind,
+    ArmAttachment, ArmPhase as PhaseCode, ArmState, ArmTarget, VacuumState, ValveGrant,
+    ValveRequest, ValveRequestKind,
 };
 use thiserror::Error;
 use tracing::{debug, info, trace, warn};
@@ -442,7 +442,7 @@ impl ArmNode {
         let cycle = PickingCycle::new(params, other_params, config.cycle)?;
         let valve_request = ValveRequest {
             arm_id: arm_number(arm),
-            kind: ValveRequestKind::Close as u8,
+            kind: ValveRequestKind::Close.into(),
             ..ValveRequest::default()
         };
         Ok(Self {
@@ -505,7 +505,7 @@ impl ArmNode {
     /// while it approaches or attaches, the picking point of its target.
     pub fn other_arm_view(&self, other: &OtherArmInput<'_>) -> OtherArmState {
         let state = other.state;
-        let phase = cycle_phase_of_reported(PhaseCode::from_code(state.phase));
+        let phase = cycle_phase_of_reported(state.phase.get().ok());
         let goal_m = other
             .target
             .filter(|t| t.apple_id == state.apple_id)
@@ -759,7 +759,7 @@ impl ArmNode {
         }
         self.valve_kind = kind;
         self.request_seq = self.request_seq.wrapping_add(1);
-        self.output.valve_request.kind = kind as u8;
+        self.output.valve_request.kind.set(kind);
         self.output.valve_request.request_seq = self.request_seq;
         self.output.events.push(ArmNodeEvent::ValveRequested {
             kind,
@@ -801,7 +801,7 @@ impl ArmNode {
         } else {
             !(settled && vented)
         };
-        (valve_open, v.arm_attachment[index] == 2)
+        (valve_open, v.arm_attachment[index] == ArmAttachment::Sealed)
     }
 
     /// Integrates the rate command into the position set-point (module docs).
@@ -887,9 +887,9 @@ impl ArmNode {
                 publish_ns: 0,
             },
             arm_id: arm_number(self.arm),
-            phase: self.phase as u8,
+            phase: self.phase.into(),
             holding: u8::from(holding),
-            target_status: self.target_status.0 as u8,
+            target_status: self.target_status.0.into(),
             target_apple_id: match self.target_status.0 {
                 TargetStatus::None => 0,
                 _ => self.target_status.1,

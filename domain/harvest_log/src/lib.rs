@@ -208,13 +208,14 @@ impl HarvestLog {
 
     /// Takes one event; returns the line to show for it, if any.
     pub fn on_event(&mut self, event: &HarvestEvent) -> Option<String> {
-        let kind = event.kind()?;
+        // An event of a kind this build does not know (a newer publisher) shows no line.
+        let kind = event.kind.get().ok()?;
         let t_ns = event.header.capture_ns;
         let arm = match event.arm_id {
             1 | 2 => Some(event.arm_id),
             _ => None,
         };
-        let cause = event.cause().unwrap_or(HarvestCause::Other);
+        let cause = event.cause.get().unwrap_or(HarvestCause::Other);
         let text = match kind {
             HarvestEventKind::Assigned => {
                 let arm = arm?;
@@ -238,7 +239,7 @@ impl HarvestLog {
                 )
             }
             HarvestEventKind::PhaseChanged => {
-                let phase = ArmPhase::from_code(event.phase)?;
+                let phase = event.phase.get().ok()?;
                 if phase == ArmPhase::Idle {
                     return None;
                 }
@@ -297,7 +298,7 @@ impl HarvestLog {
             }
             HarvestEventKind::EmergencyStop => {
                 // Both processes report it; show the vacuum supervisor's (once for the stack).
-                if event.source() != Some(HarvestEventSource::Vacuum) {
+                if event.source != HarvestEventSource::Vacuum {
                     return None;
                 }
                 format!("EMERGENCY STOP {}", event.reason)
@@ -417,7 +418,7 @@ mod tests {
         let mut e = event(t_s, source, HarvestEventKind::AttemptEnded, arm, apple);
         match cause {
             None => e.harvested = 1,
-            Some(cause) => e.cause = cause as u8,
+            Some(cause) => e.cause.set(cause),
         }
         e
     }
@@ -518,7 +519,7 @@ mod tests {
             1,
             0,
         );
-        stall.cause = HarvestCause::NoFeedback as u8;
+        stall.cause.set(HarvestCause::NoFeedback);
         assert!(log.on_event(&stall).is_none());
         assert_eq!(log.summary().feedback_stalls, 1);
     }
@@ -533,11 +534,11 @@ mod tests {
             1,
             7,
         );
-        rejected.cause = HarvestCause::NonFinite as u8;
+        rejected.cause.set(HarvestCause::NonFinite);
         let line = log.on_event(&rejected).expect("line");
         assert!(line.contains("target rejected (non_finite)"), "{line}");
         let mut retry = rejected;
-        retry.cause = HarvestCause::ClearanceConflict as u8;
+        retry.cause.set(HarvestCause::ClearanceConflict);
         retry.harvested = 1;
         assert!(log.on_event(&retry).expect("line").contains("will retry"));
         let s = log.summary();

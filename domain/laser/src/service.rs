@@ -20,7 +20,7 @@ use harvest_hw::DeviceError;
 use harvest_hw::alacs::{AlacsExtrinsics, AlacsUnit};
 use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
 use harvest_ipc::payloads::laser_scan::MAX_SCAN_CANDIDATES;
-use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
+use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
 
 use crate::candidate::PositionCandidate;
 use crate::candidate::TargetHint;
@@ -34,15 +34,6 @@ use crate::scan::{
 
 /// Apple radius assumed when a request carries none usable (mean of the simulated orchard), m.
 pub const FALLBACK_APPLE_RADIUS_M: f64 = 0.037;
-
-/// `LaserScanResult::status`: the scan refined the position.
-pub const STATUS_OK: u8 = 0;
-/// `LaserScanResult::status`: no image showed a usable laser line on the target.
-pub const STATUS_NO_LASER_LINE: u8 = 1;
-/// `LaserScanResult::status`: the target is out of the camera's view or the slide's reach.
-pub const STATUS_OUT_OF_REACH: u8 = 2;
-/// `LaserScanResult::status`: the ALACS unit failed (or cannot scan with its configuration).
-pub const STATUS_DEVICE_ERROR: u8 = 3;
 
 /// Why a request got no refined position.
 #[derive(Debug, thiserror::Error)]
@@ -59,15 +50,15 @@ pub enum ScanRequestError<E: DeviceError> {
 
 impl<E: DeviceError> ScanRequestError<E> {
     /// The `LaserScanResult::status` code of this failure.
-    pub fn status(&self) -> u8 {
+    pub fn status(&self) -> LaserScanStatus {
         match self {
-            Self::NotInView { .. } => STATUS_OUT_OF_REACH,
+            Self::NotInView { .. } => LaserScanStatus::OutOfReach,
             Self::Scan(ScanError::Plan(
                 ScanPlanError::OutOfReach { .. } | ScanPlanError::InvalidRoughCentre { .. },
-            )) => STATUS_OUT_OF_REACH,
+            )) => LaserScanStatus::OutOfReach,
             Self::Scan(ScanError::Plan(ScanPlanError::InvalidConfig { .. }))
-            | Self::Scan(ScanError::Device(_)) => STATUS_DEVICE_ERROR,
-            Self::Scan(ScanError::NoCandidate(_)) => STATUS_NO_LASER_LINE,
+            | Self::Scan(ScanError::Device(_)) => LaserScanStatus::DeviceError,
+            Self::Scan(ScanError::NoCandidate(_)) => LaserScanStatus::NoLaserLine,
         }
     }
 }
@@ -237,7 +228,7 @@ impl ScanService {
         out.header.capture_ns = stamps.last().copied().unwrap_or(0);
         match outcome {
             Ok(result) => {
-                out.status = STATUS_OK;
+                out.status.set(LaserScanStatus::Ok);
                 let mut count = 0;
                 for (index, candidate) in result.candidates.iter().enumerate() {
                     let Ok(candidate) = candidate else {
@@ -260,7 +251,7 @@ impl ScanService {
                 out.candidate_count = count as u8;
                 out.position_in_camera_m = self.tof_from_alacs.apply(result.centre_in_camera_m);
             }
-            Err(error) => out.status = error.status(),
+            Err(error) => out.status.set(error.status()),
         }
     }
 }
@@ -330,8 +321,8 @@ mod tests {
             .answer(&mut unit, &request, &mut out, &mut || steps += 1)
             .expect("scan");
         assert_eq!(
-            (out.request_seq, out.apple_id, out.status),
-            (11, 4, STATUS_OK)
+            (out.request_seq, out.apple_id, out.status.get()),
+            (11, 4, Ok(LaserScanStatus::Ok))
         );
         assert!(
             out.candidate_count >= 4 && out.selected < out.candidate_count,
@@ -380,8 +371,8 @@ mod tests {
             let error = service
                 .answer(&mut unit, &request, &mut out, &mut || {})
                 .expect_err("out of reach");
-            assert_eq!(error.status(), STATUS_OUT_OF_REACH, "{error}");
-            assert_eq!(out.status, STATUS_OUT_OF_REACH);
+            assert_eq!(error.status(), LaserScanStatus::OutOfReach, "{error}");
+            assert_eq!(out.status, LaserScanStatus::OutOfReach);
             assert_eq!(out.position_in_camera_m, request.rough_position_in_camera_m);
             let _: &ScanRequestError<AlacsError> = &error;
         }

@@ -297,10 +297,7 @@ mod tests {
             .expect("process");
         assert_eq!(out.apples.len(), 1, "{:?}", out.apples);
         let apple = *out.apples.iter().next().expect("one apple");
-        assert_eq!(
-            DepthSourceCode::from_code(apple.depth_source),
-            Some(DepthSourceCode::LidarFused)
-        );
+        assert_eq!(apple.depth_source, DepthSourceCode::LidarFused);
         let error_m = (0..3)
             .map(|k| (apple.position_in_camera_m[k] - APPLE_CENTRE_M[k]).powi(2))
             .sum::<f64>()

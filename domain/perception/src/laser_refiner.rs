@@ -16,16 +16,13 @@
 //! and it is not asked for again.
 
 use harvest_ipc::camera_model::RigidTransform;
-use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
+use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
 use tracing::{debug, trace};
 
 use crate::apple_tracks::{AppleTracks, ScanState, distance_m};
 use crate::estimate_checks::visible_fraction;
 use crate::pipeline::AppleEstimate;
 use crate::scan_policy::{LaserScanConfig, ScanEvidence};
-
-/// `LaserScanResult::status` of a scan that produced a position (see the payload's docs).
-pub const SCAN_STATUS_OK: u8 = 0;
 
 /// What perception publishes for one apple of the frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -252,12 +249,13 @@ impl LaserRefiner {
             );
             return ScanResultOutcome::Unmatched;
         };
-        if result.status != SCAN_STATUS_OK {
+        // Any status but ok, an unknown code included, is a failed scan.
+        if result.status != LaserScanStatus::Ok {
             track.scan = ScanState::Failed;
             self.stats.scan_failures += 1;
             debug!(
                 apple_id = track.id,
-                status = result.status,
+                status = ?result.status,
                 "laser scan failed"
             );
             return ScanResultOutcome::ScanFailed;
@@ -350,7 +348,7 @@ mod tests {
         LaserScanResult {
             request_seq: request.request_seq,
             apple_id: request.apple_id,
-            status: SCAN_STATUS_OK,
+            status: LaserScanStatus::Ok.into(),
             candidate_count: 5,
             selected: 1,
             position_in_camera_m,
@@ -460,7 +458,7 @@ mod tests {
             ScanResultOutcome::Refused
         );
         let failed = LaserScanResult {
-            status: 1,
+            status: LaserScanStatus::NoLaserLine.into(),
             ..answer(&requests[1], [0.0, 0.0, 1.0])
         };
         assert_eq!(

@@ -170,8 +170,8 @@ impl PerceptionNode {
                 };
             let detection = AppleDetection {
                 apple_id: tracked.apple_id,
-                method: method as u8,
-                depth_source: depth_source as u8,
+                method: method.into(),
+                depth_source: depth_source.into(),
                 _reserved: [0; 2],
                 position_in_camera_m,
                 position_in_robot_m,

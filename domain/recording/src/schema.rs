@@ -55,9 +55,10 @@ impl TopicInfo {
     }
 }
 
-/// `harvest.RgbdFrame` version 1 -> `harvest.RgbdFrame.v1`.
+/// `harvest.RgbdFrame` version 1 -> `harvest.RgbdFrame.v1` (the convention is
+/// [`harvest_ipc::payload::schema_name`], shared with the iceoryx2 type names).
 pub fn schema_name(type_name: &str, version: u32) -> String {
-    format!("{type_name}.v{version}")
+    harvest_ipc::payload::schema_name(type_name, version)
 }
 
 /// `harvest.RgbdFrame.v1` -> (`harvest.RgbdFrame`, 1); `None` for a name of another form.

@@ -2,8 +2,10 @@
 //! assignments, valve decisions, attachment changes and attempt results that `harvest up`
 //! prints and summarizes ([`harvest_log`]).
 
-use harvest_ipc::FixedString;
-use harvest_ipc::payloads::{HarvestCause, HarvestEvent, HarvestEventKind, HarvestEventSource};
+use harvest_ipc::payloads::{
+    ArmPhase, HarvestCause, HarvestEvent, HarvestEventKind, HarvestEventSource,
+};
+use harvest_ipc::{FixedString, WireCode};
 
 use crate::node::{VacuumNodeEvent, ValveCloseCause, wire_id};
 use crate::replan::AttemptResult;
@@ -13,8 +15,8 @@ use harvest_robot_model::arm_id::ArmId;
 /// phase code and apple (from `armN/state`), indexed by [`ArmId::index`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ArmContext {
-    /// `ArmState::phase` codes.
-    pub phase: [u8; 2],
+    /// `ArmState::phase` codes, as published.
+    pub phase: [WireCode<ArmPhase>; 2],
     /// `ArmState::apple_id` (0 none).
     pub apple_id: [u32; 2],
 }
@@ -37,7 +39,7 @@ pub fn vacuum_event(
                 arms.phase[arm.index()],
                 apple_id.unwrap_or(arms.apple_id[arm.index()]),
             ),
-            None => (0, 0, apple_id.unwrap_or(0)),
+            None => (0, ArmPhase::Idle.into(), apple_id.unwrap_or(0)),
         };
         let mut out = HarvestEvent::new(now_ns, HarvestEventSource::Vacuum, kind, number, apple);
         out.phase = phase;
@@ -76,7 +78,7 @@ pub fn vacuum_event(
         }
         VacuumNodeEvent::ReplanFailed { message } => {
             let mut out = make(HarvestEventKind::Replanned, None, None);
-            out.cause = HarvestCause::Other as u8;
+            out.cause.set(HarvestCause::Other);
             out.reason = FixedString::new(message);
             out
         }
@@ -95,7 +97,7 @@ pub fn vacuum_event(
                 Some(*arm),
                 Some(wire_id(*apple)),
             );
-            out.cause = HarvestCause::TargetNotTaken as u8;
+            out.cause.set(HarvestCause::TargetNotTaken);
             out.reason = FixedString::new("the arm did not take the target up");
             out
         }
@@ -105,7 +107,7 @@ pub fn vacuum_event(
                 Some(*arm),
                 Some(wire_id(*apple)),
             );
-            out.cause = HarvestCause::TargetNotTaken as u8;
+            out.cause.set(HarvestCause::TargetNotTaken);
             out.reason = FixedString::new("the arm refused the target");
             out
         }
@@ -192,22 +194,23 @@ mod tests {
             &ArmContext::default(),
         )
         .expect("event");
-        assert_eq!(event.kind(), Some(HarvestEventKind::Assigned));
+        assert_eq!(event.kind, HarvestEventKind::Assigned);
         assert_eq!(event.arm_id, 2);
         assert_eq!(event.apple_id, 4);
         assert_eq!(event.position_in_robot_m, target.position_in_robot_m);
-        assert_eq!(event.source(), Some(HarvestEventSource::Vacuum));
+        assert_eq!(event.source, HarvestEventSource::Vacuum);
     }
 
     #[test]
     fn valve_events_name_the_arms_apple_and_timeouts_their_cause() {
         let arms = ArmContext {
-            phase: [2, 0],
+            phase: [ArmPhase::AttachDetach.into(), ArmPhase::Idle.into()],
             apple_id: [9, 0],
         };
         let opened = vacuum_event(1, &VacuumNodeEvent::ValveOpened { arm: ArmId::Arm1 }, &arms)
             .expect("event");
-        assert_eq!((opened.apple_id, opened.phase), (9, 2));
+        assert_eq!(opened.apple_id, 9);
+        assert_eq!(opened.phase, ArmPhase::AttachDetach);
         let timed_out = vacuum_event(
             2,
             &VacuumNodeEvent::DispatchTimedOut {
@@ -218,6 +221,6 @@ mod tests {
         )
         .expect("event");
         assert_eq!(timed_out.apple_id, wire_id(AppleId(3)));
-        assert_eq!(timed_out.cause(), Some(HarvestCause::TargetNotTaken));
+        assert_eq!(timed_out.cause, HarvestCause::TargetNotTaken);
     }
 }

@@ -272,8 +272,8 @@ impl VacuumNode {
             valve_open: readings.valve_open.map(u8::from),
             valve_in_transit: readings.valve_in_transit.map(u8::from),
             pressure_mmh2o: readings.pressure_mmh2o,
-            arm_attachment: ArmId::ALL.map(|arm| attachment_code(self.inference.state(arm))),
-            policy: policy_code(self.config.policy),
+            arm_attachment: ArmId::ALL.map(|arm| attachment_code(self.inference.state(arm)).into()),
+            policy: policy_code(self.config.policy).into(),
             _reserved: 0,
         };
     }

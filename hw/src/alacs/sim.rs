@@ -13,20 +13,13 @@ use std::time::{Duration, Instant};
 use harvest_ipc::camera_model::CameraIntrinsics;
 use harvest_ipc::catalogue::{HW_ALACS_COMMAND, HW_ALACS_IMAGE};
 use harvest_ipc::payloads::AlacsCommand;
-use harvest_ipc::payloads::AlacsImage;
 use harvest_ipc::payloads::alacs::{ALACS_HEIGHT_PX, ALACS_RGB_BYTES, ALACS_WIDTH_PX};
+use harvest_ipc::payloads::{AlacsImage, AlacsStatus};
 use harvest_ipc::{Context, MonotonicClock, Publisher, Subscriber};
 
 use super::error::{AlacsError, AlacsPart};
 use super::extrinsics::{SLIDE_STROKE_M, check_slide_position};
 use super::{AlacsFrameInfo, AlacsUnit};
-
-/// `AlacsImage::status`: the command was carried out.
-pub const STATUS_OK: u8 = 0;
-/// `AlacsImage::status`: the slide target was outside the stroke; nothing moved.
-pub const STATUS_SLIDE_OUT_OF_STROKE: u8 = 1;
-/// `AlacsImage::status`: the device reported a fault.
-pub const STATUS_DEVICE_FAULT: u8 = 2;
 
 /// Largest distance between the requested and the settled slide position the driver accepts,
 /// m (the encoder's report; the conformance checks allow 1 mm).
@@ -164,24 +157,24 @@ impl SimAlacsUnit {
         image: &AlacsImage,
         rgb: Option<&mut [u8]>,
     ) -> Result<Answer, AlacsError> {
-        match image.status {
-            STATUS_OK => {}
-            STATUS_SLIDE_OUT_OF_STROKE => {
+        match image.status.get() {
+            Ok(AlacsStatus::Ok) => {}
+            Ok(AlacsStatus::SlideOutOfStroke) => {
                 return Err(AlacsError::SlideOutOfStroke {
                     requested_m: slide_target_m,
                     stroke_m: SLIDE_STROKE_M,
                 });
             }
-            STATUS_DEVICE_FAULT => {
+            Ok(AlacsStatus::DeviceFault) => {
                 return Err(AlacsError::Fault {
                     part,
                     detail: format!("device reported a fault for request {}", image.request_seq),
                 });
             }
-            other => {
+            Err(unknown) => {
                 return Err(AlacsError::Protocol {
                     part,
-                    detail: format!("unknown status {other} in answer {}", image.request_seq),
+                    detail: format!("{unknown} in answer {}", image.request_seq),
                 });
             }
         }

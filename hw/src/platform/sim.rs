@@ -11,7 +11,7 @@ use crate::error_kind::{DeviceError, ErrorKind};
 use harvest_ipc::catalogue::{HW_PLATFORM_COMMAND, HW_PLATFORM_FEEDBACK};
 use harvest_ipc::payloads::PlatformCommand;
 use harvest_ipc::payloads::PlatformFeedback;
-use harvest_ipc::payloads::platform::{PLATFORM_STATUS_FAULT, PLATFORM_STATUS_REFUSED};
+use harvest_ipc::payloads::PlatformStatus;
 use harvest_ipc::{Context, MonotonicClock, Publisher, Subscriber};
 use std::time::Duration;
 
@@ -31,6 +31,9 @@ pub enum SimPlatformError {
     /// The device reports a stage fault (stall, limit switch).
     #[error("platform reports a stage fault at ({in_out_m} m in-out, {up_down_m} m up-down)")]
     DeviceFault { in_out_m: f64, up_down_m: f64 },
+    /// The feedback carries a status code this driver does not know.
+    #[error("simulated platform: {0} in its feedback")]
+    UnknownStatus(harvest_ipc::UnknownCode),
     /// No feedback newer than the timeout (is the sim process running?).
     #[error(
         "simulated platform sent no feedback within {timeout_ms} ms (is the sim process running?)"
@@ -45,7 +48,7 @@ impl DeviceError for SimPlatformError {
     fn kind(&self) -> ErrorKind {
         match self {
             Self::OutOfTravel { .. } | Self::DeviceRefused { .. } => ErrorKind::InvalidRequest,
-            Self::DeviceFault { .. } => ErrorKind::Fault,
+            Self::DeviceFault { .. } | Self::UnknownStatus(_) => ErrorKind::Fault,
             Self::Silent { .. } => ErrorKind::Timeout,
             Self::Link(_) => ErrorKind::Disconnected,
         }
@@ -166,14 +169,18 @@ impl Platform for SimPlatform {
     fn position(&mut self) -> Result<PlatformPosition, Self::Error> {
         let feedback = self.refresh()?;
         let acted_on = feedback.last_command_ns >= self.sent_ns;
-        match feedback.status {
-            PLATFORM_STATUS_FAULT => {
+        match feedback
+            .status
+            .get()
+            .map_err(SimPlatformError::UnknownStatus)?
+        {
+            PlatformStatus::Fault => {
                 return Err(SimPlatformError::DeviceFault {
                     in_out_m: feedback.in_out_m,
                     up_down_m: feedback.up_down_m,
                 });
             }
-            PLATFORM_STATUS_REFUSED
+            PlatformStatus::Refused
                 if feedback.last_command_ns == self.sent_ns
                     && self.refusal_reported_ns != self.sent_ns =>
             {

@@ -5,6 +5,7 @@ use crate::camera_model::CameraIntrinsics;
 use crate::codec::{self, CodecError};
 use crate::header::Header;
 use crate::payload::Payload;
+use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
@@ -14,7 +15,17 @@ pub const ALACS_RGB_BYTES: usize = ALACS_WIDTH_PX * ALACS_HEIGHT_PX * 3;
 
 /// Driver -> device: move the slide, switch the laser, and capture one image once there.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.AlacsCommand.v1")]
 pub struct AlacsCommand {
     pub header: Header,
@@ -36,16 +47,26 @@ crate::serde_payload!(
 request_seq:u32; laser_on:u8; capture:u8; _reserved:[u8;2]; slide_target_m:f64"
 );
 
+/// How the device carried out a command (code in [`AlacsImage::status`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
+pub enum AlacsStatus {
+    Ok = 0,
+    /// The slide target is outside the stroke: nothing moved.
+    SlideOutOfStroke = 1,
+    /// The device reports a fault.
+    DeviceFault = 2,
+}
+
 /// Device -> driver: the answer to one command, with the image when one was requested.
 #[repr(C)]
-#[derive(ZeroCopySend)]
+#[derive(ZeroCopySend, crate::AnyBitPattern)]
 #[type_name("harvest.AlacsImage.v1")]
 pub struct AlacsImage {
     pub header: Header,
     pub request_seq: u32,
     pub laser_on: u8,
-    /// 0 ok, 1 slide target outside the stroke (nothing moved), 2 device fault.
-    pub status: u8,
+    pub status: WireCode<AlacsStatus>,
     pub has_image: u8,
     pub _reserved: u8,
     /// Where the slide actually stopped, metres.
@@ -71,18 +92,18 @@ struct AlacsImageMeta {
     header: Header,
     request_seq: u32,
     laser_on: u8,
-    status: u8,
+    status: WireCode<AlacsStatus>,
     has_image: u8,
     slide_position_m: f64,
     intrinsics: CameraIntrinsics,
 }
 
-// SAFETY: #[repr(C)], integers, floats and arrays of those only.
-unsafe impl Payload for AlacsImage {
+impl Payload for AlacsImage {
     const TYPE_NAME: &'static str = "harvest.AlacsImage";
     const VERSION: u32 = 1;
     const SCHEMA: &'static str = "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, \
-publish_ns:u64}; request_seq:u32; laser_on:u8; status:u8; has_image:u8; slide_position_m:f64; \
+publish_ns:u64}; request_seq:u32; laser_on:u8; status:u8 (0 ok, 1 slide target outside the \
+stroke, 2 device fault); has_image:u8; slide_position_m:f64; \
 intrinsics: {width_px:u32, height_px:u32, fx_px:f64, fy_px:f64, cx_px:f64, cy_px:f64, \
 distortion:[f64;5]}; then rgb: 4665600 raw bytes (RGB8 1440x1080 row-major)";
 

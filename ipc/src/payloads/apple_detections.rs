@@ -2,6 +2,7 @@
 
 use crate::bounded_vec::BoundedVec;
 use crate::header::Header;
+use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
@@ -10,7 +11,7 @@ pub const MAX_APPLES_PER_FRAME: usize = 64;
 
 /// Which 3D localization estimator produced a position (code in [`AppleDetection::method`]).
 #[repr(u8)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum LocalizationMethod {
     /// The paper's DBSCAN largest-cluster centroid depth along the box-centre ray.
     ClusterCentroid = 1,
@@ -25,22 +26,9 @@ pub enum LocalizationMethod {
     ZScoreCentroid = 5,
 }
 
-impl LocalizationMethod {
-    pub fn from_code(code: u8) -> Option<Self> {
-        match code {
-            1 => Some(Self::ClusterCentroid),
-            2 => Some(Self::SphereFit),
-            3 => Some(Self::LaserScan),
-            4 => Some(Self::LidarFusion),
-            5 => Some(Self::ZScoreCentroid),
-            _ => None,
-        }
-    }
-}
-
 /// Which depth a position was computed from (code in [`AppleDetection::depth_source`]).
 #[repr(u8)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum DepthSourceCode {
     /// The ToF camera's depth image.
     Tof = 1,
@@ -50,26 +38,25 @@ pub enum DepthSourceCode {
     LaserLine = 3,
 }
 
-impl DepthSourceCode {
-    pub fn from_code(code: u8) -> Option<Self> {
-        match code {
-            1 => Some(Self::Tof),
-            2 => Some(Self::LidarFused),
-            3 => Some(Self::LaserLine),
-            _ => None,
-        }
-    }
-}
-
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 pub struct AppleDetection {
     /// Stable within a track of frames when perception can associate, else per frame.
     pub apple_id: u32,
-    /// [`LocalizationMethod`] code.
-    pub method: u8,
-    /// [`DepthSourceCode`] code: the depth the position was computed from.
-    pub depth_source: u8,
+    /// The estimator that produced the position.
+    pub method: WireCode<LocalizationMethod>,
+    /// The depth the position was computed from.
+    pub depth_source: WireCode<DepthSourceCode>,
     pub _reserved: [u8; 2],
     pub position_in_camera_m: [f64; 3],
     pub position_in_robot_m: [f64; 3],
@@ -82,7 +69,17 @@ pub struct AppleDetection {
 }
 
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.AppleDetections.v2")]
 pub struct AppleDetections {
     pub header: Header,

@@ -2,6 +2,7 @@
 //! the state it reports.
 
 use crate::header::Header;
+use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
@@ -10,7 +11,7 @@ pub const JOINT_COUNT: usize = 4;
 
 /// The four-phase picking cycle, plus idle and stopped (code in [`ArmState::phase`]).
 #[repr(u8)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum ArmPhase {
     Idle = 0,
     Approach = 1,
@@ -20,24 +21,10 @@ pub enum ArmPhase {
     Stopped = 5,
 }
 
-impl ArmPhase {
-    pub fn from_code(code: u8) -> Option<Self> {
-        match code {
-            0 => Some(Self::Idle),
-            1 => Some(Self::Approach),
-            2 => Some(Self::AttachDetach),
-            3 => Some(Self::Retract),
-            4 => Some(Self::Release),
-            5 => Some(Self::Stopped),
-            _ => None,
-        }
-    }
-}
-
 /// What became of the newest target an arm received and has not taken up (code in
 /// [`ArmState::target_status`]).
 #[repr(u8)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum TargetStatus {
     /// No target waiting (none received, or taken up: the attempt runs).
     None = 0,
@@ -48,22 +35,21 @@ pub enum TargetStatus {
     Refused = 2,
 }
 
-impl TargetStatus {
-    pub fn from_code(code: u8) -> Option<Self> {
-        match code {
-            0 => Some(Self::None),
-            1 => Some(Self::Waiting),
-            2 => Some(Self::Refused),
-            _ => None,
-        }
-    }
-}
-
 /// An apple assigned to an arm (from assignment). A target with `apple_id` 0 withdraws the
 /// target the arm has not taken up yet (its position is NaN, so an arm that predates
 /// withdrawals refuses it as not finite, with the same effect); a running attempt goes on.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.ArmTarget.v1")]
 pub struct ArmTarget {
     pub header: Header,
@@ -92,7 +78,17 @@ source_capture_ns:u64"
 /// latency of the chain camera frame -> perception -> target -> command can be read from headers
 /// alone (`source_capture_ns` is the camera frame's `capture_ns`).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.ArmCommand.v2")]
 pub struct ArmCommand {
     pub header: Header,
@@ -123,19 +119,28 @@ source_capture_ns:u64 (camera frame behind the current target, 0 none); joint_po
 
 /// What an arm reports at its control rate.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.ArmState.v2")]
 pub struct ArmState {
     pub header: Header,
     pub arm_id: u8,
-    /// [`ArmPhase`] code.
-    pub phase: u8,
+    pub phase: WireCode<ArmPhase>,
     /// 1 when the arm believes it holds an apple (vacuum sealed).
     pub holding: u8,
-    /// [`TargetStatus`] code of the target `target_apple_id`, the newest one received and not
-    /// taken up.
-    pub target_status: u8,
-    /// The apple of that target (`ArmTarget::apple_id`; 0 when `target_status` is 0).
+    /// What became of the target `target_apple_id`, the newest one received and not taken up.
+    pub target_status: WireCode<TargetStatus>,
+    /// The apple of that target (`ArmTarget::apple_id`; 0 when `target_status` is
+    /// [`TargetStatus::None`]).
     pub target_apple_id: u32,
     /// The apple of the running attempt (0: none).
     pub apple_id: u32,

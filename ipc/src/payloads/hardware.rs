@@ -5,12 +5,23 @@ use crate::bounded_vec::BoundedVec;
 use crate::header::Header;
 use crate::payloads::arm::JOINT_COUNT;
 use crate::payloads::vacuum::{PRESSURE_SENSOR_COUNT, VALVE_COUNT};
+use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
 /// Servo set-points sent to one arm's joint servos (driver -> device).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.ServoSetpoint.v1")]
 pub struct ServoSetpoint {
     pub header: Header,
@@ -33,7 +44,17 @@ hold:u8; _reserved:[u8;7]; joint_position:[f64;4]; joint_velocity:[f64;4]"
 
 /// Encoder feedback of one arm (device -> driver), at the servo rate.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.EncoderFeedback.v1")]
 pub struct EncoderFeedback {
     pub header: Header,
@@ -54,7 +75,17 @@ joint_position:[f64;4]; joint_velocity:[f64;4]; fault_bits:u8; _reserved:[u8;7]"
 
 /// Valve commands to the valve board (driver -> device).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.ValveBoardCommand.v1")]
 pub struct ValveBoardCommand {
     pub header: Header,
@@ -73,7 +104,17 @@ valve_open:[u8;4]; _reserved:[u8;4]"
 
 /// Valve and pressure readings of the valve board (device -> driver).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.ValveBoardReadings.v1")]
 pub struct ValveBoardReadings {
     pub header: Header,
@@ -95,13 +136,37 @@ valve_open:[u8;4]; valve_in_transit:[u8;4]; pressure_mmh2o:[f32;3]; _reserved:[u
 /// At most this many apples in the ground truth message.
 pub const MAX_TRUE_APPLES: usize = 256;
 
+/// Where a true apple is (code in [`TrueApple::state`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
+pub enum TrueAppleState {
+    OnTree = 0,
+    /// Held by arm 1's end-effector.
+    OnArm1 = 1,
+    /// Held by arm 2's end-effector.
+    OnArm2 = 2,
+    /// Fell (knocked off, released away from the dropping module).
+    Dropped = 3,
+    /// Released onto the dropping module.
+    Harvested = 4,
+}
+
 /// One apple as the simulator knows it.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 pub struct TrueApple {
     pub apple_id: u32,
-    /// 0 on tree, 1 attached to arm 1, 2 attached to arm 2, 3 dropped, 4 harvested.
-    pub state: u8,
+    pub state: WireCode<TrueAppleState>,
     pub _reserved: [u8; 3],
     pub center_in_robot_m: [f64; 3],
     pub radius_m: f64,
@@ -109,7 +174,17 @@ pub struct TrueApple {
 
 /// Evaluation only: the true apples. No stack process may subscribe.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.GroundTruth.v1")]
 pub struct GroundTruth {
     pub header: Header,

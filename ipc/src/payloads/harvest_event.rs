@@ -4,6 +4,8 @@
 
 use crate::fixed_string::FixedString;
 use crate::header::Header;
+use crate::payloads::ArmPhase;
+use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
@@ -12,7 +14,7 @@ pub const HARVEST_EVENT_REASON_BYTES: usize = 96;
 
 /// Which process reported the event (code in [`HarvestEvent::source`]).
 #[repr(u8)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum HarvestEventSource {
     Arm1 = 1,
     Arm2 = 2,
@@ -20,15 +22,6 @@ pub enum HarvestEventSource {
 }
 
 impl HarvestEventSource {
-    pub fn from_code(code: u8) -> Option<Self> {
-        match code {
-            1 => Some(Self::Arm1),
-            2 => Some(Self::Arm2),
-            3 => Some(Self::Vacuum),
-            _ => None,
-        }
-    }
-
     /// The source of arm `number` (1 or 2).
     pub fn arm(number: u8) -> Option<Self> {
         match number {
@@ -50,7 +43,7 @@ impl HarvestEventSource {
 
 /// What happened (code in [`HarvestEvent::kind`]).
 #[repr(u8)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum HarvestEventKind {
     /// Vacuum: the apple was assigned and its target published to `arm_id`.
     Assigned = 1,
@@ -90,36 +83,9 @@ pub enum HarvestEventKind {
     HarvestComplete = 17,
 }
 
-impl HarvestEventKind {
-    pub fn from_code(code: u8) -> Option<Self> {
-        use HarvestEventKind::*;
-        [
-            Assigned,
-            TargetAccepted,
-            TargetRejected,
-            TargetDeferred,
-            PhaseChanged,
-            Attached,
-            CycleStep,
-            AttemptEnded,
-            ValveOpened,
-            ValveClosed,
-            ValveRefused,
-            EmergencyStop,
-            AttemptFinished,
-            DispatchTimedOut,
-            Replanned,
-            AttachmentChanged,
-            HarvestComplete,
-        ]
-        .into_iter()
-        .find(|kind| *kind as u8 == code)
-    }
-}
-
 /// Why an attempt failed or a target was refused (code in [`HarvestEvent::cause`]).
 #[repr(u8)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum HarvestCause {
     /// No failure (or not applicable).
     None = 0,
@@ -160,31 +126,6 @@ pub enum HarvestCause {
 }
 
 impl HarvestCause {
-    pub fn from_code(code: u8) -> Option<Self> {
-        use HarvestCause::*;
-        [
-            None,
-            ApproachTimeout,
-            ValveNotGranted,
-            NoAttachment,
-            AppleLost,
-            ValveNotClosed,
-            EmergencyStop,
-            TargetNotTaken,
-            NonFinite,
-            Stale,
-            FromFuture,
-            OutsideWorkspace,
-            Busy,
-            ClearanceConflict,
-            OtherArmGoalUnknown,
-            NoFeedback,
-            Other,
-        ]
-        .into_iter()
-        .find(|cause| *cause as u8 == code)
-    }
-
     /// A short snake_case label (`no_attachment`, `outside_workspace`, ...).
     pub fn label(self) -> &'static str {
         match self {
@@ -211,25 +152,32 @@ impl HarvestCause {
 
 /// One event of the harvest.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.HarvestEvent.v1")]
 pub struct HarvestEvent {
     /// `capture_ns`: the control tick the event happened at.
     pub header: Header,
-    /// [`HarvestEventSource`] code.
-    pub source: u8,
-    /// [`HarvestEventKind`] code.
-    pub kind: u8,
+    pub source: WireCode<HarvestEventSource>,
+    pub kind: WireCode<HarvestEventKind>,
     /// The arm concerned (1 or 2; 0 none).
     pub arm_id: u8,
-    /// [`crate::payloads::ArmPhase`] code of the arm after the event (for the vacuum's events:
-    /// the arm's last published phase).
-    pub phase: u8,
+    /// The arm's phase after the event (for the vacuum's events: the arm's last published
+    /// phase).
+    pub phase: WireCode<ArmPhase>,
     /// 1 when the attempt harvested its apple (`AttemptEnded`, `AttemptFinished`), when the
     /// refusal is retried (`TargetRejected`), when engaged (`EmergencyStop`).
     pub harvested: u8,
-    /// [`HarvestCause`] code.
-    pub cause: u8,
+    pub cause: WireCode<HarvestCause>,
     pub _reserved: [u8; 2],
     /// The apple (the vacuum supervisor's id as on `armN/target`; 0 none).
     pub apple_id: u32,
@@ -272,28 +220,13 @@ impl HarvestEvent {
                 capture_ns: stamp_ns,
                 publish_ns: 0,
             },
-            source: source as u8,
-            kind: kind as u8,
+            source: source.into(),
+            kind: kind.into(),
             arm_id,
             apple_id,
             position_in_robot_m: [f64::NAN; 3],
             ..Self::default()
         }
-    }
-
-    /// The decoded kind, if known.
-    pub fn kind(&self) -> Option<HarvestEventKind> {
-        HarvestEventKind::from_code(self.kind)
-    }
-
-    /// The decoded source, if known.
-    pub fn source(&self) -> Option<HarvestEventSource> {
-        HarvestEventSource::from_code(self.source)
-    }
-
-    /// The decoded cause, if known.
-    pub fn cause(&self) -> Option<HarvestCause> {
-        HarvestCause::from_code(self.cause)
     }
 }
 
@@ -301,25 +234,20 @@ impl HarvestEvent {
 mod tests {
     use super::*;
     use crate::payload::Payload;
+    use crate::wire_code::WireEnum;
 
     #[test]
-    fn codes_round_trip() {
-        for code in 0..=255u8 {
-            if let Some(kind) = HarvestEventKind::from_code(code) {
-                assert_eq!(kind as u8, code);
-            }
-            if let Some(cause) = HarvestCause::from_code(code) {
-                assert_eq!(cause as u8, code);
-            }
-        }
+    fn codes_match_the_schema() {
         assert_eq!(
             HarvestEventKind::from_code(17),
             Some(HarvestEventKind::HarvestComplete)
         );
+        assert_eq!(HarvestEventKind::ALL.len(), 17);
         assert_eq!(
             HarvestCause::from_code(23),
             Some(HarvestCause::OutsideWorkspace)
         );
+        assert_eq!(HarvestCause::Other.code(), 255);
         assert_eq!(HarvestEventSource::arm(2), Some(HarvestEventSource::Arm2));
     }
 
@@ -332,7 +260,7 @@ mod tests {
             1,
             7,
         );
-        event.cause = HarvestCause::OutsideWorkspace as u8;
+        event.cause.set(HarvestCause::OutsideWorkspace);
         event.position_in_robot_m = [3.0, 0.0, 0.5];
         event.reason = FixedString::new("target 7 is unreachable");
         let mut bytes = Vec::new();
@@ -341,6 +269,6 @@ mod tests {
         HarvestEvent::decode_into(&bytes, &mut back).expect("decode");
         assert_eq!(back, event);
         assert_eq!(back.reason.as_str(), "target 7 is unreachable");
-        assert_eq!(back.kind(), Some(HarvestEventKind::TargetRejected));
+        assert_eq!(back.kind, HarvestEventKind::TargetRejected);
     }
 }

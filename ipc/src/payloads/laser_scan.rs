@@ -1,6 +1,7 @@
 //! ALACS laser scans: perception asks for a scan of one apple, the laser process answers.
 
 use crate::header::Header;
+use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
@@ -8,7 +9,17 @@ use serde::{Deserialize, Serialize};
 pub const MAX_SCAN_CANDIDATES: usize = 5;
 
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.LaserScanRequest.v1")]
 pub struct LaserScanRequest {
     pub header: Header,
@@ -27,15 +38,38 @@ crate::serde_payload!(
 request_seq:u32; apple_id:u32; rough_position_in_camera_m:[f64;3]; rough_radius_m:f64"
 );
 
+/// How a scan ended (code in [`LaserScanResult::status`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
+pub enum LaserScanStatus {
+    /// A position was measured.
+    Ok = 0,
+    /// No laser line was found in the images.
+    NoLaserLine = 1,
+    /// The target is out of the slide's view or reach.
+    OutOfReach = 2,
+    /// The ALACS device (or the scan set-up) failed.
+    DeviceError = 3,
+}
+
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.LaserScanResult.v1")]
 pub struct LaserScanResult {
     pub header: Header,
     pub request_seq: u32,
     pub apple_id: u32,
-    /// 0 ok, 1 no laser line found, 2 target out of the slide's view or reach, 3 device error.
-    pub status: u8,
+    pub status: WireCode<LaserScanStatus>,
     pub candidate_count: u8,
     /// Index (into the candidates listed) of the candidate the paper's selection picks.
     pub selected: u8,
@@ -55,7 +89,8 @@ crate::serde_payload!(
     "harvest.LaserScanResult",
     1,
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-request_seq:u32; apple_id:u32; status:u8; candidate_count:u8; selected:u8; _reserved:[u8;5]; \
+request_seq:u32; apple_id:u32; status:u8 (0 ok, 1 no laser line, 2 out of reach, 3 device \
+error); candidate_count:u8; selected:u8; _reserved:[u8;5]; \
 position_in_camera_m:[f64;3]; candidates_in_camera_m:[[f64;3];5]; candidate_scores:[f64;5]; \
 scan_duration_ns:u64"
 );

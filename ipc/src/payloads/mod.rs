@@ -13,19 +13,22 @@ pub mod process_health;
 pub mod rgbd_frame;
 pub mod vacuum;
 
-pub use alacs::{AlacsCommand, AlacsImage};
+pub use alacs::{AlacsCommand, AlacsImage, AlacsStatus};
 pub use apple_detections::{AppleDetection, AppleDetections, DepthSourceCode, LocalizationMethod};
-pub use arm::{ArmCommand, ArmPhase, ArmState, ArmTarget, JOINT_COUNT};
+pub use arm::{ArmCommand, ArmPhase, ArmState, ArmTarget, JOINT_COUNT, TargetStatus};
 pub use emergency_stop::EmergencyStop;
 pub use hardware::{
-    EncoderFeedback, GroundTruth, ServoSetpoint, TrueApple, ValveBoardCommand, ValveBoardReadings,
+    EncoderFeedback, GroundTruth, ServoSetpoint, TrueApple, TrueAppleState, ValveBoardCommand,
+    ValveBoardReadings,
 };
 pub use harvest_event::{
     HARVEST_EVENT_REASON_BYTES, HarvestCause, HarvestEvent, HarvestEventKind, HarvestEventSource,
 };
-pub use laser_scan::{LaserScanRequest, LaserScanResult};
-pub use platform::{PlatformCommand, PlatformFeedback};
+pub use laser_scan::{LaserScanRequest, LaserScanResult, LaserScanStatus};
+pub use platform::{PlatformCommand, PlatformFeedback, PlatformStatus};
 pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
 pub use process_health::{ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
-pub use vacuum::{VacuumState, ValveGrant, ValveRequest, ValveRequestKind};
+pub use vacuum::{
+    ArmAttachment, VacuumPolicyCode, VacuumState, ValveGrant, ValveRequest, ValveRequestKind,
+};

@@ -4,20 +4,35 @@
 //! steady rate.
 
 use crate::header::Header;
+use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
-/// [`PlatformFeedback::status`]: the last command was carried out (or is being).
-pub const PLATFORM_STATUS_OK: u8 = 0;
-/// [`PlatformFeedback::status`]: the last command was refused (target outside the travel or not
-/// finite); the stages kept their previous target.
-pub const PLATFORM_STATUS_REFUSED: u8 = 1;
-/// [`PlatformFeedback::status`]: the stages report a fault (stall, limit switch hit).
-pub const PLATFORM_STATUS_FAULT: u8 = 2;
+/// What became of the last platform command (code in [`PlatformFeedback::status`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
+pub enum PlatformStatus {
+    /// Carried out (or being carried out).
+    Ok = 0,
+    /// Refused (target outside the travel or not finite); the stages kept their previous target.
+    Refused = 1,
+    /// The stages report a fault (stall, limit switch hit).
+    Fault = 2,
+}
 
 /// Driver -> device: where both stages should go, or stop.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.PlatformCommand.v1")]
 pub struct PlatformCommand {
     pub header: Header,
@@ -41,7 +56,17 @@ target_in_out_m:f64; target_up_down_m:f64; stop:u8; _reserved:[u8;7]"
 /// Device -> driver: the stages' encoder positions, sampled at the device's feedback rate.
 /// `header.capture_ns` is when the encoders were read.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.PlatformFeedback.v1")]
 pub struct PlatformFeedback {
     pub header: Header,
@@ -62,8 +87,8 @@ pub struct PlatformFeedback {
     pub last_command_ns: u64,
     /// 1 while either stage is still moving toward its target.
     pub in_motion: u8,
-    /// `PLATFORM_STATUS_*` of the last command.
-    pub status: u8,
+    /// What became of the last command.
+    pub status: WireCode<PlatformStatus>,
     pub _reserved: [u8; 6],
 }
 
@@ -98,7 +123,7 @@ mod tests {
             target_up_down_m: 0.6,
             last_command_ns: 9,
             in_motion: 1,
-            status: PLATFORM_STATUS_REFUSED,
+            status: PlatformStatus::Refused.into(),
             _reserved: [0; 6],
         };
         let mut bytes = Vec::new();

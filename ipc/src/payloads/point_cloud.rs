@@ -18,7 +18,17 @@ pub const POINT_CLOUD_CAPACITY: usize = 100_000;
 
 /// One return.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 pub struct LidarPoint {
     /// Position in the LiDAR frame, metres.
     pub x_m: f32,
@@ -42,7 +52,17 @@ impl LidarPoint {
 
 /// Cloud metadata: everything but the point buffer.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 pub struct PointCloudMeta {
     /// Valid points at the start of `points`.
     pub point_count: u32,
@@ -58,7 +78,7 @@ impl PointCloudMeta {
 }
 
 #[repr(C)]
-#[derive(ZeroCopySend)]
+#[derive(ZeroCopySend, crate::AnyBitPattern)]
 #[type_name("harvest.PointCloud.v1")]
 pub struct PointCloud {
     pub header: Header,
@@ -118,8 +138,7 @@ impl PointCloud {
 
 const POINT_BYTES: usize = 16;
 
-// SAFETY: #[repr(C)] and made only of integers, floats and arrays of those.
-unsafe impl Payload for PointCloud {
+impl Payload for PointCloud {
     const TYPE_NAME: &'static str = "harvest.PointCloud";
     const VERSION: u32 = 1;
     const SCHEMA: &'static str = "encoding bincode2-fixint-le: header: {msg_seq:u64, \

@@ -2,12 +2,13 @@
 
 use crate::fixed_string::FixedString;
 use crate::header::Header;
+use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
 /// Run state of a process (code in [`ProcessHealth::run_state`]).
 #[repr(u8)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum ProcessRunState {
     Starting = 0,
     Running = 1,
@@ -15,28 +16,25 @@ pub enum ProcessRunState {
     Stopping = 3,
 }
 
-impl ProcessRunState {
-    pub fn from_code(code: u8) -> Option<Self> {
-        match code {
-            0 => Some(Self::Starting),
-            1 => Some(Self::Running),
-            2 => Some(Self::Degraded),
-            3 => Some(Self::Stopping),
-            _ => None,
-        }
-    }
-}
-
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.ProcessHealth.v1")]
 pub struct ProcessHealth {
     pub header: Header,
     /// The name the process was launched under (launch-file name).
     pub process_name: FixedString<32>,
     pub pid: u32,
-    /// [`ProcessRunState`] code.
-    pub run_state: u8,
+    pub run_state: WireCode<ProcessRunState>,
     pub _reserved: [u8; 3],
     /// Messages the process has handled on its main channel since start (published for
     /// producers, received for consumers): the supervisor derives a rate from it.

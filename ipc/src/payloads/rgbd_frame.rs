@@ -18,7 +18,9 @@ pub const DEPTH_PIXELS: usize = DEPTH_WIDTH_PX * DEPTH_HEIGHT_PX;
 
 /// Frame metadata: everything but the pixel buffers.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, ZeroCopySend, Serialize, Deserialize, crate::AnyBitPattern,
+)]
 pub struct RgbdFrameMeta {
     pub rgb_intrinsics: CameraIntrinsics,
     pub depth_intrinsics: CameraIntrinsics,
@@ -46,7 +48,7 @@ impl Default for RgbdFrameMeta {
 }
 
 #[repr(C)]
-#[derive(ZeroCopySend)]
+#[derive(ZeroCopySend, crate::AnyBitPattern)]
 #[type_name("harvest.RgbdFrame.v1")]
 pub struct RgbdFrame {
     pub header: Header,
@@ -66,8 +68,7 @@ impl std::fmt::Debug for RgbdFrame {
     }
 }
 
-// SAFETY: #[repr(C)] and made only of integers, floats and arrays of those.
-unsafe impl Payload for RgbdFrame {
+impl Payload for RgbdFrame {
     const TYPE_NAME: &'static str = "harvest.RgbdFrame";
     const VERSION: u32 = 1;
     const SCHEMA: &'static str = concat!(

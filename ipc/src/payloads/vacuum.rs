@@ -3,6 +3,7 @@
 //! sensors: inside arm 1, inside arm 2, at the source.
 
 use crate::header::Header;
+use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
@@ -11,7 +12,7 @@ pub const PRESSURE_SENSOR_COUNT: usize = 3;
 
 /// What an arm asks of its valves (code in [`ValveRequest::kind`]).
 #[repr(u8)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum ValveRequestKind {
     /// Open to attempt attachment.
     OpenForAttach = 1,
@@ -19,24 +20,48 @@ pub enum ValveRequestKind {
     Close = 2,
 }
 
-impl ValveRequestKind {
-    pub fn from_code(code: u8) -> Option<Self> {
-        match code {
-            1 => Some(Self::OpenForAttach),
-            2 => Some(Self::Close),
-            _ => None,
-        }
-    }
+/// What the vacuum supervisor infers from the pressure in one arm's end-effector (code in
+/// [`VacuumState::arm_attachment`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
+pub enum ArmAttachment {
+    /// The arm's valve is closed.
+    Closed = 0,
+    /// The valve is open and air streams in: no seal (also after a failed attach or a drop).
+    Open = 1,
+    /// The valve is open and an apple seals the cup: attached.
+    Sealed = 2,
+}
+
+/// The valve coordination policy the vacuum supervisor runs (code in [`VacuumState::policy`]).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
+pub enum VacuumPolicyCode {
+    /// One arm at a time.
+    Baseline = 0,
+    /// The 2023 staggered policy.
+    Policy2023 = 1,
+    /// The 2024 failure-aware policy.
+    Policy2024 = 2,
 }
 
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.ValveRequest.v1")]
 pub struct ValveRequest {
     pub header: Header,
     pub arm_id: u8,
-    /// [`ValveRequestKind`] code.
-    pub kind: u8,
+    pub kind: WireCode<ValveRequestKind>,
     pub _reserved: [u8; 2],
     pub request_seq: u32,
 }
@@ -50,7 +75,17 @@ arm_id:u8; kind:u8 (1 open for attach, 2 close); _reserved:[u8;2]; request_seq:u
 );
 
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.ValveGrant.v1")]
 pub struct ValveGrant {
     pub header: Header,
@@ -72,7 +107,17 @@ arm_id:u8; granted:u8; reason:u8; _reserved:u8; request_seq:u32"
 );
 
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
 #[type_name("harvest.VacuumState.v1")]
 pub struct VacuumState {
     pub header: Header,
@@ -82,10 +127,10 @@ pub struct VacuumState {
     pub valve_in_transit: [u8; VALVE_COUNT],
     /// Vacuum in mmH2O (positive = below atmosphere): arm 1, arm 2, source.
     pub pressure_mmh2o: [f32; PRESSURE_SENSOR_COUNT],
-    /// Inferred per arm: 0 closed, 1 open to atmosphere, 2 sealed (apple attached).
-    pub arm_attachment: [u8; 2],
-    /// Active policy: 0 baseline, 1 policy-2023, 2 policy-2024.
-    pub policy: u8,
+    /// Inferred per arm (arm 1, arm 2).
+    pub arm_attachment: [WireCode<ArmAttachment>; 2],
+    /// Active policy.
+    pub policy: WireCode<VacuumPolicyCode>,
     pub _reserved: u8,
 }
 

@@ -349,12 +349,13 @@ fn control_loop<S: ArmServos>(
                 };
 
                 // 5. Outputs.
-                let phase = PhaseCode::from_code(out.state.phase).unwrap_or(PhaseCode::Idle);
+                // The node's own state: its phase code is always known.
+                let phase = out.state.phase.get().unwrap_or(PhaseCode::Idle);
                 for event in &out.events {
                     if let Some(harvest_event) =
                         reporter.convert(now_ns, phase, event, inputs.target.as_ref())
                     {
-                        if harvest_event.kind() == Some(HarvestEventKind::TargetRejected) {
+                        if harvest_event.kind == HarvestEventKind::TargetRejected {
                             tracing::info!(apple_id = harvest_event.apple_id,
                                 reason = %harvest_event.reason, "target rejected");
                         }
@@ -413,7 +414,7 @@ fn control_loop<S: ArmServos>(
             ..harvest_ipc::Header::default()
         },
         arm_id: number,
-        kind: harvest_ipc::payloads::ValveRequestKind::Close as u8,
+        kind: harvest_ipc::payloads::ValveRequestKind::Close.into(),
         _reserved: [0; 2],
         request_seq: last_request.map_or(0, |(r, _)| r.request_seq.wrapping_add(1)),
     };

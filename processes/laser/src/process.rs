@@ -17,12 +17,12 @@ use harvest_hw::alacs::{
     ALACS_FROM_TOF_CAMERA, AlacsError, AlacsExtrinsics, SimAlacsUnit, alacs_camera_intrinsics,
 };
 use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT};
-use harvest_ipc::payloads::{LaserScanResult, ProcessRunState};
-use harvest_ipc::{Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, Waiter};
+use harvest_ipc::payloads::{LaserScanResult, LaserScanStatus, ProcessRunState};
+use harvest_ipc::{Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, Waiter, WireCode};
 
 use harvest_laser::calibration::{CalibrationFileError, read_calibration_file};
 use harvest_laser::extraction::ExtractionError;
-use harvest_laser::service::{STATUS_DEVICE_ERROR, STATUS_OK, ScanService};
+use harvest_laser::service::ScanService;
 
 /// Arguments of `harvest laser`.
 #[derive(Debug, Clone, PartialEq, clap::Args)]
@@ -156,16 +156,18 @@ pub fn run_until(
                             scan_ms = result.scan_duration_ns / 1_000_000,
                             "apple scanned"
                         ),
-                        Err(error) if result.status == STATUS_DEVICE_ERROR => tracing::warn!(
-                            request_seq = request.request_seq,
-                            apple_id = request.apple_id,
-                            %error,
-                            "scan failed"
-                        ),
+                        Err(error) if result.status == LaserScanStatus::DeviceError => {
+                            tracing::warn!(
+                                request_seq = request.request_seq,
+                                apple_id = request.apple_id,
+                                %error,
+                                "scan failed"
+                            )
+                        }
                         Err(error) => tracing::debug!(
                             request_seq = request.request_seq,
                             apple_id = request.apple_id,
-                            status = result.status,
+                            status = ?result.status,
                             %error,
                             "scan gave no position"
                         ),
@@ -203,22 +205,22 @@ struct ScanCounters {
     answered: u64,
     refined: u64,
     device_errors: u64,
-    last_status: u8,
+    last_status: WireCode<LaserScanStatus>,
     last_scan_ns: u64,
 }
 
 impl ScanCounters {
     fn count(&mut self, result: &LaserScanResult) {
         self.answered += 1;
-        self.refined += u64::from(result.status == STATUS_OK);
-        self.device_errors += u64::from(result.status == STATUS_DEVICE_ERROR);
+        self.refined += u64::from(result.status == LaserScanStatus::Ok);
+        self.device_errors += u64::from(result.status == LaserScanStatus::DeviceError);
         self.last_status = result.status;
         self.last_scan_ns = result.scan_duration_ns;
     }
 
     /// Degraded while the last scan failed on the device.
     fn run_state(&self) -> ProcessRunState {
-        if self.last_status == STATUS_DEVICE_ERROR {
+        if self.last_status == LaserScanStatus::DeviceError {
             ProcessRunState::Degraded
         } else {
             ProcessRunState::Running

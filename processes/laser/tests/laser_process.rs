@@ -17,9 +17,8 @@ use std::time::{Duration, Instant};
 use common::{Device, ideal_world, unique_domain};
 use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsExtrinsics};
 use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT, PROCESS_HEALTH};
-use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
+use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
 use harvest_ipc::{Context, Payload, Subscriber};
-use harvest_laser::service::{STATUS_OK, STATUS_OUT_OF_REACH};
 use harvest_laser::{ScanConfig, ScanPlanner};
 use harvest_laser_process::process::{LaserArgs, run_until};
 use harvest_sim::alacs_device::robot_from_tof_color;
@@ -112,7 +111,7 @@ fn laser_process_answers_scan_requests() {
         let result: LaserScanResult = wait_for(&results, |r| r.request_seq == request_seq);
         assert_eq!(result.apple_id, apple.id.0);
         if request_seq == 1 {
-            assert_eq!(result.status, STATUS_OK, "{result:?}");
+            assert_eq!(result.status, LaserScanStatus::Ok, "{result:?}");
             let error_m = (0..3)
                 .map(|k| (result.position_in_camera_m[k] - truth_in_tof[k]).powi(2))
                 .sum::<f64>()
@@ -121,7 +120,7 @@ fn laser_process_answers_scan_requests() {
             assert!(result.candidate_count >= 3, "{result:?}");
             assert!(result.scan_duration_ns > 0);
         } else {
-            assert_eq!(result.status, STATUS_OUT_OF_REACH, "{result:?}");
+            assert_eq!(result.status, LaserScanStatus::OutOfReach, "{result:?}");
             assert_eq!(result.candidate_count, 0);
             assert_eq!(
                 result.position_in_camera_m,

@@ -16,8 +16,7 @@ use harvest_hw::alacs::{
     ALACS_FROM_TOF_CAMERA, AlacsExtrinsics, SimAlacsUnit, alacs_camera_intrinsics, conformance,
 };
 use harvest_ipc::Context;
-use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
-use harvest_laser::service::STATUS_OK;
+use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
 use harvest_laser::{ScanConfig, ScanPlanner, ScanService};
 use harvest_sim::alacs_device::robot_from_tof_color;
 
@@ -84,7 +83,7 @@ fn scan_of_a_known_apple_over_ipc_lands_within_a_few_millimetres() {
     let scan = service
         .answer(&mut unit, &request, &mut result, &mut || {})
         .expect("scan");
-    assert_eq!(result.status, STATUS_OK);
+    assert_eq!(result.status, LaserScanStatus::Ok);
     assert_eq!(result.candidate_count, 5, "{scan:?}");
     let error_m = (0..3)
         .map(|k| (result.position_in_camera_m[k] - truth_in_tof[k]).powi(2))

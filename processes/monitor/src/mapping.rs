@@ -20,8 +20,9 @@
 //! configured with ([`DEFAULT_ATTACH_WINDOW_NS`]), and then requires the valve to close within
 //! the reaction deadline.
 
+use harvest_ipc::WireCode;
 use harvest_ipc::payloads::{
-    ArmCommand, ArmPhase as PhaseCode, ArmState, EmergencyStop, VacuumState,
+    ArmAttachment, ArmCommand, ArmPhase as PhaseCode, ArmState, EmergencyStop, VacuumState,
 };
 use harvest_robot_model::ArmId;
 use harvest_robot_model::coordination_phase::CoordinationPhase;
@@ -84,7 +85,7 @@ pub struct StackTraceMapper {
     config: MappingConfig,
     last_ns: u64,
     lines: [LineView; 2],
-    phases: [Option<u8>; 2],
+    phases: [Option<WireCode<PhaseCode>>; 2],
     end_effectors_m: [Option<[f64; 3]>; 2],
     stop_engaged: bool,
 }
@@ -134,8 +135,9 @@ impl StackTraceMapper {
             if !open {
                 continue;
             }
-            let code = state.arm_attachment[i];
-            let sealed = code == 2;
+            // An unknown attachment code counts as unsealed, and not as a drop.
+            let attachment = state.arm_attachment[i];
+            let sealed = attachment == ArmAttachment::Sealed;
             if sealed && !line.sealed {
                 out.push(TraceEvent::AttachmentChanged {
                     stamp_ns,
@@ -149,9 +151,9 @@ impl StackTraceMapper {
                     arm,
                     sealed: false,
                 });
-                // Code 0 ("closed") is the supervisor closing the line (release, or a close
-                // the board has not reported yet): not a drop. Code 1 with the gate open is.
-                if code == 1 && !line.failure_reported {
+                // `Closed` is the supervisor closing the line (release, or a close the board
+                // has not reported yet): not a drop. `Open` with the gate open is.
+                if attachment == ArmAttachment::Open && !line.failure_reported {
                     out.push(TraceEvent::FailureDetected {
                         stamp_ns,
                         arm,
@@ -219,7 +221,8 @@ impl StackTraceMapper {
         let i = arm.index();
         if self.phases[i] != Some(state.phase) {
             self.phases[i] = Some(state.phase);
-            if let Some(phase) = PhaseCode::from_code(state.phase) {
+            // An unknown phase code changes nothing the monitor judges.
+            if let Ok(phase) = state.phase.get() {
                 out.push(TraceEvent::PhaseChanged {
                     stamp_ns,
                     arm,
@@ -256,10 +259,11 @@ impl StackTraceMapper {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use ArmAttachment::{Closed, Open, Sealed};
 
     const MS: u64 = 1_000_000;
 
-    fn vacuum(open: [bool; 2], attachment: [u8; 2]) -> VacuumState {
+    fn vacuum(open: [bool; 2], attachment: [ArmAttachment; 2]) -> VacuumState {
         VacuumState {
             valve_open: [
                 u8::from(open[0]),
@@ -267,7 +271,7 @@ mod tests {
                 u8::from(open[1]),
                 u8::from(!open[1]),
             ],
-            arm_attachment: attachment,
+            arm_attachment: attachment.map(Into::into),
             ..VacuumState::default()
         }
     }
@@ -276,19 +280,27 @@ mod tests {
     fn a_release_is_not_a_drop_but_a_lost_seal_is() {
         let mut m = StackTraceMapper::new(MappingConfig::default());
         let mut out = Vec::new();
-        m.vacuum_state(10 * MS, &vacuum([true, false], [1, 0]), &mut out);
-        m.vacuum_state(60 * MS, &vacuum([true, false], [2, 0]), &mut out);
+        m.vacuum_state(10 * MS, &vacuum([true, false], [Open, Closed]), &mut out);
+        m.vacuum_state(60 * MS, &vacuum([true, false], [Sealed, Closed]), &mut out);
         // Released at the drop-off: the supervisor closes, attachment "closed".
-        m.vacuum_state(900 * MS, &vacuum([true, false], [0, 0]), &mut out);
-        m.vacuum_state(905 * MS, &vacuum([false, false], [0, 0]), &mut out);
+        m.vacuum_state(900 * MS, &vacuum([true, false], [Closed, Closed]), &mut out);
+        m.vacuum_state(
+            905 * MS,
+            &vacuum([false, false], [Closed, Closed]),
+            &mut out,
+        );
         assert!(
             !out.iter()
                 .any(|e| matches!(e, TraceEvent::FailureDetected { .. }))
         );
         // A new opening whose seal is lost with the gate open.
         out.clear();
-        m.vacuum_state(1000 * MS, &vacuum([true, false], [2, 0]), &mut out);
-        m.vacuum_state(1200 * MS, &vacuum([true, false], [1, 0]), &mut out);
+        m.vacuum_state(
+            1000 * MS,
+            &vacuum([true, false], [Sealed, Closed]),
+            &mut out,
+        );
+        m.vacuum_state(1200 * MS, &vacuum([true, false], [Open, Closed]), &mut out);
         assert_eq!(
             out.last(),
             Some(&TraceEvent::FailureDetected {
@@ -303,12 +315,12 @@ mod tests {
     fn an_open_line_without_seal_fails_after_the_window_and_stamps_never_go_back() {
         let mut m = StackTraceMapper::new(MappingConfig::default());
         let mut out = Vec::new();
-        m.vacuum_state(100 * MS, &vacuum([false, true], [0, 1]), &mut out);
-        m.vacuum_state(90 * MS, &vacuum([false, true], [0, 1]), &mut out);
+        m.vacuum_state(100 * MS, &vacuum([false, true], [Closed, Open]), &mut out);
+        m.vacuum_state(90 * MS, &vacuum([false, true], [Closed, Open]), &mut out);
         assert_eq!(out[0].stamp_ns(), 100 * MS);
-        m.vacuum_state(600 * MS, &vacuum([false, true], [0, 1]), &mut out);
+        m.vacuum_state(600 * MS, &vacuum([false, true], [Closed, Open]), &mut out);
         assert_eq!(out.len(), 1, "within the window");
-        m.vacuum_state(620 * MS, &vacuum([false, true], [0, 1]), &mut out);
+        m.vacuum_state(620 * MS, &vacuum([false, true], [Closed, Open]), &mut out);
         assert_eq!(
             out.last(),
             Some(&TraceEvent::FailureDetected {

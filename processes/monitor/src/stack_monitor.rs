@@ -169,7 +169,7 @@ impl StackMonitor {
                 self.stop_engaged = engaged;
             }
             StackMessage::State(arm, state) => {
-                self.arm_stopped[arm.index()] = state.phase == PhaseCode::Stopped as u8;
+                self.arm_stopped[arm.index()] = state.phase == PhaseCode::Stopped;
             }
             StackMessage::Vacuum(_) | StackMessage::Command(..) => {}
         }

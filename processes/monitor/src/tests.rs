@@ -4,7 +4,9 @@
 use std::path::{Path, PathBuf};
 
 use harvest_ipc::catalogue::{ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, VACUUM_STATE};
-use harvest_ipc::payloads::{ArmCommand, ArmState, EmergencyStop, VacuumState};
+use harvest_ipc::payloads::{
+    ArmAttachment, ArmCommand, ArmPhase, ArmState, EmergencyStop, VacuumPolicyCode, VacuumState,
+};
 use harvest_ipc::{Channel, Payload};
 use harvest_recording::schema::TopicInfo;
 use harvest_recording::segment_writer::{ChunkCompression, ChunkSettings, SegmentWriter};
@@ -70,7 +72,7 @@ impl Recording {
     }
 }
 
-fn vacuum(open: [bool; 2], attachment: [u8; 2]) -> VacuumState {
+fn vacuum(open: [bool; 2], attachment: [ArmAttachment; 2]) -> VacuumState {
     VacuumState {
         valve_open: [
             u8::from(open[0]),
@@ -78,16 +80,16 @@ fn vacuum(open: [bool; 2], attachment: [u8; 2]) -> VacuumState {
             u8::from(open[1]),
             u8::from(!open[1]),
         ],
-        arm_attachment: attachment,
-        policy: 2,
+        arm_attachment: attachment.map(Into::into),
+        policy: VacuumPolicyCode::Policy2024.into(),
         ..VacuumState::default()
     }
 }
 
-fn arm_state(arm: usize, phase: u8) -> ArmState {
+fn arm_state(arm: usize, phase: ArmPhase) -> ArmState {
     ArmState {
         arm_id: arm as u8 + 1,
-        phase,
+        phase: phase.into(),
         end_effector_in_robot_m: [1.0, if arm == 0 { 0.2 } else { -0.2 }, 0.5],
         ..ArmState::default()
     }
@@ -110,12 +112,17 @@ fn harvest(arm2_opens_ms: u64, arm1_d_m: f64) -> Recording {
     for t in (0..500).step_by(5) {
         let arm1_open = (100..300).contains(&t);
         let arm1 = match t {
-            150..295 => 2,
-            100..150 => 1,
-            _ => 0,
+            150..295 => ArmAttachment::Sealed,
+            100..150 => ArmAttachment::Open,
+            _ => ArmAttachment::Closed,
         };
         let arm2_open = (arm2_opens_ms..arm2_opens_ms + 50).contains(&t);
-        let mut state = vacuum([arm1_open, arm2_open], [arm1, u8::from(arm2_open)]);
+        let arm2 = if arm2_open {
+            ArmAttachment::Open
+        } else {
+            ArmAttachment::Closed
+        };
+        let mut state = vacuum([arm1_open, arm2_open], [arm1, arm2]);
         if t >= 410 {
             // Emergency stop: the vents close too (every valve closed).
             state.valve_open = [0; 4];
@@ -126,7 +133,14 @@ fn harvest(arm2_opens_ms: u64, arm1_d_m: f64) -> Recording {
             r.push(
                 t,
                 ARM_STATE[arm],
-                &arm_state(arm, if stopped { 5 } else { 1 }),
+                &arm_state(
+                    arm,
+                    if stopped {
+                        ArmPhase::Stopped
+                    } else {
+                        ArmPhase::Approach
+                    },
+                ),
             );
             let d_m = if arm == 0 && t == 250 { arm1_d_m } else { 0.2 };
             r.push(t, ARM_COMMAND[arm], &command(arm, d_m, stopped));
@@ -233,7 +247,11 @@ fn a_message_with_a_foreign_schema_is_skipped_and_a_missing_file_is_an_error() {
     let mut r = Recording::new();
     r.topics[0].layout = "something else";
     r.topics[0].spec.type_name = "other.Type";
-    r.push(0, VACUUM_STATE, &vacuum([true, true], [1, 1]));
+    r.push(
+        0,
+        VACUUM_STATE,
+        &vacuum([true, true], [ArmAttachment::Open; 2]),
+    );
     let (report, _) = judge(r, "foreign");
     assert_eq!((report.messages, report.skipped_messages), (0, 1));
     let missing = check_recording(

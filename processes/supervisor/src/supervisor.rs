@@ -200,12 +200,12 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         let now = Instant::now();
         if attachment.has_event_from(&events_guard) {
             let mut lines = Vec::new();
-            while let Some(event) = events.receive()? {
+            events.drain(|event| {
                 harvest_events += 1;
-                if let Some(line) = harvest_log.on_event(&event) {
+                if let Some(line) = harvest_log.on_event(event) {
                     lines.push(line);
                 }
-            }
+            })?;
             if !lines.is_empty() {
                 if tty && status_lines > 0 {
                     // Clear the in-place status block; it is drawn again below the lines.
@@ -224,7 +224,9 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
             }
         }
         if attachment.has_event_from(&health_guard) {
-            while let Ok(Some(beat)) = health.receive() {
+            // A heartbeat that cannot be received (a crashed publisher's memory) is a missed
+            // beat: the hang timeout judges it, the supervisor goes on.
+            let drained = health.drain(|beat| {
                 let name = beat.process_name.as_str();
                 // Only the current instance's beats count (not a killed predecessor's).
                 if let Some(process) = processes.iter_mut().find(|p| {
@@ -235,6 +237,9 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                     process.status.detail = beat.detail.as_str().to_owned();
                     process.status.detail_value = beat.detail_value;
                 }
+            });
+            if let Err(error) = drained {
+                tracing::debug!(%error, "heartbeats not received");
             }
         }
         if !attachment.has_event_from(&tick_guard) {
@@ -333,11 +338,14 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     drop(tick_guard);
     drop(events_guard);
     // Events sent while the stack stops (attempts cut short) still count.
-    while let Ok(Some(event)) = events.receive() {
+    let drained = events.drain(|event| {
         harvest_events += 1;
-        if let Some(line) = harvest_log.on_event(&event) {
+        if let Some(line) = harvest_log.on_event(event) {
             println!("{line}");
         }
+    });
+    if let Err(error) = drained {
+        tracing::debug!(%error, "harvest events sent while stopping not received");
     }
     drop(events);
     shutdown(

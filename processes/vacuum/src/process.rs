@@ -432,13 +432,13 @@ fn control_loop<B: ValveBoard>(
                 }
                 state_out.publish(&out.state)?;
                 let arms = ArmContext {
-                    phase: arm_states.map(|s| s.map_or(0, |s| s.phase)),
+                    phase: arm_states.map(|s| s.map_or(PhaseCode::Idle.into(), |s| s.phase)),
                     apple_id: arm_states.map(|s| s.map_or(0, |s| s.apple_id)),
                 };
                 for event in &out.events {
                     completion.on_event(event);
                     if let Some(harvest_event) = vacuum_event(now_ns, event, &arms) {
-                        if harvest_event.kind() == Some(HarvestEventKind::Assigned) {
+                        if harvest_event.kind == HarvestEventKind::Assigned {
                             tracing::info!(arm = harvest_event.arm_id,
                                 apple_id = harvest_event.apple_id,
                                 position_m = ?harvest_event.position_in_robot_m, "apple assigned");
@@ -447,7 +447,7 @@ fn control_loop<B: ValveBoard>(
                     }
                 }
                 let arms_idle = (0..2).all(|i| {
-                    !enabled[i] || arm_states[i].is_some_and(|s| s.phase == PhaseCode::Idle as u8)
+                    !enabled[i] || arm_states[i].is_some_and(|s| s.phase == PhaseCode::Idle)
                 });
                 if completion.update(now_ns, arms_idle && node.is_idle(), complete_after_ns) {
                     tracing::info!("harvest complete: nothing left to pick");

@@ -1,17 +1,17 @@
 //! Fixed-size benchmark payloads for the size sweep (the catalogue's channels have fixed types).
 
-use harvest_ipc::Header;
-use harvest_ipc::Payload;
 use harvest_ipc::codec::{self, CodecError};
+use harvest_ipc::{AnyBitPattern, Header, Payload};
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Bytes in front of [`BenchPayload::bytes`]: the [`Header`] (24) and the phase code (8).
 pub const BENCH_PAYLOAD_OVERHEAD: usize = std::mem::size_of::<Header>() + 8;
 
 /// A benchmark message of `BENCH_PAYLOAD_OVERHEAD + N` bytes. `N` must be a multiple of 8 so
-/// the struct has no padding (checked at compile time by [`BenchPayload::SIZE`]).
+/// the struct has no padding (checked at compile time by the `AnyBitPattern` derive when the
+/// transport opens a channel of it, and by [`BenchPayload::SIZE`]).
 #[repr(C)]
-#[derive(ZeroCopySend)]
+#[derive(ZeroCopySend, AnyBitPattern)]
 pub struct BenchPayload<const N: usize> {
     pub header: Header,
     /// Which benchmark phase the message belongs to (see [`crate::message::Phase`]).
@@ -41,9 +41,7 @@ impl<const N: usize> std::fmt::Debug for BenchPayload<N> {
     }
 }
 
-// SAFETY: #[repr(C)] plain data (a Header of u64s, a u64 and a byte array; no padding, see
-// `SIZE`), so every bit pattern is a valid value.
-unsafe impl<const N: usize> Payload for BenchPayload<N> {
+impl<const N: usize> Payload for BenchPayload<N> {
     const TYPE_NAME: &'static str = "harvest.bench.BenchPayload";
     const VERSION: u32 = 1;
     const SCHEMA: &'static str = "encoding bincode2-fixint-le: header: {msg_seq:u64, \

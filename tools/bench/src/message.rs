@@ -10,7 +10,9 @@ use crate::bench_payload::BenchPayload;
 use crate::error::BenchError;
 use harvest_ipc::catalogue::{self, Channel, Qos};
 use harvest_ipc::payloads::apple_detections::MAX_APPLES_PER_FRAME;
-use harvest_ipc::payloads::{AppleDetection, AppleDetections, LaserScanRequest, RgbdFrame};
+use harvest_ipc::payloads::{
+    AppleDetection, AppleDetections, LaserScanRequest, LocalizationMethod, RgbdFrame,
+};
 use harvest_ipc::{MonotonicClock, Payload};
 
 /// Bytes per written line (the cache-line size of x86-64 and most ARM cores).
@@ -308,7 +310,7 @@ impl BenchMessage for AppleDetections {
             let value = line_value(msg_seq, index);
             let detection = AppleDetection {
                 apple_id: value as u32,
-                method: 1,
+                method: LocalizationMethod::ClusterCentroid.into(),
                 position_in_camera_m: [f64::from_bits(value), 0.0, 0.0],
                 confidence: 1.0,
                 ..AppleDetection::default()

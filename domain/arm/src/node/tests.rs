@@ -1,6 +1,17 @@
 use super::*;
+use harvest_ipc::WireCode;
 use harvest_ipc::payloads::arm::TargetStatus;
 use harvest_robot_model::kinematics::inverse;
+
+/// The attachment the vacuum supervisor would infer for a line open or not, sealed or not.
+fn attachment(sealed: bool, open: bool) -> WireCode<ArmAttachment> {
+    match (sealed, open) {
+        (true, _) => ArmAttachment::Sealed,
+        (false, true) => ArmAttachment::Open,
+        (false, false) => ArmAttachment::Closed,
+    }
+    .into()
+}
 
 const PERIOD_NS: u64 = 5_000_000;
 /// A mid-workspace apple centre of arm 1 (its picking point is 0.52 m from the home cup).
@@ -77,7 +88,7 @@ impl Bench {
             valve_open: [u8::from(open), u8::from(!open), 0, 1],
             valve_in_transit: [u8::from(in_transit), u8::from(in_transit), 0, 0],
             pressure_mmh2o: [pressure, 0.0, 2400.0],
-            arm_attachment: [if self.sealed { 2 } else { u8::from(open) }, 0],
+            arm_attachment: [attachment(self.sealed, open), ArmAttachment::Closed.into()],
             ..VacuumState::default()
         }
     }
@@ -107,7 +118,7 @@ impl Bench {
         self.order = out.servo;
         self.order_ns = self.now_ns;
         if self.vacuum_follows_requests {
-            let open = out.valve_request.kind == ValveRequestKind::OpenForAttach as u8;
+            let open = out.valve_request.kind == ValveRequestKind::OpenForAttach;
             if open != self.valve_commanded_open {
                 self.valve_commanded_open = open;
                 self.valve_changed_ns = self.now_ns;
@@ -168,7 +179,7 @@ impl Bench {
         let start = self.now_ns;
         loop {
             let out = self.tick();
-            let busy = out.state.phase != PhaseCode::Idle as u8;
+            let busy = out.state.phase != PhaseCode::Idle;
             if (!busy && self.now_ns - start > 20 * PERIOD_NS)
                 || (self.now_ns - start) as f64 * 1e-9 > max_s
             {
@@ -319,7 +330,7 @@ fn a_full_cycle_harvests_with_the_events_in_order_and_set_points_in_limits() {
     assert!(
         b.outputs
             .iter()
-            .any(|o| o.state.phase == PhaseCode::Approach as u8 && o.state.apple_id == 7)
+            .any(|o| o.state.phase == PhaseCode::Approach && o.state.apple_id == 7)
     );
     let last = b.outputs.last().expect("outputs");
     assert_eq!((last.state.apple_id, last.state.harvested_count), (0, 1));
@@ -327,10 +338,10 @@ fn a_full_cycle_harvests_with_the_events_in_order_and_set_points_in_limits() {
     let open_ticks = b
         .outputs
         .iter()
-        .filter(|o| o.valve_request.kind == ValveRequestKind::OpenForAttach as u8);
+        .filter(|o| o.valve_request.kind == ValveRequestKind::OpenForAttach);
     for o in open_ticks {
         assert!(
-            [PhaseCode::AttachDetach as u8, PhaseCode::Retract as u8].contains(&o.state.phase),
+            o.state.phase == PhaseCode::AttachDetach || o.state.phase == PhaseCode::Retract,
             "{o:?}"
         );
     }
@@ -373,7 +384,7 @@ fn an_unreachable_target_is_dropped_with_its_reason() {
     let state = b.outputs.last().map(|o| o.state).expect("ticked");
     assert_eq!(
         (state.target_status, state.target_apple_id),
-        (TargetStatus::Refused as u8, 3)
+        (TargetStatus::Refused.into(), 3)
     );
     // NaN and stale targets likewise.
     b.target = Some(b.target(2, 4, [f64::NAN, 0.0, 0.3]));
@@ -401,7 +412,7 @@ fn an_unreachable_target_is_dropped_with_its_reason() {
     assert!(!b.has(|e| matches!(e, ArmNodeEvent::TargetAccepted { .. })));
     assert_eq!(
         b.outputs.last().map(|o| o.state.phase),
-        Some(PhaseCode::Idle as u8)
+        Some(PhaseCode::Idle.into())
     );
 }
 
@@ -421,10 +432,7 @@ fn no_motion_starts_without_a_fresh_state_of_the_other_arm() {
     assert!(!b.has(|e| matches!(e, ArmNodeEvent::TargetAccepted { .. })));
     let status = |b: &Bench| {
         let state = b.outputs.last().map(|o| o.state).expect("ticked");
-        (
-            TargetStatus::from_code(state.target_status),
-            state.target_apple_id,
-        )
+        (state.target_status.get().ok(), state.target_apple_id)
     };
     assert_eq!(status(&b), (Some(TargetStatus::Waiting), 9));
     // Withdrawn by the supervisor, then dispatched again.
@@ -446,7 +454,7 @@ fn no_motion_starts_without_a_fresh_state_of_the_other_arm() {
             publish_ns: 0,
         },
         arm_id: 2,
-        phase: PhaseCode::Idle as u8,
+        phase: PhaseCode::Idle.into(),
         end_effector_in_robot_m: forward(&params.links, &params.home),
         ..ArmState::default()
     });
@@ -464,13 +472,13 @@ fn emergency_stop_brakes_closes_and_abandons_the_attempt() {
     }
     assert_eq!(
         b.outputs.last().map(|o| o.state.phase),
-        Some(PhaseCode::Approach as u8)
+        Some(PhaseCode::Approach.into())
     );
     b.emergency_stop = true;
     let out = b.tick();
     assert_eq!(out.servo, ServoOrder::Hold);
-    assert_eq!(out.valve_request.kind, ValveRequestKind::Close as u8);
-    assert_eq!(out.state.phase, PhaseCode::Stopped as u8);
+    assert_eq!(out.valve_request.kind, ValveRequestKind::Close);
+    assert_eq!(out.state.phase, PhaseCode::Stopped);
     assert!(
         out.events
             .contains(&ArmNodeEvent::EmergencyStop { engaged: true })
@@ -493,7 +501,7 @@ fn emergency_stop_brakes_closes_and_abandons_the_attempt() {
         out.events
             .contains(&ArmNodeEvent::EmergencyStop { engaged: false })
     );
-    assert_eq!(out.state.phase, PhaseCode::Idle as u8);
+    assert_eq!(out.state.phase, PhaseCode::Idle);
     // A new target after the release starts from where the arm stopped.
     b.target = Some(b.target(3, 4, APPLE_M));
     b.tick();
@@ -507,7 +515,7 @@ fn the_cycle_sees_the_valve_open_only_at_the_end_stop_and_closed_only_once_vente
         valve_open: [u8::from(open), u8::from(!open), 0, 1],
         valve_in_transit: [u8::from(transit), u8::from(transit), 0, 0],
         pressure_mmh2o: [pressure, 0.0, 2400.0],
-        arm_attachment: [if sealed { 2 } else { u8::from(open) }, 0],
+        arm_attachment: [attachment(sealed, open), ArmAttachment::Closed.into()],
         ..VacuumState::default()
     };
     assert_eq!(node.vacuum_view(None), (false, false));
@@ -547,7 +555,7 @@ fn a_refusal_is_reported_once_per_request_and_reason() {
     let mut refused_once = false;
     for _ in 0..1200 {
         let out = b.tick();
-        if out.valve_request.kind == ValveRequestKind::OpenForAttach as u8 && !refused_once {
+        if out.valve_request.kind == ValveRequestKind::OpenForAttach && !refused_once {
             refused_once = true;
             b.grant = Some(ValveGrant {
                 arm_id: 1,

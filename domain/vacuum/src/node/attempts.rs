@@ -20,7 +20,7 @@ impl VacuumNode {
         for arm in ArmId::ALL {
             let i = arm.index();
             let state = input.arm_states[i];
-            let phase = state.and_then(|s| PhaseCode::from_code(s.phase));
+            let phase = state.and_then(|s| s.phase.get().ok());
             if matches!(phase, Some(PhaseCode::Idle | PhaseCode::Approach)) {
                 self.arms[i].opened_in_cycle = false;
             }
@@ -40,7 +40,7 @@ impl VacuumNode {
                 } else {
                     if let Some(status) = state
                         .filter(|s| s.target_apple_id == wire_id(d.apple.id))
-                        .and_then(|s| TargetStatus::from_code(s.target_status))
+                        .and_then(|s| s.target_status.get().ok())
                         && status != TargetStatus::None
                     {
                         self.on_target_status(arm, d, status, now_ns);

@@ -23,7 +23,7 @@ impl VacuumNode {
                 continue;
             };
             let track = self.arms[i];
-            let idle = state.phase == PhaseCode::Idle as u8
+            let idle = state.phase == PhaseCode::Idle
                 && track.dispatched.is_none()
                 && track.active.is_none()
                 && self.planner.in_progress(arm).is_none();

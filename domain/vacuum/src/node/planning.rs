@@ -190,8 +190,8 @@ impl VacuumNode {
 fn holding_cup_m(state: &ArmState) -> Option<[f64; 3]> {
     let carrying = state.holding != 0
         || matches!(
-            PhaseCode::from_code(state.phase),
-            Some(PhaseCode::Retract | PhaseCode::Release)
+            state.phase.get(),
+            Ok(PhaseCode::Retract | PhaseCode::Release)
         );
     let cup = state.end_effector_in_robot_m;
     (carrying && cup.iter().all(|c| c.is_finite())).then_some(cup)

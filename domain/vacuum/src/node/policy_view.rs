@@ -14,7 +14,8 @@ fn policy_phase(state: Option<&ArmState>, track: &ArmTrack) -> CoordinationPhase
     if track.dispatched.is_some() {
         return CoordinationPhase::Approaching;
     }
-    match state.and_then(|s| PhaseCode::from_code(s.phase)) {
+    // An unknown phase code is treated like a missing state.
+    match state.and_then(|s| s.phase.get().ok()) {
         Some(PhaseCode::Idle) => CoordinationPhase::Ready,
         Some(PhaseCode::Approach) => CoordinationPhase::Approaching,
         Some(PhaseCode::AttachDetach) if track.valve_open => CoordinationPhase::Attaching,

@@ -1,11 +1,13 @@
 use super::*;
 use crate::policy::{CloseReason, PolicyKind, RefuseReason};
 use crate::replan::AttemptResult;
+use harvest_ipc::WireCode;
 use harvest_ipc::payloads::arm::TargetStatus;
 use harvest_ipc::payloads::{
     AppleDetection, AppleDetections, ArmPhase as PhaseCode, ArmState, ArmTarget, ValveRequest,
     ValveRequestKind,
 };
+use harvest_ipc::payloads::{ArmAttachment, VacuumPolicyCode};
 
 const MS: u64 = 1_000_000;
 const LEFT: [f64; 3] = [1.3, 0.15, 0.3];
@@ -67,12 +69,12 @@ impl Bench {
     fn new(policy: PolicyKind) -> Self {
         let state = |arm_id| ArmState {
             arm_id,
-            phase: PhaseCode::Idle as u8,
+            phase: PhaseCode::Idle.into(),
             ..ArmState::default()
         };
         let request = |arm_id| ValveRequest {
             arm_id,
-            kind: ValveRequestKind::Close as u8,
+            kind: ValveRequestKind::Close.into(),
             ..ValveRequest::default()
         };
         Self {
@@ -132,12 +134,12 @@ impl Bench {
     }
 
     fn set_phase(&mut self, arm: usize, phase: PhaseCode, apple_id: u32) {
-        self.states[arm].phase = phase as u8;
+        self.states[arm].phase.set(phase);
         self.states[arm].apple_id = apple_id;
     }
 
     fn request(&mut self, arm: usize, kind: ValveRequestKind) {
-        self.requests[arm].kind = kind as u8;
+        self.requests[arm].kind.set(kind);
         self.requests[arm].request_seq += 1;
     }
 
@@ -427,7 +429,7 @@ fn a_disabled_arm_gets_no_apple_and_no_vacuum() {
     let (s1, s2) = (idle(1), idle(2));
     let open2 = ValveRequest {
         arm_id: 2,
-        kind: ValveRequestKind::OpenForAttach as u8,
+        kind: ValveRequestKind::OpenForAttach.into(),
         request_seq: 1,
         ..ValveRequest::default()
     };
@@ -456,10 +458,13 @@ fn a_disabled_arm_gets_no_apple_and_no_vacuum() {
 fn the_published_state_mirrors_the_board_and_the_inference() {
     let mut b = Bench::new(PolicyKind::V2023);
     let out = b.tick();
-    assert_eq!(out.state.policy, 1);
+    assert_eq!(out.state.policy, VacuumPolicyCode::Policy2023);
     assert_eq!(out.state.valve_open, [0, 1, 0, 1]);
     assert_eq!(out.state.pressure_mmh2o, [0.0, 0.0, 2400.0]);
-    assert_eq!(out.state.arm_attachment, [0, 0]);
+    assert_eq!(
+        out.state.arm_attachment,
+        [WireCode::new(ArmAttachment::Closed); 2]
+    );
     b.set_phase(0, PhaseCode::AttachDetach, 1);
     b.request(0, ValveRequestKind::OpenForAttach);
     b.tick();
@@ -467,13 +472,25 @@ fn the_published_state_mirrors_the_board_and_the_inference() {
     // The board reports the gate moving; the inference waits for it.
     assert_eq!(out.state.valve_open, [1, 0, 0, 1]);
     assert_eq!(out.state.valve_in_transit, [1, 1, 0, 0]);
-    assert_eq!(out.state.arm_attachment, [0, 0]);
+    assert_eq!(
+        out.state.arm_attachment,
+        [WireCode::new(ArmAttachment::Closed); 2]
+    );
     b.pressure = [2350.0, 0.0, 2400.0];
     b.ticks(20);
     let out = b.tick();
-    assert_eq!(out.state.arm_attachment, [2, 0]);
-    assert_eq!(policy_code(PolicyKind::V2024), 2);
-    assert_eq!(attachment_code(AttachmentState::Dropped), 1);
+    assert_eq!(
+        out.state.arm_attachment,
+        [
+            WireCode::new(ArmAttachment::Sealed),
+            WireCode::new(ArmAttachment::Closed)
+        ]
+    );
+    assert_eq!(policy_code(PolicyKind::V2024), VacuumPolicyCode::Policy2024);
+    assert_eq!(
+        attachment_code(AttachmentState::Dropped),
+        ArmAttachment::Open
+    );
 }
 
 #[test]
@@ -558,7 +575,7 @@ fn a_detection_at_a_holding_arm_cup_is_not_a_tree_apple() {
 
 /// The bench's arm `arm` reports its target `apple_id` refused (waiting or for good).
 fn report_target(b: &mut Bench, arm: usize, status: TargetStatus, apple_id: u32) {
-    b.states[arm].target_status = status as u8;
+    b.states[arm].target_status.set(status);
     b.states[arm].target_apple_id = apple_id;
 }
 

@@ -68,7 +68,7 @@ impl VacuumNode {
         for arm in ArmId::ALL {
             let track = &mut self.arms[arm.index()];
             match input.valve_requests[arm.index()] {
-                Some(r) if r.kind == ValveRequestKind::OpenForAttach as u8 => {
+                Some(r) if r.kind == ValveRequestKind::OpenForAttach => {
                     if track.open_request_since_ns.map(|(seq, _)| seq) != Some(r.request_seq) {
                         track.open_request_since_ns = Some((r.request_seq, now_ns));
                     }
@@ -88,8 +88,9 @@ impl VacuumNode {
             if request.arm_id != arm.index() as u8 + 1 {
                 continue;
             }
-            match ValveRequestKind::from_code(request.kind) {
-                Some(ValveRequestKind::Close) | None => {
+            // An unknown request kind is taken as a request to close (the safe side).
+            match request.kind.get() {
+                Ok(ValveRequestKind::Close) | Err(_) => {
                     if self.arms[i].valve_open {
                         self.arms[i].valve_open = false;
                         debug!(%arm, "valve closed on the arm's request");
@@ -99,7 +100,7 @@ impl VacuumNode {
                         });
                     }
                 }
-                Some(ValveRequestKind::OpenForAttach) => self.answer_open(input, arm, request),
+                Ok(ValveRequestKind::OpenForAttach) => self.answer_open(input, arm, request),
             }
         }
     }

@@ -4,6 +4,7 @@
 use crate::assignment::AppleId;
 use crate::policy::{PolicyKind, RefuseReason};
 use crate::pressure::AttachmentState;
+use harvest_ipc::payloads::{ArmAttachment, VacuumPolicyCode};
 
 /// Refusal code sent in `ValveGrant::reason` while the emergency stop is engaged.
 pub const REFUSED_EMERGENCY_STOP: u8 = 20;
@@ -24,24 +25,24 @@ pub fn refuse_reason_code(reason: &RefuseReason) -> u8 {
     }
 }
 
-/// The policy code of `VacuumState::policy` (0 baseline, 1 2023, 2 2024).
-pub fn policy_code(kind: PolicyKind) -> u8 {
+/// The policy as published in `VacuumState::policy`.
+pub fn policy_code(kind: PolicyKind) -> VacuumPolicyCode {
     match kind {
-        PolicyKind::Baseline => 0,
-        PolicyKind::V2023 => 1,
-        PolicyKind::V2024 => 2,
+        PolicyKind::Baseline => VacuumPolicyCode::Baseline,
+        PolicyKind::V2023 => VacuumPolicyCode::Policy2023,
+        PolicyKind::V2024 => VacuumPolicyCode::Policy2024,
     }
 }
 
-/// The attachment code of `VacuumState::arm_attachment` (0 closed, 1 open, 2 sealed; a latched
-/// failure is open and unsealed).
-pub fn attachment_code(state: AttachmentState) -> u8 {
+/// The attachment as published in `VacuumState::arm_attachment` (a latched failure is open and
+/// unsealed).
+pub fn attachment_code(state: AttachmentState) -> ArmAttachment {
     match state {
-        AttachmentState::Closed => 0,
-        AttachmentState::Sealed => 2,
+        AttachmentState::Closed => ArmAttachment::Closed,
+        AttachmentState::Sealed => ArmAttachment::Sealed,
         AttachmentState::OpenToAtmosphere
         | AttachmentState::AttachFailed
-        | AttachmentState::Dropped => 1,
+        | AttachmentState::Dropped => ArmAttachment::Open,
     }
 }
 

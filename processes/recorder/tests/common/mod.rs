@@ -6,8 +6,8 @@
 
 use harvest_ipc::catalogue::{ARM_STATE, CAMERA_RGBD, EMERGENCY_STOP, VACUUM_STATE};
 use harvest_ipc::payloads::rgbd_frame::{DEPTH_PIXELS, RGB_BYTES};
-use harvest_ipc::payloads::{ArmState, EmergencyStop, RgbdFrame, VacuumState};
-use harvest_ipc::{Context, Domain, FixedString, Header, Payload, Publisher};
+use harvest_ipc::payloads::{ArmPhase, ArmState, EmergencyStop, RgbdFrame, VacuumState};
+use harvest_ipc::{Context, Domain, FixedString, Header, Payload, Publisher, WireEnum};
 use harvest_recorder::{RecorderArgs, RecorderControl, RecorderError, RecordingReport};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -101,7 +101,7 @@ pub fn arm_state(index: u32) -> ArmState {
             ..Header::default()
         },
         arm_id: 1,
-        phase: (index % 6) as u8,
+        phase: ArmPhase::ALL[index as usize % ArmPhase::ALL.len()].into(),
         apple_id: 1000 + index,
         harvested_count: index,
         joint_position: [0.1 * index as f64, -0.2, 0.3, f64::from(index).sin()],

@@ -76,8 +76,8 @@ pub fn detect(
         let noisy = in_camera.map(|c| c * scale);
         let detection = AppleDetection {
             apple_id: apple.id.0,
-            method: LocalizationMethod::ClusterCentroid as u8,
-            depth_source: DepthSourceCode::Tof as u8,
+            method: LocalizationMethod::ClusterCentroid.into(),
+            depth_source: DepthSourceCode::Tof.into(),
             _reserved: [0; 2],
             position_in_camera_m: noisy,
             position_in_robot_m: robot_from_camera.apply(noisy),

@@ -298,10 +298,9 @@ impl Episode {
                 valves_closed_s: None,
                 arms_holding_s: None,
                 arms_stopped_s: None,
-                phases_at_request: self.arm_states.map(|s| {
-                    s.and_then(|s| PhaseCode::from_code(s.phase))
-                        .map_or_else(|| "unknown".to_owned(), |p| format!("{p:?}"))
-                }),
+                phases_at_request: self
+                    .arm_states
+                    .map(|s| s.map_or_else(|| "unknown".to_owned(), |s| format!("{:?}", s.phase))),
             });
         }
 
@@ -491,7 +490,7 @@ impl Episode {
             && self
                 .arm_states
                 .iter()
-                .all(|s| s.is_some_and(|s| s.phase == PhaseCode::Stopped as u8))
+                .all(|s| s.is_some_and(|s| s.phase == PhaseCode::Stopped))
         {
             m.arms_holding_s = Some(t_s - m.requested_s);
         }
@@ -516,7 +515,7 @@ impl Episode {
         let arms_idle = self
             .arm_states
             .iter()
-            .all(|s| s.is_some_and(|s| s.phase == PhaseCode::Idle as u8));
+            .all(|s| s.is_some_and(|s| s.phase == PhaseCode::Idle));
         arms_idle && self.vacuum.is_idle() && self.last_replan_ns > self.last_attempt_end_ns
     }
 

@@ -157,7 +157,7 @@ pub fn evaluate_policy(args: &EvalLaserArgs) -> Result<PolicyReport, EvalLaserEr
             {
                 if let Some(count) = report
                     .scan_status_counts
-                    .get_mut(usize::from(scan.result.status))
+                    .get_mut(usize::from(scan.result.status.raw()))
                 {
                     *count += 1;
                 }

@@ -27,9 +27,10 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsError, alacs_camera_intrinsics};
+use harvest_ipc::WireCode;
 use harvest_ipc::camera_model::RigidTransform;
 use harvest_ipc::payloads::rgbd_frame::{DEPTH_PIXELS, RGB_BYTES};
-use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult};
+use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
 use harvest_perception::camera_setup::CameraSetup;
 use harvest_perception::estimator::EstimatorKind;
 use harvest_perception::pipeline::PerceptionSetupError;
@@ -43,9 +44,7 @@ use crate::laser::report_table::write_summary_table;
 
 use crate::laser::accuracy::PAPER_MAX_ERROR_MM;
 use harvest_laser::extraction::ExtractionError;
-use harvest_laser::service::{
-    STATUS_DEVICE_ERROR, STATUS_NO_LASER_LINE, STATUS_OK, STATUS_OUT_OF_REACH, ScanService,
-};
+use harvest_laser::service::ScanService;
 
 /// A ToF estimate pairs with a true apple within this many true radii.
 pub const MATCH_RADII: f64 = 2.0;
@@ -150,7 +149,7 @@ pub struct AppleRecord {
     pub world_seed: u64,
     pub apple_index: u32,
     /// `LaserScanResult::status` of its scan.
-    pub status: u8,
+    pub status: WireCode<LaserScanStatus>,
     pub distance_m: f64,
     /// ToF radius minus true radius, mm (the scan takes the apple's size from the request).
     pub radius_error_mm: f64,
@@ -377,7 +376,7 @@ pub fn evaluate_refinement(args: &EvalLaserArgs) -> Result<RefinementReport, Eva
                 let b = ALACS_FROM_TOF_CAMERA.apply(truth_in_tof);
                 std::array::from_fn(|k| 1e3 * (a[k] - b[k]).abs())
             };
-            let refined = result.status == STATUS_OK;
+            let refined = result.status == LaserScanStatus::Ok;
             records.push(AppleRecord {
                 world_seed: world.seed(),
                 apple_index: apple_index as u32,
@@ -561,8 +560,12 @@ fn summarise(
     apples_generated: usize,
     apples: Vec<AppleRecord>,
 ) -> RefinementReport {
-    let refined: Vec<&AppleRecord> = apples.iter().filter(|r| r.status == STATUS_OK).collect();
-    let count_status = |status| apples.iter().filter(|r| r.status == status).count();
+    let refined: Vec<&AppleRecord> = apples
+        .iter()
+        .filter(|r| r.status == LaserScanStatus::Ok)
+        .collect();
+    let count_status =
+        |status: LaserScanStatus| apples.iter().filter(|r| r.status == status).count();
     let scanned = || apples.iter().filter(|r| r.captures > 0);
     let mean_axis = |axis: fn(&AppleRecord) -> [f64; 3]| -> [f64; 3] {
         std::array::from_fn(|k| Summary::of(refined.iter().map(|r| axis(r)[k])).mean)
@@ -578,9 +581,9 @@ fn summarise(
         apples_generated,
         apples_paired: apples.len(),
         refined: refined.len(),
-        no_laser_line: count_status(STATUS_NO_LASER_LINE),
-        out_of_reach: count_status(STATUS_OUT_OF_REACH),
-        device_errors: count_status(STATUS_DEVICE_ERROR),
+        no_laser_line: count_status(LaserScanStatus::NoLaserLine),
+        out_of_reach: count_status(LaserScanStatus::OutOfReach),
+        device_errors: count_status(LaserScanStatus::DeviceError),
         tof_error_all_mm: Summary::of(apples.iter().map(|r| r.error_before_mm)),
         tof_error_mm: Summary::of(refined.iter().map(|r| r.error_before_mm)),
         laser_error_mm: Summary::of(refined.iter().filter_map(|r| r.error_after_mm)),
