@@ -28,7 +28,6 @@ use harvest_hw::valve_board::conformance::conformance_suite as valve_suite;
 use harvest_hw::valve_board::sim::SimValveBoard;
 use harvest_hw::{DeviceError, ErrorKind};
 use harvest_ipc::{ArmId, Context, Domain, ManualClock};
-use harvest_sim::physics::Arm;
 use harvest_sim::robot::SimRobot;
 use harvest_sim::scenario::Scenario;
 use std::cell::RefCell;
@@ -101,7 +100,7 @@ fn simulated_valve_board_passes_the_conformance_suite() {
 }
 
 /// The joint limits the simulated arms enforce (paper 003 Table 1, from the arm parameters).
-fn declared_limits(arm: Arm) -> [[f64; 2]; 4] {
+fn declared_limits(arm: ArmId) -> [[f64; 2]; 4] {
     let scenario = Scenario::preset(SCENARIO).expect("scenario");
     let robot = SimRobot::new(&scenario, 1).expect("robot");
     let limits = robot.arm_params(arm).position_limits;
@@ -113,13 +112,13 @@ fn declared_limits(arm: Arm) -> [[f64; 2]; 4] {
 fn simulated_servos_of_both_arms_pass_the_conformance_suite() {
     let _watchdog = TestWatchdog::arm("servos", WATCHDOG);
     let sim = SimDevices::start("servo");
-    for (arm_id, arm) in [(ArmId::One, Arm::One), (ArmId::Two, Arm::Two)] {
+    for arm in ArmId::ALL {
         let limits = declared_limits(arm);
         let config = ServoConformanceConfig::with_limits(limits);
         let report = servo_suite(&config, || {
-            SimArmServos::connect(&sim.context, arm_id, limits).expect("connect sim servos")
+            SimArmServos::connect(&sim.context, arm, limits).expect("connect sim servos")
         })
-        .unwrap_or_else(|error| panic!("arm {arm_id:?}: {error}"));
+        .unwrap_or_else(|error| panic!("arm {arm:?}: {error}"));
         assert_all_passed(&report, 4);
     }
 }
@@ -231,7 +230,7 @@ fn in_process_servos_pass_the_conformance_suite() {
     let scenario = Scenario::preset(SCENARIO).expect("scenario");
     let robot: SharedRobot = Rc::new(RefCell::new(SimRobot::new(&scenario, 1).expect("robot")));
     let clock = ManualClock::starting_at(1);
-    for arm in [Arm::One, Arm::Two] {
+    for arm in [ArmId::Arm1, ArmId::Arm2] {
         let limits = declared_limits(arm);
         let config = ServoConformanceConfig::with_limits(limits);
         let report = servo_suite(&config, || HostTimedServos {

@@ -18,6 +18,7 @@
 //! recording into a domain where the stack runs is refused per channel for the channels the
 //! stack writes (`harvest replay` reports them as skipped with the publisher-limit error).
 
+use crate::arm_id::ArmId;
 use crate::payload::Payload;
 use crate::payloads::*;
 use std::marker::PhantomData;
@@ -174,43 +175,6 @@ impl<T: Payload> Channel<T> {
             qos,
             "ad-hoc channel (not part of the stack catalogue)",
         )
-    }
-}
-
-/// Arm identifiers: arm 1 and arm 2.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum ArmId {
-    One,
-    Two,
-}
-
-impl ArmId {
-    pub const ALL: [ArmId; 2] = [ArmId::One, ArmId::Two];
-
-    pub fn from_number(number: u8) -> Option<Self> {
-        match number {
-            1 => Some(Self::One),
-            2 => Some(Self::Two),
-            _ => None,
-        }
-    }
-
-    pub fn number(self) -> u8 {
-        match self {
-            Self::One => 1,
-            Self::Two => 2,
-        }
-    }
-
-    pub fn index(self) -> usize {
-        self.number() as usize - 1
-    }
-
-    pub fn other(self) -> Self {
-        match self {
-            Self::One => Self::Two,
-            Self::Two => Self::One,
-        }
     }
 }
 

@@ -13,6 +13,7 @@
 extern crate self as harvest_ipc;
 
 pub mod any_bit_pattern;
+pub mod arm_id;
 pub mod bounded_vec;
 pub mod camera_model;
 pub mod catalogue;
@@ -39,8 +40,9 @@ pub mod waiter;
 pub mod wire_code;
 
 pub use any_bit_pattern::AnyBitPattern;
+pub use arm_id::ArmId;
 pub use bounded_vec::BoundedVec;
-pub use catalogue::{ArmId, Channel, ChannelSpec, ChannelVisitor, Qos};
+pub use catalogue::{Channel, ChannelSpec, ChannelVisitor, Qos};
 pub use clock::{Clock, ManualClock, MonotonicClock};
 pub use context::{Context, Ipc};
 pub use domain::Domain;

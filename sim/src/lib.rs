@@ -28,6 +28,6 @@ pub mod thread_link;
 
 pub use ground_truth::{AppleTruth, WorldTruth};
 pub use orchard::{Apple, AppleId, AppleState, OrchardError, World};
-pub use physics::{Arm, DropCause, ReleaseOutcome, StepError, StepInputs, WorldEvent};
+pub use physics::{ArmId, DropCause, ReleaseOutcome, StepError, StepInputs, WorldEvent};
 pub use render_rgbd::{RenderError, RgbdRenderer};
 pub use scenario::{Scenario, ScenarioError};

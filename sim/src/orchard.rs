@@ -9,7 +9,7 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
-use crate::physics::{Arm, PhysicsState};
+use crate::physics::{ArmId, PhysicsState};
 use crate::scenario::{
     AppleLayout, CameraPoseError, CanopyStructure, Scenario, TruncatedNormal, cross, norm,
     normalized, sub,
@@ -25,7 +25,7 @@ pub enum AppleState {
     /// Hanging on its stem.
     OnTree,
     /// Held by an arm's end-effector; `detached` once the stem let go.
-    Attached { arm: Arm, detached: bool },
+    Attached { arm: ArmId, detached: bool },
     /// Fell to the ground (knocked off, released away from the dropping module).
     Dropped,
     /// Released onto the dropping module.

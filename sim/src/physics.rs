@@ -27,24 +27,8 @@ use crate::orchard::{AppleId, AppleState, World};
 use crate::scenario::{VacuumConfig, norm, sub};
 use vacuum::{VacuumPlantState, inlet_valve};
 
-/// One of the two arms (paper numbering: arm 1 is served by valves 1-2, arm 2 by valves 3-4).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Arm {
-    One,
-    Two,
-}
-
-impl Arm {
-    pub const BOTH: [Arm; 2] = [Arm::One, Arm::Two];
-
-    /// 0 for arm 1, 1 for arm 2.
-    pub fn index(self) -> usize {
-        match self {
-            Arm::One => 0,
-            Arm::Two => 1,
-        }
-    }
-}
+/// Arm 1 is served by valves 1-2, arm 2 by valves 3-4 (paper numbering).
+pub use harvest_ipc::ArmId;
 
 /// What the caller feeds in every step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -90,28 +74,28 @@ pub enum ReleaseOutcome {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum WorldEvent {
     /// A leaf between cup and fruit prevented the seal for this attempt (Table 3, "Sealing").
-    SealBlocked { arm: Arm, apple: AppleId },
+    SealBlocked { arm: ArmId, apple: AppleId },
     /// The cup sealed on the fruit and holds it.
-    Attached { arm: Arm, apple: AppleId },
+    Attached { arm: ArmId, apple: AppleId },
     /// The stem let go; the fruit is off the tree, on the cup.
-    Detached { arm: Arm, apple: AppleId },
+    Detached { arm: ArmId, apple: AppleId },
     /// The stem held harder than the cup: the fruit slipped off the cup and stays on the tree
     /// (Table 3, "Detachment").
     Slipped {
-        arm: Arm,
+        arm: ArmId,
         apple: AppleId,
         tension_n: f64,
         holding_force_n: f64,
     },
     /// A detached fruit fell off the cup before release.
     Dropped {
-        arm: Arm,
+        arm: ArmId,
         apple: AppleId,
         cause: DropCause,
     },
     /// The inlet closed and the fruit left the cup.
     Released {
-        arm: Arm,
+        arm: ArmId,
         apple: AppleId,
         outcome: ReleaseOutcome,
     },
@@ -125,7 +109,7 @@ pub enum StepError {
     InvalidTimeStep { dt_s: f64 },
     /// An end-effector position or twist is NaN or infinite.
     #[error("arm {arm:?}: end-effector input {value:?} is not finite")]
-    NonFiniteInput { arm: Arm, value: [f64; 4] },
+    NonFiniteInput { arm: ArmId, value: [f64; 4] },
 }
 
 /// One harvest attempt: the arm's inlet is open near this apple.
@@ -191,7 +175,7 @@ impl World {
     }
 
     /// The apple arm `arm` holds, if any.
-    pub fn held_apple(&self, arm: Arm) -> Option<AppleId> {
+    pub fn held_apple(&self, arm: ArmId) -> Option<AppleId> {
         self.physics.arms[arm.index()]
             .held
             .map(|held| self.apples[held.apple].id)
@@ -202,7 +186,7 @@ impl World {
         if !(dt_s > 0.0 && dt_s.is_finite()) {
             return Err(StepError::InvalidTimeStep { dt_s });
         }
-        for arm in Arm::BOTH {
+        for arm in ArmId::ALL {
             let [x, y, z] = inputs.end_effector_in_robot_m[arm.index()];
             let twist = inputs.end_effector_twist_rad[arm.index()];
             if ![x, y, z, twist].iter().all(|v| v.is_finite()) {
@@ -213,12 +197,12 @@ impl World {
             }
         }
         let config = self.scenario.vacuum.clone();
-        let cups = Arm::BOTH.map(|arm| self.cup_conductance(&config, arm, inputs));
+        let cups = ArmId::ALL.map(|arm| self.cup_conductance(&config, arm, inputs));
         self.physics
             .vacuum
             .step(&config, dt_s, inputs.valve_open, cups);
         let mut events = Vec::new();
-        for arm in Arm::BOTH {
+        for arm in ArmId::ALL {
             self.step_arm(&config, arm, inputs, &mut events);
         }
         self.physics.time_s += dt_s;
@@ -230,7 +214,7 @@ impl World {
 
     /// Conductance of the arm's cup: sealed by a held fruit, partly blocked by a leaf over the
     /// attempted fruit, or open to the air.
-    fn cup_conductance(&self, config: &VacuumConfig, arm: Arm, inputs: &StepInputs) -> f64 {
+    fn cup_conductance(&self, config: &VacuumConfig, arm: ArmId, inputs: &StepInputs) -> f64 {
         let contact = &self.physics.arms[arm.index()];
         if contact.held.is_some() {
             return config.sealed_cup_conductance;
@@ -265,7 +249,7 @@ impl World {
     fn step_arm(
         &mut self,
         config: &VacuumConfig,
-        arm: Arm,
+        arm: ArmId,
         inputs: &StepInputs,
         events: &mut Vec<WorldEvent>,
     ) {
@@ -343,7 +327,7 @@ impl World {
     fn step_held(
         &mut self,
         config: &VacuumConfig,
-        arm: Arm,
+        arm: ArmId,
         mut held: Held,
         cup: [f64; 3],
         twist: f64,
@@ -534,11 +518,11 @@ mod tests {
         assert_eq!(
             events,
             vec![WorldEvent::Attached {
-                arm: Arm::One,
+                arm: ArmId::Arm1,
                 apple: id
             }]
         );
-        assert_eq!(world.held_apple(Arm::One), Some(id));
+        assert_eq!(world.held_apple(ArmId::Arm1), Some(id));
         // Sealed: the arm line climbs close to the source.
         let vacuum = world.vacuum();
         assert!(vacuum.arm_mmh2o[0] > 0.9 * vacuum.source_mmh2o);
@@ -547,7 +531,7 @@ mod tests {
         assert_eq!(
             events,
             vec![WorldEvent::Released {
-                arm: Arm::One,
+                arm: ArmId::Arm1,
                 apple: id,
                 outcome: ReleaseOutcome::BackOnTree
             }]
@@ -561,7 +545,7 @@ mod tests {
         let id = world.apples()[0].id;
         let cup = in_front_of(&world, 0, 0.005);
         run(&mut world, 1.0, &inputs(cup, true));
-        assert_eq!(world.held_apple(Arm::One), Some(id));
+        assert_eq!(world.held_apple(ArmId::Arm1), Some(id));
         // Retract in 1 cm steps to the home position with the valve open.
         let mut events = Vec::new();
         let mut position = cup;
@@ -572,7 +556,7 @@ mod tests {
         assert_eq!(
             events,
             vec![WorldEvent::Detached {
-                arm: Arm::One,
+                arm: ArmId::Arm1,
                 apple: id
             }]
         );
@@ -580,7 +564,7 @@ mod tests {
         assert_eq!(
             events,
             vec![WorldEvent::Released {
-                arm: Arm::One,
+                arm: ArmId::Arm1,
                 apple: id,
                 outcome: ReleaseOutcome::Harvested
             }]
@@ -598,7 +582,7 @@ mod tests {
         assert_eq!(
             events,
             vec![WorldEvent::SealBlocked {
-                arm: Arm::One,
+                arm: ArmId::Arm1,
                 apple: world.apples()[0].id
             }]
         );

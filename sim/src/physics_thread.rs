@@ -14,7 +14,7 @@
 //! one, clamped to [0.1 ms, 50 ms]), as it did when one thread served every device.
 
 use crate::orchard::AppleState;
-use crate::physics::Arm;
+use crate::physics::ArmId;
 use crate::platform_device::{PlatformDeviceConfig, PlatformDeviceError, PlatformDeviceServer};
 use crate::robot::{SimRobot, SimRobotError};
 use crate::thread_link::ThreadLink;
@@ -36,7 +36,7 @@ pub const GROUND_TRUTH_PERIOD: Duration = Duration::from_millis(100);
 /// Shortest and longest step, s: a late wake-up is caught up in one step of at most 50 ms.
 const STEP_RANGE_S: (f64, f64) = (1e-4, 0.05);
 
-const ARMS: [Arm; 2] = [Arm::One, Arm::Two];
+const ARMS: [ArmId; 2] = [ArmId::Arm1, ArmId::Arm2];
 
 /// Settings of the physics thread.
 #[derive(Debug, Clone, PartialEq)]
@@ -147,8 +147,12 @@ impl PhysicsPorts {
                 for apple in &truth.apples {
                     let state = match apple.state {
                         AppleState::OnTree => TrueAppleState::OnTree,
-                        AppleState::Attached { arm: Arm::One, .. } => TrueAppleState::OnArm1,
-                        AppleState::Attached { arm: Arm::Two, .. } => TrueAppleState::OnArm2,
+                        AppleState::Attached {
+                            arm: ArmId::Arm1, ..
+                        } => TrueAppleState::OnArm1,
+                        AppleState::Attached {
+                            arm: ArmId::Arm2, ..
+                        } => TrueAppleState::OnArm2,
                         AppleState::Dropped => TrueAppleState::Dropped,
                         AppleState::Harvested => TrueAppleState::Harvested,
                     };

@@ -31,7 +31,7 @@ use harvest_robot_model::params::ArmParams;
 use crate::orchard::{OrchardError, World};
 use crate::physics::servo::{ServoCommand, ServoError, ServoModel};
 use crate::physics::vacuum::VacuumPlantState;
-use crate::physics::{Arm, StepError, StepInputs, WorldEvent};
+use crate::physics::{ArmId, StepError, StepInputs, WorldEvent};
 use crate::scenario::Scenario;
 
 /// Joints per arm: `[D m, theta rad, phi rad, twist rad]`.
@@ -77,7 +77,7 @@ pub enum SimRobotError {
     #[error("{arm:?} servos: {source}")]
     Servo {
         /// Which arm.
-        arm: Arm,
+        arm: ArmId,
         /// The servo model's error.
         source: ServoError,
     },
@@ -105,7 +105,7 @@ pub enum SimRobotError {
     )]
     InvalidSetpoint {
         /// Which arm.
-        arm: Arm,
+        arm: ArmId,
         /// Joint index `[D, theta, phi, twist]`.
         joint: usize,
         /// Commanded position (m or rad).
@@ -146,7 +146,7 @@ struct SimArm {
 }
 
 impl SimArm {
-    fn new(arm: Arm, params: ArmParams, config: &SimRobotConfig) -> Result<Self, SimRobotError> {
+    fn new(arm: ArmId, params: ArmParams, config: &SimRobotConfig) -> Result<Self, SimRobotError> {
         let servo = ServoModel::new(
             params.position_limits,
             params.rate_limits,
@@ -230,8 +230,8 @@ impl SimRobot {
         }
         let world = World::generate(scenario, seed)?;
         let arms = [
-            SimArm::new(Arm::One, ArmParams::arm1(), &config)?,
-            SimArm::new(Arm::Two, ArmParams::arm2(), &config)?,
+            SimArm::new(ArmId::Arm1, ArmParams::arm1(), &config)?,
+            SimArm::new(ArmId::Arm2, ArmParams::arm2(), &config)?,
         ];
         Ok(Self {
             world,
@@ -262,7 +262,7 @@ impl SimRobot {
                 arm.servo
                     .step(sub_s, &commands)
                     .map_err(|source| SimRobotError::Servo {
-                        arm: Arm::BOTH[index],
+                        arm: ArmId::ALL[index],
                         source,
                     })?;
             }
@@ -288,7 +288,7 @@ impl SimRobot {
     /// finite or a position lies outside the arm's joint limits (Table 1).
     pub fn set_servo_setpoint(
         &mut self,
-        arm: Arm,
+        arm: ArmId,
         position: [f64; ARM_JOINTS],
         velocity: [f64; ARM_JOINTS],
     ) -> Result<(), SimRobotError> {
@@ -320,17 +320,17 @@ impl SimRobot {
     }
 
     /// Brakes `arm`'s drives: rate command zero until the next set-point.
-    pub fn hold(&mut self, arm: Arm) {
+    pub fn hold(&mut self, arm: ArmId) {
         self.arms[arm.index()].order = DriveOrder::Hold;
     }
 
     /// True while `arm`'s drives are braking (after [`SimRobot::hold`] or a set-point timeout).
-    pub fn is_holding(&self, arm: Arm) -> bool {
+    pub fn is_holding(&self, arm: ArmId) -> bool {
         self.arms[arm.index()].order == DriveOrder::Hold
     }
 
     /// Encoder readings of `arm`: joint positions and rates `[D, theta, phi, twist]`.
-    pub fn encoders(&self, arm: Arm) -> ([f64; ARM_JOINTS], [f64; ARM_JOINTS]) {
+    pub fn encoders(&self, arm: ArmId) -> ([f64; ARM_JOINTS], [f64; ARM_JOINTS]) {
         let servo = &self.arms[arm.index()].servo;
         (servo.positions(), servo.velocities())
     }
@@ -358,12 +358,12 @@ impl SimRobot {
     }
 
     /// The end-effector (cup tip) of `arm`, robot frame, m (eq. 1).
-    pub fn end_effector_in_robot_m(&self, arm: Arm) -> [f64; 3] {
+    pub fn end_effector_in_robot_m(&self, arm: ArmId) -> [f64; 3] {
         self.arms[arm.index()].end_effector_m()
     }
 
     /// The arm parameters the simulation uses for `arm` (Table 1).
-    pub fn arm_params(&self, arm: Arm) -> &ArmParams {
+    pub fn arm_params(&self, arm: ArmId) -> &ArmParams {
         &self.arms[arm.index()].params
     }
 
@@ -405,7 +405,7 @@ mod tests {
     }
 
     /// Streams set-points that move `arm` linearly in joint space to `goal` over `seconds`.
-    fn move_to(robot: &mut SimRobot, arm: Arm, goal: [f64; 4], seconds: f64) -> Vec<WorldEvent> {
+    fn move_to(robot: &mut SimRobot, arm: ArmId, goal: [f64; 4], seconds: f64) -> Vec<WorldEvent> {
         let (start, _) = robot.encoders(arm);
         let steps = (seconds / DT).round() as usize;
         let velocity: [f64; 4] = std::array::from_fn(|j| (goal[j] - start[j]) / seconds);
@@ -430,7 +430,7 @@ mod tests {
     #[test]
     fn starts_at_home_with_the_end_effector_given_by_eq_1() {
         let robot = ideal();
-        for arm in Arm::BOTH {
+        for arm in ArmId::ALL {
             let (q, v) = robot.encoders(arm);
             let params = robot.arm_params(arm);
             assert_eq!(q, params.home.to_array());
@@ -439,7 +439,7 @@ mod tests {
             assert_eq!(robot.end_effector_in_robot_m(arm), expected);
         }
         // Table 1: arm 1 home tip at x0 + x2, y0 + y1, z0 + z1.
-        let p = robot.end_effector_in_robot_m(Arm::One);
+        let p = robot.end_effector_in_robot_m(ArmId::Arm1);
         assert!((p[0] - 1.047).abs() < 1e-12 && (p[1] - 0.110).abs() < 1e-12);
         assert!((p[2] - 0.221).abs() < 1e-12);
         assert_eq!(robot.time_ns(), 0);
@@ -460,42 +460,42 @@ mod tests {
     fn a_streamed_ramp_is_followed_and_hold_brakes() {
         let mut robot = ideal();
         // Extend D at 0.1 m/s for 2 s by streaming the ramp at 200 Hz.
-        let (q0, _) = robot.encoders(Arm::One);
+        let (q0, _) = robot.encoders(ArmId::Arm1);
         for k in 0..400 {
             let t = k as f64 * DT;
             let mut position = q0;
             position[0] += 0.1 * t;
             robot
-                .set_servo_setpoint(Arm::One, position, [0.1, 0.0, 0.0, 0.0])
+                .set_servo_setpoint(ArmId::Arm1, position, [0.1, 0.0, 0.0, 0.0])
                 .expect("set-point");
             robot.step(DT).expect("step");
         }
-        let (q, v) = robot.encoders(Arm::One);
+        let (q, v) = robot.encoders(ArmId::Arm1);
         // The position loop removes the rate lag: within a millimetre of the ramp at 2 s.
         assert!((q[0] - (q0[0] + 0.2)).abs() < 1e-3, "{}", q[0]);
         assert!((v[0] - 0.1).abs() < 1e-3, "{}", v[0]);
         assert_eq!(q[1..], q0[1..]);
-        robot.hold(Arm::One);
+        robot.hold(ArmId::Arm1);
         run(&mut robot, 0.5);
-        let (held, v) = robot.encoders(Arm::One);
+        let (held, v) = robot.encoders(ArmId::Arm1);
         assert!(v[0].abs() < 1e-6);
         // Braking from 0.1 m/s through a 20 ms lag travels about 2 mm.
         assert!((held[0] - q[0]) > 0.0 && (held[0] - q[0]) < 0.004);
-        assert!(robot.is_holding(Arm::One));
+        assert!(robot.is_holding(ArmId::Arm1));
     }
 
     #[test]
     fn drives_brake_when_set_points_stop() {
         let mut robot = ideal();
-        let (q0, _) = robot.encoders(Arm::Two);
+        let (q0, _) = robot.encoders(ArmId::Arm2);
         let mut position = q0;
         position[0] += 0.001;
         robot
-            .set_servo_setpoint(Arm::Two, position, [0.2, 0.0, 0.0, 0.0])
+            .set_servo_setpoint(ArmId::Arm2, position, [0.2, 0.0, 0.0, 0.0])
             .expect("set-point");
         run(&mut robot, 1.0);
-        let (q, v) = robot.encoders(Arm::Two);
-        assert!(robot.is_holding(Arm::Two));
+        let (q, v) = robot.encoders(ArmId::Arm2);
+        assert!(robot.is_holding(ArmId::Arm2));
         assert!(v[0].abs() < 1e-9, "{}", v[0]);
         // 50 ms of streaming at most 0.2 m/s, plus the braking lag.
         assert!(q[0] - q0[0] < 0.02, "{}", q[0]);
@@ -504,27 +504,27 @@ mod tests {
     #[test]
     fn bad_set_points_are_refused_and_change_nothing() {
         let mut robot = ideal();
-        let limits = robot.arm_params(Arm::One).position_limits;
-        let mut position = robot.arm_params(Arm::One).home.to_array();
+        let limits = robot.arm_params(ArmId::Arm1).position_limits;
+        let mut position = robot.arm_params(ArmId::Arm1).home.to_array();
         position[0] = limits.max.d_m + 0.01;
         let error = robot
-            .set_servo_setpoint(Arm::One, position, [0.0; 4])
+            .set_servo_setpoint(ArmId::Arm1, position, [0.0; 4])
             .expect_err("outside limits");
         assert!(matches!(
             error,
             SimRobotError::InvalidSetpoint {
-                arm: Arm::One,
+                arm: ArmId::Arm1,
                 joint: 0,
                 ..
             }
         ));
-        let home = robot.arm_params(Arm::One).home.to_array();
+        let home = robot.arm_params(ArmId::Arm1).home.to_array();
         assert!(
             robot
-                .set_servo_setpoint(Arm::One, home, [0.0, f64::NAN, 0.0, 0.0])
+                .set_servo_setpoint(ArmId::Arm1, home, [0.0, f64::NAN, 0.0, 0.0])
                 .is_err()
         );
-        assert!(robot.is_holding(Arm::One));
+        assert!(robot.is_holding(ArmId::Arm1));
         assert!(robot.step(0.0).is_err());
         assert!(robot.step(f64::NAN).is_err());
     }
@@ -555,8 +555,8 @@ mod tests {
     #[test]
     fn a_scripted_pick_harvests_an_apple() {
         let mut robot = ideal();
-        let params = *robot.arm_params(Arm::One);
-        let home_m = robot.end_effector_in_robot_m(Arm::One);
+        let params = *robot.arm_params(ArmId::Arm1);
+        let home_m = robot.end_effector_in_robot_m(ArmId::Arm1);
         let apple = robot
             .world()
             .apples()
@@ -574,29 +574,29 @@ mod tests {
         let c = apple.center_in_robot_m;
         let pick = [c[0] - apple.radius_m, c[1], c[2]];
         let q = inverse(&params, pick).expect("reachable").to_array();
-        let events = move_to(&mut robot, Arm::One, q, 2.0);
+        let events = move_to(&mut robot, ArmId::Arm1, q, 2.0);
         assert!(events.is_empty(), "{events:?}");
-        let tip = robot.end_effector_in_robot_m(Arm::One);
+        let tip = robot.end_effector_in_robot_m(ArmId::Arm1);
         assert!((0..3).all(|i| (tip[i] - pick[i]).abs() < 0.002), "{tip:?}");
         robot.set_valves(StepInputs::valves_for_arms([true, false]));
         let events = run(&mut robot, 1.0);
         assert_eq!(
             events,
             vec![WorldEvent::Attached {
-                arm: Arm::One,
+                arm: ArmId::Arm1,
                 apple: apple.id
             }]
         );
         let mut twisted = q;
         twisted[3] = std::f64::consts::FRAC_PI_4;
-        move_to(&mut robot, Arm::One, twisted, 0.3);
+        move_to(&mut robot, ArmId::Arm1, twisted, 0.3);
         let mut home = params.home.to_array();
         home[3] = twisted[3];
-        let events = move_to(&mut robot, Arm::One, home, 2.0);
+        let events = move_to(&mut robot, ArmId::Arm1, home, 2.0);
         assert_eq!(
             events,
             vec![WorldEvent::Detached {
-                arm: Arm::One,
+                arm: ArmId::Arm1,
                 apple: apple.id
             }]
         );
@@ -605,7 +605,7 @@ mod tests {
         assert_eq!(
             events,
             vec![WorldEvent::Released {
-                arm: Arm::One,
+                arm: ArmId::Arm1,
                 apple: apple.id,
                 outcome: ReleaseOutcome::Harvested
             }]
@@ -625,8 +625,8 @@ mod tests {
             let mut robot = SimRobot::new(&scenario, seed).expect("robot");
             robot.set_valves(StepInputs::valves_for_arms([true, true]));
             let mut all = run(&mut robot, 0.5);
-            all.extend(move_to(&mut robot, Arm::Two, [0.2, 0.1, 0.05, 0.0], 1.0));
-            (all, robot.encoders(Arm::Two), robot.valve_readings())
+            all.extend(move_to(&mut robot, ArmId::Arm2, [0.2, 0.1, 0.05, 0.0], 1.0));
+            (all, robot.encoders(ArmId::Arm2), robot.valve_readings())
         };
         assert_eq!(trace(4), trace(4));
     }

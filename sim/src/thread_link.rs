@@ -162,7 +162,7 @@ impl Drop for StopOnDrop<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::{Arm, StepInputs};
+    use crate::physics::{ArmId, StepInputs};
     use crate::robot::SimRobot;
     use crate::scenario::Scenario;
 
@@ -182,7 +182,7 @@ mod tests {
         }
         let mut physics_world = robot.world().clone();
         physics_world.apples[0].state = AppleState::Attached {
-            arm: Arm::One,
+            arm: ArmId::Arm1,
             detached: false,
         };
         physics_world.apples[0].center_in_robot_m = [1.0, 2.0, 3.0];

@@ -8,7 +8,7 @@ use harvest_ipc::payloads::{
     HarvestEventSource,
 };
 
-use crate::node::{ArmNodeEvent, AttemptFailure, arm_number};
+use crate::node::{ArmNodeEvent, AttemptFailure};
 use crate::picking_cycle::{CycleEvent, TargetRejection};
 use harvest_robot_model::params::ArmId;
 
@@ -59,7 +59,7 @@ pub struct ArmEventReporter {
 impl ArmEventReporter {
     /// The reporter of `arm`.
     pub fn new(arm: ArmId) -> Self {
-        let number = arm_number(arm);
+        let number = arm.number();
         Self {
             number,
             source: match arm {

@@ -95,7 +95,7 @@ pub fn pick_reachable(
     if !config.other_arm_present {
         return true;
     }
-    let other = ArmParams::for_arm(other_arm(arm));
+    let other = ArmParams::for_arm(arm.other());
     let standoff = [pick[0] - config.cycle.approach_standoff_m, pick[1], pick[2]];
     let via = inverse(&params, standoff).unwrap_or(goal);
     let mut ours = SweptPath::new();
@@ -106,33 +106,10 @@ pub fn pick_reachable(
     ours.min_distance_m(&theirs) >= config.cycle.clearance_m
 }
 
-fn other_arm(arm: ArmId) -> ArmId {
-    match arm {
-        ArmId::Arm1 => ArmId::Arm2,
-        ArmId::Arm2 => ArmId::Arm1,
-    }
-}
-
 /// Index of an arm's inlet valve (1 or 3 on the board) in 4-valve arrays; the vent is the next.
 fn inlet_index(arm: ArmId) -> usize {
     match arm {
         ArmId::Arm1 => 0,
-        ArmId::Arm2 => 2,
-    }
-}
-
-/// Zero-based arm index in 2-arm arrays.
-fn arm_index(arm: ArmId) -> usize {
-    match arm {
-        ArmId::Arm1 => 0,
-        ArmId::Arm2 => 1,
-    }
-}
-
-/// The number of an arm on the wire (`arm_id` fields): 1 or 2.
-pub fn arm_number(arm: ArmId) -> u8 {
-    match arm {
-        ArmId::Arm1 => 1,
         ArmId::Arm2 => 2,
     }
 }
@@ -438,10 +415,10 @@ impl ArmNode {
             }
         }
         let params = ArmParams::for_arm(arm);
-        let other_params = ArmParams::for_arm(other_arm(arm));
+        let other_params = ArmParams::for_arm(arm.other());
         let cycle = PickingCycle::new(params, other_params, config.cycle)?;
         let valve_request = ValveRequest {
-            arm_id: arm_number(arm),
+            arm_id: arm.number(),
             kind: ValveRequestKind::Close.into(),
             ..ValveRequest::default()
         };
@@ -472,7 +449,7 @@ impl ArmNode {
                 servo: ServoOrder::Hold,
                 valve_request,
                 state: ArmState {
-                    arm_id: arm_number(arm),
+                    arm_id: arm.number(),
                     ..ArmState::default()
                 },
                 goal_m: None,
@@ -600,8 +577,7 @@ impl ArmNode {
         let Some(target) = target else {
             return;
         };
-        if target.arm_id != arm_number(self.arm)
-            || self.last_target_seq == Some(target.header.msg_seq)
+        if target.arm_id != self.arm.number() || self.last_target_seq == Some(target.header.msg_seq)
         {
             return;
         }
@@ -772,7 +748,7 @@ impl ArmNode {
         let Some(grant) = grant else {
             return;
         };
-        if grant.arm_id != arm_number(self.arm)
+        if grant.arm_id != self.arm.number()
             || grant.granted != 0
             || grant.request_seq != self.request_seq
             || self.last_refusal == Some((grant.request_seq, grant.reason))
@@ -794,7 +770,7 @@ impl ArmNode {
         let vent = inlet + 1;
         let settled = v.valve_in_transit[inlet] == 0 && v.valve_in_transit[vent] == 0;
         let commanded_open = v.valve_open[inlet] == 1 && v.valve_open[vent] == 0;
-        let index = arm_index(self.arm);
+        let index = self.arm.index();
         let vented = v.pressure_mmh2o[index] < self.config.vented_vacuum_mmh2o;
         let valve_open = if commanded_open {
             settled
@@ -886,7 +862,7 @@ impl ArmNode {
                 capture_ns,
                 publish_ns: 0,
             },
-            arm_id: arm_number(self.arm),
+            arm_id: self.arm.number(),
             phase: self.phase.into(),
             holding: u8::from(holding),
             target_status: self.target_status.0.into(),

@@ -5,7 +5,6 @@
 //!
 //! Pure: no transport, no clock, no simulator.
 
-pub mod arm_id;
 pub mod clearance;
 pub mod coordination_phase;
 pub mod failure_kind;
@@ -13,6 +12,7 @@ pub mod joint;
 pub mod kinematics;
 pub mod params;
 
-pub use arm_id::ArmId;
 pub use coordination_phase::CoordinationPhase;
 pub use failure_kind::FailureKind;
+/// The one arm identifier of the stack (defined in `harvest-ipc`, which selects channels by it).
+pub use harvest_ipc::ArmId;

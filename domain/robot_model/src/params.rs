@@ -25,23 +25,7 @@ pub const TWIST_LIMIT_RAD: f64 = std::f64::consts::PI;
 /// Twist joint rate limit, rad/s (choice: one revolution per second).
 pub const TWIST_RATE_LIMIT_RAD_PER_S: f64 = 2.0 * std::f64::consts::PI;
 
-/// Which of the two arms.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum ArmId {
-    /// Arm 1, mounted on the +y (left) side.
-    Arm1,
-    /// Arm 2, mounted on the -y (right) side.
-    Arm2,
-}
-
-impl std::fmt::Display for ArmId {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ArmId::Arm1 => f.write_str("arm 1"),
-            ArmId::Arm2 => f.write_str("arm 2"),
-        }
-    }
-}
+pub use harvest_ipc::ArmId;
 
 /// Link parameters of eq. 1 (Table 1), metres, in the robot frame.
 ///

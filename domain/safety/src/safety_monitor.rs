@@ -18,8 +18,8 @@
 //! A closed valve vents the tube, so it ends any seal on that arm.
 
 use crate::trace::{JointId, TraceEvent};
+use harvest_robot_model::ArmId;
 use harvest_robot_model::FailureKind;
-use harvest_robot_model::arm_id::ArmId;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 

@@ -6,8 +6,8 @@
 //! end-effector positions), never a policy's reasoning, so the monitor can judge a trace without
 //! sharing code with the policies.
 
+use harvest_robot_model::ArmId;
 pub use harvest_robot_model::FailureKind;
-use harvest_robot_model::arm_id::ArmId;
 use harvest_robot_model::coordination_phase::CoordinationPhase;
 use serde::{Deserialize, Serialize};
 

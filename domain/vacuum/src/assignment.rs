@@ -14,7 +14,7 @@
 //! discards them), and the split stops once `2 |P1| >= n` (the pseudo-code's `|P1| <= n/2` test
 //! hands arm 1 one apple more than half).
 
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 use serde::{Deserialize, Serialize};
 use std::cmp::Ordering;
 use thiserror::Error;

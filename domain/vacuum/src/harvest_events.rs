@@ -9,7 +9,7 @@ use harvest_ipc::{FixedString, WireCode};
 
 use crate::node::{VacuumNodeEvent, ValveCloseCause, wire_id};
 use crate::replan::AttemptResult;
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 
 /// What the vacuum process knows of each arm when it converts an event: its last published
 /// phase code and apple (from `armN/state`), indexed by [`ArmId::index`].
@@ -19,10 +19,6 @@ pub struct ArmContext {
     pub phase: [WireCode<ArmPhase>; 2],
     /// `ArmState::apple_id` (0 none).
     pub apple_id: [u32; 2],
-}
-
-fn arm_number(arm: ArmId) -> u8 {
-    arm.index() as u8 + 1
 }
 
 /// The harvest event of `event`, if it is one worth publishing. Re-plans that changed nothing
@@ -35,7 +31,7 @@ pub fn vacuum_event(
     let make = |kind: HarvestEventKind, arm: Option<ArmId>, apple_id: Option<u32>| {
         let (number, phase, apple) = match arm {
             Some(arm) => (
-                arm_number(arm),
+                arm.number(),
                 arms.phase[arm.index()],
                 apple_id.unwrap_or(arms.apple_id[arm.index()]),
             ),
@@ -119,7 +115,7 @@ pub fn vacuum_event(
             );
             out.reason = FixedString::new(&format!(
                 "withdrawn while the arm waited for the other arm; queued for arm {}",
-                arm_number(*to)
+                to.number()
             ));
             out
         }

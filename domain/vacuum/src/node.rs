@@ -74,7 +74,7 @@ use crate::replan::AssignmentPlanner;
 use arm_track::ArmTrack;
 use harvest_ipc::Header;
 use harvest_ipc::payloads::VacuumState;
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 
 /// The vacuum supervisor's logic; see the module documentation.
 pub struct VacuumNode {

@@ -30,8 +30,8 @@
 //! The failure states latch until the valve closes; the failure-aware policy closes it in the
 //! same control period (eq. 11, first two clauses).
 
+use harvest_robot_model::ArmId;
 use harvest_robot_model::FailureKind;
-use harvest_robot_model::arm_id::ArmId;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use thiserror::Error;

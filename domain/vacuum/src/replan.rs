@@ -17,7 +17,7 @@
 use crate::assignment::{
     Apple, AppleId, AssignError, Assignment, AssignmentFrame, assign_apples_with_held,
 };
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use thiserror::Error;

@@ -28,7 +28,7 @@ pub mod types;
 pub use dyn_board::{BoxedBoardError, DynValveBoard, ErasedValveBoard};
 pub use serial::{SerialBoardConfig, SerialBoardError, SerialValveBoard};
 pub use types::{
-    Arm, BoardFault, Heartbeat, PressureReadings, PressureSensor, VALVE_COUNT, ValveId, ValveState,
+    BoardFault, Heartbeat, PressureReadings, PressureSensor, VALVE_COUNT, ValveId, ValveState,
     ValveStates,
 };
 

@@ -5,6 +5,7 @@
 //! two arms; valves 1 and 2 serve arm 1, valves 3 and 4 serve arm 2; pressure sensors sit
 //! inside arm 1, inside arm 2 and at the source.
 
+use harvest_ipc::ArmId;
 use std::fmt;
 
 /// Number of butterfly valves on the board.
@@ -60,10 +61,10 @@ impl ValveId {
     }
 
     /// The arm this valve serves: valves 1-2 arm 1, valves 3-4 arm 2.
-    pub fn arm(self) -> Option<Arm> {
+    pub fn arm(self) -> Option<ArmId> {
         match self.0 {
-            1 | 2 => Some(Arm::One),
-            3 | 4 => Some(Arm::Two),
+            1 | 2 => Some(ArmId::Arm1),
+            3 | 4 => Some(ArmId::Arm2),
             _ => None,
         }
     }
@@ -75,20 +76,11 @@ impl fmt::Display for ValveId {
     }
 }
 
-/// One of the two arms sharing the vacuum source.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Arm {
-    One,
-    Two,
-}
-
-impl Arm {
-    /// The two valves serving this arm, lower number first.
-    pub fn valves(self) -> [ValveId; 2] {
-        match self {
-            Arm::One => [ValveId(1), ValveId(2)],
-            Arm::Two => [ValveId(3), ValveId(4)],
-        }
+/// The two valves serving `arm`, lower number first.
+pub fn valves_of(arm: ArmId) -> [ValveId; 2] {
+    match arm {
+        ArmId::Arm1 => [ValveId(1), ValveId(2)],
+        ArmId::Arm2 => [ValveId(3), ValveId(4)],
     }
 }
 
@@ -289,15 +281,15 @@ mod tests {
         assert_eq!(ValveId::new(0), None);
         assert_eq!(ValveId::new(5), None);
         assert_eq!(ValveId::new(3), Some(ValveId(3)));
-        assert_eq!(ValveId(1).arm(), Some(Arm::One));
-        assert_eq!(ValveId(2).arm(), Some(Arm::One));
-        assert_eq!(ValveId(3).arm(), Some(Arm::Two));
-        assert_eq!(ValveId(4).arm(), Some(Arm::Two));
+        assert_eq!(ValveId(1).arm(), Some(ArmId::Arm1));
+        assert_eq!(ValveId(2).arm(), Some(ArmId::Arm1));
+        assert_eq!(ValveId(3).arm(), Some(ArmId::Arm2));
+        assert_eq!(ValveId(4).arm(), Some(ArmId::Arm2));
         assert_eq!(ValveId(9).arm(), None);
         assert_eq!(ValveId(4).index(), Some(3));
         assert_eq!(ValveId(0).index(), None);
-        for arm in [Arm::One, Arm::Two] {
-            for v in arm.valves() {
+        for arm in [ArmId::Arm1, ArmId::Arm2] {
+            for v in valves_of(arm) {
                 assert_eq!(v.arm(), Some(arm));
             }
         }

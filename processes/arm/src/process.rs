@@ -43,7 +43,6 @@ use serde::Deserialize;
 use harvest_arm::harvest_events::ArmEventReporter;
 use harvest_arm::node::{
     ArmNode, ArmNodeConfig, ArmNodeError, ArmNodeInput, EncoderSample, OtherArmInput, ServoOrder,
-    arm_number,
 };
 use harvest_ipc::control_loop::{Wake, run_control_loop};
 use harvest_ipc::failure_streak::FailureStreak;
@@ -203,22 +202,15 @@ pub fn run(
     let hi = params.position_limits.max.to_array();
     let limits = std::array::from_fn(|j| [lo[j], hi[j]]);
     let device_error = |message: String| ArmProcessError::Device {
-        arm: arm_number(arm),
+        arm: arm.number(),
         message,
     };
     match args.device {
         ArmDevice::Sim => {
-            let servos = SimArmServos::connect(&context, wire_arm(arm), limits)
+            let servos = SimArmServos::connect(&context, arm, limits)
                 .map_err(|error| device_error(error.to_string()))?;
             control_loop(&context, servos, arm, &config, node_config)
         }
-    }
-}
-
-fn wire_arm(arm: ArmId) -> harvest_ipc::ArmId {
-    match arm {
-        ArmId::Arm1 => harvest_ipc::ArmId::One,
-        ArmId::Arm2 => harvest_ipc::ArmId::Two,
     }
 }
 
@@ -240,9 +232,9 @@ fn control_loop<S: ArmServos>(
     config: &ArmProcessConfig,
     node_config: ArmNodeConfig,
 ) -> Result<PeriodSummary, ArmProcessError> {
-    let i = wire_arm(arm).index();
+    let i = arm.index();
     let other = 1 - i;
-    let number = arm_number(arm);
+    let number = arm.number();
     let mut node = ArmNode::new(arm, node_config)?;
     let mut reporter = ArmEventReporter::new(arm);
 

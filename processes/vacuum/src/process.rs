@@ -43,11 +43,10 @@ use harvest_ipc::payloads::{
 };
 use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
 use harvest_ipc::{Context, Domain, FixedString, Flow, HealthReporter};
-use harvest_robot_model::params::ArmId as ArmNumber;
 use serde::Deserialize;
 
 use crate::policy_arg::PolicyArg;
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 use harvest_vacuum::harvest_events::{ArmContext, vacuum_event};
 use harvest_vacuum::node::{
     BoardReadings, VacuumNode, VacuumNodeConfig, VacuumNodeError, VacuumNodeEvent,
@@ -245,7 +244,6 @@ pub fn run(
     let node = VacuumNode::new(
         node_config,
         Box::new(move |arm: ArmId, centre: &[f64; 3], radius_m: f64| {
-            let arm = [ArmNumber::Arm1, ArmNumber::Arm2][arm.index()];
             pick_reachable(arm, *centre, radius_m, &arm_node)
         }),
     )?;

@@ -11,7 +11,7 @@ use crate::replan::AttemptResult;
 use harvest_ipc::Header;
 use harvest_ipc::payloads::arm::TargetStatus;
 use harvest_ipc::payloads::{ArmPhase as PhaseCode, ArmState, ArmTarget};
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 
 impl VacuumNode {
     /// Step 3: follow each arm's attempt from its published state.

@@ -18,7 +18,7 @@ pub struct VacuumNodeConfig {
     pub pressure: PressureConfig,
     /// Assignment and re-planning.
     pub planner: PlannerConfig,
-    /// Arms that take part, indexed by [`ArmId::index`](harvest_robot_model::arm_id::ArmId::index) (single-arm operation: `[true,
+    /// Arms that take part, indexed by [`ArmId::index`](harvest_robot_model::ArmId::index) (single-arm operation: `[true,
     /// false]`). A disabled arm gets no apple and its valve stays closed.
     pub arms_enabled: [bool; 2],
     /// A dispatched target that its arm has not taken up after this long is given up as a

@@ -8,7 +8,7 @@ use super::{VacuumNode, VacuumNodeEvent, VacuumNodeInput, refuse_reason_code, wi
 use crate::policy::{Decision, Request};
 use harvest_ipc::Header;
 use harvest_ipc::payloads::{ArmPhase as PhaseCode, ArmTarget};
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 
 impl VacuumNode {
     /// Step 7: at most one target per tick, to the idle arm that got one least recently.

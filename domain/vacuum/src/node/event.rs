@@ -5,7 +5,7 @@ use crate::policy::{CloseReason, RefuseReason};
 use crate::pressure::{AttachmentChange, PressureSampleError};
 use crate::replan::{AttemptResult, ReplanSummary};
 use harvest_ipc::payloads::ArmTarget;
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 
 /// Why a valve was closed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

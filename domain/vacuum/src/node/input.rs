@@ -2,7 +2,7 @@
 //! the caller's [`Reachability`] test.
 
 use harvest_ipc::payloads::{AppleDetections, ArmState, ValveRequest};
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 
 /// One report of the valve board (the `ValveBoard::valve_states` and `pressures` of a tick).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

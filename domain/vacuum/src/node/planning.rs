@@ -6,7 +6,7 @@ use tracing::{debug, trace, warn};
 
 use super::{Reachability, VacuumNode, VacuumNodeConfig, VacuumNodeEvent};
 use harvest_ipc::payloads::{AppleDetections, ArmPhase as PhaseCode, ArmState};
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 
 /// Radius used when a detection carries none, m.
 const FALLBACK_RADIUS_M: f64 = 0.04;

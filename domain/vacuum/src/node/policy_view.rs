@@ -5,7 +5,7 @@ use super::arm_track::ArmTrack;
 use super::{VacuumNode, VacuumNodeInput};
 use crate::policy::{ArmStatus, PairStatus};
 use harvest_ipc::payloads::{ArmPhase as PhaseCode, ArmState};
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 use harvest_robot_model::coordination_phase::CoordinationPhase;
 
 /// The policy's view of an arm's phase from its published state. A missing or stopped arm is

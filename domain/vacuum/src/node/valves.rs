@@ -12,7 +12,7 @@ use crate::policy::{Decision, Request, ValveOrder};
 use crate::replan::AttemptResult;
 use harvest_ipc::Header;
 use harvest_ipc::payloads::{ValveGrant, ValveRequest, ValveRequestKind};
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 
 impl VacuumNode {
     pub(super) fn emergency_stop(&mut self) {

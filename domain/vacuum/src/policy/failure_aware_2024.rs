@@ -18,7 +18,7 @@ use super::{
     VacuumPolicy, ValveOrder, own_preconditions,
 };
 use crate::pressure::AttachmentState;
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 use harvest_robot_model::coordination_phase::CoordinationPhase;
 
 /// The failure-aware temporal-logic policy of eq. 7-12.

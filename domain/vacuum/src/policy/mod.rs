@@ -34,7 +34,7 @@ pub use staggered_2023::Staggered2023;
 pub use tl_node::{Propositions, TlNode};
 
 use crate::pressure::AttachmentState;
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 use harvest_robot_model::coordination_phase::CoordinationPhase;
 use serde::{Deserialize, Serialize};
 use std::fmt;

@@ -8,7 +8,7 @@ use super::{
     Decision, PairStatus, PolicyKind, RefuseReason, Request, VacuumPolicy, ValveOrder,
     own_preconditions, workflow_close,
 };
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 use harvest_robot_model::coordination_phase::CoordinationPhase;
 
 /// The sequential, uncoordinated baseline.

@@ -12,8 +12,9 @@ use crate::pipeline::svg::render_pipeline_svg;
 use crate::pipeline::tracker::{PipelineTracker, Stage};
 use crate::report::HostInfo;
 use crate::run::{kernel_release, remove_domain, write_file};
+use harvest_ipc::ArmId;
 use harvest_ipc::catalogue::{
-    ARM_COMMAND, ARM_STATE, ARM_TARGET, ArmId, CAMERA_RGBD, HW_CAMERA_RGBD, PERCEPTION_APPLES,
+    ARM_COMMAND, ARM_STATE, ARM_TARGET, CAMERA_RGBD, HW_CAMERA_RGBD, PERCEPTION_APPLES,
 };
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, Payload, RunEnd, Subscriber, Waiter};
 use std::path::PathBuf;

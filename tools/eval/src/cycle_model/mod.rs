@@ -20,8 +20,8 @@ pub use episode::{
 };
 pub use report::{Fig12Row, SingleDualComparison, fig12, single_vs_dual, steady_state_interval_ns};
 
+use harvest_robot_model::ArmId;
 use harvest_robot_model::FailureKind;
-use harvest_robot_model::arm_id::ArmId;
 use harvest_robot_model::coordination_phase::CoordinationPhase;
 use harvest_safety::trace::TraceEvent;
 use harvest_vacuum::policy::{

@@ -7,7 +7,7 @@
 //! valves (so every vacuum rule of the monitor is shown to fire).
 
 use crate::cycle_model::{CycleEpisode, DetectionTimes, FailureRates, PhaseTimes, run_episode};
-use harvest_robot_model::arm_id::ArmId;
+use harvest_robot_model::ArmId;
 use harvest_safety::safety_monitor::{MonitorConfig, Violation, check_trace};
 use harvest_vacuum::policy::{
     Decision, PairStatus, PolicyKind, Request, VacuumPolicy, ValveOrder, new_policy,

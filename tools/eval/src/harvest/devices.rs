@@ -12,7 +12,7 @@ use harvest_hw::valve_board::{
     BoardFault, Heartbeat, PressureReadings, ValveBoard, ValveId, ValveState, ValveStates,
 };
 use harvest_ipc::{Clock, ManualClock};
-use harvest_sim::physics::Arm;
+use harvest_sim::physics::ArmId;
 use harvest_sim::robot::SimRobot;
 
 /// The simulated robot shared by the adapters of one episode.
@@ -42,13 +42,13 @@ impl DeviceError for InProcessDeviceError {
 #[derive(Debug, Clone)]
 pub struct InProcessServos {
     robot: SharedRobot,
-    arm: Arm,
+    arm: ArmId,
     clock: ManualClock,
 }
 
 impl InProcessServos {
     /// The servos of `arm`, stamping feedback with `clock`.
-    pub fn new(robot: SharedRobot, arm: Arm, clock: ManualClock) -> Self {
+    pub fn new(robot: SharedRobot, arm: ArmId, clock: ManualClock) -> Self {
         Self { robot, arm, clock }
     }
 }
@@ -181,7 +181,7 @@ mod tests {
     #[test]
     fn servos_refuse_out_of_limit_set_points_and_report_feedback() {
         let (robot, clock) = robot();
-        let mut servos = InProcessServos::new(robot.clone(), Arm::One, clock);
+        let mut servos = InProcessServos::new(robot.clone(), ArmId::Arm1, clock);
         let feedback = servos.feedback().expect("feedback").expect("sample");
         assert_eq!(feedback.capture_ns, 7);
         assert_eq!(feedback.position, [0.0; 4]);
@@ -191,7 +191,7 @@ mod tests {
         assert_eq!(error.kind(), ErrorKind::InvalidRequest);
         servos.command([0.01, 0.0, 0.0, 0.0], [0.0; 4]).expect("ok");
         servos.hold().expect("hold");
-        assert!(robot.borrow().is_holding(Arm::One));
+        assert!(robot.borrow().is_holding(ArmId::Arm1));
     }
 
     #[test]

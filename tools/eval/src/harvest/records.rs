@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use harvest_arm::node::{ArmNodeEvent, AttemptFailure};
 use harvest_ipc::payloads::{ArmPhase as PhaseCode, ArmTarget};
 use harvest_sim::orchard::{AppleState, World};
-use harvest_sim::physics::{Arm, DropCause, ReleaseOutcome, WorldEvent};
+use harvest_sim::physics::{DropCause, ReleaseOutcome, WorldEvent};
 use harvest_vacuum::node::{VacuumNodeEvent, ValveCloseCause};
 use serde::Serialize;
 
@@ -145,13 +145,6 @@ pub struct Recorder {
     last: [Option<usize>; 2],
     /// Times apples landed on the dropping module, s.
     pub releases_s: Vec<f64>,
-}
-
-fn arm_number(arm: Arm) -> u8 {
-    match arm {
-        Arm::One => 1,
-        Arm::Two => 2,
-    }
 }
 
 impl Recorder {
@@ -362,7 +355,7 @@ impl Recorder {
         }
         self.log(
             t_s,
-            Some(arm_number(arm)),
+            Some(arm.number()),
             format!("world: apple {}: {what}", apple.0),
         );
     }

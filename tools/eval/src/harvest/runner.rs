@@ -32,10 +32,8 @@ use harvest_ipc::payloads::{
     AppleDetections, ArmPhase as PhaseCode, ArmState, ArmTarget, VacuumState, ValveGrant,
 };
 use harvest_ipc::{Clock, ManualClock};
-use harvest_robot_model::ArmId;
-use harvest_robot_model::params::ArmId as ArmNumber;
 use harvest_safety::safety_monitor::Violation;
-use harvest_sim::physics::Arm;
+use harvest_sim::physics::ArmId;
 use harvest_sim::robot::SimRobot;
 use harvest_sim::scenario::Scenario;
 use harvest_vacuum::node::{
@@ -229,13 +227,13 @@ impl Episode {
         let clock = ManualClock::starting_at(EPOCH_NS);
         let robot = Rc::new(RefCell::new(SimRobot::new(&config.scenario, config.seed)?));
         let servos = [
-            InProcessServos::new(robot.clone(), Arm::One, clock.clone()),
-            InProcessServos::new(robot.clone(), Arm::Two, clock.clone()),
+            InProcessServos::new(robot.clone(), ArmId::Arm1, clock.clone()),
+            InProcessServos::new(robot.clone(), ArmId::Arm2, clock.clone()),
         ];
         let board = InProcessValveBoard::new(robot.clone(), clock.clone());
         let arms = [
-            ArmNode::new(ArmNumber::Arm1, config.arm_node)?,
-            ArmNode::new(ArmNumber::Arm2, config.arm_node)?,
+            ArmNode::new(ArmId::Arm1, config.arm_node)?,
+            ArmNode::new(ArmId::Arm2, config.arm_node)?,
         ];
         let arm_node = config.arm_node;
         let vacuum = VacuumNode::new(
@@ -247,7 +245,6 @@ impl Episode {
                 ..VacuumNodeConfig::default()
             },
             Box::new(move |arm: ArmId, centre: &[f64; 3], radius_m: f64| {
-                let arm = [ArmNumber::Arm1, ArmNumber::Arm2][arm.index()];
                 pick_reachable(arm, *centre, radius_m, &arm_node)
             }),
         )?;
@@ -456,8 +453,8 @@ impl Episode {
             safety.end_effectors(
                 now_ns,
                 [
-                    robot.end_effector_in_robot_m(Arm::One),
-                    robot.end_effector_in_robot_m(Arm::Two),
+                    robot.end_effector_in_robot_m(ArmId::Arm1),
+                    robot.end_effector_in_robot_m(ArmId::Arm2),
                 ],
             )?;
         }
@@ -496,7 +493,7 @@ impl Episode {
         }
         if m.arms_stopped_s.is_none() {
             let robot = self.robot.borrow();
-            let still = Arm::BOTH
+            let still = ArmId::ALL
                 .iter()
                 .all(|&arm| robot.encoders(arm).1.iter().all(|v| v.abs() < STOPPED_RATE));
             if still {
