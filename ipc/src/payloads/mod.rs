@@ -12,6 +12,9 @@ pub mod point_cloud;
 pub mod process_health;
 pub mod rgbd_frame;
 pub mod vacuum;
+// Operator channels (issue 15).
+pub mod arm_manual;
+pub mod operator;
 
 pub use alacs::{AlacsCommand, AlacsImage};
 pub use apple_detections::{AppleDetection, AppleDetections, DepthSourceCode, LocalizationMethod};
@@ -29,3 +32,8 @@ pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
 pub use process_health::{ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
 pub use vacuum::{VacuumState, ValveGrant, ValveRequest, ValveRequestKind};
+pub use arm_manual::{ArmManualCommand, ArmManualKind};
+pub use operator::{
+    OperatorAck, OperatorCommand, OperatorCommandCode, OperatorModeCode, OperatorModeState,
+    OperatorRefusalCode,
+};
