@@ -432,6 +432,8 @@ pub struct VacuumNode {
     grant_seq: u64,
     last_readings: Option<BoardReadings>,
     output: VacuumNodeOutput,
+    /// Per arm: no target is dispatched (operator: not harvesting, or the arm disabled).
+    dispatch_held: [bool; 2],
 }
 
 impl std::fmt::Debug for VacuumNode {
@@ -501,6 +503,7 @@ impl VacuumNode {
             state_seq: 0,
             grant_seq: 0,
             last_readings: None,
+            dispatch_held: [false; 2],
             output: VacuumNodeOutput {
                 valve_commands: [false, true, false, true],
                 close_all: false,
@@ -511,6 +514,17 @@ impl VacuumNode {
             },
             config,
         })
+    }
+
+    /// Holds the dispatch of new targets per arm (indexed by [`ArmId::index`]): the operator
+    /// paused or stopped the harvest, or disabled the arm. Attempts under way go on (their
+    /// valve requests are answered as before); a dispatched target the arm holds back as
+    /// waiting is taken back after [`VacuumNodeConfig::waiting_patience_s`].
+    pub fn hold_dispatch(&mut self, held: [bool; 2]) {
+        if held != self.dispatch_held {
+            info!(?held, "dispatch of new targets held per arm");
+        }
+        self.dispatch_held = held;
     }
 
     /// The node's settings.
@@ -1104,6 +1118,9 @@ impl VacuumNode {
             let Some(state) = input.arm_states[i] else {
                 continue;
             };
+            if self.dispatch_held[i] {
+                continue;
+            }
             let track = self.arms[i];
             let idle = state.phase == PhaseCode::Idle as u8
                 && track.dispatched.is_none()
