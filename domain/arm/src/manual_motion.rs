@@ -179,7 +179,11 @@ mod tests {
         for step in 1..=20 {
             let sample = motion.setpoint(1_000 + duration_ns * step / 20);
             assert!(sample.position[1] >= previous - 1e-12, "monotonic");
-            assert!(params.position_limits.contains(&JointPosition::from_array(sample.position)));
+            assert!(
+                params
+                    .position_limits
+                    .contains(&JointPosition::from_array(sample.position))
+            );
             previous = sample.position[1];
         }
         let end = motion.setpoint(1_000 + duration_ns + 1);

@@ -571,8 +571,14 @@ impl ArmNode {
         };
         // From the set-point the servos track, if any, so the move starts without a jump.
         let from = self.setpoint.unwrap_or(from);
-        let motion =
-            ManualMotion::plan(&self.params, &from, &goal, speed_fraction, now_ns, request_id)?;
+        let motion = ManualMotion::plan(
+            &self.params,
+            &from,
+            &goal,
+            speed_fraction,
+            now_ns,
+            request_id,
+        )?;
         let duration_s = motion.duration_s();
         info!(arm = %self.arm, request_id, ?goal, duration_s, "manual move started");
         self.manual = Some(motion);

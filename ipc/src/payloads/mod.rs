@@ -19,6 +19,7 @@ pub mod operator;
 pub use alacs::{AlacsCommand, AlacsImage};
 pub use apple_detections::{AppleDetection, AppleDetections, DepthSourceCode, LocalizationMethod};
 pub use arm::{ArmCommand, ArmPhase, ArmState, ArmTarget, JOINT_COUNT};
+pub use arm_manual::{ArmManualCommand, ArmManualKind};
 pub use emergency_stop::EmergencyStop;
 pub use hardware::{
     EncoderFeedback, GroundTruth, ServoSetpoint, TrueApple, ValveBoardCommand, ValveBoardReadings,
@@ -27,13 +28,12 @@ pub use harvest_event::{
     HARVEST_EVENT_REASON_BYTES, HarvestCause, HarvestEvent, HarvestEventKind, HarvestEventSource,
 };
 pub use laser_scan::{LaserScanRequest, LaserScanResult};
+pub use operator::{
+    OperatorAck, OperatorCommand, OperatorCommandCode, OperatorModeCode, OperatorModeState,
+    OperatorRefusalCode,
+};
 pub use platform::{PlatformCommand, PlatformFeedback};
 pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
 pub use process_health::{ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
 pub use vacuum::{VacuumState, ValveGrant, ValveRequest, ValveRequestKind};
-pub use arm_manual::{ArmManualCommand, ArmManualKind};
-pub use operator::{
-    OperatorAck, OperatorCommand, OperatorCommandCode, OperatorModeCode, OperatorModeState,
-    OperatorRefusalCode,
-};
