@@ -18,6 +18,7 @@
 pub mod action;
 pub mod command;
 pub mod executive;
+pub mod mode_file;
 pub mod motion_check;
 pub mod refusal;
 pub mod request;

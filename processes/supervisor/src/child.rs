@@ -15,7 +15,15 @@ pub const PROCESS_NAME_ENV: &str = "HARVEST_PROCESS_NAME";
 /// launch file names a program) in its own process group (so a terminal's
 /// Ctrl-C reaches only the supervisor, which then stops children in order), with the parent-death
 /// signal set so children never outlive a killed supervisor.
-pub fn spawn(executable: &Path, spec: &ProcessSpec, domain: &Domain) -> std::io::Result<Child> {
+///
+/// The control token goes to every child in `HARVEST_CONTROL_TOKEN` (the executive checks
+/// operator commands with it; the others ignore it).
+pub fn spawn(
+    executable: &Path,
+    spec: &ProcessSpec,
+    domain: &Domain,
+    control_token: &str,
+) -> std::io::Result<Child> {
     let mut command = match &spec.executable {
         Some(program) => Command::new(program),
         None => {
@@ -28,6 +36,7 @@ pub fn spawn(executable: &Path, spec: &ProcessSpec, domain: &Domain) -> std::io:
         .args(&spec.args)
         .env(harvest_ipc::domain::DOMAIN_ENV, domain.name())
         .env(PROCESS_NAME_ENV, &spec.name)
+        .env(harvest_operator::token::CONTROL_TOKEN_ENV, control_token)
         .process_group(0);
     // SAFETY: the closure runs in the forked child before exec and only calls prctl, which is
     // async-signal-safe.
