@@ -1,6 +1,8 @@
 //! The camera view: on a thread of its own, at its own rate, the newest `camera/rgbd` frame is
 //! read in place in shared memory, box-filtered down to the view size, released, and encoded
-//! as JPEG. The camera never waits for it: the channel drops the oldest frame for a subscriber
+//! as JPEG. The thread wakes on the camera's frame event and encodes a frame when at least one
+//! view period has passed since the last view (so a view waits for no timer after its frame
+//! arrives); a timer at the view rate catches a frame whose event came too early. The camera never waits for it: the channel drops the oldest frame for a subscriber
 //! that is behind (safe overflow), and this subscriber keeps a one-frame buffer.
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -142,6 +144,9 @@ pub fn run_camera_view(
     let waiter = Waiter::new()?;
     let period = Duration::from_secs_f64(1.0 / settings.rate_hz);
     let tick = waiter.attach_interval(period)?;
+    let frame_event = waiter.attach_listener(frames.listener())?;
+    let period_ns = period.as_nanos() as u64;
+    let mut last_view_ns = 0u64;
     let scale = settings.scale.max(1) as usize;
     let (width, height) = (RGB_WIDTH_PX / scale, RGB_HEIGHT_PX / scale);
     let mut small = Vec::with_capacity(width * height * 3);
@@ -156,7 +161,14 @@ pub fn run_camera_view(
     );
     waiter
         .run(|attachment| -> Result<Flow, ConsoleError> {
-            if !attachment.has_event_from(&tick) {
+            if !attachment.has_event_from(&tick) && !attachment.has_event_from(&frame_event) {
+                return Ok(Flow::Continue);
+            }
+            // Slightly early is on time (a frame event a hair before the period is over).
+            let now_ns = MonotonicClock::read_ns();
+            if now_ns.saturating_sub(last_view_ns) < period_ns * 9 / 10 {
+                // Consume the wake-up; the frame stays queued (one slot) for the next turn.
+                frames.listener().try_wait(|_| {}).ok();
                 return Ok(Flow::Continue);
             }
             let Some(frame) = frames.receive_latest()? else {
@@ -167,7 +179,8 @@ pub fn run_camera_view(
                 return Ok(Flow::Continue);
             }
             last_frame = Some(id);
-            let started_ns = MonotonicClock::read_ns();
+            last_view_ns = now_ns;
+            let started_ns = now_ns;
             downscale_rgb(&frame.rgb, RGB_WIDTH_PX, RGB_HEIGHT_PX, scale, &mut small);
             // The frame goes back to the camera's pool before the (longer) encoding.
             drop(frame);
