@@ -3,12 +3,6 @@
 /// The console's errors.
 #[derive(Debug, thiserror::Error)]
 pub enum ConsoleError {
-    /// The listening address could not be bound.
-    #[error("console: cannot listen on {address}: {source}")]
-    Bind {
-        address: String,
-        source: std::io::Error,
-    },
     /// A thread could not be started or ended badly.
     #[error("console: {0}")]
     Thread(String),

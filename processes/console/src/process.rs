@@ -46,6 +46,8 @@ use crate::status_board::StatusBoard;
 pub const ACK_TIMEOUT: Duration = Duration::from_millis(1500);
 /// Status refresh period.
 const STATUS_PERIOD: Duration = Duration::from_millis(100);
+/// How often a busy listening address is tried again.
+const BIND_RETRY: Duration = Duration::from_secs(2);
 /// Longest wait of `/api/camera.jpg?after=N` for a newer view.
 const VIEW_WAIT: Duration = Duration::from_secs(1);
 
@@ -221,6 +223,28 @@ fn run_commands(
     Ok(())
 }
 
+/// Binds `address`; while it is taken (another console, another program), logs it and tries
+/// again every [`BIND_RETRY`] instead of failing: a busy port must not stop the stack (the
+/// supervisor stops everything when a process fails for good). `None` once `stop` is set.
+fn bind_retrying(address: SocketAddr, stop: &AtomicBool) -> Option<TcpListener> {
+    let mut warned = false;
+    while !stop.load(Ordering::Acquire) {
+        match TcpListener::bind(address) {
+            Ok(listener) => return Some(listener),
+            Err(error) => {
+                if !warned {
+                    tracing::error!(%address, %error, "console cannot listen; retrying every {} s",
+                        BIND_RETRY.as_secs());
+                    warned = true;
+                }
+                // Not a hot path: a retry of a failed bind.
+                std::thread::sleep(BIND_RETRY);
+            }
+        }
+    }
+    None
+}
+
 /// Runs the console until SIGINT/SIGTERM.
 pub fn run(args: &ConsoleArgs, domain: &Domain, process_name: &str) -> Result<(), ConsoleError> {
     if !(args.view_rate_hz.is_finite() && (0.5..=30.0).contains(&args.view_rate_hz)) {
@@ -229,14 +253,6 @@ pub fn run(args: &ConsoleArgs, domain: &Domain, process_name: &str) -> Result<()
             args.view_rate_hz
         )));
     }
-    let listener = TcpListener::bind(args.listen).map_err(|source| ConsoleError::Bind {
-        address: args.listen.to_string(),
-        source,
-    })?;
-    let address = listener.local_addr().map_err(|source| ConsoleError::Bind {
-        address: args.listen.to_string(),
-        source,
-    })?;
     let (jobs_in, jobs) = mpsc::channel();
     let shared = Arc::new(Shared {
         view: CameraView::default(),
@@ -274,22 +290,32 @@ pub fn run(args: &ConsoleArgs, domain: &Domain, process_name: &str) -> Result<()
             Box::new(move || run_commands(&domain, &name, jobs, &stop)),
         )?
     };
+    let bound: Arc<Mutex<Option<SocketAddr>>> = Arc::new(Mutex::new(None));
     let http_thread = {
         let handler_shared = shared.clone();
         let handler: Handler = Arc::new(move |request: &Request| route(&handler_shared, request));
-        let stop = stop.clone();
+        let (stop, bound, listen) = (stop.clone(), bound.clone(), args.listen);
         std::thread::Builder::new()
             .name("console-accept".to_owned())
-            .spawn(move || serve(listener, handler, stop))
+            .spawn(move || {
+                if let Some(listener) = bind_retrying(listen, &stop) {
+                    if let Ok(address) = listener.local_addr() {
+                        tracing::info!(%address, "console serving: open http://{address}");
+                        *bound.lock().unwrap_or_else(|p| p.into_inner()) = Some(address);
+                    }
+                    serve(listener, handler, stop);
+                }
+            })
             .map_err(|error| ConsoleError::Thread(format!("accept thread: {error}")))?
     };
-    tracing::info!(%address, "console serving: open http://{address}");
 
     let result = run_status(domain, process_name, &shared);
 
     stop.store(true, Ordering::Release);
     // Wake the accept loop so it sees the stop.
-    let _ = TcpStream::connect_timeout(&address, Duration::from_millis(200));
+    if let Some(address) = *bound.lock().unwrap_or_else(|p| p.into_inner()) {
+        let _ = TcpStream::connect_timeout(&address, Duration::from_millis(200));
+    }
     let _ = http_thread.join();
     for (name, thread) in [("view", view_thread), ("commands", command_thread)] {
         match thread.join() {

@@ -11,6 +11,7 @@
 //! The session id of `ctl` is the same for every run by one user in one domain, so commands
 //! given one after the other belong to one session.
 
+use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -299,6 +300,8 @@ fn status(context: &Context, json: bool, timeout: Duration) -> Result<ExitCode, 
     let arms = [latest(&arms_in[0], short)?, latest(&arms_in[1], short)?];
     let vacuum = latest(&vacuum_in, short)?;
     let now_ns = MonotonicClock::read_ns();
+    // Written at once, and a closed pipe (`| head`) is no error.
+    let mut out = String::new();
     if json {
         let value = serde_json::json!({
             "mode": mode.and_then(|m| m.mode_code()).map(OperatorModeCode::name),
@@ -312,12 +315,12 @@ fn status(context: &Context, json: bool, timeout: Duration) -> Result<ExitCode, 
             }))),
             "vacuum": vacuum.map(|v| v.to_json()),
         });
-        println!("{value}");
+        let _ = writeln!(out, "{value}");
     } else {
         match mode {
             Some(m) => {
                 let name = m.mode_code().map_or("?", OperatorModeCode::name);
-                println!(
+                let _ = writeln!(out, 
                     "mode {name}; arms enabled {}/{}; e-stop {}; controller {}; last change: {}",
                     m.arms_enabled[0],
                     m.arms_enabled[1],
@@ -334,7 +337,7 @@ fn status(context: &Context, json: bool, timeout: Duration) -> Result<ExitCode, 
                     m.last_change_reason
                 );
                 if m.platform_present != 0 {
-                    println!(
+                    let _ = writeln!(out, 
                         "platform {:.3} m in-out, {:.3} m up-down{}",
                         m.platform_position_m[0],
                         m.platform_position_m[1],
@@ -346,14 +349,14 @@ fn status(context: &Context, json: bool, timeout: Duration) -> Result<ExitCode, 
                     );
                 }
             }
-            None => println!(
+            None => let _ = writeln!(out, 
                 "mode unknown: no executive answered within {} ms",
                 timeout.as_millis()
             ),
         }
         for (i, arm) in arms.iter().enumerate() {
             match arm {
-                Some(a) => println!(
+                Some(a) => let _ = writeln!(out, 
                     "arm {}: {} apple {} harvested {}",
                     i + 1,
                     ArmPhase::from_code(a.phase)
@@ -361,16 +364,17 @@ fn status(context: &Context, json: bool, timeout: Duration) -> Result<ExitCode, 
                     a.apple_id,
                     a.harvested_count
                 ),
-                None => println!("arm {}: no state", i + 1),
+                None => let _ = writeln!(out, "arm {}: no state", i + 1),
             }
         }
         if let Some(v) = vacuum {
-            println!(
+            let _ = writeln!(out, 
                 "valves {:?}; vacuum arm1 {:.0} arm2 {:.0} source {:.0} mmH2O",
                 v.valve_open, v.pressure_mmh2o[0], v.pressure_mmh2o[1], v.pressure_mmh2o[2]
             );
         }
     }
+    let _ = std::io::Write::write_all(&mut std::io::stdout(), out.as_bytes());
     Ok(if mode.is_some() {
         ExitCode::SUCCESS
     } else {

@@ -109,7 +109,7 @@ const START_WAIT_NS: u64 = 200_000_000;
 
 /// The platform behind its trait, or none.
 enum PlatformLink {
-    Sim(SimPlatform),
+    Sim(Box<SimPlatform>),
     None,
 }
 
@@ -175,10 +175,10 @@ pub fn run(
     let mode_file = mode_path(&token_file);
     let context = Context::new(domain, process_name)?;
     let mut platform = match args.platform {
-        PlatformDevice::Sim => PlatformLink::Sim(
+        PlatformDevice::Sim => PlatformLink::Sim(Box::new(
             SimPlatform::connect(&context, PlatformTravel::default(), PLATFORM_TIMEOUT)
                 .map_err(|error| ExecutiveProcessError::Platform(error.to_string()))?,
-        ),
+        )),
         PlatformDevice::None => PlatformLink::None,
     };
     let commands_in = context.subscriber_with_buffer(OPERATOR_COMMAND, 256)?;
