@@ -315,12 +315,13 @@ fn status(context: &Context, json: bool, timeout: Duration) -> Result<ExitCode, 
             }))),
             "vacuum": vacuum.map(|v| v.to_json()),
         });
-        let _ = writeln!(out, "{value}");
+        _ = writeln!(out, "{value}");
     } else {
         match mode {
             Some(m) => {
                 let name = m.mode_code().map_or("?", OperatorModeCode::name);
-                let _ = writeln!(out, 
+                _ = writeln!(
+                    out,
                     "mode {name}; arms enabled {}/{}; e-stop {}; controller {}; last change: {}",
                     m.arms_enabled[0],
                     m.arms_enabled[1],
@@ -337,7 +338,8 @@ fn status(context: &Context, json: bool, timeout: Duration) -> Result<ExitCode, 
                     m.last_change_reason
                 );
                 if m.platform_present != 0 {
-                    let _ = writeln!(out, 
+                    _ = writeln!(
+                        out,
                         "platform {:.3} m in-out, {:.3} m up-down{}",
                         m.platform_position_m[0],
                         m.platform_position_m[1],
@@ -349,26 +351,33 @@ fn status(context: &Context, json: bool, timeout: Duration) -> Result<ExitCode, 
                     );
                 }
             }
-            None => let _ = writeln!(out, 
-                "mode unknown: no executive answered within {} ms",
-                timeout.as_millis()
-            ),
+            None => {
+                _ = writeln!(
+                    out,
+                    "mode unknown: no executive answered within {} ms",
+                    timeout.as_millis()
+                )
+            }
         }
         for (i, arm) in arms.iter().enumerate() {
             match arm {
-                Some(a) => let _ = writeln!(out, 
-                    "arm {}: {} apple {} harvested {}",
-                    i + 1,
-                    ArmPhase::from_code(a.phase)
-                        .map_or_else(|| "?".to_owned(), |p| format!("{p:?}").to_lowercase()),
-                    a.apple_id,
-                    a.harvested_count
-                ),
-                None => let _ = writeln!(out, "arm {}: no state", i + 1),
+                Some(a) => {
+                    _ = writeln!(
+                        out,
+                        "arm {}: {} apple {} harvested {}",
+                        i + 1,
+                        ArmPhase::from_code(a.phase)
+                            .map_or_else(|| "?".to_owned(), |p| format!("{p:?}").to_lowercase()),
+                        a.apple_id,
+                        a.harvested_count
+                    )
+                }
+                None => _ = writeln!(out, "arm {}: no state", i + 1),
             }
         }
         if let Some(v) = vacuum {
-            let _ = writeln!(out, 
+            _ = writeln!(
+                out,
                 "valves {:?}; vacuum arm1 {:.0} arm2 {:.0} source {:.0} mmH2O",
                 v.valve_open, v.pressure_mmh2o[0], v.pressure_mmh2o[1], v.pressure_mmh2o[2]
             );
