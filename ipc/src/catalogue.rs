@@ -366,6 +366,52 @@ pub const HW_LIDAR_POINTS: Channel<PointCloud> = Channel::in_layer(
     "point frames as the LiDAR device delivers them to its driver, 10 Hz",
 );
 
+// --- Operator channels (issue 15): commands, acknowledgements, the mode, manual arm orders.
+
+/// Operator commands to the executive (`harvest ctl`, the console, later the safety monitor).
+pub const OPERATOR_COMMAND: Channel<OperatorCommand> = Channel::new(
+    "operator/command",
+    Qos {
+        max_publishers: 8,
+        max_nodes: 24,
+        ..Qos::SMALL
+    },
+    "operator commands (start, pause, e-stop, jog, ...) with the control token, to the executive",
+);
+/// The executive's acknowledgement of each operator command.
+pub const OPERATOR_ACK: Channel<OperatorAck> = Channel::new(
+    "operator/ack",
+    Qos {
+        max_subscribers: 16,
+        max_nodes: 24,
+        ..Qos::SMALL
+    },
+    "each operator command accepted, or refused with a reason",
+);
+/// The stack's operating mode, as the executive enforces it.
+pub const OPERATOR_MODE: Channel<OperatorModeState> = Channel::new(
+    "operator/mode",
+    Qos {
+        max_subscribers: 16,
+        max_nodes: 24,
+        ..Qos::STATE
+    },
+    "mode (idle, harvesting, paused, manual, estopped), arms enabled, controlling session, 10 Hz",
+);
+/// Manual motion orders the executive forwards to each arm.
+pub const ARM_MANUAL: [Channel<ArmManualCommand>; 2] = [
+    Channel::new(
+        "arm1/manual",
+        Qos::SMALL,
+        "manual motion orders to arm 1 (jog, drop-off), from the executive",
+    ),
+    Channel::new(
+        "arm2/manual",
+        Qos::SMALL,
+        "manual motion orders to arm 2 (jog, drop-off), from the executive",
+    ),
+];
+
 /// Called once per catalogue channel with its payload type.
 pub trait ChannelVisitor {
     fn visit<T: Payload>(&mut self, channel: Channel<T>);
@@ -402,6 +448,12 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(SIM_GROUND_TRUTH);
     visitor.visit(LIDAR_POINTS);
     visitor.visit(HW_LIDAR_POINTS);
+    visitor.visit(OPERATOR_COMMAND);
+    visitor.visit(OPERATOR_ACK);
+    visitor.visit(OPERATOR_MODE);
+    for arm in ArmId::ALL {
+        visitor.visit(ARM_MANUAL[arm.index()]);
+    }
 }
 
 /// Every channel's spec, in catalogue order.

@@ -30,6 +30,8 @@ pub mod failure_streak;
 pub mod fixed_string;
 pub mod header;
 pub mod health;
+// The operator channels' client side (issue 15).
+pub mod operator_client;
 pub mod payload;
 pub mod payloads;
 pub mod period_stats;

@@ -92,6 +92,15 @@ enum Command {
     Monitor(harvest_monitor::MonitorArgs),
     /// List the channel catalogue.
     Channels,
+    /// Executive: the operator's mode machine, the emergency stop's one writer, manual moves,
+    /// the platform.
+    Executive(harvest_executive::ExecutiveArgs),
+    /// Operator commands from the terminal: status, start, pause, resume, stop, estop,
+    /// release, home, arm N enable|disable, jog, drop-off, platform.
+    Ctl(harvest_executive::ctl::CtlArgs),
+    /// Operator console: the robot's camera view, status and control panels in a browser
+    /// (http://127.0.0.1:8080 by default).
+    Console(harvest_console::ConsoleArgs),
 }
 
 #[cfg(feature = "sim-tools")]
@@ -169,6 +178,9 @@ impl Cli {
             Command::Clean { .. } => "clean",
             Command::Monitor(_) => "monitor",
             Command::Channels => "channels",
+            Command::Executive(_) => "executive",
+            Command::Ctl(_) => "ctl",
+            Command::Console(_) => "console",
         }
         .to_owned()
     }
@@ -293,6 +305,17 @@ impl Cli {
                 })
             }
             Command::Clean { check } => clean(&domain, check),
+            Command::Executive(args) => {
+                harvest_executive::run(&args, &domain, process_name).context("executive")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Ctl(args) => {
+                Ok(harvest_executive::ctl::run(&args, &domain).context("harvest ctl")?)
+            }
+            Command::Console(args) => {
+                harvest_console::run(&args, &domain, process_name).context("console")?;
+                Ok(ExitCode::SUCCESS)
+            }
             Command::Channels => {
                 for spec in harvest_ipc::catalogue::all_specs() {
                     println!(

@@ -8,6 +8,8 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+pub mod webdriver;
+
 pub const HARVEST: &str = env!("CARGO_BIN_EXE_harvest");
 
 /// The simulated robot's camera calibration, which perception needs (`--calibration`).

@@ -6,6 +6,7 @@
 
 pub mod controller;
 pub mod harvest_events;
+pub mod manual_motion;
 pub mod node;
 pub mod picking_cycle;
 pub mod reported_phase;

@@ -32,6 +32,12 @@
 //!   [`AttemptFailure::EmergencyStop`]) and targets received meanwhile are dropped. After
 //!   release the arm is idle where it stopped; the next target starts from there.
 //!
+//! - **Operator.** While the operator holds new targets ([`ArmNode::hold_targets`]: paused,
+//!   idle, manual, or this arm disabled) a target is not offered to the cycle; the arm reports
+//!   it as waiting, so the vacuum supervisor takes it back. An attempt under way runs to its
+//!   end. A manual move ([`ArmNode::start_manual`], `crate::manual_motion`) runs only while the
+//!   cycle is idle and no emergency stop is engaged; the emergency stop ends it.
+//!
 //! Pure logic: no clock reads, no I/O. Per-tick work allocates nothing after the first ticks
 //! (the event buffer is reused).
 
@@ -44,6 +50,7 @@ use harvest_ipc::payloads::{
 use thiserror::Error;
 use tracing::{debug, info, trace, warn};
 
+use crate::manual_motion::{ManualMotion, ManualMotionError};
 use crate::picking_cycle::{
     CycleConfig, CycleConfigError, CycleEvent, CycleInput, CyclePhase, OtherArmState, PickingCycle,
     TargetDecision, TargetRejection, TargetRequest, ValveRequest as CycleValve,
@@ -389,6 +396,27 @@ pub struct ArmNode {
     state_seq: u64,
     harvested_count: u32,
     output: ArmNodeOutput,
+    /// New targets are held back (operator: not harvesting, or this arm disabled).
+    targets_held: bool,
+    /// The manual move under way.
+    manual: Option<ManualMotion>,
+}
+
+/// Why a manual move was not started.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ManualRefusal {
+    /// The emergency stop is engaged.
+    #[error("emergency stop engaged")]
+    EmergencyStop,
+    /// The picking cycle is not idle.
+    #[error("arm busy in its picking cycle ({0:?})")]
+    Busy(PhaseCode),
+    /// No encoder feedback yet.
+    #[error("no encoder feedback yet")]
+    NoFeedback,
+    /// The move cannot be planned (limits, not finite).
+    #[error(transparent)]
+    Plan(#[from] ManualMotionError),
 }
 
 impl ArmNode {
@@ -455,6 +483,8 @@ impl ArmNode {
                 goal_m: None,
                 events: Vec::with_capacity(8),
             },
+            targets_held: false,
+            manual: None,
         })
     }
 
@@ -471,6 +501,63 @@ impl ArmNode {
     /// The node's settings.
     pub fn config(&self) -> &ArmNodeConfig {
         &self.config
+    }
+
+    /// Holds new targets back (true) or lets them be offered again (false); see the module
+    /// documentation.
+    pub fn hold_targets(&mut self, held: bool) {
+        if held != self.targets_held {
+            info!(arm = %self.arm, held, "new targets {}", if held { "held" } else { "allowed" });
+        }
+        self.targets_held = held;
+    }
+
+    /// True while a manual move runs.
+    pub fn manual_active(&self) -> bool {
+        self.manual.is_some()
+    }
+
+    /// Starts a manual move to `goal` (`[D m, theta rad, phi rad, twist rad]`) at
+    /// `speed_fraction` of the rate limits, from the last encoder position; returns its duration,
+    /// s. A move under way is replaced.
+    pub fn start_manual(
+        &mut self,
+        now_ns: u64,
+        goal: [f64; 4],
+        speed_fraction: f64,
+        request_id: u64,
+    ) -> Result<f64, ManualRefusal> {
+        if self.stopped {
+            return Err(ManualRefusal::EmergencyStop);
+        }
+        if self.cycle.phase() != CyclePhase::Idle {
+            return Err(ManualRefusal::Busy(self.phase));
+        }
+        let Some((from, _, _)) = self.last_joints else {
+            return Err(ManualRefusal::NoFeedback);
+        };
+        // From the set-point the servos track, if any, so the move starts without a jump.
+        let from = self.setpoint.unwrap_or(from);
+        let motion = ManualMotion::plan(
+            &self.params,
+            &from,
+            &goal,
+            speed_fraction,
+            now_ns,
+            request_id,
+        )?;
+        let duration_s = motion.duration_s();
+        info!(arm = %self.arm, request_id, ?goal, duration_s, "manual move started");
+        self.manual = Some(motion);
+        Ok(duration_s)
+    }
+
+    /// Ends the manual move under way (the arm holds where its set-point is).
+    pub fn stop_manual(&mut self) {
+        if let Some(motion) = self.manual.take() {
+            info!(arm = %self.arm, request_id = motion.request_id(), "manual move stopped");
+            self.last_rate = [0.0; 4];
+        }
     }
 
     /// Apples released at the drop-off so far.
@@ -559,7 +646,19 @@ impl ArmNode {
             CycleValve::Open => ValveRequestKind::OpenForAttach,
             CycleValve::Closed => ValveRequestKind::Close,
         });
-        let servo = if out.command.stopped {
+        let manual = self.manual.as_ref().map(|motion| motion.setpoint(now_ns));
+        let servo = if let Some(manual) = manual {
+            if manual.finished {
+                debug!(arm = %self.arm, "manual move finished");
+                self.manual = None;
+            }
+            self.setpoint = Some(manual.position);
+            self.last_rate = manual.velocity;
+            ServoOrder::Track {
+                position: manual.position,
+                velocity: manual.velocity,
+            }
+        } else if out.command.stopped {
             self.setpoint = None;
             ServoOrder::Hold
         } else {
@@ -613,6 +712,12 @@ impl ArmNode {
     fn offer(&mut self, now_ns: u64, other: Option<&ArmState>) -> Option<TargetRequest> {
         let target = self.pending?;
         if self.cycle.phase() != CyclePhase::Idle {
+            return None;
+        }
+        if self.targets_held || self.manual.is_some() {
+            // Reported as waiting: the vacuum supervisor hands the apple back after its
+            // patience and dispatches nothing new while the operator holds the harvest.
+            self.target_status = (TargetStatus::Waiting, target.apple_id);
             return None;
         }
         if self.config.other_arm_present {
@@ -820,6 +925,7 @@ impl ArmNode {
     }
 
     fn emergency_stop(&mut self, period_ns: u64) {
+        self.manual = None;
         if !self.stopped {
             self.stopped = true;
             warn!(arm = %self.arm, phase = ?self.phase, "emergency stop: braking, valve closed");

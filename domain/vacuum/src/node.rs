@@ -95,6 +95,8 @@ pub struct VacuumNode {
     state_seq: u64,
     grant_seq: u64,
     last_readings: Option<BoardReadings>,
+    /// Per arm: no target is dispatched (operator: not harvesting, or the arm disabled).
+    dispatch_held: [bool; 2],
     output: VacuumNodeOutput,
 }
 
@@ -146,6 +148,7 @@ impl VacuumNode {
             state_seq: 0,
             grant_seq: 0,
             last_readings: None,
+            dispatch_held: [false; 2],
             output: VacuumNodeOutput {
                 valve_commands: [false, true, false, true],
                 close_all: false,
@@ -156,6 +159,17 @@ impl VacuumNode {
             },
             config,
         })
+    }
+
+    /// Holds the dispatch of new targets per arm (indexed by [`ArmId::index`]): the operator
+    /// paused or stopped the harvest, or disabled the arm. Attempts under way go on (their
+    /// valve requests are answered as before); a dispatched target the arm holds back as
+    /// waiting is taken back after [`VacuumNodeConfig::waiting_patience_s`].
+    pub fn hold_dispatch(&mut self, held: [bool; 2]) {
+        if held != self.dispatch_held {
+            info!(?held, "dispatch of new targets held per arm");
+        }
+        self.dispatch_held = held;
     }
 
     /// The node's settings.

@@ -12,10 +12,14 @@ pub mod point_cloud;
 pub mod process_health;
 pub mod rgbd_frame;
 pub mod vacuum;
+// Operator channels (issue 15).
+pub mod arm_manual;
+pub mod operator;
 
 pub use alacs::{AlacsCommand, AlacsImage, AlacsStatus};
 pub use apple_detections::{AppleDetection, AppleDetections, DepthSourceCode, LocalizationMethod};
 pub use arm::{ArmCommand, ArmPhase, ArmState, ArmTarget, JOINT_COUNT, TargetStatus};
+pub use arm_manual::{ArmManualCommand, ArmManualKind};
 pub use emergency_stop::EmergencyStop;
 pub use hardware::{
     EncoderFeedback, GroundTruth, ServoSetpoint, TrueApple, TrueAppleState, ValveBoardCommand,
@@ -25,6 +29,10 @@ pub use harvest_event::{
     HARVEST_EVENT_REASON_BYTES, HarvestCause, HarvestEvent, HarvestEventKind, HarvestEventSource,
 };
 pub use laser_scan::{LaserScanRequest, LaserScanResult, LaserScanStatus};
+pub use operator::{
+    OperatorAck, OperatorCommand, OperatorCommandCode, OperatorModeCode, OperatorModeState,
+    OperatorRefusalCode,
+};
 pub use platform::{PlatformCommand, PlatformFeedback, PlatformStatus};
 pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
 pub use process_health::{ProcessHealth, ProcessRunState};

@@ -13,6 +13,13 @@
 //!    [`ArmProcessConfig::valve_request_resend_ms`] so a restarted vacuum supervisor learns the
 //!    standing request) and the node's events on `harvest/events` are published.
 //!
+//! The operator (`operator/mode`, from `harvest executive`): while the mode is not harvesting,
+//! or this arm is disabled, new targets are held back (an attempt under way runs to its end).
+//! Manual orders on `armN/manual` are carried out only in manual mode; a manual move stops as
+//! soon as the mode leaves manual or is not heard for [`MODE_STALE_NS`] (the executive is
+//! gone). With no mode ever published (a stack without the executive) the arm harvests as
+//! before.
+//!
 //! Until the servos report encoder feedback for the first time the arm is not ready: nothing
 //! is stepped or published.
 //!
@@ -29,8 +36,8 @@ use std::path::{Path, PathBuf};
 use harvest_hw::arm_servos::ArmServos;
 use harvest_hw::arm_servos::sim::SimArmServos;
 use harvest_ipc::catalogue::{
-    ARM_COMMAND, ARM_STATE, ARM_TARGET, EMERGENCY_STOP, HARVEST_EVENTS, VACUUM_STATE, VALVE_GRANT,
-    VALVE_REQUEST,
+    ARM_COMMAND, ARM_MANUAL, ARM_STATE, ARM_TARGET, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MODE,
+    VACUUM_STATE, VALVE_GRANT, VALVE_REQUEST,
 };
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
 use harvest_ipc::payloads::{
@@ -178,6 +185,10 @@ pub enum ArmProcessError {
 
 harvest_ipc::from_ipc_errors!(ArmProcessError);
 
+/// A manual move stops when `operator/mode` was not heard for this long (the executive
+/// re-sends it at 10 Hz), ns.
+pub const MODE_STALE_NS: u64 = 500_000_000;
+
 /// Device errors in a row after which the process stops (and the supervisor restarts it).
 const MAX_CONSECUTIVE_DEVICE_ERRORS: u32 = 200;
 
@@ -244,6 +255,9 @@ fn control_loop<S: ArmServos>(
     let other_state_in = context.subscriber(ARM_STATE[other])?;
     let other_target_in = context.subscriber(ARM_TARGET[other])?;
     let estop_in = context.subscriber(EMERGENCY_STOP)?;
+    let mode_in = context.subscriber(OPERATOR_MODE)?;
+    let manual_in = context.subscriber(ARM_MANUAL[i])?;
+    let mut operator_mode: Option<harvest_ipc::payloads::OperatorModeState> = None;
     let mut command_out = context.publisher(ARM_COMMAND[i])?;
     let mut state_out = context.publisher(ARM_STATE[i])?;
     let mut request_out = context.publisher(VALVE_REQUEST)?;
@@ -301,6 +315,18 @@ fn control_loop<S: ArmServos>(
                     &other_state_in,
                     &other_target_in,
                     &estop_in,
+                )?;
+
+                // The operator's mode and manual orders.
+                if let Some(sample) = mode_in.receive_latest()? {
+                    operator_mode = Some(*sample);
+                }
+                obey_operator(
+                    &mut node,
+                    number,
+                    now_ns,
+                    operator_mode.as_ref(),
+                    &manual_in,
                 )?;
 
                 // 3. The node.
@@ -421,6 +447,57 @@ fn control_loop<S: ArmServos>(
         "arm stopped; control period: {summary}"
     );
     Ok(summary)
+}
+
+/// Holds new targets unless harvesting with this arm enabled, and carries out manual orders
+/// in manual mode only (module docs).
+fn obey_operator(
+    node: &mut ArmNode,
+    number: u8,
+    now_ns: u64,
+    mode: Option<&harvest_ipc::payloads::OperatorModeState>,
+    manual_in: &harvest_ipc::Subscriber<harvest_ipc::payloads::ArmManualCommand>,
+) -> Result<(), ArmProcessError> {
+    use harvest_ipc::payloads::{ArmManualKind, OperatorModeCode};
+    let code = mode.and_then(|m| m.mode_code());
+    let enabled = mode.is_none_or(|m| m.arms_enabled[usize::from(number - 1)] != 0);
+    let harvesting = mode.is_none() || code == Some(OperatorModeCode::Harvesting);
+    node.hold_targets(!(harvesting && enabled));
+    let manual_fresh = code == Some(OperatorModeCode::Manual)
+        && mode.is_some_and(|m| now_ns.saturating_sub(m.header.capture_ns) <= MODE_STALE_NS);
+    while let Some(order) = manual_in.receive()? {
+        if order.arm_id != number {
+            continue;
+        }
+        match order.manual_kind() {
+            Some(ArmManualKind::MoveTo) if manual_fresh => {
+                match node.start_manual(
+                    now_ns,
+                    order.goal_joint_position,
+                    order.speed_fraction,
+                    order.request_id,
+                ) {
+                    Ok(duration_s) => {
+                        tracing::info!(request_id = order.request_id, duration_s, "manual move")
+                    }
+                    Err(refusal) => {
+                        tracing::warn!(request_id = order.request_id, %refusal, "manual move refused")
+                    }
+                }
+            }
+            Some(ArmManualKind::MoveTo) => {
+                tracing::warn!(request_id = order.request_id, mode = ?code,
+                    "manual move refused: not in manual mode");
+            }
+            Some(ArmManualKind::Stop) => node.stop_manual(),
+            None => tracing::warn!(kind = order.kind, "unknown manual order ignored"),
+        }
+    }
+    if node.manual_active() && !manual_fresh {
+        tracing::warn!(mode = ?code, "manual move stopped: mode left manual or went silent");
+        node.stop_manual();
+    }
+    Ok(())
 }
 
 /// Takes the newest sample of each input channel (this arm's answers only on the shared grant

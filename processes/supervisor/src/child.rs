@@ -18,11 +18,15 @@ pub const PROCESS_NAME_ENV: &str = "HARVEST_PROCESS_NAME";
 /// signal set so children never outlive a killed supervisor. The child keeps `domain_lock_fd`
 /// open across exec ([`crate::domain_lock::DomainLock::inheritable_fd`]): the domain stays held
 /// until the last process of the stack is gone.
+///
+/// The control token goes to every child in `HARVEST_CONTROL_TOKEN` (the executive checks
+/// operator commands with it; the others ignore it).
 pub fn spawn(
     executable: &Path,
     spec: &ProcessSpec,
     domain: &Domain,
     domain_lock_fd: RawFd,
+    control_token: &str,
 ) -> std::io::Result<Child> {
     let mut command = match &spec.executable {
         Some(program) => Command::new(program),
@@ -36,6 +40,7 @@ pub fn spawn(
         .args(&spec.args)
         .env(harvest_ipc::domain::DOMAIN_ENV, domain.name())
         .env(PROCESS_NAME_ENV, &spec.name)
+        .env(harvest_operator::token::CONTROL_TOKEN_ENV, control_token)
         .process_group(0);
     // SAFETY: the closure runs in the forked child before exec and only calls prctl and fcntl,
     // which are async-signal-safe. Clearing FD_CLOEXEC changes the child's descriptor table only.

@@ -45,6 +45,9 @@ pub const KNOWN_COMMANDS: &[&str] = &[
     "lidar",
     "recorder",
     "monitor",
+    // Operator (issue 15).
+    "executive",
+    "console",
 ];
 
 /// When a process that exited is started again.

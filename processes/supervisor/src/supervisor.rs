@@ -111,6 +111,48 @@ pub enum SupervisorError {
     Wait(#[from] harvest_ipc::error::WaitError),
     #[error("cleaning stale resources: {0}")]
     Cleanup(#[from] harvest_ipc::cleanup::CleanupError),
+    #[error(transparent)]
+    ControlToken(#[from] harvest_operator::token::TokenError),
+}
+
+/// The control token of this run (issue 15): made at start, printed, written to the domain's
+/// token file (mode 0600, `harvest_operator::token::token_path`) and handed to the children;
+/// the file (and the executive's mode file beside it) is removed when the stack stops.
+struct ControlTokenFile {
+    token: harvest_operator::ControlToken,
+    path: PathBuf,
+}
+
+impl ControlTokenFile {
+    fn create(domain: &Domain) -> Result<Self, SupervisorError> {
+        use harvest_operator::token;
+        let control = Self {
+            token: harvest_operator::ControlToken::generate()?,
+            path: token::token_path(domain.name()),
+        };
+        token::write_token_file(&control.path, &control.token)?;
+        eprintln!(
+            "control token: {} (in {}; `harvest ctl` reads it from there)",
+            control.token.as_str(),
+            control.path.display()
+        );
+        Ok(control)
+    }
+}
+
+impl Drop for ControlTokenFile {
+    fn drop(&mut self) {
+        for path in [
+            self.path.clone(),
+            harvest_operator::mode_file::mode_path(&self.path),
+        ] {
+            if let Err(error) = std::fs::remove_file(&path)
+                && error.kind() != std::io::ErrorKind::NotFound
+            {
+                tracing::warn!(path = %path.display(), %error, "could not remove");
+            }
+        }
+    }
 }
 
 struct Managed {
@@ -141,6 +183,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         with one writer refuses this stack's process if one of them writes it"
         );
     }
+    let control = ControlTokenFile::create(domain)?;
     let context = Context::new(domain, "supervisor")?;
     let health = context.subscriber_with_buffer(PROCESS_HEALTH, 256)?;
     let waiter = Waiter::new()?;
@@ -248,7 +291,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         for process in processes.iter_mut() {
             match process.status.phase.clone() {
                 ProcessPhase::WaitingToRestart { until } if now >= until => {
-                    start(process, &options, &domain_lock, now);
+                    start(process, &options, &domain_lock, control.token.as_str(), now);
                 }
                 ProcessPhase::Running { .. } => {
                     let exited = process
@@ -354,6 +397,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     );
     drop(health);
     drop(context);
+    drop(control);
     let _alive_nodes = clean_dead_nodes(domain)?;
     if let Some(error) = run_error {
         return Err(error);
@@ -370,12 +414,19 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     Ok(summary)
 }
 
-fn start(process: &mut Managed, options: &UpOptions, domain_lock: &DomainLock, now: Instant) {
+fn start(
+    process: &mut Managed,
+    options: &UpOptions,
+    domain_lock: &DomainLock,
+    control_token: &str,
+    now: Instant,
+) {
     match child::spawn(
         &options.executable,
         &process.spec,
         &options.domain,
         domain_lock.inheritable_fd(),
+        control_token,
     ) {
         Ok(child) => {
             tracing::info!(process = %process.spec.name, pid = child.id(), "started");

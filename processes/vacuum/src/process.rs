@@ -31,8 +31,8 @@ use harvest_hw::valve_board::serial::{SerialBoardConfig, SerialValveBoard};
 use harvest_hw::valve_board::sim::SimValveBoard;
 use harvest_hw::valve_board::{ValveBoard, ValveId, ValveState};
 use harvest_ipc::catalogue::{
-    ARM_STATE, ARM_TARGET, EMERGENCY_STOP, HARVEST_EVENTS, PERCEPTION_APPLES, VACUUM_STATE,
-    VALVE_GRANT, VALVE_REQUEST,
+    ARM_STATE, ARM_TARGET, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MODE, PERCEPTION_APPLES,
+    VACUUM_STATE, VALVE_GRANT, VALVE_REQUEST,
 };
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
 use harvest_ipc::control_loop::{Wake, run_control_loop};
@@ -323,6 +323,9 @@ fn control_loop<B: ValveBoard>(
     ];
     let request_in = context.subscriber(VALVE_REQUEST)?;
     let estop_in = context.subscriber(EMERGENCY_STOP)?;
+    // The operator's mode: targets go out only while harvesting, to enabled arms (no mode
+    // ever published: a stack without the executive harvests as before).
+    let mode_in = context.subscriber(OPERATOR_MODE)?;
     let mut target_out = [
         context.publisher(ARM_TARGET[0])?,
         context.publisher(ARM_TARGET[1])?,
@@ -384,6 +387,11 @@ fn control_loop<B: ValveBoard>(
                 }
                 if let Some(sample) = estop_in.receive_latest()? {
                     estop = sample.engaged != 0;
+                }
+                if let Some(mode) = mode_in.receive_latest()? {
+                    let harvesting = mode.mode_code()
+                        == Some(harvest_ipc::payloads::OperatorModeCode::Harvesting);
+                    node.hold_dispatch(mode.arms_enabled.map(|on| !(harvesting && on != 0)));
                 }
 
                 // 3. The node.

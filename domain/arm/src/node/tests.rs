@@ -634,3 +634,70 @@ fn config_is_checked() {
         Err(ArmNodeError::Cycle(_))
     ));
 }
+
+// --- Operator: held targets and manual moves (issue 15).
+
+#[test]
+fn a_held_target_waits_and_starts_once_released() {
+    let mut bench = Bench::single_arm();
+    bench.node.hold_targets(true);
+    bench.target = Some(bench.target(1, 42, APPLE_M));
+    for _ in 0..20 {
+        let out = bench.tick();
+        assert_eq!(out.state.phase, PhaseCode::Idle);
+        assert_eq!(out.state.target_status, TargetStatus::Waiting);
+        assert_eq!(out.state.target_apple_id, 42);
+    }
+    assert!(!bench.has(|e| matches!(e, ArmNodeEvent::TargetAccepted { .. })));
+    bench.node.hold_targets(false);
+    bench.tick();
+    assert!(bench.has(|e| matches!(e, ArmNodeEvent::TargetAccepted { apple_id: 42 })));
+}
+
+#[test]
+fn a_manual_move_reaches_its_goal_and_the_emergency_stop_ends_it() {
+    let mut bench = Bench::single_arm();
+    bench.tick();
+    let mut goal = bench.q;
+    goal[1] += 0.1;
+    let duration_s = bench
+        .node
+        .start_manual(bench.now_ns, goal, 0.5, 9)
+        .expect("manual move");
+    assert!(bench.node.manual_active());
+    let ticks = (duration_s * 1e9 / PERIOD_NS as f64) as usize + 100;
+    for _ in 0..ticks {
+        let out = bench.tick();
+        assert_eq!(out.state.phase, PhaseCode::Idle);
+        if let ServoOrder::Track { position, .. } = out.servo {
+            assert!(position[1] <= goal[1] + 1e-9);
+        }
+    }
+    assert!(!bench.node.manual_active());
+    assert!((bench.q[1] - goal[1]).abs() < 0.005, "{:?}", bench.q);
+
+    // Outside the limits: refused, nothing moves.
+    let mut far = bench.q;
+    far[0] = 5.0;
+    assert!(matches!(
+        bench.node.start_manual(bench.now_ns, far, 0.5, 10),
+        Err(ManualRefusal::Plan(_))
+    ));
+    assert!(!bench.node.manual_active());
+
+    // The emergency stop ends a move under way and refuses new ones while engaged.
+    goal[1] -= 0.1;
+    bench
+        .node
+        .start_manual(bench.now_ns, goal, 0.5, 11)
+        .expect("manual move");
+    bench.tick();
+    bench.emergency_stop = true;
+    let out = bench.tick();
+    assert_eq!(out.servo, ServoOrder::Hold);
+    assert!(!bench.node.manual_active());
+    assert_eq!(
+        bench.node.start_manual(bench.now_ns, goal, 0.5, 12),
+        Err(ManualRefusal::EmergencyStop)
+    );
+}

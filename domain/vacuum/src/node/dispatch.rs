@@ -22,6 +22,9 @@ impl VacuumNode {
             let Some(state) = input.arm_states[i] else {
                 continue;
             };
+            if self.dispatch_held[i] {
+                continue;
+            }
             let track = self.arms[i];
             let idle = state.phase == PhaseCode::Idle
                 && track.dispatched.is_none()

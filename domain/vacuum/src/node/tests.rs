@@ -689,3 +689,26 @@ fn a_waiting_arm_with_nowhere_else_to_send_its_apple_keeps_it_and_a_refusal_ends
         "only the first one"
     );
 }
+
+// --- Operator: dispatch held per arm (issue 15).
+
+#[test]
+fn a_held_arm_gets_no_target_until_released() {
+    let mut b = Bench::new(PolicyKind::V2024);
+    b.node.hold_dispatch([true, true]);
+    let set = detections(b.now_ns - 100 * MS, &[LEFT, RIGHT]);
+    assert!(b.tick_with(Some(&set)).targets.iter().all(Option::is_none));
+    for _ in 0..10 {
+        assert!(b.tick().targets.iter().all(Option::is_none));
+    }
+    // Arm 2 only: the right apple goes out, the left one stays queued.
+    b.node.hold_dispatch([true, false]);
+    let out = b.tick();
+    let dispatched: Vec<ArmTarget> = out.targets.iter().flatten().copied().collect();
+    assert_eq!(dispatched.len(), 1);
+    assert_eq!(dispatched[0].arm_id, 2);
+    assert!(b.tick().targets[0].is_none());
+    b.node.hold_dispatch([false, false]);
+    let out = b.tick();
+    assert_eq!(out.targets[0].map(|t| t.position_in_robot_m), Some(LEFT));
+}

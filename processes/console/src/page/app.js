@@ -1,0 +1,323 @@
+// The harvest console page: polls /api/status, streams /api/camera.jpg, posts commands to
+// /api/command. No framework, nothing loaded from elsewhere.
+'use strict';
+
+const $ = (id) => document.getElementById(id);
+const state = {
+  session: Math.floor(Math.random() * 2 ** 52) + 1,
+  token: sessionStorage.getItem('harvest-token') || '',
+  controlling: false,
+  heartbeat: null,
+  offsetNs: null,
+  bestRttMs: Infinity,
+  viewSeq: 0,
+  status: null,
+  pressures: [[], [], []],
+};
+// Read by the browser test and by anyone curious (devtools).
+window.consoleStats = { views: 0, latenciesMs: [], estopClickNs: null, answers: [] };
+
+const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+const fmt = (value, digits) => (value === null || value === undefined ? '-' : Number(value).toFixed(digits));
+
+// --- Clock: the stack clock (CLOCK_MONOTONIC) estimated from the page's clock.
+async function syncClock() {
+  const t0 = performance.now();
+  const response = await fetch('/api/clock', { cache: 'no-store' });
+  const body = await response.json();
+  const t1 = performance.now();
+  const rtt = t1 - t0;
+  // Keep the estimate of the fastest round trip (its midpoint is the tightest).
+  if (rtt <= state.bestRttMs * 1.5 || state.offsetNs === null) {
+    state.bestRttMs = Math.min(rtt, state.bestRttMs);
+    state.offsetNs = body.now_ns - ((t0 + t1) / 2) * 1e6;
+  }
+}
+function monoNowNs() {
+  return performance.now() * 1e6 + state.offsetNs;
+}
+
+// --- Camera view.
+async function cameraLoop() {
+  const img = $('camera');
+  let previousUrl = null;
+  for (;;) {
+    try {
+      const response = await fetch('/api/camera.jpg?after=' + state.viewSeq, { cache: 'no-store' });
+      if (response.status !== 200) {
+        await sleep(500);
+        continue;
+      }
+      const seq = Number(response.headers.get('X-View-Seq'));
+      const captureNs = Number(response.headers.get('X-Capture-Ns'));
+      const blob = await response.blob();
+      const url = URL.createObjectURL(blob);
+      img.src = url;
+      await img.decode();
+      if (previousUrl) URL.revokeObjectURL(previousUrl);
+      previousUrl = url;
+      if (seq !== state.viewSeq) {
+        state.viewSeq = seq;
+        window.consoleStats.views += 1;
+        if (state.offsetNs !== null) {
+          const latencies = window.consoleStats.latenciesMs;
+          latencies.push((monoNowNs() - captureNs) / 1e6);
+          if (latencies.length > 5000) latencies.shift();
+        }
+        $('view-info').textContent = `view ${seq}, frame ${response.headers.get('X-Frame-Seq')}`;
+      }
+      drawOverlay();
+    } catch (error) {
+      await sleep(1000);
+    }
+  }
+}
+
+function drawOverlay() {
+  const canvas = $('overlay');
+  const status = state.status;
+  const view = status && status.view;
+  if (!view) return;
+  canvas.width = view.width_px;
+  canvas.height = view.height_px;
+  const ctx = canvas.getContext('2d');
+  ctx.clearRect(0, 0, canvas.width, canvas.height);
+  const detections = status.detections;
+  if (!detections) return;
+  ctx.font = '11px system-ui, sans-serif';
+  for (const apple of detections.apples) {
+    const [x, y, w, h] = apple.box_px.map((v) => v / view.scale);
+    const reachable = apple.reachable[0] || apple.reachable[1];
+    ctx.setLineDash(reachable ? [] : [4, 3]);
+    ctx.lineWidth = apple.target_of ? 3 : 1.5;
+    ctx.strokeStyle = apple.target_of ? '#ffd400' : reachable ? '#2fbf4a' : '#e0412f';
+    ctx.beginPath();
+    ctx.ellipse(x + w / 2, y + h / 2, w / 2 + 2, h / 2 + 2, 0, 0, 2 * Math.PI);
+    ctx.stroke();
+    let label = `#${apple.id} ${Math.round(apple.confidence * 100)}% ${apple.depth_source}`;
+    if (apple.target_of) label += ` arm ${apple.target_of}`;
+    else if (!reachable) label += ' out of reach';
+    ctx.setLineDash([]);
+    ctx.fillStyle = '#000a';
+    const width = ctx.measureText(label).width + 6;
+    ctx.fillRect(x, Math.max(0, y - 14), width, 13);
+    ctx.fillStyle = '#fff';
+    ctx.fillText(label, x + 3, Math.max(10, y - 4));
+  }
+}
+
+// --- Top view: x forward (up on the screen), y left (left on the screen).
+function drawTopView(status) {
+  const canvas = $('topview');
+  const ctx = canvas.getContext('2d');
+  const scale = 170; // px per m
+  const origin = [canvas.width / 2, canvas.height - 20];
+  const toScreen = (p) => [origin[0] - p[1] * scale, origin[1] - p[0] * scale];
+  ctx.clearRect(0, 0, canvas.width, canvas.height);
+  ctx.strokeStyle = '#dde3db';
+  ctx.lineWidth = 1;
+  for (let x = 0; x <= 2.0; x += 0.5) {
+    const [, sy] = toScreen([x, 0]);
+    ctx.beginPath(); ctx.moveTo(0, sy); ctx.lineTo(canvas.width, sy); ctx.stroke();
+    ctx.fillStyle = '#9aa69a'; ctx.fillText(`${x.toFixed(1)} m`, 4, sy - 2);
+  }
+  const colours = ['#1f6fd1', '#d17a1f'];
+  status.arms.forEach((arm, i) => {
+    if (!arm || !arm.tip_m) return;
+    const points = [arm.base_m, arm.pivot_m, arm.tip_m].map(toScreen);
+    ctx.strokeStyle = colours[i];
+    ctx.lineWidth = 5;
+    ctx.beginPath();
+    ctx.moveTo(...points[0]);
+    for (const p of points.slice(1)) ctx.lineTo(...p);
+    ctx.stroke();
+    ctx.fillStyle = colours[i];
+    ctx.beginPath(); ctx.arc(...points[2], 5, 0, 2 * Math.PI); ctx.fill();
+    ctx.fillText(`arm ${i + 1} ${arm.phase}`, points[0][0] + (i === 0 ? -70 : 10), points[0][1] + 14);
+  });
+  const detections = status.detections;
+  if (detections) {
+    for (const apple of detections.apples) {
+      if (!apple.position_m) continue;
+      const [sx, sy] = toScreen(apple.position_m);
+      const reachable = apple.reachable[0] || apple.reachable[1];
+      ctx.fillStyle = apple.target_of ? '#ffd400' : reachable ? '#2fbf4a' : '#e0412f';
+      ctx.beginPath(); ctx.arc(sx, sy, Math.max(3, apple.radius_m * scale), 0, 2 * Math.PI); ctx.fill();
+    }
+  }
+}
+
+function drawPressures() {
+  const canvas = $('plot-pressure');
+  const ctx = canvas.getContext('2d');
+  ctx.clearRect(0, 0, canvas.width, canvas.height);
+  const max = 3000;
+  const colours = ['#1f6fd1', '#d17a1f', '#555'];
+  state.pressures.forEach((series, k) => {
+    ctx.strokeStyle = colours[k];
+    ctx.lineWidth = 1.5;
+    ctx.beginPath();
+    series.forEach((value, i) => {
+      const x = (i / 149) * canvas.width;
+      const y = canvas.height - (Math.min(value, max) / max) * (canvas.height - 4) - 2;
+      if (i === 0) ctx.moveTo(x, y); else ctx.lineTo(x, y);
+    });
+    ctx.stroke();
+  });
+  ctx.fillStyle = '#6b756a';
+  ctx.fillText('0-3000 mmH2O, 30 s: arm 1 blue, arm 2 orange, source grey', 4, 10);
+}
+
+// --- Status.
+function renderStatus(status) {
+  state.status = status;
+  const mode = status.mode;
+  $('mode-name').textContent = mode ? mode.name : 'unknown (no executive)';
+  const estop = $('estop-state');
+  if (mode && mode.estop) {
+    estop.textContent = 'E-STOP ENGAGED';
+    estop.className = 'estop-engaged';
+  } else {
+    estop.textContent = 'e-stop released';
+    estop.className = 'estop-released';
+  }
+  $('controller').textContent = mode && mode.controller ? mode.controller : 'none';
+  $('mode-change').textContent = mode ? mode.last_change : '';
+  status.arms.forEach((arm, i) => {
+    const n = i + 1;
+    $(`arm${n}-phase`).textContent = arm ? arm.phase : 'no state';
+    $(`arm${n}-apple`).textContent = arm && arm.apple_id ? arm.apple_id : '-';
+    $(`arm${n}-harvested`).textContent = arm ? arm.harvested : '-';
+    $(`arm${n}-enabled`).textContent = mode ? (mode.arms_enabled[i] ? 'yes' : 'no') : '-';
+    $(`arm${n}-target`).textContent = arm && arm.target_apple_id ? arm.target_apple_id : '-';
+  });
+  const vacuum = status.vacuum;
+  if (vacuum) {
+    vacuum.valve_open.forEach((open, k) => {
+      $(`valve${k + 1}`).className = 'valve' + (open ? ' open' : '') + (vacuum.in_transit[k] ? ' moving' : '');
+      $(`valve${k + 1}`).dataset.open = open ? '1' : '0';
+    });
+    vacuum.pressure_mmh2o.forEach((value, k) => {
+      $(`pressure${k + 1}`).textContent = value.toFixed(0);
+      state.pressures[k].push(value);
+      if (state.pressures[k].length > 150) state.pressures[k].shift();
+    });
+    drawPressures();
+  }
+  const fruit = status.fruit;
+  $('fruit-attempted').textContent = fruit.apples_attempted;
+  $('fruit-harvested').textContent = fruit.apples_harvested;
+  $('fruit-success').textContent = fruit.rates.success_rate === null ? '-' : fmt(fruit.rates.success_rate * 100, 1) + ' %';
+  $('fruit-s-apple').textContent = fmt(fruit.rates.seconds_per_apple, 2);
+  $('fruit-s-attempt').textContent = fmt(fruit.rates.seconds_per_attempt, 2);
+  $('processes').innerHTML = status.processes.map((p) =>
+    `<tr class="${p.age_ms > 2000 ? 'stale' : ''}"><td>${p.name}</td><td>${p.state}</td><td>${p.pid}</td>` +
+    `<td>${p.restarts}</td><td>${p.rate_hz.toFixed(1)}</td><td>${p.detail} ${p.value}</td><td>${(p.age_ms / 1000).toFixed(1)} s</td></tr>`).join('');
+  const recorder = status.recorder;
+  $('recorder').textContent = recorder
+    ? `${recorder.state}, ${recorder.messages} messages, ${recorder.detail} ${recorder.value} (file and size: see \`harvest rec info\`)`
+    : 'not running';
+  const events = $('events');
+  const atBottom = events.scrollTop + events.clientHeight >= events.scrollHeight - 4;
+  events.textContent = status.events.join('\n');
+  if (atBottom) events.scrollTop = events.scrollHeight;
+  if (mode && mode.platform.present && mode.platform.position_m) {
+    const p = mode.platform.position_m;
+    $('platform-state').textContent = `at ${p[0].toFixed(3)} / ${p[1].toFixed(3)} m${mode.platform.moving ? ', moving' : ''}`;
+  }
+  drawTopView(status);
+  drawOverlay();
+}
+
+async function statusLoop() {
+  for (;;) {
+    try {
+      const response = await fetch('/api/status', { cache: 'no-store' });
+      renderStatus(await response.json());
+    } catch (error) {
+      $('mode-name').textContent = 'console unreachable';
+    }
+    await sleep(200);
+  }
+}
+
+// --- Commands.
+async function sendCommand(command, quiet) {
+  const body = JSON.stringify({ token: state.token, session: state.session, command });
+  let answer;
+  try {
+    const response = await fetch('/api/command', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body });
+    answer = await response.json();
+  } catch (error) {
+    answer = { accepted: false, reason: 'console unreachable: ' + error };
+  }
+  if (!quiet || !answer.accepted) {
+    const element = $('last-answer');
+    element.textContent = `${command.command}: ${answer.accepted ? 'accepted' : 'REFUSED'}: ${answer.reason}`;
+    element.className = answer.accepted ? 'accepted' : 'refused';
+    window.consoleStats.answers.push({ command: command.command, ...answer });
+  }
+  return answer;
+}
+
+function setControlling(on, why) {
+  state.controlling = on;
+  if (state.heartbeat) clearInterval(state.heartbeat);
+  state.heartbeat = null;
+  if (on) {
+    state.heartbeat = setInterval(async () => {
+      const answer = await sendCommand({ command: 'heartbeat' }, true);
+      if (!answer.accepted) setControlling(false, answer.reason);
+    }, 200);
+  }
+  $('control-status').textContent = on ? 'in control (heartbeat every 200 ms)' : 'not in control' + (why ? `: ${why}` : '');
+}
+
+function wire() {
+  $('token').value = state.token;
+  $('token').addEventListener('change', () => {
+    state.token = $('token').value.trim();
+    sessionStorage.setItem('harvest-token', state.token);
+  });
+  $('take-control').addEventListener('click', async () => {
+    state.token = $('token').value.trim();
+    sessionStorage.setItem('harvest-token', state.token);
+    const answer = await sendCommand({ command: 'heartbeat' });
+    setControlling(answer.accepted, answer.accepted ? '' : answer.reason);
+  });
+  $('leave-control').addEventListener('click', async () => {
+    setControlling(false, 'left');
+    await sendCommand({ command: 'leave-control' });
+  });
+  $('btn-estop').addEventListener('click', () => {
+    if (state.offsetNs !== null) window.consoleStats.estopClickNs = monoNowNs();
+    state.token = $('token').value.trim() || state.token;
+    sendCommand({ command: 'estop' });
+  });
+  for (const button of document.querySelectorAll('button[data-command]')) {
+    button.addEventListener('click', () => {
+      const command = { command: button.dataset.command };
+      if (button.dataset.arm) command.arm = Number(button.dataset.arm);
+      sendCommand(command);
+    });
+  }
+  const jog = (sign) => sendCommand({
+    command: 'jog',
+    arm: Number($('jog-arm').value),
+    joint: $('jog-joint').value,
+    delta: sign * Number($('jog-delta').value),
+  });
+  $('jog-plus').addEventListener('click', () => jog(1));
+  $('jog-minus').addEventListener('click', () => jog(-1));
+  $('platform-move').addEventListener('click', () => sendCommand({
+    command: 'platform',
+    in_out_m: Number($('platform-in-out').value),
+    up_down_m: Number($('platform-up-down').value),
+  }));
+}
+
+wire();
+syncClock().catch(() => {});
+setInterval(() => syncClock().catch(() => {}), 5000);
+statusLoop();
+cameraLoop();
