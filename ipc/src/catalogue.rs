@@ -241,12 +241,12 @@ pub const VACUUM_STATE: Channel<VacuumState> = Channel::new(
     Qos::STATE,
     "valves, 3 pressures and inferred attachment per arm",
 );
-/// One writer, the owner of the stop: the safety monitor (`harvest monitor`). Anyone else who
-/// must stop the robot asks the owner; nobody else can engage or release it.
+/// One writer, the owner of the stop: the executive (`harvest executive`). Anyone else who must
+/// stop the robot asks it (an `operator/command` e-stop); release only by an explicit command.
 pub const EMERGENCY_STOP: Channel<EmergencyStop> = Channel::new(
     "safety/emergency_stop",
     Qos::STATE,
-    "engaged: all arms stop, all valves close (writer: the safety monitor)",
+    "engaged: all arms stop, all valves close (writer: the executive)",
 );
 pub const HARVEST_EVENTS: Channel<HarvestEvent> = Channel::new(
     "harvest/events",
