@@ -1,6 +1,7 @@
 //! Starting and signalling one child process.
 
 use crate::launch::ProcessSpec;
+use crate::scheduling::{OutcomePipe, SchedulingOutcome};
 use harvest_ipc::Domain;
 use nix::sys::signal::{Signal, killpg};
 use nix::unistd::Pid;
@@ -18,12 +19,16 @@ pub const PROCESS_NAME_ENV: &str = "HARVEST_PROCESS_NAME";
 /// signal set so children never outlive a killed supervisor. The child keeps `domain_lock_fd`
 /// open across exec ([`crate::domain_lock::DomainLock::inheritable_fd`]): the domain stays held
 /// until the last process of the stack is gone.
+///
+/// The launch file's scheduling settings ([`crate::scheduling`]) are applied in the child before
+/// `exec`; what the kernel granted comes back with the child. A refused setting does not stop
+/// the start.
 pub fn spawn(
     executable: &Path,
     spec: &ProcessSpec,
     domain: &Domain,
     domain_lock_fd: RawFd,
-) -> std::io::Result<Child> {
+) -> std::io::Result<(Child, SchedulingOutcome)> {
     let mut command = match &spec.executable {
         Some(program) => Command::new(program),
         None => {
@@ -48,7 +53,25 @@ pub fn spawn(
             Ok(())
         });
     }
-    command.spawn()
+    if spec.scheduling.is_default() {
+        return Ok((command.spawn()?, SchedulingOutcome::none()));
+    }
+    if spec.scheduling.lock_memory {
+        command.env(harvest_ipc::memory_lock::LOCK_MEMORY_ENV, "1");
+    }
+    let prepared = spec.scheduling.prepare();
+    let pipe = OutcomePipe::new()?;
+    let outcome_fd = pipe.write_fd();
+    // SAFETY: the closure runs in the forked child before exec and only makes the
+    // async-signal-safe calls of `PreparedScheduling::apply_in_child` (no allocation).
+    unsafe {
+        command.pre_exec(move || {
+            prepared.apply_in_child(outcome_fd);
+            Ok(())
+        });
+    }
+    let child = command.spawn()?;
+    Ok((child, pipe.read_outcome(&spec.scheduling)))
 }
 
 /// Sends `signal` to the child's whole process group.
