@@ -6,6 +6,8 @@
 //! - [`clock`]: which clock stamps mean, and the clocks process logic is handed.
 //! - [`codec`]: the one encoding used by recordings and copying transports.
 
+#[cfg(feature = "testing")]
+pub mod allocation_counter;
 pub mod bounded_vec;
 pub mod camera_model;
 pub mod catalogue;

@@ -88,22 +88,32 @@ mod tests {
     use super::*;
     use crate::MonotonicClock;
 
-    #[test]
-    fn ticks_follow_the_period_and_count_missed_ones() {
-        let timer = PeriodicTimer::new(Duration::from_millis(2)).expect("timer");
-        assert_eq!(timer.period(), Duration::from_millis(2));
-        let start_ns = MonotonicClock::read_ns();
-        for _ in 0..3 {
-            assert_eq!(timer.wait().expect("wait"), TimerWake::Tick { elapsed: 1 });
-        }
-        // Three ticks of 2 ms cannot come sooner than 6 ms after the start.
-        assert!(MonotonicClock::read_ns() - start_ns >= 6_000_000);
-        // Held up for more than two periods: the next wait returns at once with the count.
-        std::thread::sleep(Duration::from_millis(5));
-        match timer.wait().expect("wait") {
-            TimerWake::Tick { elapsed } => assert!(elapsed >= 2, "{elapsed}"),
+    fn elapsed(wake: TimerWake) -> u64 {
+        match wake {
+            TimerWake::Tick { elapsed } => elapsed,
             TimerWake::Interrupted => panic!("no signal was sent"),
         }
+    }
+
+    #[test]
+    fn ticks_follow_the_period_and_count_missed_ones() {
+        let period_ns = 2_000_000;
+        let timer = PeriodicTimer::new(Duration::from_nanos(period_ns)).expect("timer");
+        assert_eq!(timer.period(), Duration::from_nanos(period_ns));
+        let start_ns = MonotonicClock::read_ns();
+        let mut expirations = 0;
+        for _ in 0..3 {
+            let count = elapsed(timer.wait().expect("wait"));
+            // Each wait returns on a tick (more than one if this thread was held up).
+            assert!(count >= 1);
+            expirations += count;
+        }
+        // Never ahead of the schedule: n expirations take at least n periods.
+        assert!(MonotonicClock::read_ns() - start_ns >= expirations * period_ns);
+        // Held up for more than two periods: the next wait returns at once with the count.
+        std::thread::sleep(Duration::from_millis(5));
+        let count = elapsed(timer.wait().expect("wait"));
+        assert!(count >= 2, "{count}");
     }
 
     #[test]

@@ -5,57 +5,15 @@
 //! block, inside iceoryx2 0.10: `Publisher::loan_uninit` puts the sample's shared state in an
 //! `Rc` (`iceoryx2/src/sample_mut_uninit.rs`, `ChunkMutSharedState::new`), freed when the sample
 //! is sent. Same size every time, so glibc serves it from the thread's cache (no lock, no system
-//! call) and, with the memory locked, without a page fault. Counted by a global allocator that
-//! counts the allocations of the thread that runs the loop, from the end of the warm-up to the
+//! call) and, with the memory locked, without a page fault. Counted by `allocation_counter` on the thread that runs the loop, from the end of the warm-up to the
 //! end of the loop. (What the arm and vacuum nodes do in a tick is counted in their own crates.)
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
+use harvest_ipc::allocation_counter::{self, CountingAllocator};
 use harvest_ipc::catalogue::{ARM_STATE, HARVEST_EVENTS};
 use harvest_ipc::control_loop::{Wake, run_control_loop};
 use harvest_ipc::payloads::{ArmState, HarvestEvent, HarvestEventKind, HarvestEventSource};
 use harvest_ipc::{Context, Domain, FixedString, Flow, HealthReporter, Payload};
-
-/// Counts allocations (and reallocations) made by threads that switched counting on.
-struct CountingAllocator;
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-fn note_allocation() {
-    // `try_with`: the thread-locals may be gone while a thread exits.
-    let counting = COUNTING.try_with(Cell::get).unwrap_or(false);
-    if counting {
-        let _ = ALLOCATIONS.try_with(|count| count.set(count.get() + 1));
-    }
-}
-
-// SAFETY: every call is forwarded to the system allocator unchanged.
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        note_allocation();
-        // SAFETY: forwarded with the caller's layout.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        note_allocation();
-        // SAFETY: forwarded with the caller's layout.
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        note_allocation();
-        // SAFETY: forwarded with the caller's pointer, layout and size.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: forwarded with the caller's pointer and layout.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
 
 #[global_allocator]
 static ALLOCATOR: CountingAllocator = CountingAllocator;
@@ -86,12 +44,13 @@ fn a_running_control_loop_allocates_only_iceoryx2s_block_per_sample_sent() {
     let mut received = 0u64;
     let mut heartbeats_counted = 0u64;
     let mut samples_sent_counted = 0u64;
+    let mut allocations = 0u64;
     let summary = run_control_loop(PERIOD_NS, |wake| -> Result<Flow, LoopError> {
         match wake {
             Wake::Tick { now_ns } => {
                 ticks += 1;
                 if ticks == WARM_UP_TICKS {
-                    COUNTING.with(|counting| counting.set(true));
+                    allocation_counter::start();
                 }
                 state_out.publish_with(now_ns, |state: &mut ArmState| {
                     state.arm_id = 1;
@@ -106,7 +65,7 @@ fn a_running_control_loop_allocates_only_iceoryx2s_block_per_sample_sent() {
                 );
                 event.reason = FixedString::new("Idle -> Approach");
                 events_out.publish(&event)?;
-                if COUNTING.with(Cell::get) {
+                if allocation_counter::is_counting() {
                     samples_sent_counted += 2;
                 }
                 if let Some(state) = state_in.receive_latest()? {
@@ -117,7 +76,7 @@ fn a_running_control_loop_allocates_only_iceoryx2s_block_per_sample_sent() {
                 }
             }
             Wake::Heartbeat { period } => {
-                if COUNTING.with(Cell::get) {
+                if allocation_counter::is_counting() {
                     heartbeats_counted += 1;
                     samples_sent_counted += 1;
                 }
@@ -129,15 +88,13 @@ fn a_running_control_loop_allocates_only_iceoryx2s_block_per_sample_sent() {
             }
         }
         Ok(if ticks >= WARM_UP_TICKS + TICKS {
-            COUNTING.with(|counting| counting.set(false));
+            allocations = allocation_counter::stop();
             Flow::Stop
         } else {
             Flow::Continue
         })
     })
     .expect("control loop");
-    COUNTING.with(|counting| counting.set(false));
-    let allocations = ALLOCATIONS.with(Cell::get);
     assert_eq!(summary.ticks, WARM_UP_TICKS + TICKS - 1);
     assert_eq!(received, 2 * (WARM_UP_TICKS + TICKS));
     assert!(
