@@ -3,13 +3,14 @@
 //! does per tick between reading its inputs and publishing. Counted on this thread with
 //! `harvest_ipc::allocation_counter` over whole pick cycles (target, approach with the clearance
 //! check against the other arm, attach, twist, retract, release), a missed deadline and an
-//! emergency stop, after one cycle of warm-up.
+//! emergency stop, after one cycle of warm-up. Also `pick_reachable`, the kinematic test the
+//! vacuum supervisor runs per apple and arm on each detection set.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_arm::harvest_events::ArmEventReporter;
 use harvest_arm::node::{
     ArmNode, ArmNodeConfig, ArmNodeEvent, ArmNodeInput, EncoderSample, OtherArmInput, ServoOrder,
-    picking_point_m,
+    pick_reachable, picking_point_m,
 };
 use harvest_ipc::Header;
 use harvest_ipc::allocation_counter::{self, CountingAllocator};
@@ -245,6 +246,13 @@ fn an_arm_tick_allocates_nothing_once_running() {
         plant.emergency_stop = false;
         for _ in 0..20 {
             plant.tick();
+        }
+        // The vacuum supervisor's reachability test of each apple for both arms.
+        let config = ArmNodeConfig::default();
+        for apple_m in APPLES_M {
+            for arm in [ArmId::Arm1, ArmId::Arm2] {
+                std::hint::black_box(pick_reachable(arm, apple_m, RADIUS_M, &config));
+            }
         }
     });
     assert_eq!(plant.harvested, 3);
