@@ -503,7 +503,10 @@ mod tests {
             [
                 ("vacuum/valve_request", 2),
                 ("harvest/events", 6),
-                ("system/health", 24)
+                ("system/health", 24),
+                // Operator clients (console, ctl sessions, the monitor's stop request): the
+                // executive decides which one controls.
+                ("operator/command", 8)
             ]
         );
     }
