@@ -3,8 +3,10 @@
 //! `harvest bench ipc` measures one-way latency between two separate processes for payloads
 //! from 64 B to 16 MiB (and the stack's real `RgbdFrame`, `AppleDetections` and
 //! `LaserScanRequest`), through our layer (harvest_ipc), raw iceoryx2 and a copying Unix socket
-//! baseline, each with event-driven and busy-poll wake-ups. The measuring process receives; it
-//! starts one sending peer per run as `<current exe> bench-peer ...` ([`PEER_SUBCOMMAND`]).
+//! baseline, and with the `zenoh` feature through Zenoh over loopback TCP and over Zenoh's
+//! shared memory, each with event-driven and busy-poll wake-ups. The measuring process
+//! receives; it starts one sending peer per run as `<current exe> bench-peer ...`
+//! ([`PEER_SUBCOMMAND`]).
 //!
 //! - [`run_bench_ipc`] / [`BenchIpcArgs`]: the benchmark, returning a [`BenchReport`].
 //! - [`run_bench_peer`] / [`BenchPeerArgs`]: the hidden peer subcommand.
