@@ -37,7 +37,7 @@ pub use error::BenchError;
 pub use options::{BenchIpcArgs, BenchPeerArgs, PEER_SUBCOMMAND, Transport, WakeMode};
 pub use payload_case::PayloadCase;
 pub use peer::run_bench_peer;
-pub use pipeline::{BenchPipelineArgs, PipelineReport, run_bench_pipeline};
+pub use pipeline::{BenchPipelineArgs, PipelineComparison, PipelineReport, run_bench_pipeline};
 pub use report::BenchReport;
 pub use run::run_bench_ipc;
 pub use sender_write::SenderWrite;
