@@ -20,7 +20,7 @@ const HOPS: [&str; 7] = [
     "arm-command",
 ];
 const END_TO_END: [&str; 2] = ["capture-to-detections", "capture-to-command"];
-const TOPICS: [&str; 9] = [
+const TOPICS: [&str; 10] = [
     "hw/camera/rgbd",
     "camera/rgbd",
     "perception/apples",
@@ -30,6 +30,7 @@ const TOPICS: [&str; 9] = [
     "arm2/command",
     "arm1/state",
     "arm2/state",
+    "vacuum/state",
 ];
 
 fn u64_field(value: &Value, key: &str) -> u64 {
@@ -84,7 +85,13 @@ fn check_report_shape(report: &Value) {
         .collect();
     assert_eq!(
         channels,
-        ["arm1/command", "arm1/state", "arm2/command", "arm2/state"]
+        [
+            "arm1/command",
+            "arm1/state",
+            "arm2/command",
+            "arm2/state",
+            "vacuum/state"
+        ]
     );
     for jitter in control_loop {
         assert_eq!(u64_field(jitter, "nominal_period_ns"), 5_000_000);
@@ -119,6 +126,8 @@ fn pipeline_bench_measures_a_real_stack_and_writes_json_and_svg() {
             "3s",
             "--warmup",
             "3s",
+            "--load",
+            "1",
             "--json",
             json.to_str().expect("utf-8 path"),
             "--svg",
@@ -133,14 +142,34 @@ fn pipeline_bench_measures_a_real_stack_and_writes_json_and_svg() {
     assert!(
         stdout.contains("per hop")
             && stdout.contains("end to end")
-            && stdout.contains("arm control loop"),
+            && stdout.contains("200 Hz control loops")
+            && stdout.contains("control loops side by side"),
         "{stdout}"
     );
 
-    let report: Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).expect("json written"))
-            .expect("valid JSON");
-    check_report_shape(&report);
+    let runs: Value = serde_json::from_str(&std::fs::read_to_string(&json).expect("json written"))
+        .expect("valid JSON");
+    let runs = runs["runs"].as_array().expect("runs");
+    // By default: the launch file's scheduling, then the same stack without it.
+    let schedulings: Vec<&str> = runs
+        .iter()
+        .map(|run| run["scheduling"].as_str().expect("scheduling"))
+        .collect();
+    assert_eq!(schedulings, ["as_launched", "without"]);
+    for run in runs {
+        check_report_shape(run);
+        assert_eq!(run["settings"]["load_threads"], 1);
+    }
+    assert_ne!(
+        runs[0]["domain"], runs[1]["domain"],
+        "each run in a fresh domain"
+    );
+    let report = &runs[0];
+    // The scheduled run's supervisor applied (or, on a machine that forbids it, warned about)
+    // the bench launch file's real-time settings.
+    let scheduled_log =
+        std::fs::read_to_string(report["stack_log"].as_str().expect("log")).expect("stack log");
+    assert!(scheduled_log.contains("scheduling"), "{scheduled_log}");
     assert_eq!(report["settings"]["attached"], false);
     assert_eq!(report["interrupted"], false);
     // The bench ran the stack in a domain of its own, not the test's.
@@ -167,7 +196,8 @@ fn pipeline_bench_measures_a_real_stack_and_writes_json_and_svg() {
         "{report}"
     );
     assert_eq!(leftover_files(bench_domain), "", "iceoryx2 files left");
-    if let Some(log) = report["stack_log"].as_str() {
+    for run in runs {
+        let log = run["stack_log"].as_str().expect("stack log path");
         let text = std::fs::read_to_string(log).expect("stack log");
         assert!(text.contains("harvest up ended"), "{text}");
         let _ = std::fs::remove_file(log);
@@ -203,10 +233,13 @@ fn attached_to_an_empty_domain_every_hop_is_no_data() {
         Duration::from_secs(30),
     );
     assert!(status.success(), "bench pipeline failed:\n{stderr}");
-    let report: Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).expect("json written"))
-            .expect("valid JSON");
-    check_report_shape(&report);
+    let runs: Value = serde_json::from_str(&std::fs::read_to_string(&json).expect("json written"))
+        .expect("valid JSON");
+    let runs = runs["runs"].as_array().expect("runs");
+    assert_eq!(runs.len(), 1, "attached: one run of what is running");
+    let report = &runs[0];
+    assert_eq!(report["scheduling"], "attached");
+    check_report_shape(report);
     assert_eq!(report["settings"]["attached"], true);
     assert_eq!(report["domain"], domain);
     for stage in report["hops"]

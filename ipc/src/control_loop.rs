@@ -1,15 +1,31 @@
-//! The scaffolding of a periodic control loop: a wait set that wakes on a tick interval and on
-//! the heartbeat interval, with the tick-to-tick intervals recorded ([`PeriodStats`]).
+//! The scaffolding of a periodic control loop: ticks from a kernel periodic timer
+//! ([`PeriodicTimer`]), a heartbeat every [`HEARTBEAT_PERIOD`], the tick-to-tick intervals
+//! recorded ([`PeriodStats`]).
 //!
 //! The arm and vacuum processes run this way at 200 Hz (paper 003, section 2.2): each tick is a
-//! wait-set interval, never a sleep, and every heartbeat carries the period distribution so
-//! far. The loop ends on SIGINT/SIGTERM, when the callback returns [`Flow::Stop`], or with the
-//! callback's error.
+//! timer expiration on a fixed schedule, never a sleep, and every heartbeat carries the period
+//! distribution so far. The loop ends on SIGINT/SIGTERM, when the callback returns
+//! [`Flow::Stop`], or with the callback's error.
+//!
+//! What happens in a tick is the caller's; what the loop itself does per tick is one `read` of
+//! the timer, one clock read and one histogram record: no allocation, no lock but the signal
+//! flag's, no logging. Before the first tick the loop locks the process's memory if the launch
+//! file asked for it ([`memory_lock::lock_if_requested`]): everything the caller built before
+//! calling (ports, node, buffers) and the histogram are faulted in and locked by then.
+//!
+//! The loop blocks on its timer rather than on a wait set ([`crate::periodic_timer`] says why);
+//! it checks iceoryx2's termination flag (the one its wait sets use, so SIGINT/SIGTERM is seen
+//! whichever part of iceoryx2 installed the handler) after each wake-up: a termination signal
+//! interrupts the wait at once.
 
 use std::time::Duration;
 
+use iceoryx2_bb_posix::signal::SignalHandler;
+
 use crate::error::WaitError;
-use crate::{Flow, HEARTBEAT_PERIOD, MonotonicClock, RunError, Waiter};
+use crate::memory_lock;
+use crate::periodic_timer::{PeriodicTimer, TimerWake};
+use crate::{Flow, HEARTBEAT_PERIOD, MonotonicClock};
 
 use crate::period_stats::{PeriodStats, PeriodStatsError, PeriodSummary};
 
@@ -19,7 +35,8 @@ pub enum Wake {
     /// A control tick, read from the monotonic clock (already recorded in the period
     /// statistics).
     Tick { now_ns: u64 },
-    /// Time for a heartbeat; `period` is the tick-to-tick distribution so far.
+    /// Time for a heartbeat (right after a tick); `period` is the tick-to-tick distribution so
+    /// far, with the deadline misses.
     Heartbeat { period: PeriodSummary },
 }
 
@@ -34,25 +51,42 @@ where
     E: From<PeriodStatsError> + From<WaitError>,
 {
     let mut period = PeriodStats::new(period_ns)?;
-    let waiter = Waiter::new()?;
-    let tick = waiter.attach_interval(Duration::from_nanos(period_ns))?;
-    let heartbeat = waiter.attach_interval(HEARTBEAT_PERIOD)?;
-    waiter
-        .run(|attachment| {
-            if attachment.has_event_from(&tick) {
-                let now_ns = MonotonicClock::read_ns();
-                period.tick(now_ns);
-                return on_wake(Wake::Tick { now_ns });
+    let timer = PeriodicTimer::new(Duration::from_nanos(period_ns)).map_err(wait_error)?;
+    // Registers iceoryx2's SIGINT/SIGTERM handler if nothing did yet.
+    if SignalHandler::termination_requested() {
+        return Ok(period.summary());
+    }
+    let heartbeat_ns = HEARTBEAT_PERIOD.as_nanos() as u64;
+    let mut next_heartbeat_ns = MonotonicClock::read_ns() + heartbeat_ns;
+    memory_lock::lock_if_requested();
+    loop {
+        let wake = timer.wait().map_err(wait_error)?;
+        if SignalHandler::termination_requested() {
+            break;
+        }
+        let TimerWake::Tick { .. } = wake else {
+            continue;
+        };
+        let now_ns = MonotonicClock::read_ns();
+        period.tick(now_ns);
+        if on_wake(Wake::Tick { now_ns })? == Flow::Stop {
+            break;
+        }
+        if now_ns >= next_heartbeat_ns {
+            next_heartbeat_ns = now_ns + heartbeat_ns;
+            let summary = period.summary();
+            if on_wake(Wake::Heartbeat { period: summary })? == Flow::Stop {
+                break;
             }
-            if attachment.has_event_from(&heartbeat) {
-                return on_wake(Wake::Heartbeat {
-                    period: period.summary(),
-                });
-            }
-            Ok(Flow::Continue)
-        })
-        .map_err(RunError::flatten)?;
+        }
+    }
     Ok(period.summary())
+}
+
+fn wait_error(error: crate::periodic_timer::PeriodicTimerError) -> WaitError {
+    WaitError {
+        reason: error.to_string(),
+    }
 }
 
 #[cfg(test)]
@@ -94,6 +128,29 @@ mod tests {
     fn a_callback_error_ends_the_loop() {
         let result = run_control_loop(1_000_000, |_| Err(TestError::Callback));
         assert!(matches!(result, Err(TestError::Callback)));
+    }
+
+    #[test]
+    fn heartbeats_come_between_ticks_with_the_distribution() {
+        let mut ticks = 0u64;
+        let mut heartbeat = None;
+        run_control_loop(10_000_000, |wake| -> Result<Flow, TestError> {
+            match wake {
+                Wake::Tick { .. } => ticks += 1,
+                Wake::Heartbeat { period } => heartbeat = Some((ticks, period)),
+            }
+            Ok(if heartbeat.is_some() {
+                Flow::Stop
+            } else {
+                Flow::Continue
+            })
+        })
+        .expect("loop");
+        let (ticks_before, period) = heartbeat.expect("a heartbeat");
+        // 500 ms at 10 ms: the heartbeat comes after a tick, never before the first.
+        assert!(ticks_before >= 1);
+        assert_eq!(period.ticks, ticks_before - 1);
+        assert_eq!(period.nominal_ns, 10_000_000);
     }
 
     #[test]

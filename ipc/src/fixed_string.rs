@@ -21,9 +21,33 @@ impl<const N: usize> FixedString<N> {
         Self { bytes }
     }
 
+    /// A string of what `args` formats to, truncated like [`Self::new`]; no allocation
+    /// (`FixedString::format(format_args!("{a} -> {b}"))`).
+    pub fn format(args: std::fmt::Arguments<'_>) -> Self {
+        let mut out = Self::default();
+        // Writing to a FixedString never fails (it truncates).
+        let _ = std::fmt::Write::write_fmt(&mut out, args);
+        out
+    }
+
     pub fn as_str(&self) -> &str {
         let end = self.bytes.iter().position(|&b| b == 0).unwrap_or(N);
         std::str::from_utf8(&self.bytes[..end]).unwrap_or("<invalid utf-8>")
+    }
+}
+
+/// Appends, truncating at a character boundary once full (never an error: payload text is
+/// best-effort).
+impl<const N: usize> std::fmt::Write for FixedString<N> {
+    fn write_str(&mut self, text: &str) -> std::fmt::Result {
+        let start = self.bytes.iter().position(|&b| b == 0).unwrap_or(N);
+        let room = N - start;
+        let mut end = text.len().min(room);
+        while !text.is_char_boundary(end) {
+            end -= 1;
+        }
+        self.bytes[start..start + end].copy_from_slice(&text.as_bytes()[..end]);
+        Ok(())
     }
 }
 
@@ -67,5 +91,15 @@ mod tests {
         let name = FixedString::<4>::new("aéé");
         assert_eq!(name.as_str(), "aé");
         assert_eq!(FixedString::<8>::new("camera").as_str(), "camera");
+    }
+
+    #[test]
+    fn formats_in_place_and_truncates_at_char_boundary() {
+        let text = FixedString::<12>::format(format_args!("{} -> {:?}", 7, "x"));
+        assert_eq!(text.as_str(), "7 -> \"x\"");
+        let cut = FixedString::<5>::format(format_args!("ab{}", "cdé"));
+        assert_eq!(cut.as_str(), "abcd");
+        let full = FixedString::<4>::format(format_args!("{}{}", "abcd", "ef"));
+        assert_eq!(full.as_str(), "abcd");
     }
 }

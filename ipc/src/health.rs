@@ -6,6 +6,7 @@ use crate::context::Context;
 use crate::error::{OpenChannelError, SendError};
 use crate::fixed_string::FixedString;
 use crate::payloads::{ProcessHealth, ProcessRunState};
+use crate::period_stats::PeriodSummary;
 use crate::publisher::Publisher;
 use std::time::Duration;
 
@@ -37,6 +38,34 @@ impl HealthReporter {
         detail: &str,
         detail_value: u64,
     ) -> Result<(), SendError> {
+        self.send(run_state, main_channel_count, detail, detail_value, 0)
+    }
+
+    /// Sends the heartbeat of a control loop: the detail is the period's p99 (`period_p99_us`)
+    /// and the deadline misses so far go with it.
+    pub fn report_control_loop(
+        &mut self,
+        run_state: ProcessRunState,
+        main_channel_count: u64,
+        period: &PeriodSummary,
+    ) -> Result<(), SendError> {
+        self.send(
+            run_state,
+            main_channel_count,
+            "period_p99_us",
+            period.p99_ns / 1000,
+            period.deadline_misses,
+        )
+    }
+
+    fn send(
+        &mut self,
+        run_state: ProcessRunState,
+        main_channel_count: u64,
+        detail: &str,
+        detail_value: u64,
+        deadline_misses: u64,
+    ) -> Result<(), SendError> {
         let process_name = self.process_name;
         let pid = self.pid;
         self.publisher
@@ -48,6 +77,7 @@ impl HealthReporter {
                 health.main_channel_count = main_channel_count;
                 health.detail = FixedString::new(detail);
                 health.detail_value = detail_value;
+                health.deadline_misses = deadline_misses;
             })?;
         Ok(())
     }

@@ -12,6 +12,8 @@
 // The derives name `::harvest_ipc::...`; this lets them work inside this crate too.
 extern crate self as harvest_ipc;
 
+#[cfg(feature = "testing")]
+pub mod allocation_counter;
 pub mod any_bit_pattern;
 pub mod arm_id;
 pub mod bounded_vec;
@@ -30,11 +32,13 @@ pub mod failure_streak;
 pub mod fixed_string;
 pub mod header;
 pub mod health;
+pub mod memory_lock;
 // The operator channels' client side (issue 15).
 pub mod operator_client;
 pub mod payload;
 pub mod payloads;
 pub mod period_stats;
+pub mod periodic_timer;
 pub mod publisher;
 pub mod subscriber;
 pub mod termination;

@@ -22,8 +22,10 @@ pub struct PeriodSummary {
     pub max_ns: u64,
     /// Shortest interval, ns.
     pub min_ns: u64,
-    /// Intervals longer than twice the nominal period (a tick missed).
-    pub overruns: u64,
+    /// Deadline misses: intervals longer than twice the nominal period, i.e. at least one tick
+    /// slot passed without the loop running (on the loop's fixed tick schedule a tick that
+    /// starts a whole period late has not finished before the next one was due).
+    pub deadline_misses: u64,
 }
 
 impl PeriodSummary {
@@ -39,14 +41,14 @@ impl std::fmt::Display for PeriodSummary {
         write!(
             f,
             "{} ticks, period {:.0} us nominal: p50 {:.0} us, p99 {:.0} us, max {:.0} us, min {:.0} \
-             us, {} overrun(s) > 2x",
+             us, {} deadline miss(es) (> 2x)",
             self.ticks,
             us(self.nominal_ns),
             us(self.p50_ns),
             us(self.p99_ns),
             us(self.max_ns),
             us(self.min_ns),
-            self.overruns
+            self.deadline_misses
         )
     }
 }
@@ -68,7 +70,7 @@ pub struct PeriodStats {
     nominal_ns: u64,
     last_tick_ns: Option<u64>,
     histogram: Histogram<u64>,
-    overruns: u64,
+    deadline_misses: u64,
 }
 
 impl PeriodStats {
@@ -87,7 +89,7 @@ impl PeriodStats {
             nominal_ns,
             last_tick_ns: None,
             histogram,
-            overruns: 0,
+            deadline_misses: 0,
         })
     }
 
@@ -100,7 +102,7 @@ impl PeriodStats {
         if let Some(interval) = interval {
             self.histogram.saturating_record(interval);
             if interval > 2 * self.nominal_ns {
-                self.overruns += 1;
+                self.deadline_misses += 1;
             }
         }
         interval
@@ -121,7 +123,7 @@ impl PeriodStats {
             p99_ns: self.histogram.value_at_quantile(0.99),
             max_ns: self.histogram.max(),
             min_ns: self.histogram.min(),
-            overruns: self.overruns,
+            deadline_misses: self.deadline_misses,
         }
     }
 }
@@ -151,7 +153,7 @@ mod tests {
         assert!(close(s.p99_ns, 6_000_000), "{s:?}");
         assert!(close(s.max_ns, 20_000_000), "{s:?}");
         assert!(close(s.min_ns, 5_000_000), "{s:?}");
-        assert_eq!(s.overruns, 1);
+        assert_eq!(s.deadline_misses, 1);
         assert!(close(s.p99_jitter_ns(), 1_000_000), "{s:?}");
     }
 

@@ -40,6 +40,10 @@ enum Command {
         /// Stop once the vacuum supervisor reports that nothing is left to pick.
         #[arg(long)]
         until_harvested: bool,
+        /// Ignore the launch file's `[process.scheduling]` settings (real-time priority, CPU
+        /// affinity, nice, memory lock): every process runs with normal scheduling.
+        #[arg(long)]
+        no_scheduling: bool,
     },
     /// Simulated robot: the orchard world serving the hardware channels.
     #[cfg(feature = "sim-tools")]
@@ -192,7 +196,8 @@ impl Cli {
                 launch,
                 duration,
                 until_harvested,
-            } => up(launch, duration, until_harvested, domain),
+                no_scheduling,
+            } => up(launch, duration, until_harvested, no_scheduling, domain),
             Command::Arm(args) => {
                 harvest_arm_process::run(&args, &domain, process_name)
                     .with_context(|| stack_process_context("arm process", &domain))?;
@@ -355,11 +360,17 @@ fn up(
     launch: Option<PathBuf>,
     duration: Option<Duration>,
     until_harvested: bool,
+    no_scheduling: bool,
     domain: Domain,
 ) -> Result<ExitCode> {
     let launch = match &launch {
         Some(path) => harvest_supervisor::Launch::from_path(path)?,
         None => harvest_supervisor::Launch::default_stack()?,
+    };
+    let launch = if no_scheduling {
+        launch.without_scheduling()
+    } else {
+        launch
     };
     let executable = std::env::current_exe().context("locating the harvest executable")?;
     let summary = harvest_supervisor::run(harvest_supervisor::UpOptions {

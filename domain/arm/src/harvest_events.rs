@@ -3,10 +3,15 @@
 //! that refused targets (outside the workspace, NaN, stale) are reported with a reason.
 
 use harvest_ipc::FixedString;
+use harvest_ipc::payloads::harvest_event::HARVEST_EVENT_REASON_BYTES;
 use harvest_ipc::payloads::{
     ArmPhase as PhaseCode, ArmTarget, HarvestCause, HarvestEvent, HarvestEventKind,
     HarvestEventSource,
 };
+
+/// The reason text of an event, formatted in place (the conversion runs in the control tick and
+/// allocates nothing).
+type Reason = FixedString<HARVEST_EVENT_REASON_BYTES>;
 
 use crate::node::{ArmNodeEvent, AttemptFailure};
 use crate::picking_cycle::{CycleEvent, TargetRejection};
@@ -93,7 +98,7 @@ impl ArmEventReporter {
     ) -> Option<HarvestEvent> {
         let target_of = |apple_id: u32| latest_target.filter(|t| t.apple_id == apple_id).copied();
         let current_id = self.current.map_or(0, |t| t.apple_id);
-        let (kind, apple_id, target, cause, flag, reason): (_, _, _, _, bool, String) = match event
+        let (kind, apple_id, target, cause, flag, reason): (_, _, _, _, bool, Reason) = match event
         {
             ArmNodeEvent::TargetReceived { .. } | ArmNodeEvent::ValveRequested { .. } => {
                 return None;
@@ -106,7 +111,7 @@ impl ArmEventReporter {
                     self.current,
                     HarvestCause::None,
                     false,
-                    String::new(),
+                    Reason::default(),
                 )
             }
             ArmNodeEvent::TargetRejected {
@@ -119,7 +124,7 @@ impl ArmEventReporter {
                 target_of(*apple_id),
                 rejection_cause(reason),
                 *will_retry,
-                reason.to_string(),
+                Reason::format(format_args!("{reason}")),
             ),
             ArmNodeEvent::TargetDeferred { apple_id, .. } => (
                 HarvestEventKind::TargetDeferred,
@@ -127,7 +132,7 @@ impl ArmEventReporter {
                 target_of(*apple_id),
                 HarvestCause::None,
                 false,
-                "other arm's state unknown or old".to_owned(),
+                Reason::new("other arm's state unknown or old"),
             ),
             ArmNodeEvent::PhaseChanged { from, to } => (
                 HarvestEventKind::PhaseChanged,
@@ -135,7 +140,7 @@ impl ArmEventReporter {
                 self.current,
                 HarvestCause::None,
                 false,
-                format!("{from:?} -> {to:?}"),
+                Reason::format(format_args!("{from:?} -> {to:?}")),
             ),
             ArmNodeEvent::Cycle(CycleEvent::Attached) => (
                 HarvestEventKind::Attached,
@@ -143,7 +148,7 @@ impl ArmEventReporter {
                 self.current,
                 HarvestCause::None,
                 false,
-                String::new(),
+                Reason::default(),
             ),
             ArmNodeEvent::Cycle(CycleEvent::FeedbackInvalid { .. })
                 if std::mem::replace(&mut self.feedback_invalid_this_tick, true)
@@ -167,7 +172,7 @@ impl ArmEventReporter {
                     self.current,
                     cause,
                     false,
-                    format!("{step:?}"),
+                    Reason::format(format_args!("{step:?}")),
                 )
             }
             ArmNodeEvent::ValveRefused { reason_code } => (
@@ -176,7 +181,9 @@ impl ArmEventReporter {
                 self.current,
                 HarvestCause::None,
                 false,
-                format!("open request refused by the vacuum supervisor (code {reason_code})"),
+                Reason::format(format_args!(
+                    "open request refused by the vacuum supervisor (code {reason_code})"
+                )),
             ),
             ArmNodeEvent::AttemptEnded {
                 apple_id,
@@ -191,7 +198,7 @@ impl ArmEventReporter {
                     target,
                     failure.map_or(HarvestCause::None, failure_cause),
                     *harvested,
-                    failure.map_or_else(String::new, |f| format!("{f:?}")),
+                    failure.map_or_else(Reason::default, |f| Reason::format(format_args!("{f:?}"))),
                 )
             }
             ArmNodeEvent::EmergencyStop { engaged } => (
@@ -200,7 +207,7 @@ impl ArmEventReporter {
                 self.current,
                 HarvestCause::None,
                 *engaged,
-                if *engaged { "engaged" } else { "released" }.to_owned(),
+                Reason::new(if *engaged { "engaged" } else { "released" }),
             ),
         };
         let mut out = HarvestEvent::new(now_ns, self.source, kind, self.number, apple_id);
@@ -210,7 +217,7 @@ impl ArmEventReporter {
         if let Some(t) = target {
             out.position_in_robot_m = t.position_in_robot_m;
         }
-        out.reason = FixedString::new(&reason);
+        out.reason = reason;
         Some(out)
     }
 }

@@ -31,6 +31,10 @@
 //!   phase is `Stopped`, any running cycle is abandoned (its attempt ends with cause
 //!   [`AttemptFailure::EmergencyStop`]) and targets received meanwhile are dropped. After
 //!   release the arm is idle where it stopped; the next target starts from there.
+//! - **Missed deadlines.** A tick that comes more than
+//!   [`CycleConfig::max_tick_gap_periods`] nominal periods after the previous one (the control
+//!   loop was held up) brakes the drives for that tick, as a feedback outage does; the running
+//!   motion restarts from where the arm is on the next tick on time (`CycleEvent::DeadlineMissed`).
 //!
 //! - **Operator.** While the operator holds new targets ([`ArmNode::hold_targets`]: paused,
 //!   idle, manual, or this arm disabled) a target is not offered to the cycle; the arm reports

@@ -13,6 +13,10 @@
 //! (peak speed = 1.875 x mean speed) and are then scaled uniformly until the sampled peak of
 //! every joint rate and of the end-effector speed `|J(q) q_dot|` (eq. 2) sits just below the
 //! limits times a speed fraction (the field tests ran at 0.6 of the maximum, section 4.2).
+//!
+//! Planning runs inside the 200 Hz control tick (a motion starts on the tick its phase
+//! begins), so it allocates nothing: a spline holds at most [`MAX_WAYPOINTS`] waypoints in a
+//! fixed array, and the time scaling works on arrays of that size.
 
 use thiserror::Error;
 
@@ -20,12 +24,22 @@ use harvest_robot_model::joint::{JointPosition, JointVelocity};
 use harvest_robot_model::kinematics::{end_effector_velocity, forward};
 use harvest_robot_model::params::ArmParams;
 
+/// Most waypoints a spline takes (the picking cycle plans through at most three: where the arm
+/// is, a via point, the goal).
+pub const MAX_WAYPOINTS: usize = 16;
+
 /// Why a trajectory could not be built.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum TrajectoryError {
     /// Fewer than two waypoints were given.
     #[error("a trajectory needs at least 2 waypoints, got {count}")]
     TooFewWaypoints {
+        /// Number of waypoints given.
+        count: usize,
+    },
+    /// More than [`MAX_WAYPOINTS`] waypoints were given.
+    #[error("a trajectory takes at most {MAX_WAYPOINTS} waypoints, got {count}")]
+    TooManyWaypoints {
         /// Number of waypoints given.
         count: usize,
     },
@@ -97,6 +111,14 @@ struct Segment<const N: usize> {
     coefficients: [[f64; 6]; N],
 }
 
+impl<const N: usize> Segment<N> {
+    const UNUSED: Self = Self {
+        start_s: 0.0,
+        duration_s: 0.0,
+        coefficients: [[0.0; 6]; N],
+    };
+}
+
 /// Boundary state of one axis at a waypoint.
 #[derive(Debug, Clone, Copy)]
 struct Knot {
@@ -132,11 +154,22 @@ fn evaluate(k: &[f64; 6], tau: f64) -> (f64, f64, f64) {
 
 /// A C2 quintic spline through timed waypoints in `N` dimensions (eq. 3 with the paper's
 /// velocity/acceleration augmentation).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Clone, PartialEq)]
 pub struct QuinticSpline<const N: usize> {
-    segments: Vec<Segment<N>>,
+    /// The first `segment_count` are the spline; the rest stay [`Segment::UNUSED`].
+    segments: [Segment<N>; MAX_WAYPOINTS - 1],
+    segment_count: usize,
     /// Last waypoint, returned exactly (at rest) from the end time on.
     last_position: [f64; N],
+}
+
+impl<const N: usize> std::fmt::Debug for QuinticSpline<N> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("QuinticSpline")
+            .field("segments", &self.used_segments())
+            .field("last_position", &self.last_position)
+            .finish()
+    }
 }
 
 impl<const N: usize> QuinticSpline<N> {
@@ -156,6 +189,9 @@ impl<const N: usize> QuinticSpline<N> {
         }
         if n < 2 {
             return Err(TrajectoryError::TooFewWaypoints { count: n });
+        }
+        if n > MAX_WAYPOINTS {
+            return Err(TrajectoryError::TooManyWaypoints { count: n });
         }
         if start_velocity.iter().any(|v| !v.is_finite()) {
             return Err(TrajectoryError::NonFinite { index: 0 });
@@ -198,39 +234,43 @@ impl<const N: usize> QuinticSpline<N> {
             v: velocity_at(i, axis),
             a: acceleration_at(i, axis),
         };
-        let segments = (0..n - 1)
-            .map(|i| {
-                let duration_s = times_s[i + 1] - times_s[i];
-                Segment {
-                    start_s: times_s[i],
-                    duration_s,
-                    coefficients: std::array::from_fn(|axis| {
-                        quintic_coefficients(knot(i, axis), knot(i + 1, axis), duration_s)
-                    }),
-                }
-            })
-            .collect();
+        let mut segments = [Segment::UNUSED; MAX_WAYPOINTS - 1];
+        for (i, segment) in segments.iter_mut().enumerate().take(n - 1) {
+            let duration_s = times_s[i + 1] - times_s[i];
+            *segment = Segment {
+                start_s: times_s[i],
+                duration_s,
+                coefficients: std::array::from_fn(|axis| {
+                    quintic_coefficients(knot(i, axis), knot(i + 1, axis), duration_s)
+                }),
+            };
+        }
         Ok(Self {
             segments,
+            segment_count: n - 1,
             last_position: positions[n - 1],
         })
     }
 
+    fn used_segments(&self) -> &[Segment<N>] {
+        &self.segments[..self.segment_count.min(MAX_WAYPOINTS - 1)]
+    }
+
     /// Time of the first waypoint, s.
     pub fn start_s(&self) -> f64 {
-        self.segments.first().map_or(0.0, |s| s.start_s)
+        self.used_segments().first().map_or(0.0, |s| s.start_s)
     }
 
     /// Time of the last waypoint, s.
     pub fn end_s(&self) -> f64 {
-        self.segments
+        self.used_segments()
             .last()
             .map_or(0.0, |s| s.start_s + s.duration_s)
     }
 
     /// Number of segments (waypoints - 1).
     pub fn segment_count(&self) -> usize {
-        self.segments.len()
+        self.used_segments().len()
     }
 
     /// Evaluates eq. 3 at time `t_s`. Before the first waypoint it returns the first waypoint
@@ -242,7 +282,8 @@ impl<const N: usize> QuinticSpline<N> {
             velocity: [0.0; N],
             acceleration: [0.0; N],
         };
-        let Some(last) = self.segments.last() else {
+        let segments = self.used_segments();
+        let Some(last) = segments.last() else {
             return zero;
         };
         if t_s >= self.end_s() {
@@ -256,11 +297,10 @@ impl<const N: usize> QuinticSpline<N> {
         } else {
             self.start_s()
         };
-        let index = self
-            .segments
+        let index = segments
             .partition_point(|s| s.start_s + s.duration_s < t)
-            .min(self.segments.len() - 1);
-        let segment = self.segments.get(index).unwrap_or(last);
+            .min(segments.len() - 1);
+        let segment = segments.get(index).unwrap_or(last);
         let tau = (t - segment.start_s).clamp(0.0, segment.duration_s);
         let mut out = zero;
         for axis in 0..N {
@@ -275,7 +315,7 @@ impl<const N: usize> QuinticSpline<N> {
     /// Position/velocity/acceleration at both ends of segment `index` (for continuity checks).
     #[cfg(test)]
     fn segment_ends(&self, index: usize) -> (TrajectorySample<N>, TrajectorySample<N>) {
-        let s = &self.segments[index];
+        let s = &self.used_segments()[index];
         let at = |tau: f64| {
             let mut out = TrajectorySample {
                 position: [0.0; N],
@@ -348,6 +388,11 @@ impl JointTrajectory {
                 count: waypoints.len(),
             });
         }
+        if waypoints.len() > MAX_WAYPOINTS {
+            return Err(TrajectoryError::TooManyWaypoints {
+                count: waypoints.len(),
+            });
+        }
         if !start_velocity.is_finite() {
             return Err(TrajectoryError::NonFinite { index: 0 });
         }
@@ -366,23 +411,32 @@ impl JointTrajectory {
         let speed_max = params.max_end_effector_speed_m_per_s * speed_fraction;
         let v0 = start_velocity.to_array();
         let start = std::array::from_fn(|i| v0[i].clamp(-rate_max[i], rate_max[i]));
-        let positions: Vec<[f64; 4]> = waypoints.iter().map(|w| w.to_array()).collect();
+        let n = waypoints.len();
+        let mut positions_buffer = [[0.0; 4]; MAX_WAYPOINTS];
+        for (position, waypoint) in positions_buffer.iter_mut().zip(waypoints) {
+            *position = waypoint.to_array();
+        }
+        let positions = &positions_buffer[..n];
 
         // Initial durations: rest-to-rest quintic estimate per segment.
-        let mut durations: Vec<f64> = positions
-            .windows(2)
+        let mut durations_buffer = [0.0; MAX_WAYPOINTS - 1];
+        let durations = &mut durations_buffer[..n - 1];
+        for ((duration, pair), wp) in durations
+            .iter_mut()
+            .zip(positions.windows(2))
             .zip(waypoints.windows(2))
-            .map(|(pair, wp)| {
-                let joint_time = (0..4)
-                    .map(|i| (pair[1][i] - pair[0][i]).abs() / rate_max[i])
-                    .fold(0.0, f64::max);
-                let a = forward(&params.links, &wp[0]);
-                let b = forward(&params.links, &wp[1]);
-                let chord = (0..3).map(|i| (b[i] - a[i]).powi(2)).sum::<f64>().sqrt();
-                (QUINTIC_PEAK_OVER_MEAN * joint_time.max(chord / speed_max)).max(MIN_SEGMENT_S)
-            })
-            .collect();
-        let mut times = vec![0.0; positions.len()];
+        {
+            let joint_time = (0..4)
+                .map(|i| (pair[1][i] - pair[0][i]).abs() / rate_max[i])
+                .fold(0.0, f64::max);
+            let a = forward(&params.links, &wp[0]);
+            let b = forward(&params.links, &wp[1]);
+            let chord = (0..3).map(|i| (b[i] - a[i]).powi(2)).sum::<f64>().sqrt();
+            *duration =
+                (QUINTIC_PEAK_OVER_MEAN * joint_time.max(chord / speed_max)).max(MIN_SEGMENT_S);
+        }
+        let mut times_buffer = [0.0; MAX_WAYPOINTS];
+        let times = &mut times_buffer[..n];
 
         let mut last_ratio = f64::INFINITY;
         let mut best: Option<(QuinticSpline<4>, f64)> = None;
@@ -390,7 +444,7 @@ impl JointTrajectory {
             for i in 1..times.len() {
                 times[i] = times[i - 1] + durations[i - 1];
             }
-            let spline = QuinticSpline::through(&times, &positions, start)?;
+            let spline = QuinticSpline::through(times, positions, start)?;
             let ratio = peak_ratio(params, &spline, &rate_max, speed_max);
             last_ratio = ratio;
             let all_min = durations.iter().all(|&d| d <= MIN_SEGMENT_S);
@@ -470,7 +524,7 @@ fn peak_ratio(
     speed_max: f64,
 ) -> f64 {
     let mut peak: f64 = 0.0;
-    for segment in &spline.segments {
+    for segment in spline.used_segments() {
         for k in 0..=PEAK_SAMPLES_PER_SEGMENT {
             let tau = segment.duration_s * k as f64 / PEAK_SAMPLES_PER_SEGMENT as f64;
             let mut q = [0.0; 4];

@@ -125,6 +125,15 @@ pub struct Assignment {
 }
 
 impl Assignment {
+    /// An empty assignment with room for `apples` in each list.
+    pub fn with_capacity(apples: usize) -> Self {
+        Self {
+            arm1: Vec::with_capacity(apples),
+            arm2: Vec::with_capacity(apples),
+            unreachable: Vec::with_capacity(apples),
+        }
+    }
+
     /// The queue of `arm`, shallowest first.
     pub fn queue(&self, arm: ArmId) -> &[Apple] {
         match arm {
@@ -178,7 +187,28 @@ where
     F: Fn(ArmId, &[f64; 3]) -> bool,
 {
     let mut out = Assignment::default();
-    let mut shared: Vec<Apple> = Vec::new();
+    assign_apples_into(apples, frame, held, reachable, &mut out, &mut Vec::new())?;
+    Ok(out)
+}
+
+/// [`assign_apples_with_held`] into `out` (cleared first), with `shared` as scratch: no
+/// allocation once the vectors have the capacity (the vacuum supervisor re-plans inside its
+/// 200 Hz tick). On error `out` holds a partial assignment.
+pub fn assign_apples_into<F>(
+    apples: &[Apple],
+    frame: &AssignmentFrame,
+    held: [usize; 2],
+    reachable: F,
+    out: &mut Assignment,
+    shared: &mut Vec<Apple>,
+) -> Result<(), AssignError>
+where
+    F: Fn(ArmId, &[f64; 3]) -> bool,
+{
+    out.arm1.clear();
+    out.arm2.clear();
+    out.unreachable.clear();
+    shared.clear();
     // Lines 1-10: reachability classes.
     for apple in apples {
         if apple.position_m.iter().any(|c| !c.is_finite()) {
@@ -197,15 +227,16 @@ where
         }
     }
     let reachable_count = out.arm1.len() + out.arm2.len() + shared.len() + held[0] + held[1];
-    // Line 11: shared apples from arm 1's side to arm 2's side.
-    shared.sort_by(|a, b| {
+    // Line 11: shared apples from arm 1's side to arm 2's side. Ids are unique, so the order is
+    // total and the in-place (unstable, allocation-free) sort is deterministic.
+    shared.sort_unstable_by(|a, b| {
         frame
             .towards_arm1_m(&b.position_m)
             .total_cmp(&frame.towards_arm1_m(&a.position_m))
             .then(a.id.cmp(&b.id))
     });
     // Lines 12-17: arm 1 takes from its side until it holds half of the reachable apples.
-    let mut rest = shared.into_iter();
+    let mut rest = shared.iter().copied();
     while 2 * (out.arm1.len() + held[0]) < reachable_count {
         match rest.next() {
             Some(apple) => out.arm1.push(apple),
@@ -220,9 +251,9 @@ where
             .total_cmp(&frame.depth_m(&b.position_m))
             .then(a.id.cmp(&b.id))
     };
-    out.arm1.sort_by(by_depth);
-    out.arm2.sort_by(by_depth);
-    Ok(out)
+    out.arm1.sort_unstable_by(by_depth);
+    out.arm2.sort_unstable_by(by_depth);
+    Ok(())
 }
 
 #[cfg(test)]

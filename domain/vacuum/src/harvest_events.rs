@@ -59,7 +59,7 @@ pub fn vacuum_event(
                 return None;
             }
             let mut out = make(HarvestEventKind::Replanned, None, None);
-            out.reason = FixedString::new(&format!(
+            out.reason = FixedString::format(format_args!(
                 "queued {}/{}; added {}, dropped {}, exhausted {}, held {}, invalid {}, given up {}",
                 queued[0],
                 queued[1],
@@ -113,7 +113,7 @@ pub fn vacuum_event(
                 Some(*arm),
                 Some(wire_id(*apple)),
             );
-            out.reason = FixedString::new(&format!(
+            out.reason = FixedString::format(format_args!(
                 "withdrawn while the arm waited for the other arm; queued for arm {}",
                 to.number()
             ));
@@ -133,24 +133,26 @@ pub fn vacuum_event(
         }
         VacuumNodeEvent::ValveRefused { arm, reason } => {
             let mut out = make(HarvestEventKind::ValveRefused, Some(*arm), None);
-            out.reason = FixedString::new(&match reason {
-                Some(reason) => reason.to_string(),
-                None => "emergency stop or arm disabled".to_owned(),
-            });
+            out.reason = match reason {
+                Some(reason) => FixedString::format(format_args!("{reason}")),
+                None => FixedString::new("emergency stop or arm disabled"),
+            };
             out
         }
         VacuumNodeEvent::ValveClosed { arm, cause } => {
             let mut out = make(HarvestEventKind::ValveClosed, Some(*arm), None);
-            out.reason = FixedString::new(&match cause {
-                ValveCloseCause::ArmRequest => "on the arm's request".to_owned(),
-                ValveCloseCause::Policy(reason) => format!("policy: {reason}"),
-                ValveCloseCause::EmergencyStop => "emergency stop".to_owned(),
-            });
+            out.reason = match cause {
+                ValveCloseCause::ArmRequest => FixedString::new("on the arm's request"),
+                ValveCloseCause::Policy(reason) => {
+                    FixedString::format(format_args!("policy: {reason}"))
+                }
+                ValveCloseCause::EmergencyStop => FixedString::new("emergency stop"),
+            };
             out
         }
         VacuumNodeEvent::Attachment(change) => {
             let mut out = make(HarvestEventKind::AttachmentChanged, Some(change.arm), None);
-            out.reason = FixedString::new(&format!("{} -> {}", change.from, change.to));
+            out.reason = FixedString::format(format_args!("{} -> {}", change.from, change.to));
             out
         }
         VacuumNodeEvent::EmergencyStop { engaged } => {

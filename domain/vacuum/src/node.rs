@@ -37,7 +37,8 @@
 //! refused, nothing is dispatched, and the attempts in progress are given up as failed.
 //!
 //! Pure logic: no clock reads, no I/O; the caller passes the time, the board readings and the
-//! received messages, and applies the outputs.
+//! received messages, and applies the outputs. A tick allocates nothing once running (every
+//! list is sized at construction and reused; `tests/step_allocations.rs` counts).
 //!
 //! Layout: the node's interface (`config`, `input`, `output`, `event`, `wire_codes`), what it
 //! tracks per arm (`arm_track`) and how the policy sees the arms (`policy_view`), then one file
@@ -74,7 +75,12 @@ use crate::replan::AssignmentPlanner;
 use arm_track::ArmTrack;
 use harvest_ipc::Header;
 use harvest_ipc::payloads::VacuumState;
+use harvest_ipc::payloads::apple_detections::MAX_APPLES_PER_FRAME;
 use harvest_robot_model::ArmId;
+
+/// Spots of attempted apples the give-up list has room for from the start (it keeps one per
+/// apple attempted; beyond this it grows, one allocation per doubling).
+const ATTEMPT_SPOTS_CAPACITY: usize = 1024;
 
 /// The vacuum supervisor's logic; see the module documentation.
 pub struct VacuumNode {
@@ -139,10 +145,10 @@ impl VacuumNode {
             planner,
             reachable,
             arms: [ArmTrack::default(); 2],
-            last_set: Vec::new(),
+            last_set: Vec::with_capacity(MAX_APPLES_PER_FRAME),
             last_set_capture_ns: 0,
-            scratch_positions: Vec::new(),
-            attempt_spots: Vec::new(),
+            scratch_positions: Vec::with_capacity(MAX_APPLES_PER_FRAME),
+            attempt_spots: Vec::with_capacity(ATTEMPT_SPOTS_CAPACITY),
             stopped: false,
             target_seq: 0,
             state_seq: 0,

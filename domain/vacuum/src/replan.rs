@@ -13,15 +13,25 @@
 //!
 //! A failed apple is not put back in a queue at once: it waits for the next detection set,
 //! which tells whether it is still on the tree and where.
+//!
+//! The planner runs inside the vacuum supervisor's 200 Hz tick, so re-planning allocates
+//! nothing once running: every list is a vector reused from set to set (sized at construction
+//! for [`PLANNED_APPLES`] apples; more only grow them once), sorts are in place.
 
 use crate::assignment::{
-    Apple, AppleId, AssignError, Assignment, AssignmentFrame, assign_apples_with_held,
+    Apple, AppleId, AssignError, Assignment, AssignmentFrame, assign_apples_into,
 };
 use harvest_robot_model::ArmId;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use thiserror::Error;
 use tracing::debug;
+
+/// Apples the planner's lists have room for from the start: a detection set's maximum
+/// ([`harvest_ipc::payloads::apple_detections::MAX_APPLES_PER_FRAME`]) plus the two in
+/// progress and a set's worth of failed ones.
+pub const PLANNED_APPLES: usize =
+    2 * harvest_ipc::payloads::apple_detections::MAX_APPLES_PER_FRAME + 2;
 
 /// Re-planning settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -94,6 +104,39 @@ pub struct AssignmentPlanner {
     attempts: HashMap<AppleId, u32>,
     in_progress: [Option<Apple>; 2],
     plan: Assignment,
+    scratch: Scratch,
+}
+
+/// The re-plan's working lists, kept between sets so that re-planning does not allocate.
+#[derive(Debug, Clone)]
+struct Scratch {
+    /// Matching candidates: `(apple, in progress)`.
+    candidates: Vec<(Apple, bool)>,
+    /// `(squared distance, detection, candidate)` within the match radius.
+    pairs: Vec<(f64, usize, usize)>,
+    detection_used: Vec<bool>,
+    candidate_used: Vec<bool>,
+    /// The known apples being built (swapped with `known` on success).
+    next_known: Vec<Apple>,
+    waiting: Vec<Apple>,
+    /// The assignment being built (swapped with `plan` on success).
+    next_plan: Assignment,
+    shared: Vec<Apple>,
+}
+
+impl Scratch {
+    fn with_capacity(apples: usize) -> Self {
+        Self {
+            candidates: Vec::with_capacity(apples),
+            pairs: Vec::with_capacity(apples * 4),
+            detection_used: Vec::with_capacity(apples),
+            candidate_used: Vec::with_capacity(apples),
+            next_known: Vec::with_capacity(apples),
+            waiting: Vec::with_capacity(apples),
+            next_plan: Assignment::with_capacity(apples),
+            shared: Vec::with_capacity(apples),
+        }
+    }
 }
 
 impl AssignmentPlanner {
@@ -108,10 +151,11 @@ impl AssignmentPlanner {
         Ok(AssignmentPlanner {
             config,
             next_id: 0,
-            known: Vec::new(),
-            attempts: HashMap::new(),
+            known: Vec::with_capacity(PLANNED_APPLES),
+            attempts: HashMap::with_capacity(PLANNED_APPLES),
             in_progress: [None, None],
-            plan: Assignment::default(),
+            plan: Assignment::with_capacity(PLANNED_APPLES),
+            scratch: Scratch::with_capacity(PLANNED_APPLES),
         })
     }
 
@@ -136,29 +180,40 @@ impl AssignmentPlanner {
         }
         // Candidates for matching: in-progress apples first (they absorb their own detection),
         // then the known ones.
-        let candidates: Vec<(Apple, bool)> = self
-            .in_progress
-            .iter()
-            .flatten()
-            .map(|a| (*a, true))
-            .chain(self.known.iter().map(|a| (*a, false)))
-            .collect();
+        let scratch = &mut self.scratch;
+        scratch.candidates.clear();
+        scratch.candidates.extend(
+            self.in_progress
+                .iter()
+                .flatten()
+                .map(|a| (*a, true))
+                .chain(self.known.iter().map(|a| (*a, false))),
+        );
+        let candidates = &scratch.candidates;
         let r2 = self.config.match_radius_m * self.config.match_radius_m;
-        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        scratch.pairs.clear();
         for (di, d) in detections_m.iter().enumerate() {
             for (ci, (c, _)) in candidates.iter().enumerate() {
                 let dist2 = squared_distance(d, &c.position_m);
                 if dist2 <= r2 {
-                    pairs.push((dist2, di, ci));
+                    scratch.pairs.push((dist2, di, ci));
                 }
             }
         }
-        pairs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-        let mut detection_used = vec![false; detections_m.len()];
-        let mut candidate_used = vec![false; candidates.len()];
-        let mut next_known: Vec<Apple> = Vec::with_capacity(detections_m.len());
+        // (detection, candidate) pairs are unique: the order is total, in place is enough.
+        scratch
+            .pairs
+            .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        scratch.detection_used.clear();
+        scratch.detection_used.resize(detections_m.len(), false);
+        scratch.candidate_used.clear();
+        scratch.candidate_used.resize(candidates.len(), false);
+        let detection_used = &mut scratch.detection_used;
+        let candidate_used = &mut scratch.candidate_used;
+        let next_known = &mut scratch.next_known;
+        next_known.clear();
         let mut summary = ReplanSummary::default();
-        for (_, di, ci) in pairs {
+        for &(_, di, ci) in &scratch.pairs {
             if detection_used[di] || candidate_used[ci] {
                 continue;
             }
@@ -175,7 +230,7 @@ impl AssignmentPlanner {
         }
         summary.dropped = candidates
             .iter()
-            .zip(&candidate_used)
+            .zip(candidate_used.iter())
             .filter(|((_, in_progress), used)| !*in_progress && !**used)
             .count();
         let mut next_id = self.next_id;
@@ -189,17 +244,28 @@ impl AssignmentPlanner {
                 summary.added += 1;
             }
         }
-        let waiting: Vec<Apple> = next_known
-            .iter()
-            .filter(|a| self.attempts.get(&a.id).copied().unwrap_or(0) < self.config.max_attempts)
-            .copied()
-            .collect();
-        summary.exhausted = next_known.len() - waiting.len();
+        let attempts = &self.attempts;
+        let max_attempts = self.config.max_attempts;
+        scratch.waiting.clear();
+        scratch.waiting.extend(
+            next_known
+                .iter()
+                .filter(|a| attempts.get(&a.id).copied().unwrap_or(0) < max_attempts)
+                .copied(),
+        );
+        summary.exhausted = next_known.len() - scratch.waiting.len();
         let held = self.in_progress.map(|a| usize::from(a.is_some()));
-        let plan = assign_apples_with_held(&waiting, &self.config.frame, held, reachable)?;
+        assign_apples_into(
+            &scratch.waiting,
+            &self.config.frame,
+            held,
+            reachable,
+            &mut scratch.next_plan,
+            &mut scratch.shared,
+        )?;
         self.next_id = next_id;
-        self.known = next_known;
-        self.plan = plan;
+        std::mem::swap(&mut self.known, &mut scratch.next_known);
+        std::mem::swap(&mut self.plan, &mut scratch.next_plan);
         self.attempts.retain(|id, _| {
             self.known.iter().any(|a| a.id == *id)
                 || self.in_progress.iter().flatten().any(|a| a.id == *id)
@@ -232,18 +298,26 @@ impl AssignmentPlanner {
         {
             return Ok(false);
         }
-        let waiting: Vec<Apple> = self
-            .plan
-            .arm1
-            .iter()
-            .chain(&self.plan.arm2)
-            .copied()
-            .collect();
+        let scratch = &mut self.scratch;
+        scratch.waiting.clear();
+        scratch
+            .waiting
+            .extend(self.plan.arm1.iter().chain(&self.plan.arm2).copied());
         let held = self.in_progress.map(|a| usize::from(a.is_some()));
-        let mut plan = assign_apples_with_held(&waiting, &self.config.frame, held, reachable)?;
-        plan.unreachable.extend_from_slice(&self.plan.unreachable);
-        let changed = plan.queue(arm) != self.plan.queue(arm);
-        self.plan = plan;
+        assign_apples_into(
+            &scratch.waiting,
+            &self.config.frame,
+            held,
+            reachable,
+            &mut scratch.next_plan,
+            &mut scratch.shared,
+        )?;
+        scratch
+            .next_plan
+            .unreachable
+            .extend_from_slice(&self.plan.unreachable);
+        let changed = scratch.next_plan.queue(arm) != self.plan.queue(arm);
+        std::mem::swap(&mut self.plan, &mut scratch.next_plan);
         Ok(changed)
     }
 

@@ -28,7 +28,7 @@ pub enum ProcessRunState {
     Deserialize,
     crate::AnyBitPattern,
 )]
-#[type_name("harvest.ProcessHealth.v1")]
+#[type_name("harvest.ProcessHealth.v2")]
 pub struct ProcessHealth {
     pub header: Header,
     /// The name the process was launched under (launch-file name).
@@ -42,13 +42,17 @@ pub struct ProcessHealth {
     /// A free-form figure the process cares about (perception: last receive latency in ns).
     pub detail_value: u64,
     pub detail: FixedString<32>,
+    /// Control loops: ticks whose deadline passed since start
+    /// ([`crate::period_stats::PeriodSummary::deadline_misses`]); 0 for other processes.
+    /// (Added in version 2.)
+    pub deadline_misses: u64,
 }
 
 crate::serde_payload!(
     ProcessHealth,
     "harvest.ProcessHealth",
-    1,
+    2,
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
 process_name: u64 length + UTF-8; pid:u32; run_state:u8 (0 starting,1 running,2 degraded,3 \
-stopping); _reserved:[u8;3]; main_channel_count:u64; detail_value:u64; detail: u64 length + UTF-8"
+stopping); _reserved:[u8;3]; main_channel_count:u64; detail_value:u64; detail: u64 length + UTF-8; deadline_misses:u64"
 );

@@ -416,7 +416,7 @@ fn control_loop<S: ArmServos>(
             }
             Wake::Heartbeat { period } => {
                 let state = device_errors.run_state();
-                health.report(state, ticks, "period_p99_us", period.p99_ns / 1000)?;
+                health.report_control_loop(state, ticks, &period)?;
             }
         }
         Ok(Flow::Continue)

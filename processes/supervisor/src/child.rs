@@ -1,6 +1,7 @@
 //! Starting and signalling one child process.
 
 use crate::launch::ProcessSpec;
+use crate::scheduling::{OutcomePipe, SchedulingOutcome};
 use harvest_ipc::Domain;
 use nix::sys::signal::{Signal, killpg};
 use nix::unistd::Pid;
@@ -21,13 +22,17 @@ pub const PROCESS_NAME_ENV: &str = "HARVEST_PROCESS_NAME";
 ///
 /// The control token goes to every child in `HARVEST_CONTROL_TOKEN` (the executive checks
 /// operator commands with it; the others ignore it).
+///
+/// The launch file's scheduling settings ([`crate::scheduling`]) are applied in the child before
+/// `exec`; what the kernel granted comes back with the child. A refused setting does not stop
+/// the start.
 pub fn spawn(
     executable: &Path,
     spec: &ProcessSpec,
     domain: &Domain,
     domain_lock_fd: RawFd,
     control_token: &str,
-) -> std::io::Result<Child> {
+) -> std::io::Result<(Child, SchedulingOutcome)> {
     let mut command = match &spec.executable {
         Some(program) => Command::new(program),
         None => {
@@ -53,7 +58,25 @@ pub fn spawn(
             Ok(())
         });
     }
-    command.spawn()
+    if spec.scheduling.is_default() {
+        return Ok((command.spawn()?, SchedulingOutcome::none()));
+    }
+    if spec.scheduling.lock_memory {
+        command.env(harvest_ipc::memory_lock::LOCK_MEMORY_ENV, "1");
+    }
+    let prepared = spec.scheduling.prepare();
+    let pipe = OutcomePipe::new()?;
+    let outcome_fd = pipe.write_fd();
+    // SAFETY: the closure runs in the forked child before exec and only makes the
+    // async-signal-safe calls of `PreparedScheduling::apply_in_child` (no allocation).
+    unsafe {
+        command.pre_exec(move || {
+            prepared.apply_in_child(outcome_fd);
+            Ok(())
+        });
+    }
+    let child = command.spawn()?;
+    Ok((child, pipe.read_outcome(&spec.scheduling)))
 }
 
 /// Sends `signal` to the child's whole process group.

@@ -15,8 +15,15 @@
 //! restart_window_s = 60
 //! backoff_initial_ms = 200      # doubles per consecutive restart up to backoff_max_ms
 //! backoff_max_ms = 5000
+//!
+//! [process.scheduling]          # optional; see crate::scheduling
+//! realtime_priority = 80        # SCHED_FIFO level 1-99
+//! cpus = [1]                    # CPU affinity: CPUs of this machine
+//! nice = -5                     # -20..19: normal scheduling (without, or refused, real-time)
+//! lock_memory = true            # mlockall before the loop's first tick
 //! ```
 
+use crate::scheduling::{self, MAX_REALTIME_PRIORITY, NICE_RANGE, Scheduling};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -108,6 +115,23 @@ struct RawProcess {
     backoff_initial_ms: u64,
     #[serde(default = "default_backoff_max_ms")]
     backoff_max_ms: u64,
+    #[serde(default)]
+    scheduling: Option<RawScheduling>,
+}
+
+/// `[process.scheduling]` as written (integers kept wide so out-of-range values are reported
+/// with their line, not as a type error).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScheduling {
+    #[serde(default)]
+    realtime_priority: Option<toml::Spanned<i64>>,
+    #[serde(default)]
+    cpus: Option<toml::Spanned<Vec<toml::Spanned<i64>>>>,
+    #[serde(default)]
+    nice: Option<toml::Spanned<i64>>,
+    #[serde(default)]
+    lock_memory: bool,
 }
 
 fn default_restart() -> RestartPolicy {
@@ -141,6 +165,8 @@ pub struct ProcessSpec {
     pub restart_window: Duration,
     pub backoff_initial: Duration,
     pub backoff_max: Duration,
+    /// Real-time priority, CPU affinity, nice level, memory lock (`[process.scheduling]`).
+    pub scheduling: Scheduling,
 }
 
 /// A validated launch file.
@@ -197,6 +223,18 @@ pub enum LaunchError {
         line: usize,
         name: String,
         message: String,
+    },
+    /// A `[process.scheduling]` value out of range or not possible on this machine.
+    #[error(
+        "launch file {file}, line {line}: process {name:?}: `scheduling.{key}` = {value}: {expected}"
+    )]
+    BadScheduling {
+        file: String,
+        line: usize,
+        name: String,
+        key: &'static str,
+        value: String,
+        expected: String,
     },
     #[error("launch file {file}: no [[process]] entries")]
     Empty { file: String },
@@ -306,6 +344,19 @@ impl Launch {
                         .to_owned(),
                 });
             }
+            let scheduling = match process.scheduling {
+                Some(raw) => validate_scheduling(raw, &line_of).map_err(|bad| {
+                    LaunchError::BadScheduling {
+                        file: file.to_owned(),
+                        line: bad.line,
+                        name: name.clone(),
+                        key: bad.key,
+                        value: bad.value,
+                        expected: bad.expected,
+                    }
+                })?,
+                None => Scheduling::default(),
+            };
             first_lines.push(name_line);
             processes.push(ProcessSpec {
                 name,
@@ -321,6 +372,7 @@ impl Launch {
                 restart_window: Duration::from_secs(process.restart_window_s),
                 backoff_initial: Duration::from_millis(process.backoff_initial_ms),
                 backoff_max: Duration::from_millis(process.backoff_max_ms),
+                scheduling,
             });
         }
         if processes.is_empty() {
@@ -335,6 +387,113 @@ impl Launch {
             processes,
         })
     }
+}
+
+impl Launch {
+    /// The same launch file with every process's scheduling settings dropped (`harvest up
+    /// --no-scheduling`, and the bench's comparison run).
+    pub fn without_scheduling(mut self) -> Self {
+        for process in &mut self.processes {
+            process.scheduling = Scheduling::default();
+        }
+        self
+    }
+}
+
+/// A scheduling value that cannot be used, with its line.
+struct BadSchedulingValue {
+    line: usize,
+    key: &'static str,
+    value: String,
+    expected: String,
+}
+
+fn validate_scheduling(
+    raw: RawScheduling,
+    line_of: &dyn Fn(usize) -> usize,
+) -> Result<Scheduling, BadSchedulingValue> {
+    let realtime_priority = match raw.realtime_priority {
+        Some(priority) => {
+            let line = line_of(priority.span().start);
+            let value = priority.into_inner();
+            match u8::try_from(value) {
+                Ok(level) if (1..=MAX_REALTIME_PRIORITY).contains(&level) => Some(level),
+                _ => {
+                    return Err(BadSchedulingValue {
+                        line,
+                        key: "realtime_priority",
+                        value: value.to_string(),
+                        expected: format!("expected a SCHED_FIFO level 1-{MAX_REALTIME_PRIORITY}"),
+                    });
+                }
+            }
+        }
+        None => None,
+    };
+    let nice = match raw.nice {
+        Some(nice) => {
+            let line = line_of(nice.span().start);
+            let value = nice.into_inner();
+            match i8::try_from(value) {
+                Ok(level) if NICE_RANGE.contains(&level) => Some(level),
+                _ => {
+                    return Err(BadSchedulingValue {
+                        line,
+                        key: "nice",
+                        value: value.to_string(),
+                        expected: format!(
+                            "expected a nice level {}..{}",
+                            NICE_RANGE.start(),
+                            NICE_RANGE.end()
+                        ),
+                    });
+                }
+            }
+        }
+        None => None,
+    };
+    let mut cpus = Vec::new();
+    if let Some(list) = raw.cpus {
+        let list_line = line_of(list.span().start);
+        let entries = list.into_inner();
+        if entries.is_empty() {
+            return Err(BadSchedulingValue {
+                line: list_line,
+                key: "cpus",
+                value: "[]".to_owned(),
+                expected: "expected at least one CPU (leave the key out to allow any)".to_owned(),
+            });
+        }
+        let online = scheduling::online_cpus();
+        for entry in entries {
+            let line = line_of(entry.span().start);
+            let value = entry.into_inner();
+            match usize::try_from(value) {
+                Ok(cpu) if online.contains(&cpu) => {
+                    if !cpus.contains(&cpu) {
+                        cpus.push(cpu);
+                    }
+                }
+                _ => {
+                    return Err(BadSchedulingValue {
+                        line,
+                        key: "cpus",
+                        value: value.to_string(),
+                        expected: format!(
+                            "CPU {value} is not on this machine (online CPUs: {})",
+                            scheduling::cpu_list(&online)
+                        ),
+                    });
+                }
+            }
+        }
+    }
+    Ok(Scheduling {
+        realtime_priority,
+        cpus,
+        nice,
+        lock_memory: raw.lock_memory,
+    })
 }
 
 #[cfg(test)]
@@ -404,6 +563,76 @@ mod tests {
             matches!(error, LaunchError::UnknownCommand { line: 10, .. }),
             "{error}"
         );
+    }
+
+    const SCHEDULED: &str = "[[process]]\nname = \"arm1\"\ncommand = \"arm\"\n\n[process.scheduling]\nrealtime_priority = 80\ncpus = [0]\nnice = -5\nlock_memory = true\n";
+
+    #[test]
+    fn scheduling_parses_and_can_be_dropped() {
+        let launch = Launch::parse(SCHEDULED, "rt.toml").expect("parses");
+        let scheduling = &launch.processes[0].scheduling;
+        assert_eq!(scheduling.realtime_priority, Some(80));
+        assert_eq!(scheduling.cpus, vec![0]);
+        assert_eq!(scheduling.nice, Some(-5));
+        assert!(scheduling.lock_memory);
+        let plain = launch.without_scheduling();
+        assert!(plain.processes[0].scheduling.is_default());
+        // Inline table form, and no table at all.
+        let inline = "[[process]]\nname = \"v\"\ncommand = \"vacuum\"\nscheduling = { realtime_priority = 1 }\n";
+        let launch = Launch::parse(inline, "rt.toml").expect("parses");
+        assert_eq!(launch.processes[0].scheduling.realtime_priority, Some(1));
+        let launch = Launch::parse(GOOD, "good.toml").expect("parses");
+        assert!(launch.processes[0].scheduling.is_default());
+    }
+
+    fn scheduling_error(from: &str, to: &str) -> String {
+        let text = SCHEDULED.replace(from, to);
+        Launch::parse(&text, "rt.toml")
+            .expect_err("bad scheduling")
+            .to_string()
+    }
+
+    #[test]
+    fn bad_scheduling_values_name_file_line_and_key() {
+        for (from, to, key, line) in [
+            (
+                "realtime_priority = 80",
+                "realtime_priority = 0",
+                "scheduling.realtime_priority` = 0",
+                6,
+            ),
+            (
+                "realtime_priority = 80",
+                "realtime_priority = 100",
+                "scheduling.realtime_priority` = 100",
+                6,
+            ),
+            ("nice = -5", "nice = -21", "scheduling.nice` = -21", 8),
+            ("nice = -5", "nice = 20", "scheduling.nice` = 20", 8),
+            (
+                "cpus = [0]",
+                "cpus = [0, 4096]",
+                "scheduling.cpus` = 4096",
+                7,
+            ),
+            ("cpus = [0]", "cpus = [-1]", "scheduling.cpus` = -1", 7),
+            ("cpus = [0]", "cpus = []", "scheduling.cpus` = []", 7),
+        ] {
+            let message = scheduling_error(from, to);
+            assert!(message.starts_with("launch file rt.toml"), "{message}");
+            assert!(message.contains(key), "{message}");
+            assert!(message.contains(&format!("line {line}:")), "{message}");
+            assert!(message.contains("\"arm1\""), "{message}");
+        }
+        assert!(scheduling_error("cpus = [0]", "cpus = [4096]").contains("not on this machine"));
+        // Unknown keys and wrong types: toml names the key and the line.
+        let message = scheduling_error("nice = -5", "niceness = -5");
+        assert!(
+            message.contains("niceness") && message.contains("line 8"),
+            "{message}"
+        );
+        let message = scheduling_error("lock_memory = true", "lock_memory = \"yes\"");
+        assert!(message.contains("line 9"), "{message}");
     }
 
     #[test]

@@ -4,6 +4,7 @@ pub mod child;
 pub mod domain_lock;
 pub mod launch;
 pub mod restart_tracker;
+pub mod scheduling;
 pub mod status;
 pub mod supervisor;
 

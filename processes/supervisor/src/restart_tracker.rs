@@ -103,6 +103,7 @@ mod tests {
             restart_window: Duration::from_secs(10),
             backoff_initial: Duration::from_millis(100),
             backoff_max: Duration::from_millis(350),
+            scheduling: Default::default(),
         }
     }
 

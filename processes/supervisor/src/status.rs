@@ -24,6 +24,11 @@ pub struct ProcessStatus {
     pub main_channel_rate_hz: f64,
     pub detail: String,
     pub detail_value: u64,
+    /// Control loops: deadline misses so far (from the heartbeat).
+    pub deadline_misses: u64,
+    /// What the launch file's scheduling settings became (`fifo80 cpu1 mlock 41MiB`; refused
+    /// parts marked `:EPERM`); empty when none were asked.
+    pub scheduling: String,
 }
 
 impl ProcessStatus {
@@ -41,6 +46,23 @@ impl ProcessStatus {
     }
 }
 
+impl ProcessStatus {
+    /// The heartbeat's figure, the deadline misses and the scheduling, as shown after the rate.
+    pub fn detail_label(&self) -> String {
+        let mut parts = Vec::new();
+        if !self.detail.is_empty() {
+            parts.push(format!("{} {}", self.detail, self.detail_value));
+        }
+        if self.deadline_misses > 0 {
+            parts.push(format!("deadline misses {}", self.deadline_misses));
+        }
+        if !self.scheduling.is_empty() {
+            parts.push(format!("[{}]", self.scheduling));
+        }
+        parts.join("  ")
+    }
+}
+
 /// One line per process: name, state, restarts, main-channel rate, detail.
 pub fn render(statuses: &[ProcessStatus], elapsed_s: f64) -> String {
     let mut out = format!("harvest up: {elapsed_s:.0}s\n");
@@ -52,11 +74,7 @@ pub fn render(statuses: &[ProcessStatus], elapsed_s: f64) -> String {
             status.state_label(),
             status.restarts,
             status.main_channel_rate_hz,
-            if status.detail.is_empty() {
-                String::new()
-            } else {
-                format!("{} {}", status.detail, status.detail_value)
-            }
+            status.detail_label()
         );
     }
     out

@@ -15,6 +15,7 @@ use crate::child;
 use crate::domain_lock::{DomainLock, DomainLockError, STOPPING_STACK_WAIT};
 use crate::launch::{Launch, ProcessSpec};
 use crate::restart_tracker::{RestartDecision, RestartTracker};
+use crate::scheduling::SchedulingOutcome;
 use crate::status::{self, ProcessPhase, ProcessStatus};
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH};
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, RunEnd, Waiter};
@@ -70,7 +71,7 @@ impl Summary {
         let mut out = format!("harvest up ended: {}\n", self.ended_by);
         for process in &self.processes {
             out.push_str(&format!(
-                "  {:<12} {:<10} restarts {:<2} messages {:<8} last exit: {}\n",
+                "  {:<12} {:<10} restarts {:<2} messages {:<8} last exit: {}{}{}\n",
                 process.name,
                 match &process.phase {
                     ProcessPhase::FailedForGood { .. } => "FAILED",
@@ -80,6 +81,16 @@ impl Summary {
                 process.restarts,
                 process.main_channel_count,
                 process.last_exit.as_deref().unwrap_or("-"),
+                if process.deadline_misses > 0 {
+                    format!("  deadline misses {}", process.deadline_misses)
+                } else {
+                    String::new()
+                },
+                if process.scheduling.is_empty() {
+                    String::new()
+                } else {
+                    format!("  [{}]", process.scheduling)
+                },
             ));
         }
         if let Some(failure) = &self.failure {
@@ -163,6 +174,30 @@ struct Managed {
     tracker: RestartTracker,
     status: ProcessStatus,
     count_at_last_status: u64,
+    /// What the current instance's scheduling settings became.
+    scheduling: SchedulingOutcome,
+}
+
+impl Managed {
+    /// The scheduling label for the status: what the kernel granted at the start, and for a
+    /// memory lock (taken by the process itself before its loop) the kernel's `VmLck` once the
+    /// process reports (refused or not done: `mlock:none`).
+    fn scheduling_label(&self) -> String {
+        let mut label = self.scheduling.label();
+        if self.scheduling.asked.lock_memory
+            && let Some(child) = &self.child
+            && self.last_heartbeat.is_some()
+        {
+            let locked_kib = harvest_ipc::memory_lock::locked_kib(child.id()).unwrap_or(0);
+            let shown = if locked_kib > 0 {
+                format!("mlock {}MiB", locked_kib.div_ceil(1024))
+            } else {
+                "mlock:none".to_owned()
+            };
+            label = label.replace("mlock", &shown);
+        }
+        label
+    }
 }
 
 /// Runs the stack until a signal, `--duration`, or a process failing for good. Refuses to start
@@ -215,8 +250,11 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                 main_channel_rate_hz: 0.0,
                 detail: String::new(),
                 detail_value: 0,
+                deadline_misses: 0,
+                scheduling: String::new(),
             },
             count_at_last_status: 0,
+            scheduling: SchedulingOutcome::none(),
         })
         .collect();
     tracing::info!(
@@ -279,6 +317,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                     process.status.main_channel_count = beat.main_channel_count;
                     process.status.detail = beat.detail.as_str().to_owned();
                     process.status.detail_value = beat.detail_value;
+                    process.status.deadline_misses = beat.deadline_misses;
                 }
             });
             if let Err(error) = drained {
@@ -346,6 +385,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                 process.status.main_channel_rate_hz =
                     count.saturating_sub(process.count_at_last_status) as f64 / interval_s;
                 process.count_at_last_status = count;
+                process.status.scheduling = process.scheduling_label();
             }
             last_status = now;
             let statuses: Vec<ProcessStatus> = processes.iter().map(|p| p.status.clone()).collect();
@@ -391,6 +431,10 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         tracing::debug!(%error, "harvest events sent while stopping not received");
     }
     drop(events);
+    // The summary shows the scheduling as granted (and the memory lock) while the children run.
+    for process in processes.iter_mut() {
+        process.status.scheduling = process.scheduling_label();
+    }
     shutdown(
         &mut processes,
         Duration::from_millis(stack.shutdown_grace_ms),
@@ -428,8 +472,19 @@ fn start(
         domain_lock.inheritable_fd(),
         control_token,
     ) {
-        Ok(child) => {
-            tracing::info!(process = %process.spec.name, pid = child.id(), "started");
+        Ok((child, scheduling)) => {
+            if scheduling.asked.is_default() {
+                tracing::info!(process = %process.spec.name, pid = child.id(), "started");
+            } else {
+                let refusals = scheduling.refusals();
+                tracing::info!(process = %process.spec.name, pid = child.id(),
+                    scheduling = %scheduling.asked, granted = %scheduling.label(), "started");
+                for refusal in &refusals {
+                    tracing::warn!(process = %process.spec.name, "{refusal}");
+                }
+            }
+            process.status.scheduling = scheduling.label();
+            process.scheduling = scheduling;
             process.status.phase = ProcessPhase::Running { pid: child.id() };
             process.child = Some(child);
             process.started_at = now;

@@ -470,7 +470,7 @@ fn control_loop<B: ValveBoard>(
             }
             Wake::Heartbeat { period } => {
                 let state = device_errors.run_state();
-                health.report(state, sets, "period_p99_us", period.p99_ns / 1000)?;
+                health.report_control_loop(state, sets, &period)?;
             }
         }
         Ok(Flow::Continue)

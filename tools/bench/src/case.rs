@@ -100,7 +100,9 @@ fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchErr
     let listener = UnixListener::bind(&path).map_err(socket_error("control", &path))?;
     let _socket_file = SocketFile(path.clone());
 
-    // The zero-copy receivers exist before the peer starts, so its first message finds them.
+    // The zero-copy and Zenoh receivers exist before the peer starts, so its first message
+    // finds them (the Zenoh sender also waits until it sees the subscriber).
+    let mut zenoh_endpoint = None;
     let mut receiver: Option<Box<dyn ReceivePort<T>>> = match spec.transport {
         Transport::Ours => Some(Box::new(OursReceiver::<T>::open(
             spec.domain,
@@ -113,8 +115,13 @@ fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchErr
             name,
         )?)),
         Transport::UdsCopy => None,
+        Transport::ZenohTcp | Transport::ZenohShm => {
+            let (receiver, endpoint) = zenoh_receiver::<T>(spec)?;
+            zenoh_endpoint = Some(endpoint);
+            Some(receiver)
+        }
     };
-    let mut watchdog = Watchdog::new(spawn_peer(spec, &path)?, spec.label());
+    let mut watchdog = Watchdog::new(spawn_peer(spec, &path, zenoh_endpoint)?, spec.label());
     watchdog.start_phase("connect", PHASE_GRACE);
     let mut control = Control::accept(&listener, &path, &mut watchdog)?;
     let mut receiver = match receiver.take() {
@@ -214,7 +221,46 @@ fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchErr
     Ok(result)
 }
 
-fn spawn_peer(spec: &CaseSpec<'_>, control: &Path) -> Result<std::process::Child, BenchError> {
+/// The receiving port of a Zenoh transport and the loopback endpoint it listens on (for the
+/// peer's `--zenoh-endpoint`).
+#[cfg(feature = "zenoh")]
+fn zenoh_receiver<T: BenchMessage>(
+    spec: &CaseSpec<'_>,
+) -> Result<(Box<dyn ReceivePort<T>>, String), BenchError> {
+    use crate::transport::zenoh_link::free_loopback_endpoint;
+    use crate::transport::zenoh_shm::ZenohShmReceiver;
+    use crate::transport::zenoh_tcp::ZenohTcpReceiver;
+    let name = spec.payload.name();
+    let endpoint = free_loopback_endpoint(spec.transport)?;
+    let receiver: Box<dyn ReceivePort<T>> = match spec.transport {
+        Transport::ZenohShm => Box::new(ZenohShmReceiver::<T>::listen(&endpoint, spec.mode, name)?),
+        Transport::ZenohTcp => Box::new(ZenohTcpReceiver::<T>::listen(&endpoint, spec.mode, name)?),
+        Transport::Ours | Transport::Iceoryx2 | Transport::UdsCopy => {
+            return Err(BenchError::InvalidOption {
+                option: "transports",
+                value: spec.transport.name().to_owned(),
+                reason: "not a Zenoh transport".to_owned(),
+            });
+        }
+    };
+    Ok((receiver, endpoint))
+}
+
+/// Without the `zenoh` feature: how to build it.
+#[cfg(not(feature = "zenoh"))]
+fn zenoh_receiver<T: BenchMessage>(
+    spec: &CaseSpec<'_>,
+) -> Result<(Box<dyn ReceivePort<T>>, String), BenchError> {
+    Err(BenchError::TransportNotBuilt {
+        transport: spec.transport.name(),
+    })
+}
+
+fn spawn_peer(
+    spec: &CaseSpec<'_>,
+    control: &Path,
+    zenoh_endpoint: Option<String>,
+) -> Result<std::process::Child, BenchError> {
     let exe = std::env::current_exe().map_err(|source| BenchError::Spawn {
         exe: PathBuf::from("<current exe>"),
         source,
@@ -230,6 +276,7 @@ fn spawn_peer(spec: &CaseSpec<'_>, control: &Path) -> Result<std::process::Child
         duration: spec.settings.duration,
         pin_cpu: spec.settings.pin_cpus.map(|(_, sender)| sender),
         sender_write: spec.settings.sender_write,
+        zenoh_endpoint,
     };
     Command::new(&exe)
         .arg(PEER_SUBCOMMAND)

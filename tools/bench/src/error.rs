@@ -18,6 +18,21 @@ pub enum BenchError {
         value: String,
         reason: String,
     },
+    /// A transport was asked for that this build does not have.
+    #[error(
+        "--transports {transport}: this build has no Zenoh peer transports; build with the \
+`zenoh` feature: `cargo build --release --features harvest-bench/zenoh` (the `harvest` binary) \
+or `cargo run --release -p harvest-bench --features zenoh --bin harvest-bench-peer -- bench ipc ...`"
+    )]
+    TransportNotBuilt { transport: &'static str },
+    /// A Zenoh call (a peer transport) failed.
+    #[error("{transport}: {operation} on {key:?} failed: {reason}")]
+    Zenoh {
+        transport: &'static str,
+        operation: &'static str,
+        key: String,
+        reason: String,
+    },
     /// The benchmark domain name was rejected by harvest-ipc.
     #[error(transparent)]
     Domain(#[from] harvest_ipc::domain::InvalidDomain),
@@ -31,8 +46,8 @@ pub enum BenchError {
         service: String,
         reason: String,
     },
-    /// Encoding or decoding a message of the copying baseline failed.
-    #[error("copying baseline: {operation} of a {payload} message failed: {source}")]
+    /// Encoding or decoding a message of a copying transport (uds-copy, zenoh-tcp) failed.
+    #[error("{operation} of a {payload} message failed: {source}")]
     Codec {
         operation: &'static str,
         payload: &'static str,

@@ -3,8 +3,10 @@
 //! `harvest bench ipc` measures one-way latency between two separate processes for payloads
 //! from 64 B to 16 MiB (and the stack's real `RgbdFrame`, `AppleDetections` and
 //! `LaserScanRequest`), through our layer (harvest_ipc), raw iceoryx2 and a copying Unix socket
-//! baseline, each with event-driven and busy-poll wake-ups. The measuring process receives; it
-//! starts one sending peer per run as `<current exe> bench-peer ...` ([`PEER_SUBCOMMAND`]).
+//! baseline, and with the `zenoh` feature through Zenoh over loopback TCP and over Zenoh's
+//! shared memory, each with event-driven and busy-poll wake-ups. The measuring process
+//! receives; it starts one sending peer per run as `<current exe> bench-peer ...`
+//! ([`PEER_SUBCOMMAND`]).
 //!
 //! - [`run_bench_ipc`] / [`BenchIpcArgs`]: the benchmark, returning a [`BenchReport`].
 //! - [`run_bench_peer`] / [`BenchPeerArgs`]: the hidden peer subcommand.
@@ -35,7 +37,7 @@ pub use error::BenchError;
 pub use options::{BenchIpcArgs, BenchPeerArgs, PEER_SUBCOMMAND, Transport, WakeMode};
 pub use payload_case::PayloadCase;
 pub use peer::run_bench_peer;
-pub use pipeline::{BenchPipelineArgs, PipelineReport, run_bench_pipeline};
+pub use pipeline::{BenchPipelineArgs, PipelineComparison, PipelineReport, run_bench_pipeline};
 pub use report::BenchReport;
 pub use run::run_bench_ipc;
 pub use sender_write::SenderWrite;

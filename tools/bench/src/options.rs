@@ -25,16 +25,56 @@ pub enum Transport {
     /// Copying baseline: codec-encoded messages over a Unix domain stream socket.
     #[value(name = "uds-copy")]
     UdsCopy,
+    /// Zenoh publish-subscribe over loopback TCP (shared memory off): the copying baseline's
+    /// codec-encoded messages through Zenoh instead of a raw socket. Needs the `zenoh` feature.
+    #[value(name = "zenoh-tcp")]
+    ZenohTcp,
+    /// Zenoh publish-subscribe with its shared-memory transport: the sender allocates from a
+    /// Zenoh SHM provider and writes the message in place. Needs the `zenoh` feature.
+    #[value(name = "zenoh-shm")]
+    ZenohShm,
 }
 
 impl Transport {
-    pub const ALL: [Transport; 3] = [Self::Ours, Self::Iceoryx2, Self::UdsCopy];
+    pub const ALL: [Transport; 5] = [
+        Self::Ours,
+        Self::Iceoryx2,
+        Self::UdsCopy,
+        Self::ZenohTcp,
+        Self::ZenohShm,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             Self::Ours => "ours",
             Self::Iceoryx2 => "iceoryx2",
             Self::UdsCopy => "uds-copy",
+            Self::ZenohTcp => "zenoh-tcp",
+            Self::ZenohShm => "zenoh-shm",
+        }
+    }
+
+    /// Whether this build can measure the transport (the Zenoh peers need the `zenoh` feature).
+    pub fn is_built(self) -> bool {
+        match self {
+            Self::Ours | Self::Iceoryx2 | Self::UdsCopy => true,
+            Self::ZenohTcp | Self::ZenohShm => cfg!(feature = "zenoh"),
+        }
+    }
+
+    /// The transports this build can measure: the default of `--transports`.
+    pub fn built() -> Vec<Transport> {
+        Self::ALL.into_iter().filter(|t| t.is_built()).collect()
+    }
+
+    /// Fails with how to rebuild if this build cannot measure the transport.
+    pub fn ensure_built(self) -> Result<(), BenchError> {
+        if self.is_built() {
+            Ok(())
+        } else {
+            Err(BenchError::TransportNotBuilt {
+                transport: self.name(),
+            })
         }
     }
 }
@@ -63,7 +103,8 @@ impl WakeMode {
 }
 
 /// `harvest bench ipc`: one-way latency and throughput between two processes, for our layer,
-/// raw iceoryx2 and a copying socket baseline, over payloads from 64 B to 16 MiB.
+/// raw iceoryx2, a copying socket baseline and (with the `zenoh` feature) Zenoh over loopback
+/// TCP and over its shared memory, over payloads from 64 B to 16 MiB.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct BenchIpcArgs {
     /// Unmeasured messages before measuring, per case (stopped early after a quarter of
@@ -82,7 +123,8 @@ pub struct BenchIpcArgs {
     /// [default: 64B,1KiB,16KiB,256KiB,1MiB,4MiB,8MiB,16MiB,scan-request,detections,rgbd]
     #[arg(long, value_delimiter = ',')]
     pub sizes: Vec<String>,
-    /// Transports to measure [default: all]
+    /// Transports to measure; zenoh-tcp and zenoh-shm need a build with the `zenoh` feature
+    /// [default: every transport this build has]
     #[arg(long, value_delimiter = ',')]
     pub transports: Vec<Transport>,
     /// Wake-up modes to measure [default: both]
@@ -140,6 +182,9 @@ pub struct BenchPeerArgs {
     pub pin_cpu: Option<usize>,
     #[arg(long, value_enum, default_value = "full")]
     pub sender_write: SenderWrite,
+    /// Zenoh endpoint the receiver listens on, e.g. `tcp/127.0.0.1:40123` (Zenoh transports)
+    #[arg(long)]
+    pub zenoh_endpoint: Option<String>,
 }
 
 impl BenchPeerArgs {
@@ -167,6 +212,9 @@ impl BenchPeerArgs {
         ];
         if let Some(cpu) = self.pin_cpu {
             line.extend(["--pin-cpu".to_owned(), cpu.to_string()]);
+        }
+        if let Some(endpoint) = &self.zenoh_endpoint {
+            line.extend(["--zenoh-endpoint".to_owned(), endpoint.clone()]);
         }
         line
     }
@@ -216,11 +264,14 @@ impl Settings {
             repeats: args.repeats.unwrap_or(if quick { 1 } else { 3 }),
             quick,
             payloads: resolve_payloads(&args.sizes)?,
-            transports: dedup_or(&args.transports, &Transport::ALL),
+            transports: dedup_or(&args.transports, &Transport::built()),
             modes: dedup_or(&args.modes, &WakeMode::ALL),
             pin_cpus: resolve_pin_cpus(&args.pin_cpus, cpu_count)?,
             sender_write: args.sender_write.unwrap_or_default(),
         };
+        for transport in &settings.transports {
+            transport.ensure_built()?;
+        }
         if settings.iterations == 0 {
             return Err(BenchError::InvalidOption {
                 option: "iterations",
@@ -317,7 +368,27 @@ mod tests {
         assert_eq!(settings.warmup, 5);
         assert_eq!(settings.repeats, 1);
         assert_eq!(settings.payloads.len(), PayloadCase::DEFAULT.len());
-        assert_eq!(settings.transports, Transport::ALL.to_vec());
+        assert_eq!(settings.transports, Transport::built());
+    }
+
+    #[test]
+    fn zenoh_transports_need_the_feature() {
+        let args = BenchIpcArgs {
+            transports: vec![Transport::Ours, Transport::ZenohShm],
+            ..BenchIpcArgs::default()
+        };
+        let resolved = Settings::resolve(&args, 2);
+        if cfg!(feature = "zenoh") {
+            assert!(Transport::built().contains(&Transport::ZenohShm));
+            assert!(resolved.is_ok());
+        } else {
+            assert_eq!(Transport::built().len(), 3);
+            let message = resolved.expect_err("not built").to_string();
+            assert!(
+                message.contains("zenoh-shm") && message.contains("--features"),
+                "{message}"
+            );
+        }
     }
 
     #[test]
@@ -360,6 +431,7 @@ mod tests {
             duration: Duration::from_millis(1500),
             pin_cpu: Some(1),
             sender_write: SenderWrite::Elsewhere,
+            zenoh_endpoint: Some("tcp/127.0.0.1:40123".into()),
         };
         let mut argv = vec!["peer".to_owned()];
         argv.extend(peer.to_command_line());

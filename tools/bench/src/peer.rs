@@ -33,6 +33,7 @@ fn run_typed<T: BenchMessage>(args: &BenchPeerArgs, case: PayloadCase) -> Result
         Transport::Ours => Box::new(OursSender::<T>::open(&domain, case)?),
         Transport::Iceoryx2 => Box::new(RawSender::<T>::open(&domain, args.mode, payload)?),
         Transport::UdsCopy => Box::new(CopySender::<T>::connect(&args.control, payload)?),
+        Transport::ZenohTcp | Transport::ZenohShm => zenoh_sender::<T>(args, payload)?,
     };
     let mut writer = PayloadWriter::new(args.sender_write, std::mem::size_of::<T>());
     let mut send_call = latency_histogram()?;
@@ -87,6 +88,46 @@ fn run_typed<T: BenchMessage>(args: &BenchPeerArgs, case: PayloadCase) -> Result
     control.expect(END, "end of the case")?;
     control.send_u64(send_call.value_at_quantile(0.5))?;
     Ok(())
+}
+
+/// The sending port of a Zenoh transport, connected to the receiver's `--zenoh-endpoint`.
+#[cfg(feature = "zenoh")]
+fn zenoh_sender<T: BenchMessage>(
+    args: &BenchPeerArgs,
+    payload: &'static str,
+) -> Result<Box<dyn SendPort<T>>, BenchError> {
+    use crate::transport::zenoh_shm::ZenohShmSender;
+    use crate::transport::zenoh_tcp::ZenohTcpSender;
+    let endpoint = args
+        .zenoh_endpoint
+        .as_deref()
+        .ok_or_else(|| BenchError::InvalidOption {
+            option: "zenoh-endpoint",
+            value: "(missing)".to_owned(),
+            reason: format!("{} needs the receiver's endpoint", args.transport.name()),
+        })?;
+    match args.transport {
+        Transport::ZenohShm => Ok(Box::new(ZenohShmSender::<T>::connect(endpoint, payload)?)),
+        Transport::ZenohTcp => Ok(Box::new(ZenohTcpSender::<T>::connect(endpoint, payload)?)),
+        Transport::Ours | Transport::Iceoryx2 | Transport::UdsCopy => {
+            Err(BenchError::InvalidOption {
+                option: "transport",
+                value: args.transport.name().to_owned(),
+                reason: "not a Zenoh transport".to_owned(),
+            })
+        }
+    }
+}
+
+/// Without the `zenoh` feature: how to build it.
+#[cfg(not(feature = "zenoh"))]
+fn zenoh_sender<T: BenchMessage>(
+    args: &BenchPeerArgs,
+    _payload: &'static str,
+) -> Result<Box<dyn SendPort<T>>, BenchError> {
+    Err(BenchError::TransportNotBuilt {
+        transport: args.transport.name(),
+    })
 }
 
 /// Messages the throughput phase keeps in flight (sent, not yet acknowledged): the payload's

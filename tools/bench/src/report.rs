@@ -140,16 +140,23 @@ fn label(result: &CaseResult) -> String {
     format!("{}@{}", result.transport.name(), result.payload)
 }
 
-/// Ratios of every pair of transports measured on the same payload and mode, plus the
-/// full-frame over 64 B ratio of each zero-copy transport.
+/// Ratios of the compared pairs of transports measured on the same payload and mode, plus the
+/// full-frame over 64 B ratio of each transport but the copying socket.
 pub fn compute_ratios(results: &[CaseResult]) -> Vec<Ratio> {
-    const PAIRS: [(&str, Transport, Transport); 3] = [
+    const PAIRS: [(&str, Transport, Transport); 6] = [
         ("ours / raw iceoryx2", Transport::Ours, Transport::Iceoryx2),
         ("copy / ours", Transport::UdsCopy, Transport::Ours),
         (
             "copy / raw iceoryx2",
             Transport::UdsCopy,
             Transport::Iceoryx2,
+        ),
+        ("zenoh-shm / ours", Transport::ZenohShm, Transport::Ours),
+        ("zenoh-tcp / ours", Transport::ZenohTcp, Transport::Ours),
+        (
+            "zenoh-tcp / uds-copy",
+            Transport::ZenohTcp,
+            Transport::UdsCopy,
         ),
     ];
     let mut ratios = Vec::new();
@@ -172,13 +179,15 @@ pub fn compute_ratios(results: &[CaseResult]) -> Vec<Ratio> {
                 }
             }
         }
-        for (transport, small) in [
-            (Transport::Ours, PayloadCase::Bytes64),
-            (Transport::Iceoryx2, PayloadCase::Bytes64),
+        for transport in [
+            Transport::Ours,
+            Transport::Iceoryx2,
+            Transport::ZenohShm,
+            Transport::ZenohTcp,
         ] {
             if let (Some((a, la)), Some((b, lb))) = (
                 find(results, PayloadCase::Rgbd, transport, mode),
-                find(results, small, transport, mode),
+                find(results, PayloadCase::Bytes64, transport, mode),
             ) {
                 let (p50, p99) = ratio_of(&la, &lb);
                 ratios.push(Ratio {
@@ -462,6 +471,24 @@ mod tests {
                 mode,
                 vec![run(3_000_000)],
             ),
+            CaseResult::measured(
+                PayloadCase::Bytes64,
+                Transport::ZenohShm,
+                mode,
+                vec![run(2000)],
+            ),
+            CaseResult::measured(
+                PayloadCase::Rgbd,
+                Transport::ZenohShm,
+                mode,
+                vec![run(3000)],
+            ),
+            CaseResult::measured(
+                PayloadCase::Rgbd,
+                Transport::ZenohTcp,
+                mode,
+                vec![run(6_000_000)],
+            ),
             CaseResult::unmeasured(PayloadCase::MiB8, Transport::Ours, mode, Some("n/a".into())),
         ];
         let ratios = compute_ratios(&results);
@@ -475,6 +502,18 @@ mod tests {
         assert!((ours_over_raw - 1000.0 / 900.0).abs() < 1e-12);
         assert_eq!(find_ratio("copy / ours", "uds-copy@rgbd"), Some(2000.0));
         assert_eq!(find_ratio("RGB-D frame / 64 B", "ours@rgbd"), Some(1.5));
+        assert_eq!(
+            find_ratio("zenoh-shm / ours", "zenoh-shm@rgbd"),
+            Some(3000.0 / 1500.0)
+        );
+        assert_eq!(
+            find_ratio("zenoh-tcp / uds-copy", "zenoh-tcp@rgbd"),
+            Some(6_000_000.0 / 3_000_000.0)
+        );
+        assert_eq!(
+            find_ratio("RGB-D frame / 64 B", "zenoh-shm@rgbd"),
+            Some(3000.0 / 2000.0)
+        );
 
         let targets = check_targets(&results);
         let frame = targets

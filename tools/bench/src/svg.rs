@@ -17,6 +17,8 @@ fn color(transport: Transport) -> &'static str {
         Transport::Ours => "#1f77b4",
         Transport::Iceoryx2 => "#2ca02c",
         Transport::UdsCopy => "#d62728",
+        Transport::ZenohTcp => "#ff7f0e",
+        Transport::ZenohShm => "#9467bd",
     }
 }
 

@@ -75,6 +75,8 @@ fn run_quick(json: &Path, svg: &Path) -> std::process::Output {
             "20",
             "--duration",
             "100ms",
+            "--transports",
+            "ours,iceoryx2,uds-copy",
         ])
         .arg("--json")
         .arg(json)
@@ -292,4 +294,66 @@ fn peer_without_a_measuring_process_fails_naming_the_socket() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("missing.sock"), "{stderr}");
     assert!(domain_files("bench-test-peer").is_empty());
+}
+
+#[cfg(not(feature = "zenoh"))]
+#[test]
+fn zenoh_transports_without_the_feature_say_how_to_build_them() {
+    let output = Command::new(EXE)
+        .args(["bench", "ipc", "--quick", "--transports", "ours,zenoh-shm"])
+        .output()
+        .expect("run the benchmark binary");
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("zenoh-shm") && stderr.contains("--features harvest-bench/zenoh"),
+        "{stderr}"
+    );
+}
+
+/// Both Zenoh peers across real processes, on the smallest message and the RGB-D frame: every
+/// case measured, nothing lost in the stream, the peer ratios reported.
+#[cfg(feature = "zenoh")]
+#[test]
+fn zenoh_peers_across_processes_are_measured_side_by_side_with_ours() {
+    let dir = scratch_dir("zenoh");
+    let json_path = dir.join("bench.json");
+    let output = Command::new(EXE)
+        .args(["bench", "ipc", "--quick", "--iterations", "20"])
+        .args(["--duration", "100ms", "--sizes", "64B,rgbd"])
+        .args(["--transports", "ours,zenoh-tcp,zenoh-shm", "--json"])
+        .arg(&json_path)
+        .output()
+        .expect("run the benchmark binary");
+    assert!(
+        output.status.success(),
+        "benchmark failed:\n{}\n{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(&json_path).expect("json written"))
+            .expect("valid JSON");
+    let results = report["results"].as_array().expect("results");
+    assert_eq!(results.len(), 2 * 3 * MODES.len());
+    for result in results {
+        assert_eq!(result["measured"], true, "{result}");
+        assert!(u64_field(&result["latency"], "samples") >= 1, "{result}");
+        assert_eq!(u64_field(&result["throughput"], "dropped"), 0, "{result}");
+    }
+    let ratios = report["ratios"].as_array().expect("ratios");
+    for (comparison, numerator) in [
+        ("zenoh-shm / ours", "zenoh-shm@rgbd"),
+        ("zenoh-tcp / ours", "zenoh-tcp@64B"),
+        ("RGB-D frame / 64 B", "zenoh-shm@rgbd"),
+        ("RGB-D frame / 64 B", "zenoh-tcp@rgbd"),
+    ] {
+        assert!(
+            ratios
+                .iter()
+                .any(|r| r["comparison"] == comparison && r["numerator"] == numerator),
+            "{comparison} {numerator} missing"
+        );
+    }
+    std::fs::remove_dir_all(&dir).expect("remove scratch dir");
 }

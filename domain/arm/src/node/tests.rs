@@ -548,6 +548,40 @@ fn the_cycle_sees_the_valve_open_only_at_the_end_stop_and_closed_only_once_vente
 }
 
 #[test]
+fn a_missed_deadline_brakes_the_arm_and_the_pick_goes_on() {
+    let mut b = Bench::single_arm();
+    b.tick();
+    b.target = Some(b.target(1, 7, APPLE_M));
+    for _ in 0..60 {
+        b.tick();
+    }
+    assert!(matches!(b.tick().servo, ServoOrder::Track { .. }));
+    // The loop is held up for 5 periods: the next step brakes the drives.
+    b.now_ns += 4 * PERIOD_NS;
+    let out = b.tick();
+    assert_eq!(out.servo, ServoOrder::Hold);
+    assert!(
+        out.events
+            .iter()
+            .any(|e| matches!(e, ArmNodeEvent::Cycle(CycleEvent::DeadlineMissed { .. }))),
+        "{:?}",
+        out.events
+    );
+    assert_eq!(out.state.phase, PhaseCode::Approach);
+    // On time again, the arm tracks and the attempt ends with the apple.
+    assert!(matches!(b.tick().servo, ServoOrder::Track { .. }));
+    b.run_until_idle(20.0);
+    assert!(b.has(|e| matches!(
+        e,
+        ArmNodeEvent::AttemptEnded {
+            apple_id: 7,
+            harvested: true,
+            ..
+        }
+    )));
+}
+
+#[test]
 fn a_refusal_is_reported_once_per_request_and_reason() {
     let mut b = Bench::single_arm();
     b.vacuum_follows_requests = false;

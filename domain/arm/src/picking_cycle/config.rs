@@ -39,8 +39,17 @@ pub struct CycleConfig {
     pub clearance_m: f64,
     /// Control period assumed on the first step, s (200 Hz, section 2.2).
     pub nominal_period_s: f64,
+    /// Longest time between two steps, in nominal periods, before the step brakes the arm as
+    /// after a feedback outage (the control loop missed its deadline: the servos ran that long
+    /// on the last set-point). Default 3 (15 ms at 200 Hz); must be > 1.
+    #[serde(default = "default_max_tick_gap_periods")]
+    pub max_tick_gap_periods: f64,
     /// Tracking controller gains.
     pub gains: TrackingGains,
+}
+
+fn default_max_tick_gap_periods() -> f64 {
+    3.0
 }
 
 impl Default for CycleConfig {
@@ -59,6 +68,7 @@ impl Default for CycleConfig {
             max_feedback_age_s: 0.05,
             clearance_m: DEFAULT_CLEARANCE_M,
             nominal_period_s: 0.005,
+            max_tick_gap_periods: default_max_tick_gap_periods(),
             gains: TrackingGains::default(),
         }
     }
@@ -127,6 +137,13 @@ impl CycleConfig {
                 field: "speed_fraction",
                 value: self.speed_fraction,
                 expected: "in (0, 1]",
+            });
+        }
+        if !(self.max_tick_gap_periods.is_finite() && self.max_tick_gap_periods > 1.0) {
+            return Err(CycleConfigError::Invalid {
+                field: "max_tick_gap_periods",
+                value: self.max_tick_gap_periods,
+                expected: "finite and > 1",
             });
         }
         if !self.detach_twist_rad.is_finite() {

@@ -33,4 +33,11 @@ pub enum CycleEvent {
         /// Feedback age, s.
         age_s: f64,
     },
+    /// The step came more than `max_tick_gap_periods` after the previous one (the control loop
+    /// missed its deadline); the arm was stopped as after a feedback outage and its motion
+    /// restarts from where it is on the next step.
+    DeadlineMissed {
+        /// Time since the previous step, s.
+        gap_s: f64,
+    },
 }

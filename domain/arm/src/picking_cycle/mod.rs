@@ -104,6 +104,9 @@ impl PickingCycle {
 
     /// One control period. See the module documentation.
     pub fn step(&mut self, input: &CycleInput) -> CycleOutput {
+        let gap_ns = self
+            .last_now_ns
+            .map_or(0, |last| input.now_ns.saturating_sub(last));
         let dt_s = match self.last_now_ns {
             None => self.config.nominal_period_s,
             Some(last) if input.now_ns > last => elapsed_s(input.now_ns, last),
@@ -117,30 +120,34 @@ impl PickingCycle {
         } else {
             elapsed_s(input.now_ns, input.joints_stamp_ns)
         };
+        // Compared in whole nanoseconds: 3 x 5 ms is exactly on the bound, not above it.
+        let max_gap_ns =
+            (self.config.max_tick_gap_periods * self.config.nominal_period_s * 1e9).round() as u64;
+        if gap_ns > max_gap_ns {
+            warn!(
+                arm = %self.params.arm,
+                gap_s = dt_s,
+                max_gap_ms = max_gap_ns / 1_000_000,
+                "control step late (deadline missed): stopping the arm"
+            );
+            return self.hold(
+                input,
+                CycleEvent::DeadlineMissed { gap_s: dt_s },
+                end_effector_m,
+            );
+        }
         if !input.joints.is_finite() || feedback_age_s > self.config.max_feedback_age_s {
             warn!(
                 arm = %self.params.arm,
                 feedback_age_s,
                 "joint feedback invalid or stale: stopping the arm"
             );
-            self.needs_replan = !matches!(self.state, State::Idle);
-            let decision = match input.target {
-                Some(t) if matches!(self.state, State::Idle) => {
-                    Some(TargetDecision::Rejected(TargetRejection::NoFeedback {
-                        id: t.id,
-                    }))
-                }
-                Some(t) => self.busy_or_repeat(&t),
-                None => None,
-            };
-            return self.output(
-                JointCommand::STOP,
-                decision,
-                Some(CycleEvent::FeedbackInvalid {
+            return self.hold(
+                input,
+                CycleEvent::FeedbackInvalid {
                     age_s: feedback_age_s,
-                }),
+                },
                 end_effector_m,
-                None,
             );
         }
         if self.needs_replan {
@@ -164,6 +171,38 @@ impl PickingCycle {
             "picking cycle step"
         );
         self.output(command, decision, event, end_effector_m, reference)
+    }
+
+    /// The safe hold of a step that cannot be trusted (stale or invalid feedback, a late step):
+    /// the arm is stopped, a running motion restarts from where the arm is on the next good
+    /// step, a target offered while idle is refused for the moment (retried) after stale
+    /// feedback and left undecided after a late step (offered again next step).
+    fn hold(
+        &mut self,
+        input: &CycleInput,
+        event: CycleEvent,
+        end_effector_m: [f64; 3],
+    ) -> CycleOutput {
+        self.needs_replan = !matches!(self.state, State::Idle);
+        let decision = match input.target {
+            Some(t) if matches!(self.state, State::Idle) => match event {
+                CycleEvent::FeedbackInvalid { .. } => {
+                    Some(TargetDecision::Rejected(TargetRejection::NoFeedback {
+                        id: t.id,
+                    }))
+                }
+                _ => None,
+            },
+            Some(t) => self.busy_or_repeat(&t),
+            None => None,
+        };
+        self.output(
+            JointCommand::STOP,
+            decision,
+            Some(event),
+            end_effector_m,
+            None,
+        )
     }
 
     fn output(

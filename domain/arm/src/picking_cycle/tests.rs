@@ -437,6 +437,60 @@ fn stale_feedback_stops_the_arm_and_the_motion_resumes_afterwards() {
 }
 
 #[test]
+fn a_late_step_stops_the_arm_and_the_motion_resumes_afterwards() {
+    let mut w = World::new(ArmParams::arm1(), ArmParams::arm2(), TYPICAL_APPLE_M);
+    let target = w.target(1);
+    w.tick(Some(target), None);
+    for _ in 0..100 {
+        w.tick(None, None);
+    }
+    // Three periods between steps is within the bound (default 3 periods).
+    w.now_ns += 2 * PERIOD_NS;
+    let out = w.tick(None, None);
+    assert!(!out.command.stopped, "{out:?}");
+    assert_eq!(out.event, None);
+    // Four periods: the loop missed its deadline; the arm is held where it is.
+    w.now_ns += 3 * PERIOD_NS;
+    let out = w.tick(None, None);
+    assert!(out.command.stopped);
+    assert_eq!(out.command.velocity, JointVelocity::ZERO);
+    match out.event {
+        Some(CycleEvent::DeadlineMissed { gap_s }) => {
+            assert!((gap_s - 0.020).abs() < 1e-9, "{gap_s}")
+        }
+        other => panic!("expected a deadline miss, got {other:?}"),
+    }
+    assert_eq!(out.phase, CyclePhase::Approach);
+    // On time again: the approach restarts from where the arm is and the cycle completes.
+    let out = w.tick(None, None);
+    assert!(!out.command.stopped);
+    let start = w.t_s();
+    while w.cycle.phase() != CyclePhase::Idle && w.t_s() - start < 20.0 {
+        w.tick(None, None);
+    }
+    assert_eq!(
+        w.events.last().map(|e| e.0),
+        Some(CycleEvent::CycleComplete { harvested: true })
+    );
+}
+
+#[test]
+fn a_late_step_leaves_an_offered_target_for_the_next_step() {
+    let mut w = World::new(ArmParams::arm1(), ArmParams::arm2(), TYPICAL_APPLE_M);
+    w.tick(None, None);
+    w.now_ns += 10 * PERIOD_NS;
+    let target = w.target(4);
+    let out = w.tick(Some(target), None);
+    assert_eq!(out.target_decision, None);
+    assert_eq!(out.phase, CyclePhase::Idle);
+    let target = w.target(4);
+    assert_eq!(
+        w.tick(Some(target), None).target_decision,
+        Some(TargetDecision::Accepted { id: 4 })
+    );
+}
+
+#[test]
 fn no_motion_starts_without_fresh_feedback() {
     let mut w = World::new(ArmParams::arm1(), ArmParams::arm2(), TYPICAL_APPLE_M);
     w.feedback_delay_ns = 1_000_000_000;
@@ -558,4 +612,23 @@ fn config_validates_and_round_trips() {
     let back: CycleConfig = toml::from_str(&text).unwrap();
     assert_eq!(back, CycleConfig::default());
     assert!(toml::from_str::<CycleConfig>(&format!("{text}\nbogus = 1\n")).is_err());
+    // Settings written before `max_tick_gap_periods` existed still read, with its default.
+    let older: String = text
+        .lines()
+        .filter(|line| !line.starts_with("max_tick_gap_periods"))
+        .map(|line| format!("{line}\n"))
+        .collect();
+    let back: CycleConfig = toml::from_str(&older).unwrap();
+    assert_eq!(back.max_tick_gap_periods, 3.0);
+    let bad = CycleConfig {
+        max_tick_gap_periods: 1.0,
+        ..CycleConfig::default()
+    };
+    assert!(matches!(
+        bad.validate(),
+        Err(CycleConfigError::Invalid {
+            field: "max_tick_gap_periods",
+            ..
+        })
+    ));
 }

@@ -1,4 +1,5 @@
-//! Period jitter of the arm control loop from consecutive publish stamps of one channel.
+//! Period jitter of a 200 Hz control loop (an arm, the vacuum supervisor) from consecutive
+//! publish stamps of one channel.
 //!
 //! The arm process runs its control loop at 200 Hz (paper 003: 5 ms control period) and
 //! publishes `armN/command` and `armN/state` once per cycle. The period of cycle k is

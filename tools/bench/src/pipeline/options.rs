@@ -32,9 +32,65 @@ pub struct BenchPipelineArgs {
     /// Write a per-hop latency plot (SVG) to this file
     #[arg(long, value_name = "PATH")]
     pub svg: Option<PathBuf>,
+    /// Which runs to make: `both` (the launch file's `[process.scheduling]` settings, then the
+    /// same stack with `harvest up --no-scheduling`, reported side by side), `launch` (as
+    /// written) or `none` (without them). Ignored with --attach (one run of what is running)
+    #[arg(long, value_enum, default_value_t = SchedulingRuns::Both)]
+    pub scheduling: SchedulingRuns,
+    /// Extra busy threads spinning at normal priority through the measured runs (a CPU hog
+    /// beside the stack) [default: 0]
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub load: usize,
     /// The `harvest` executable that runs the stack [default: this executable]
     #[arg(long, value_name = "PATH", hide = true)]
     pub harvest_exe: Option<PathBuf>,
+}
+
+/// Which scheduling the bench's runs use.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SchedulingRuns {
+    /// With the launch file's scheduling, then without, side by side.
+    #[default]
+    Both,
+    /// The launch file as written.
+    Launch,
+    /// `harvest up --no-scheduling`.
+    None,
+}
+
+/// The scheduling of one run of the stack.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunScheduling {
+    /// The launch file's `[process.scheduling]` settings applied.
+    AsLaunched,
+    /// `harvest up --no-scheduling`.
+    Without,
+    /// A stack the bench did not start (--attach).
+    Attached,
+}
+
+impl RunScheduling {
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::AsLaunched => "with the launch file's scheduling",
+            Self::Without => "without scheduling (--no-scheduling)",
+            Self::Attached => "attached (as running)",
+        }
+    }
+}
+
+impl SchedulingRuns {
+    /// The runs to make, in order.
+    pub fn runs(self, attached: bool) -> Vec<RunScheduling> {
+        match (attached, self) {
+            (true, _) => vec![RunScheduling::Attached],
+            (false, Self::Both) => vec![RunScheduling::AsLaunched, RunScheduling::Without],
+            (false, Self::Launch) => vec![RunScheduling::AsLaunched],
+            (false, Self::None) => vec![RunScheduling::Without],
+        }
+    }
 }
 
 /// Resolved settings of a pipeline run.
@@ -48,6 +104,8 @@ pub struct PipelineSettings {
     /// --attach.
     pub launch: Option<String>,
     pub attached: bool,
+    /// Extra busy threads during the measured runs.
+    pub load_threads: usize,
 }
 
 fn seconds<S: serde::Serializer>(value: &Duration, s: S) -> Result<S::Ok, S::Error> {
@@ -76,6 +134,7 @@ impl PipelineSettings {
                 (None, false) => Some(EMBEDDED_LAUNCH_NAME.to_owned()),
             },
             attached: args.attach,
+            load_threads: args.load,
         })
     }
 }

@@ -2,7 +2,7 @@
 //! channel delivered, and a readable table. Serialized as-is for `--json`.
 
 use crate::pipeline::jitter::JitterResult;
-use crate::pipeline::options::PipelineSettings;
+use crate::pipeline::options::{PipelineSettings, RunScheduling};
 use crate::pipeline::summary::Summary;
 use crate::pipeline::tracker::Stage;
 use crate::report::HostInfo;
@@ -14,6 +14,8 @@ use std::fmt::Write as _;
 pub struct PipelineReport {
     pub tool: &'static str,
     pub settings: PipelineSettings,
+    /// The scheduling of the processes in this run.
+    pub scheduling: RunScheduling,
     pub host: HostInfo,
     /// The domain measured (the bench's own unless --attach).
     pub domain: String,
@@ -23,7 +25,7 @@ pub struct PipelineReport {
     pub hops: Vec<StageResult>,
     /// End-to-end latencies.
     pub end_to_end: Vec<StageResult>,
-    /// Period jitter of `armN/command` and `armN/state` (nominal 5 ms).
+    /// Period jitter of `armN/command`, `armN/state` and `vacuum/state` (nominal 5 ms).
     pub control_loop: Vec<JitterResult>,
     /// What the bench received per channel while collecting.
     pub channels: Vec<ChannelResult>,
@@ -72,7 +74,7 @@ pub struct ChannelResult {
     pub delivery: Option<Summary>,
 }
 
-fn millis(ns: u64) -> String {
+pub(crate) fn millis(ns: u64) -> String {
     let ms = ns as f64 / 1e6;
     if ms < 1.0 {
         format!("{ms:.3}")
@@ -116,12 +118,14 @@ impl PipelineReport {
         let s = &self.settings;
         let _ = writeln!(
             out,
-            "harvest bench pipeline: {:.1} s collected after {:.1} s warm-up, domain {}, {} \
-CPUs{}{}",
+            "harvest bench pipeline, {}: {:.1} s collected after {:.1} s warm-up, domain {}, {} \
+CPUs, {} extra busy threads{}{}",
+            self.scheduling.label(),
             s.duration.as_secs_f64(),
             s.warmup.as_secs_f64(),
             self.domain,
             self.host.cpus,
+            s.load_threads,
             match &s.launch {
                 Some(launch) => format!(", launch {launch}"),
                 None => ", attached to a running stack".to_owned(),
@@ -146,7 +150,7 @@ CPUs{}{}",
         }
         let _ = writeln!(
             out,
-            "\narm control loop (nominal 5 ms, 200 Hz): |period - 5 ms|\n  {:<36} {:>6} {:>10} \
+            "\n200 Hz control loops (arms, vacuum; nominal 5 ms): |period - 5 ms|\n  {:<36} {:>6} {:>10} \
 {:>9} {:>9} {:>9} {:>6}",
             "channel", "n", "period p50", "dev p50", "dev p99", "dev max", "gaps"
         );
@@ -234,7 +238,9 @@ mod tests {
                 warmup: Duration::from_secs(1),
                 launch: None,
                 attached: true,
+                load_threads: 0,
             },
+            scheduling: RunScheduling::Attached,
             host: HostInfo {
                 cpus: 2,
                 kernel: "test".to_owned(),

@@ -3,8 +3,10 @@
 //! stack, report.
 
 use crate::error::BenchError;
+use crate::pipeline::comparison::PipelineComparison;
+use crate::pipeline::cpu_load::CpuLoad;
 use crate::pipeline::jitter::{JitterResult, PeriodTracker};
-use crate::pipeline::options::{BenchPipelineArgs, PipelineSettings};
+use crate::pipeline::options::{BenchPipelineArgs, PipelineSettings, RunScheduling};
 use crate::pipeline::report::{ChannelResult, PipelineReport, StageResult};
 use crate::pipeline::stack::Stack;
 use crate::pipeline::summary::Samples;
@@ -15,6 +17,7 @@ use crate::run::{kernel_release, remove_domain, write_file};
 use harvest_ipc::ArmId;
 use harvest_ipc::catalogue::{
     ARM_COMMAND, ARM_STATE, ARM_TARGET, CAMERA_RGBD, HW_CAMERA_RGBD, PERCEPTION_APPLES,
+    VACUUM_STATE,
 };
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, Payload, RunEnd, Subscriber, Waiter};
 use std::path::PathBuf;
@@ -23,19 +26,48 @@ use std::time::{Duration, Instant};
 /// How often the loop wakes without messages, to check the clock and the stack.
 const TICK: Duration = Duration::from_millis(50);
 
-/// Runs the pipeline benchmark. Without `--attach` it starts `harvest up` with the bench's
-/// launch file in a domain of its own (`domain` is then unused); with `--attach` it measures
-/// the stack running in `domain`. Writes `--json` and `--svg` if asked; print
-/// [`PipelineReport::table`].
+/// Runs the pipeline benchmark: one run per scheduling variant of `--scheduling` (with the
+/// launch file's settings, then without, by default), each in a fresh domain, with `--load`
+/// busy threads spinning through all of them. With `--attach` it measures the stack running in
+/// `domain` once. Writes `--json` and `--svg` (of the first run) if asked; print
+/// [`PipelineComparison::table`].
 pub fn run_bench_pipeline(
     args: &BenchPipelineArgs,
     domain: &Domain,
-) -> Result<PipelineReport, BenchError> {
+) -> Result<PipelineComparison, BenchError> {
     let settings = PipelineSettings::resolve(args)?;
+    let load = CpuLoad::start(settings.load_threads);
+    let mut runs = Vec::new();
+    for scheduling in args.scheduling.runs(settings.attached) {
+        runs.push(run_once(args, &settings, domain, scheduling)?);
+    }
+    drop(load);
+    let comparison = PipelineComparison { runs };
+    if let Some(path) = &args.json {
+        write_file(path, &serde_json::to_string_pretty(&comparison)?)?;
+    }
+    if let (Some(path), Some(first)) = (&args.svg, comparison.runs.first()) {
+        write_file(path, &render_pipeline_svg(first))?;
+    }
+    Ok(comparison)
+}
+
+/// One start-collect-stop of the stack (or one collection from the attached stack).
+fn run_once(
+    args: &BenchPipelineArgs,
+    settings: &PipelineSettings,
+    domain: &Domain,
+    scheduling: RunScheduling,
+) -> Result<PipelineReport, BenchError> {
     let cpus = std::thread::available_parallelism().map_or(1, usize::from);
     let own_domain = (!settings.attached).then(|| Domain::unique("bpipe"));
     let domain = own_domain.as_ref().unwrap_or(domain);
-    tracing::info!(domain = domain.name(), ?settings, "bench pipeline starting");
+    tracing::info!(
+        domain = domain.name(),
+        ?settings,
+        ?scheduling,
+        "bench pipeline run starting"
+    );
 
     // The bench's ports exist before the stack starts, so no early message is missed; they are
     // dropped before the stack is stopped. On an error the stack is stopped by its Drop.
@@ -46,6 +78,7 @@ pub fn run_bench_pipeline(
             domain,
             args.launch.as_deref(),
             settings.warmup + settings.duration,
+            scheduling == RunScheduling::Without,
         )?),
         None => None,
     };
@@ -54,7 +87,7 @@ pub fn run_bench_pipeline(
         jitters,
         channel_results,
         interrupted,
-    } = channels.collect(&settings, stack.as_mut())?;
+    } = channels.collect(settings, stack.as_mut())?;
     drop(channels);
     let stack_log = match stack {
         Some(stack) => {
@@ -78,9 +111,10 @@ pub fn run_bench_pipeline(
         }
         None => Vec::new(),
     };
-    let report = PipelineReport {
+    Ok(PipelineReport {
         tool: "harvest bench pipeline",
-        settings,
+        settings: settings.clone(),
+        scheduling,
         host: HostInfo {
             cpus,
             kernel: kernel_release(),
@@ -99,14 +133,7 @@ pub fn run_bench_pipeline(
         channels: channel_results,
         stack_log,
         leftover_files,
-    };
-    if let Some(path) = &args.json {
-        write_file(path, &serde_json::to_string_pretty(&report)?)?;
-    }
-    if let Some(path) = &args.svg {
-        write_file(path, &render_pipeline_svg(&report))?;
-    }
-    Ok(report)
+    })
 }
 
 fn harvest_exe(args: &BenchPipelineArgs) -> Result<PathBuf, BenchError> {
@@ -194,6 +221,8 @@ struct PipelineChannels {
     targets: [Subscriber<harvest_ipc::payloads::ArmTarget>; 2],
     commands: [Subscriber<harvest_ipc::payloads::ArmCommand>; 2],
     states: [Subscriber<harvest_ipc::payloads::ArmState>; 2],
+    /// The vacuum supervisor's 200 Hz loop publishes its state once per tick.
+    vacuum_states: Subscriber<harvest_ipc::payloads::VacuumState>,
     _context: Context,
 }
 
@@ -227,6 +256,7 @@ impl PipelineChannels {
                 context.subscriber_with_buffer(ARM_STATE[one], LARGE)?,
                 context.subscriber_with_buffer(ARM_STATE[two], LARGE)?,
             ],
+            vacuum_states: context.subscriber_with_buffer(VACUUM_STATE, LARGE)?,
             _context: context,
         })
     }
@@ -252,6 +282,7 @@ impl PipelineChannels {
             waiter.attach_listener(self.commands[1].listener())?,
             waiter.attach_listener(self.states[0].listener())?,
             waiter.attach_listener(self.states[1].listener())?,
+            waiter.attach_listener(self.vacuum_states.listener())?,
         ];
         let _tick = waiter.attach_interval(TICK)?;
 
@@ -261,6 +292,8 @@ impl PipelineChannels {
         let mut tallies: [ChannelTally; 8] = Default::default();
         let mut command_periods: [PeriodTracker; 2] = Default::default();
         let mut state_periods: [PeriodTracker; 2] = Default::default();
+        let mut vacuum_periods = PeriodTracker::default();
+        let mut vacuum_tally = ChannelTally::default();
         let start = Instant::now();
         let record_from = start + settings.warmup;
         let end = record_from + settings.duration;
@@ -277,6 +310,7 @@ impl PipelineChannels {
                 if let Some(subscriber) = &channels.device_frames {
                     device_tally.dropped_at_start = subscriber.dropped_count();
                 }
+                vacuum_tally.dropped_at_start = channels.vacuum_states.dropped_count();
                 tracing::info!("warm-up over: collecting");
             }
             let [
@@ -333,6 +367,12 @@ impl PipelineChannels {
                     periods.on_message(&state.header, recording);
                 })?;
             }
+            drain(
+                &channels.vacuum_states,
+                &mut vacuum_tally,
+                recording,
+                |state| vacuum_periods.on_message(&state.header, recording),
+            )?;
             if let Some(stack) = stack.as_deref_mut() {
                 stack.check_running()?;
             }
@@ -355,11 +395,13 @@ impl PipelineChannels {
             jitters.push(command_periods[arm.index()].result(ARM_COMMAND[arm.index()].spec.topic));
             jitters.push(state_periods[arm.index()].result(ARM_STATE[arm.index()].spec.topic));
         }
+        jitters.push(vacuum_periods.result(VACUUM_STATE.spec.topic));
         let mut channel_results = Vec::new();
         if let Some(subscriber) = &self.device_frames {
             channel_results.push(device_tally.result(subscriber));
         }
         channel_results.extend(self.all_results(&tallies));
+        channel_results.push(vacuum_tally.result(&self.vacuum_states));
         Ok(Collected {
             tracker,
             jitters,

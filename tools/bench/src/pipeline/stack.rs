@@ -32,12 +32,14 @@ pub struct Stack {
 impl Stack {
     /// Starts `executable up --launch <launch>` in `domain`. `launch` None: the embedded
     /// [`PIPELINE_LAUNCH`], written to a temporary file. `run_for` is how long the bench means
-    /// to run (the stack's own `--duration` is that plus a margin).
+    /// to run (the stack's own `--duration` is that plus a margin). `no_scheduling`: `harvest up
+    /// --no-scheduling` (the launch file's `[process.scheduling]` settings dropped).
     pub fn start(
         executable: &Path,
         domain: &Domain,
         launch: Option<&Path>,
         run_for: Duration,
+        no_scheduling: bool,
     ) -> Result<Self, BenchError> {
         let scratch = std::env::temp_dir();
         let stem = format!("harvest-bench-pipeline-{}", domain.name());
@@ -71,6 +73,7 @@ impl Stack {
             .arg(&launch_path)
             .arg("--duration")
             .arg(format!("{}ms", (run_for + SAFETY_MARGIN).as_millis()))
+            .args(no_scheduling.then_some("--no-scheduling"))
             .env_remove(harvest_ipc::domain::DOMAIN_ENV)
             .stdin(Stdio::null())
             .stdout(Stdio::null())

@@ -1,9 +1,16 @@
-//! The three transports, each as a sending port (peer process) and a receiving port (the
-//! measuring process), in both wake-up modes.
+//! The transports, each as a sending port (peer process) and a receiving port (the measuring
+//! process), in both wake-up modes: ours, raw iceoryx2 and the copying socket always; the Zenoh
+//! peers with the `zenoh` feature.
 
 pub mod copy;
 pub mod ours;
 pub mod raw;
+#[cfg(feature = "zenoh")]
+pub mod zenoh_link;
+#[cfg(feature = "zenoh")]
+pub mod zenoh_shm;
+#[cfg(feature = "zenoh")]
+pub mod zenoh_tcp;
 
 use crate::error::BenchError;
 use crate::message::{BenchMessage, Phase};
