@@ -45,6 +45,7 @@ pub const KNOWN_COMMANDS: &[&str] = &[
     "lidar",
     "recorder",
     "monitor",
+    "foxglove",
 ];
 
 /// When a process that exited is started again.
