@@ -41,7 +41,10 @@ struct Crate {
 fn workspace_crates(metadata: &Value) -> Result<BTreeMap<String, Crate>, String> {
     let mut crates = BTreeMap::new();
     for package in metadata["packages"].as_array().ok_or("no packages")? {
-        let name = package["name"].as_str().ok_or("package without name")?.to_owned();
+        let name = package["name"]
+            .as_str()
+            .ok_or("package without name")?
+            .to_owned();
         let layer = package["metadata"]["harvest"]["layer"]
             .as_str()
             .ok_or_else(|| {
@@ -58,7 +61,13 @@ fn workspace_crates(metadata: &Value) -> Result<BTreeMap<String, Crate>, String>
                 optional: dependency["optional"].as_bool().unwrap_or(false),
             })
             .collect();
-        crates.insert(name, Crate { layer, dependencies });
+        crates.insert(
+            name,
+            Crate {
+                layer,
+                dependencies,
+            },
+        );
     }
     Ok(crates)
 }
@@ -236,8 +245,10 @@ fn an_added_edge_from_onboard_to_the_simulator_is_named() {
     added(&mut crates, "harvest-lidar", "harvest-sim");
     let violations = layering_violations(&crates);
     assert!(
-        violations.iter().any(|violation| violation
-            .contains("harvest-perception -> harvest-lidar -> harvest-sim")),
+        violations
+            .iter()
+            .any(|violation| violation
+                .contains("harvest-perception -> harvest-lidar -> harvest-sim")),
         "{violations:#?}"
     );
 
@@ -255,7 +266,9 @@ fn an_added_edge_from_onboard_to_the_simulator_is_named() {
     added(&mut crates, "harvest", "harvest-eval");
     let violations = layering_violations(&crates);
     assert!(
-        violations.iter().any(|violation| violation.starts_with("harvest-arm -> clap")),
+        violations
+            .iter()
+            .any(|violation| violation.starts_with("harvest-arm -> clap")),
         "{violations:#?}"
     );
     assert!(

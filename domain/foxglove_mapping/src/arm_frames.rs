@@ -35,7 +35,10 @@ pub fn chain(links: &LinkParams, q: &JointPosition) -> [RigidTransform; 4] {
             [links.x1_m, links.y1_m, links.z1_m],
             &quaternion_about(z_axis, -q.phi_rad),
         ),
-        rigid([links.x2_m, 0.0, 0.0], &quaternion_about(x_axis, q.twist_rad)),
+        rigid(
+            [links.x2_m, 0.0, 0.0],
+            &quaternion_about(x_axis, q.twist_rad),
+        ),
     ]
 }
 

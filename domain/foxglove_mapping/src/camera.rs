@@ -31,11 +31,6 @@ impl ImageSettings {
         scale: 2,
         jpeg_quality: 80,
     };
-    /// Exports: full size, quality 90.
-    pub const FULL: Self = Self {
-        scale: 1,
-        jpeg_quality: 90,
-    };
 
     /// The problem with these settings, if any (named for the command line).
     pub fn problem(&self) -> Option<String> {
@@ -57,10 +52,7 @@ impl ImageSettings {
     /// Width and height of the image shown, px.
     pub fn image_size_px(&self) -> (u32, u32) {
         let scale = self.scale.max(1);
-        (
-            RGB_WIDTH_PX as u32 / scale,
-            RGB_HEIGHT_PX as u32 / scale,
-        )
+        (RGB_WIDTH_PX as u32 / scale, RGB_HEIGHT_PX as u32 / scale)
     }
 
     /// A colour-image pixel coordinate (continuous, origin at the top-left corner of the
@@ -289,9 +281,23 @@ mod tests {
         // Pixel centres: full-image pixel centre u maps to (u + 0.5) / 2 - 0.5.
         assert!(((u + 0.5) / 2.0 - 0.5 - u2).abs() < 1e-9);
         assert!(((v + 0.5) / 2.0 - 0.5 - v2).abs() < 1e-9);
-        assert_eq!(ImageSettings { scale: 0, jpeg_quality: 80 }.problem().is_some(), true);
-        assert!(ImageSettings { scale: 2, jpeg_quality: 0 }.problem().is_some());
-        assert!(ImageSettings::FULL.problem().is_none());
+        assert!(
+            ImageSettings {
+                scale: 0,
+                jpeg_quality: 80
+            }
+            .problem()
+            .is_some()
+        );
+        assert!(
+            ImageSettings {
+                scale: 2,
+                jpeg_quality: 0
+            }
+            .problem()
+            .is_some()
+        );
+        assert!(ImageSettings::VIEWING.problem().is_none());
     }
 
     #[test]
@@ -303,8 +309,8 @@ mod tests {
         let mut encoder = JpegEncoder::new(ImageSettings::VIEWING);
         let jpeg = encoder.encode(&frame).expect("encode");
         assert_eq!(&jpeg[..2], &[0xFF, 0xD8], "JPEG start-of-image marker");
-        let decoded = image::load_from_memory_with_format(&jpeg, image::ImageFormat::Jpeg)
-            .expect("decode");
+        let decoded =
+            image::load_from_memory_with_format(&jpeg, image::ImageFormat::Jpeg).expect("decode");
         assert_eq!((decoded.width(), decoded.height()), (960, 540));
     }
 }

@@ -132,13 +132,20 @@ pub fn detected_apples(detections: &AppleDetections, time: &TimeBase) -> SceneUp
                 frame_locked: false,
                 metadata: vec![
                     key_value("apple_id", apple.apple_id.to_string()),
-                    key_value("depth_source", depth_source_name(apple.depth_source).to_owned()),
+                    key_value(
+                        "depth_source",
+                        depth_source_name(apple.depth_source).to_owned(),
+                    ),
                     key_value("confidence", format!("{:.3}", apple.confidence)),
                 ],
                 spheres: vec![SpherePrimitive {
                     pose: Some(pose(apple.position_in_robot_m, IDENTITY)),
                     size: Some(vector([diameter; 3])),
-                    color: Some(depth_source_color(apple.depth_source).with_alpha(0.5).into()),
+                    color: Some(
+                        depth_source_color(apple.depth_source)
+                            .with_alpha(0.5)
+                            .into(),
+                    ),
                 }],
                 ..SceneEntity::default()
             }
@@ -165,35 +172,33 @@ mod tests {
             source_frame_seq: 12,
             ..AppleDetections::default()
         };
-        set.apples.push(AppleDetection {
-            apple_id: 3,
-            method: LocalizationMethod::SphereFit as u8,
-            depth_source: DepthSourceCode::Tof as u8,
-            position_in_robot_m: [1.4, 0.1, 0.6],
-            radius_m: 0.04,
-            confidence: 0.9,
-            box_px: [100, 200, 60, 40],
-            ..AppleDetection::default()
-        })
-        .expect("room");
-        set.apples.push(AppleDetection {
-            apple_id: 4,
-            depth_source: DepthSourceCode::LaserLine as u8,
-            position_in_robot_m: [f64::NAN; 3],
-            box_px: [0, 0, 10, 10],
-            ..AppleDetection::default()
-        })
-        .expect("room");
+        set.apples
+            .push(AppleDetection {
+                apple_id: 3,
+                method: LocalizationMethod::SphereFit as u8,
+                depth_source: DepthSourceCode::Tof as u8,
+                position_in_robot_m: [1.4, 0.1, 0.6],
+                radius_m: 0.04,
+                confidence: 0.9,
+                box_px: [100, 200, 60, 40],
+                ..AppleDetection::default()
+            })
+            .expect("room");
+        set.apples
+            .push(AppleDetection {
+                apple_id: 4,
+                depth_source: DepthSourceCode::LaserLine as u8,
+                position_in_robot_m: [f64::NAN; 3],
+                box_px: [0, 0, 10, 10],
+                ..AppleDetection::default()
+            })
+            .expect("room");
         set
     }
 
     #[test]
     fn annotations_sit_on_the_shown_image_and_carry_the_frame_time() {
-        let overlay = annotations(
-            &detections(),
-            &ImageSettings::VIEWING,
-            &TimeBase::MONOTONIC,
-        );
+        let overlay = annotations(&detections(), &ImageSettings::VIEWING, &TimeBase::MONOTONIC);
         assert_eq!(overlay.circles.len(), 2);
         let circle = &overlay.circles[0];
         let centre = circle.position.expect("position");

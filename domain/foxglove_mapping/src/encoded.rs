@@ -8,8 +8,8 @@ use crate::stack_mapper::{Mounting, StackMapper};
 use crate::stamps::TimeBase;
 use crate::topics::MappedSink;
 use harvest_ipc::payloads::{
-    AppleDetections, ArmState, EmergencyStop, HarvestEvent, LaserScanResult, PointCloud,
-    RgbdFrame, VacuumState,
+    AppleDetections, ArmState, EmergencyStop, HarvestEvent, LaserScanResult, PointCloud, RgbdFrame,
+    VacuumState,
 };
 use harvest_ipc::{ArmId, Channel, Payload, catalogue};
 
@@ -88,10 +88,13 @@ impl EncodedMapper {
     ) -> Result<bool, MapError<S::Error>> {
         if topic == catalogue::CAMERA_RGBD.spec.topic {
             decode_into(topic, bytes, &mut *self.frame)?;
-            let jpeg = self.jpeg.encode(&self.frame).map_err(|error| MapError::Image {
-                topic: topic.to_owned(),
-                reason: error.to_string(),
-            })?;
+            let jpeg = self
+                .jpeg
+                .encode(&self.frame)
+                .map_err(|error| MapError::Image {
+                    topic: topic.to_owned(),
+                    reason: error.to_string(),
+                })?;
             self.camera.write(&self.frame, jpeg, log_time_ns, sink)?;
         } else if topic == catalogue::PERCEPTION_APPLES.spec.topic {
             let detections = decode::<AppleDetections, _>(topic, bytes)?;
@@ -183,7 +186,11 @@ mod tests {
         );
         let topics: Vec<&str> = sink.0.iter().map(|(topic, _, _)| *topic).collect();
         assert_eq!(topics, ["/camera/image", "/camera/calibration", "/tf"]);
-        assert!(!mapper.map("vacuum/valve_grant", &[], 0, &mut sink).expect("map"));
+        assert!(
+            !mapper
+                .map("vacuum/valve_grant", &[], 0, &mut sink)
+                .expect("map")
+        );
         let error = mapper
             .map("vacuum/state", &[1, 2, 3], 0, &mut sink)
             .expect_err("truncated");

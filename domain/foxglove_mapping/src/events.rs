@@ -31,9 +31,10 @@ pub fn level(event: &HarvestEvent) -> log::Level {
 
 /// One line of text for an event: `apple 7 arm 1: TargetRejected (outside_workspace) - reason`.
 pub fn event_text(event: &HarvestEvent) -> String {
-    let kind = event
-        .kind()
-        .map_or_else(|| format!("kind {}", event.kind), |kind| format!("{kind:?}"));
+    let kind = event.kind().map_or_else(
+        || format!("kind {}", event.kind),
+        |kind| format!("{kind:?}"),
+    );
     let mut text = String::new();
     if event.apple_id != 0 {
         text.push_str(&format!("apple {} ", event.apple_id));

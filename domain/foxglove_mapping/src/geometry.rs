@@ -151,7 +151,10 @@ mod tests {
             let back = rotation_of(&q);
             for (row, expected) in back.iter().zip(&transform.rotation) {
                 for (value, expected) in row.iter().zip(expected) {
-                    assert!((value - expected).abs() < 1e-12, "{back:?} vs {transform:?}");
+                    assert!(
+                        (value - expected).abs() < 1e-12,
+                        "{back:?} vs {transform:?}"
+                    );
                 }
             }
         }

@@ -181,7 +181,10 @@ mod tests {
         let mut apples = HarvestApples::new();
         let time = TimeBase::MONOTONIC;
         let assigned = apples
-            .update(&event(HarvestEventKind::Assigned, 5, [1.3, 0.1, 0.5]), &time)
+            .update(
+                &event(HarvestEventKind::Assigned, 5, [1.3, 0.1, 0.5]),
+                &time,
+            )
             .expect("update");
         assert_eq!(assigned.entities[0].id, "apple/5");
         assert_eq!(

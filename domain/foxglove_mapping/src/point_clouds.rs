@@ -109,13 +109,27 @@ mod tests {
             status: 0,
             candidate_count: 2,
             selected: 1,
-            candidates_in_camera_m: [[0.1, 0.0, 1.0], [0.1, 0.0, 1.01], [0.0; 3], [0.0; 3], [0.0; 3]],
+            candidates_in_camera_m: [
+                [0.1, 0.0, 1.0],
+                [0.1, 0.0, 1.01],
+                [0.0; 3],
+                [0.0; 3],
+                [0.0; 3],
+            ],
             position_in_camera_m: [0.1, 0.0, 1.005],
             ..LaserScanResult::default()
         };
         let scan = laser_scan(&result, &TimeBase::MONOTONIC);
         assert_eq!(scan.data.len(), 3 * 16);
-        assert_eq!(&scan.data[28..32], &1.0f32.to_le_bytes(), "second is selected");
-        assert_eq!(&scan.data[44..48], &2.0f32.to_le_bytes(), "then the final position");
+        assert_eq!(
+            &scan.data[28..32],
+            &1.0f32.to_le_bytes(),
+            "second is selected"
+        );
+        assert_eq!(
+            &scan.data[44..48],
+            &2.0f32.to_le_bytes(),
+            "then the final position"
+        );
     }
 }

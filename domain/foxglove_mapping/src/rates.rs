@@ -73,15 +73,17 @@ impl RateLimit {
         }
     }
 
-    /// True when a message at `now_ns` is due. The schedule advances by whole intervals so the
-    /// long-run rate is the configured one even when messages arrive a little early or late;
-    /// after a gap it restarts from `now_ns`.
+    /// True when a message at `now_ns` is due. The schedule advances by whole intervals, so the
+    /// long-run rate never exceeds the configured one; a message up to a fifth of an interval
+    /// early still counts as on time, so a source at about the limit's rate (with jitter) is not
+    /// halved. After a gap the schedule restarts from `now_ns`.
     pub fn admit(&mut self, now_ns: u64) -> bool {
         if self.interval_ns == 0 {
             return true;
         }
+        let tolerance_ns = self.interval_ns / 5;
         match self.next_ns {
-            Some(next) if now_ns < next => false,
+            Some(next) if now_ns.saturating_add(tolerance_ns) < next => false,
             Some(next) => {
                 let advanced = next.saturating_add(self.interval_ns);
                 self.next_ns = Some(if advanced <= now_ns {
@@ -117,6 +119,15 @@ mod tests {
             rates.min_interval("arm2/state"),
             Some(Duration::from_millis(50))
         );
+        // A source at the limit's own rate with +-8 ms of jitter keeps its rate.
+        let mut limit = RateLimit::new(rates.min_interval("camera/rgbd"));
+        let jittery = (0..100u64)
+            .filter(|frame| {
+                let jitter_ns = if frame % 2 == 0 { 8_000_000 } else { 0 };
+                limit.admit(1_000_000_000 + frame * 100_000_000 - jitter_ns)
+            })
+            .count();
+        assert_eq!(jittery, 100);
         let mut unlimited = RateLimit::new(None);
         assert!((0..10).all(|_| unlimited.admit(5)));
         assert!(

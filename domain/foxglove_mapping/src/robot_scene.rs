@@ -160,10 +160,7 @@ mod tests {
 
     #[test]
     fn model_hangs_on_the_chain_frames_and_colours_by_phase() {
-        let model = robot_model(
-            [Some(ArmPhase::Approach), None],
-            Timestamp::new(1, 0),
-        );
+        let model = robot_model([Some(ArmPhase::Approach), None], Timestamp::new(1, 0));
         let frame_of = |id: &str| {
             model
                 .entities

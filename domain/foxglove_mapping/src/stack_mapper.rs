@@ -19,8 +19,8 @@ use foxglove::messages::FrameTransforms;
 use harvest_ipc::ArmId;
 use harvest_ipc::camera_model::RigidTransform;
 use harvest_ipc::payloads::{
-    AppleDetections, ArmPhase, ArmState, EmergencyStop, HarvestEvent, LaserScanResult,
-    PointCloud, VacuumState,
+    AppleDetections, ArmPhase, ArmState, EmergencyStop, HarvestEvent, LaserScanResult, PointCloud,
+    VacuumState,
 };
 
 /// The robot model is written again at least this often (late joiners, seeking in a

@@ -69,7 +69,7 @@ pub struct TopicDescription {
 
 pub const CAMERA_IMAGE: Topic<CompressedImage> = Topic::new(
     "/camera/image",
-    "camera/rgbd colour image, JPEG, downscaled at the viewing rate (full size in exports)",
+    "camera/rgbd colour image, JPEG, 960x540 by default (live: at the viewing rate; exports: every frame)",
 );
 pub const CAMERA_CALIBRATION: Topic<CameraCalibration> = Topic::new(
     "/camera/calibration",

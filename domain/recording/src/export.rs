@@ -27,7 +27,8 @@ pub struct ExportOptions {
     pub png_dir: Option<PathBuf>,
     /// Output file for the Foxglove export.
     pub foxglove: Option<PathBuf>,
-    /// How camera images are encoded in the Foxglove export (full size by default).
+    /// How camera images are encoded in the Foxglove export: every frame, at the live view's
+    /// size and quality by default (`ImageSettings::VIEWING`).
     pub foxglove_image: ImageSettings,
     /// Topic globs (all topics when empty).
     pub topics: Vec<String>,
@@ -41,7 +42,7 @@ impl Default for ExportOptions {
         Self {
             png_dir: None,
             foxglove: None,
-            foxglove_image: ImageSettings::FULL,
+            foxglove_image: ImageSettings::VIEWING,
             topics: Vec::new(),
             start: None,
             end: None,
@@ -120,9 +121,9 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
         None => None,
     };
     let mut foxglove = match &options.foxglove {
-        Some(out) => Some(
-            FoxgloveWriter::create(out, options.foxglove_image).map_err(ExportError::Output)?,
-        ),
+        Some(out) => {
+            Some(FoxgloveWriter::create(out, options.foxglove_image).map_err(ExportError::Output)?)
+        }
         None => None,
     };
     let frame_schema = schema_name(RgbdFrame::TYPE_NAME, RgbdFrame::VERSION);
@@ -158,15 +159,19 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
                         if schema == frame_schema {
                             return TopicDecoder::Frame;
                         }
-                        if FoxgloveWriter::is_mapped_output(&channel.topic, &channel.message_encoding)
-                        {
+                        if FoxgloveWriter::is_mapped_output(
+                            &channel.topic,
+                            &channel.message_encoding,
+                        ) {
                             return TopicDecoder::MappedOutput;
                         }
                         match json_decoder(schema) {
-                            SchemaMatch::Known(decoder) if foxglove.is_some() => TopicDecoder::Json {
-                                decoder,
-                                mapped: mapped_schemas.iter().any(|name| name == schema),
-                            },
+                            SchemaMatch::Known(decoder) if foxglove.is_some() => {
+                                TopicDecoder::Json {
+                                    decoder,
+                                    mapped: mapped_schemas.iter().any(|name| name == schema),
+                                }
+                            }
                             SchemaMatch::Known(_) => TopicDecoder::Skip,
                             other => {
                                 let reason = other.problem(schema).unwrap_or_default();
@@ -185,37 +190,43 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
                             }
                             Ok(())
                         }
-                        TopicDecoder::Json { decoder, mapped } => match decoder.to_json(message.data) {
-                            Ok(value) => match foxglove.as_mut() {
-                                Some(writer) => writer
-                                    .write_json(
-                                        &channel.topic,
-                                        decoder.type_name(),
-                                        log_time,
-                                        publish_time,
-                                        &value,
-                                    )
-                                    .and_then(|()| {
-                                        if *mapped {
-                                            writer
-                                                .write_mapped(&channel.topic, message.data, log_time)
-                                                .map(|_| ())
-                                                .map_err(|error| error.to_string())
-                                        } else {
-                                            Ok(())
-                                        }
-                                    }),
-                                None => Ok(()),
-                            },
-                            Err(error) => {
-                                report
-                                    .skipped
-                                    .entry(channel.topic.clone())
-                                    .or_insert_with(|| (0, error.to_string()))
-                                    .0 += 1;
-                                Ok(())
+                        TopicDecoder::Json { decoder, mapped } => {
+                            match decoder.to_json(message.data) {
+                                Ok(value) => match foxglove.as_mut() {
+                                    Some(writer) => writer
+                                        .write_json(
+                                            &channel.topic,
+                                            decoder.type_name(),
+                                            log_time,
+                                            publish_time,
+                                            &value,
+                                        )
+                                        .and_then(|()| {
+                                            if *mapped {
+                                                writer
+                                                    .write_mapped(
+                                                        &channel.topic,
+                                                        message.data,
+                                                        log_time,
+                                                    )
+                                                    .map(|_| ())
+                                                    .map_err(|error| error.to_string())
+                                            } else {
+                                                Ok(())
+                                            }
+                                        }),
+                                    None => Ok(()),
+                                },
+                                Err(error) => {
+                                    report
+                                        .skipped
+                                        .entry(channel.topic.clone())
+                                        .or_insert_with(|| (0, error.to_string()))
+                                        .0 += 1;
+                                    Ok(())
+                                }
                             }
-                        },
+                        }
                         TopicDecoder::Frame => {
                             match RgbdFrame::decode_into(message.data, &mut frame) {
                                 Ok(()) => {

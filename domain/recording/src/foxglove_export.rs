@@ -1,7 +1,7 @@
 //! Re-encoding a recording for Foxglove, which only decodes well-known encodings:
 //! - the stack channels `harvest-foxglove-mapping` reads become its mapped topics (protobuf,
-//!   schemas in the file): the camera as full-size JPEG `/camera/image` with calibration and
-//!   annotations, the 3D scene, transforms, joints, pressures, the event log. Every message is
+//!   schemas in the file): the camera as JPEG `/camera/image` (the live view's size unless asked
+//!   otherwise) with calibration and annotations, the 3D scene, transforms, joints, pressures, the event log. Every message is
 //!   mapped (no viewing-rate limit); the mapped channels a recent recording already holds are
 //!   left out, since they are made again at full rate.
 //! - every catalogue message also keeps its JSON view on its own topic (`message_encoding =
@@ -39,7 +39,12 @@ fn mcap_text(error: mcap::McapError) -> String {
 }
 
 impl Output {
-    fn write(&mut self, channel_id: u16, log_time_ns: u64, publish_time_ns: u64) -> Result<(), String> {
+    fn write(
+        &mut self,
+        channel_id: u16,
+        log_time_ns: u64,
+        publish_time_ns: u64,
+    ) -> Result<(), String> {
         let sequence = self.sequences.entry(channel_id).or_insert(0);
         *sequence = sequence.wrapping_add(1);
         let header = MessageHeader {
@@ -82,7 +87,12 @@ impl MappedSink for Output {
                 )]);
                 let id = self
                     .writer
-                    .add_channel(schema_id, topic.name, &description.message_encoding, &metadata)
+                    .add_channel(
+                        schema_id,
+                        topic.name,
+                        &description.message_encoding,
+                        &metadata,
+                    )
                     .map_err(mcap_text)?;
                 self.channels.insert(topic.name.to_owned(), id);
                 id
@@ -104,7 +114,7 @@ pub struct FoxgloveWriter {
 }
 
 impl FoxgloveWriter {
-    /// Creates `path`; camera images are mapped with `image` (full size for exports).
+    /// Creates `path`; camera images are mapped with `image`.
     pub fn create(path: &Path, image: ImageSettings) -> Result<Self, String> {
         let file = File::create(path).map_err(|error| format!("{}: {error}", path.display()))?;
         let options = WriteOptions::new()
@@ -150,7 +160,10 @@ impl FoxgloveWriter {
                 }
             }
         }
-        self.output.writer.write_metadata(metadata).map_err(mcap_text)
+        self.output
+            .writer
+            .write_metadata(metadata)
+            .map_err(mcap_text)
     }
 
     fn stamp(&self, monotonic_ns: u64) -> u64 {

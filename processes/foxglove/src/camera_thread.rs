@@ -77,11 +77,7 @@ impl CameraThread {
     }
 }
 
-fn run(
-    mut setup: CameraSetup,
-    counters: &CameraCounters,
-    stop: &AtomicBool,
-) -> Result<(), String> {
+fn run(mut setup: CameraSetup, counters: &CameraCounters, stop: &AtomicBool) -> Result<(), String> {
     let context =
         Context::new(&setup.domain, &setup.node_name).map_err(|error| error.to_string())?;
     let frames = context
@@ -106,7 +102,9 @@ fn run(
                             .last_encode_us
                             .store(started.elapsed().as_micros() as u64, Ordering::Relaxed);
                         // The live sink cannot fail (a slow client drops messages instead).
-                        let _ = setup.mapper.write(&frame, jpeg, now_ns, &mut setup.channels);
+                        let _ = setup
+                            .mapper
+                            .write(&frame, jpeg, now_ns, &mut setup.channels);
                         counters.sent.fetch_add(1, Ordering::Relaxed);
                     }
                     Err(error) => {

@@ -173,7 +173,7 @@ impl Server {
                         listen = %self.listen,
                         %error,
                         "cannot start the Foxglove WebSocket server (another bridge on this port? pass --listen); \
-the bridge keeps running and retries every {BIND_RETRY:?}"
+                    the bridge keeps running and retries every {BIND_RETRY:?}"
                     );
                 } else {
                     tracing::debug!(listen = %self.listen, %error, attempt = self.failures, "server still not started");

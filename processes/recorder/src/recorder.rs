@@ -8,9 +8,9 @@
 
 use crate::tap::{Tap, TapCounts, TypedTap};
 use crate::view_thread::{self, ViewFeed};
+use crate::writer_thread::{OutputSettings, WriteError, WriterHandle};
 use harvest_foxglove_mapping::Mounting;
 use harvest_foxglove_mapping::mounting_files::{camera_from_lidar_file, robot_from_camera_file};
-use crate::writer_thread::{OutputSettings, WriteError, WriterHandle};
 use harvest_ipc::catalogue::{self, Layer};
 use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::{
@@ -403,8 +403,10 @@ pub fn run_recorder_until(
         session_records(args),
     )?;
     if !args.no_foxglove {
-        let view = ViewFeed::spawn(&topics, view_mounting(args), writer.enqueuer())
-            .map_err(|error| RecorderError::Wait(format!("cannot start the view thread: {error}")))?;
+        let view =
+            ViewFeed::spawn(&topics, view_mounting(args), writer.enqueuer()).map_err(|error| {
+                RecorderError::Wait(format!("cannot start the view thread: {error}"))
+            })?;
         writer.attach_view(view);
     }
     let waiter = Waiter::new().map_err(|error| RecorderError::Wait(error.to_string()))?;
@@ -790,12 +792,16 @@ fn recording_fields(
 fn view_mounting(args: &RecorderArgs) -> Mounting {
     let robot_from_camera = args.calibration.as_deref().and_then(|path| {
         robot_from_camera_file(path)
-            .inspect_err(|error| tracing::warn!(%error, "the mapped view leaves the camera unplaced"))
+            .inspect_err(
+                |error| tracing::warn!(%error, "the mapped view leaves the camera unplaced"),
+            )
             .ok()
     });
     let camera_from_lidar = args.lidar_extrinsic.as_deref().and_then(|path| {
         camera_from_lidar_file(path)
-            .inspect_err(|error| tracing::warn!(%error, "the mapped view leaves the LiDAR unplaced"))
+            .inspect_err(
+                |error| tracing::warn!(%error, "the mapped view leaves the LiDAR unplaced"),
+            )
             .ok()
     });
     Mounting {

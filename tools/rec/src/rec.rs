@@ -45,11 +45,12 @@ pub enum RecCommand {
         /// transforms, plots, event log (every message mapped, not only the viewing rate).
         #[arg(long, value_name = "OUT.mcap")]
         foxglove: Option<PathBuf>,
-        /// Integer factor the exported camera images are downscaled by (1: full size).
-        #[arg(long, default_value_t = ImageSettings::FULL.scale)]
+        /// Integer factor the exported camera images are downscaled by; the default is the live
+        /// view's (960x540); 1 exports full-size 1920x1080 images (about 3x the file size).
+        #[arg(long, default_value_t = ImageSettings::VIEWING.scale)]
         image_scale: u32,
         /// JPEG quality of the exported camera images, 1-100.
-        #[arg(long, default_value_t = ImageSettings::FULL.jpeg_quality)]
+        #[arg(long, default_value_t = ImageSettings::VIEWING.jpeg_quality)]
         jpeg_quality: u8,
         /// Only topics matching one of these globs; repeatable.
         #[arg(long = "topic", value_name = "GLOB")]
