@@ -128,6 +128,12 @@ pub fn run_rec(command: &RecCommand) -> Result<(), RecError> {
             for (topic, (count, reason)) in &report.undecodable {
                 eprintln!("rec cat: skipped {count} message(s) of {topic}: {reason}");
             }
+            let mapped_views: u64 = report.mapped_views.values().sum();
+            if mapped_views > 0 {
+                eprintln!(
+                    "rec cat: left out {mapped_views} message(s) of the channels mapped for Foxglove (protobuf views of the raw channels)"
+                );
+            }
             if let Some(reason) = &report.incomplete {
                 eprintln!("rec cat: {}: {reason}", file.display());
             }
