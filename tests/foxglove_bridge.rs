@@ -410,7 +410,7 @@ fn default_stack_is_seen_live_and_recorded_by_independent_foxglove_clients() {
     }
 
     // The raw channels still drive the stack: replay republishes them (the mapped ones are
-    // reported as not replayable).
+    // left out).
     let (status, _, stderr) = run_harvest(
         &unique_domain("foxrp"),
         &[
