@@ -13,7 +13,8 @@ use serde_json::Value;
 use std::path::Path;
 
 fn layout() -> Value {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/foxglove/harvest-layout.json");
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/foxglove/harvest-layout.json");
     let text = std::fs::read_to_string(&path).expect("layout file");
     serde_json::from_str(&text).expect("layout JSON")
 }
@@ -46,7 +47,9 @@ fn references(layout: &Value) -> (Vec<String>, Vec<String>) {
             }
         }
         assert!(
-            layout["layout"].to_string().contains(&format!("\"{panel}\"")),
+            layout["layout"]
+                .to_string()
+                .contains(&format!("\"{panel}\"")),
             "panel {panel} is configured but not placed in the layout"
         );
     }
@@ -63,7 +66,10 @@ fn the_layout_refers_to_mapped_topics_and_fields() {
     assert!(panel_topics.contains(&"/robot_model".to_owned()));
     assert!(panel_topics.contains(&"/events".to_owned()));
     for topic in &panel_topics {
-        assert!(mapped.contains(&topic.as_str()), "layout topic {topic} is not mapped");
+        assert!(
+            mapped.contains(&topic.as_str()),
+            "layout topic {topic} is not mapped"
+        );
     }
 
     let schema = VacuumView::get_schema().expect("schema");
@@ -79,7 +85,10 @@ fn the_layout_refers_to_mapped_topics_and_fields() {
     assert!(!plot_paths.is_empty());
     for path in &plot_paths {
         let (topic, rest) = path.split_once('.').expect("topic.field");
-        assert!(mapped.contains(&topic), "plot path {path}: topic not mapped");
+        assert!(
+            mapped.contains(&topic),
+            "plot path {path}: topic not mapped"
+        );
         if topic == topics::VACUUM.name {
             assert!(
                 vacuum_fields.iter().any(|field| field == rest),
