@@ -78,6 +78,9 @@ enum Command {
     Lidar(harvest_lidar_process::LidarArgs),
     /// Recorder process: every channel of the domain -> MCAP files.
     Recorder(harvest_recorder::RecorderArgs),
+    /// Foxglove bridge: the stack's channels, mapped to Foxglove's schemas, on a WebSocket
+    /// server (ws://127.0.0.1:8765) for Foxglove or Lichtblick.
+    Foxglove(harvest_foxglove::FoxgloveArgs),
     /// Republish a recording into the channels at recorded timing.
     Replay(harvest_rec::ReplayArgs),
     /// Recording tools: info, cat, export, recover.
@@ -173,6 +176,7 @@ impl Cli {
             #[cfg(feature = "sim-tools")]
             Command::Eval(_) => "eval",
             Command::Recorder(_) => "recorder",
+            Command::Foxglove(_) => "foxglove",
             Command::Laser(_) => "laser",
             Command::Lidar(_) => "lidar",
             Command::Replay(_) => "replay",
@@ -283,6 +287,10 @@ impl Cli {
             Command::Recorder(args) => {
                 harvest_recorder::run_recorder(&args, &domain, process_name)
                     .context("recorder process")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Foxglove(args) => {
+                harvest_foxglove::run(&args, &domain, process_name).context("foxglove bridge")?;
                 Ok(ExitCode::SUCCESS)
             }
             Command::Replay(args) => {

@@ -1,8 +1,9 @@
 //! `harvest rec export`: camera frames to PNG (`--png DIR`) and the whole recording to a
-//! Foxglove-readable MCAP (`--foxglove OUT.mcap`), in one pass over the file.
+//! Foxglove-readable MCAP (`--foxglove OUT.mcap`: the mapped channels of
+//! `harvest-foxglove-mapping` at full rate, plus each message's JSON view; see
+//! [`crate::foxglove_export`]), in one pass over the file.
 
 use crate::foxglove_export::FoxgloveWriter;
-use crate::metadata;
 use crate::payload_codec::{JsonDecoder, SchemaMatch, json_decoder, zeroed_box};
 use crate::png_export::PngWriter;
 use crate::recording_file::ReadError;
@@ -10,6 +11,8 @@ use crate::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
 use crate::schema::schema_name;
 use crate::time_window::{absolute_window, recording_start_ns};
 use crate::topic_filter::TopicFilter;
+use harvest_foxglove_mapping::ImageSettings;
+use harvest_foxglove_mapping::encoded::mapped_channels;
 use harvest_ipc::Payload;
 use harvest_ipc::payloads::RgbdFrame;
 use std::collections::BTreeMap;
@@ -18,17 +21,33 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// What to export.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ExportOptions {
     /// Directory for PNG frames.
     pub png_dir: Option<PathBuf>,
     /// Output file for the Foxglove export.
     pub foxglove: Option<PathBuf>,
+    /// How camera images are encoded in the Foxglove export: every frame, at the live view's
+    /// size and quality by default (`ImageSettings::VIEWING`).
+    pub foxglove_image: ImageSettings,
     /// Topic globs (all topics when empty).
     pub topics: Vec<String>,
     /// Offsets from the recording's first message.
     pub start: Option<Duration>,
     pub end: Option<Duration>,
+}
+
+impl Default for ExportOptions {
+    fn default() -> Self {
+        Self {
+            png_dir: None,
+            foxglove: None,
+            foxglove_image: ImageSettings::VIEWING,
+            topics: Vec::new(),
+            start: None,
+            end: None,
+        }
+    }
 }
 
 /// What was exported.
@@ -51,6 +70,9 @@ pub enum ExportError {
     /// The output would overwrite the input.
     #[error("the export {0} would overwrite its input")]
     SameFile(PathBuf),
+    /// The image settings are unusable.
+    #[error("rec export: {0}")]
+    InvalidOption(String),
     #[error(transparent)]
     Read(#[from] ReadError),
     /// Writing an output failed.
@@ -60,7 +82,13 @@ pub enum ExportError {
 
 enum TopicDecoder {
     Frame,
-    Json(Box<dyn JsonDecoder>),
+    /// The JSON view; `mapped`: the channel is also mapped for Foxglove.
+    Json {
+        decoder: Box<dyn JsonDecoder>,
+        mapped: bool,
+    },
+    /// A mapped channel the input already holds (made again at full rate).
+    MappedOutput,
     Skip,
 }
 
@@ -74,6 +102,14 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
     {
         return Err(ExportError::SameFile(out.clone()));
     }
+    if let Some(problem) = options.foxglove_image.problem() {
+        return Err(ExportError::InvalidOption(problem));
+    }
+    // Mapped stack channels, by schema name of the payload version this build maps.
+    let mapped_schemas: Vec<String> = mapped_channels()
+        .iter()
+        .map(|(_, type_name, version)| schema_name(type_name, *version))
+        .collect();
     let filter = TopicFilter::patterns(&options.topics, &[]);
     let start_ns = recording_start_ns(path)?.unwrap_or(0);
     let (from_ns, to_ns) = absolute_window(start_ns, options.start, options.end);
@@ -85,7 +121,9 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
         None => None,
     };
     let mut foxglove = match &options.foxglove {
-        Some(out) => Some(FoxgloveWriter::create(out).map_err(ExportError::Output)?),
+        Some(out) => {
+            Some(FoxgloveWriter::create(out, options.foxglove_image).map_err(ExportError::Output)?)
+        }
         None => None,
     };
     let frame_schema = schema_name(RgbdFrame::TYPE_NAME, RgbdFrame::VERSION);
@@ -101,12 +139,7 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
         |item| {
             let result = match item {
                 ScanItem::Metadata(record) => match foxglove.as_mut() {
-                    Some(writer) => {
-                        if let Some(pair) = metadata::parse_clock(record) {
-                            writer.set_clock(pair);
-                        }
-                        writer.write_metadata(record)
-                    }
+                    Some(writer) => writer.write_metadata(record),
                     None => Ok(()),
                 },
                 ScanItem::Message(message) => {
@@ -126,9 +159,18 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
                         if schema == frame_schema {
                             return TopicDecoder::Frame;
                         }
+                        if FoxgloveWriter::is_mapped_output(
+                            &channel.topic,
+                            &channel.message_encoding,
+                        ) {
+                            return TopicDecoder::MappedOutput;
+                        }
                         match json_decoder(schema) {
                             SchemaMatch::Known(decoder) if foxglove.is_some() => {
-                                TopicDecoder::Json(decoder)
+                                TopicDecoder::Json {
+                                    decoder,
+                                    mapped: mapped_schemas.iter().any(|name| name == schema),
+                                }
                             }
                             SchemaMatch::Known(_) => TopicDecoder::Skip,
                             other => {
@@ -139,36 +181,52 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
                             }
                         }
                     });
-                    let (sequence, log_time, publish_time) =
-                        (message.sequence, message.log_time, message.publish_time);
+                    let (log_time, publish_time) = (message.log_time, message.publish_time);
                     match decoder {
+                        TopicDecoder::MappedOutput => Ok(()),
                         TopicDecoder::Skip => {
                             if let Some((count, _)) = report.skipped.get_mut(&channel.topic) {
                                 *count += 1;
                             }
                             Ok(())
                         }
-                        TopicDecoder::Json(decoder) => match decoder.to_json(message.data) {
-                            Ok(value) => match foxglove.as_mut() {
-                                Some(writer) => writer.write_payload(
-                                    &channel.topic,
-                                    decoder.type_name(),
-                                    sequence,
-                                    log_time,
-                                    publish_time,
-                                    &value,
-                                ),
-                                None => Ok(()),
-                            },
-                            Err(error) => {
-                                report
-                                    .skipped
-                                    .entry(channel.topic.clone())
-                                    .or_insert_with(|| (0, error.to_string()))
-                                    .0 += 1;
-                                Ok(())
+                        TopicDecoder::Json { decoder, mapped } => {
+                            match decoder.to_json(message.data) {
+                                Ok(value) => match foxglove.as_mut() {
+                                    Some(writer) => writer
+                                        .write_json(
+                                            &channel.topic,
+                                            decoder.type_name(),
+                                            log_time,
+                                            publish_time,
+                                            &value,
+                                        )
+                                        .and_then(|()| {
+                                            if *mapped {
+                                                writer
+                                                    .write_mapped(
+                                                        &channel.topic,
+                                                        message.data,
+                                                        log_time,
+                                                    )
+                                                    .map(|_| ())
+                                                    .map_err(|error| error.to_string())
+                                            } else {
+                                                Ok(())
+                                            }
+                                        }),
+                                    None => Ok(()),
+                                },
+                                Err(error) => {
+                                    report
+                                        .skipped
+                                        .entry(channel.topic.clone())
+                                        .or_insert_with(|| (0, error.to_string()))
+                                        .0 += 1;
+                                    Ok(())
+                                }
                             }
-                        },
+                        }
                         TopicDecoder::Frame => {
                             match RgbdFrame::decode_into(message.data, &mut frame) {
                                 Ok(()) => {
@@ -178,22 +236,22 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
                                     }
                                     if let (Ok(()), Some(writer)) = (&result, foxglove.as_mut()) {
                                         result = writer
-                                            .write_payload(
+                                            .write_json(
                                                 &channel.topic,
                                                 RgbdFrame::TYPE_NAME,
-                                                sequence,
                                                 log_time,
                                                 publish_time,
                                                 &frame.to_json(),
                                             )
                                             .and_then(|()| {
-                                                writer.write_frame(
-                                                    &channel.topic,
-                                                    sequence,
-                                                    log_time,
-                                                    publish_time,
-                                                    &frame,
-                                                )
+                                                writer
+                                                    .write_mapped(
+                                                        &channel.topic,
+                                                        message.data,
+                                                        log_time,
+                                                    )
+                                                    .map(|_| ())
+                                                    .map_err(|error| error.to_string())
                                             });
                                     }
                                     result
@@ -229,7 +287,7 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
         writer.finish().map_err(ExportError::Output)?;
     }
     if let Some(writer) = foxglove {
-        report.foxglove_messages = writer.messages_written;
+        report.foxglove_messages = writer.messages_written();
         writer.finish().map_err(ExportError::Output)?;
     }
     if let ScanEnd::Truncated { reason, .. } = outcome.end {

@@ -1,41 +1,121 @@
-//! Re-encoding a recording for Foxglove, which only decodes well-known encodings: every
-//! message becomes JSON (`message_encoding = json`, schema encoding `jsonschema`), and RGB-D
-//! frames additionally become `foxglove.RawImage` (`<topic>/rgb` as `rgb8`, `<topic>/depth`
-//! as `16UC1` in mm) and `foxglove.CameraCalibration` (`<topic>/rgb/calibration`,
-//! `<topic>/depth/calibration`). Stamps are converted to UTC with the recording's
-//! `harvest.clock` record when it has one.
+//! Re-encoding a recording for Foxglove, which only decodes well-known encodings:
+//! - the stack channels `harvest-foxglove-mapping` reads become its mapped topics (protobuf,
+//!   schemas in the file): the camera as JPEG `/camera/image` (the live view's size unless asked
+//!   otherwise) with calibration and annotations, the 3D scene, transforms, joints, pressures, the event log. Every message is
+//!   mapped (no viewing-rate limit); the mapped channels a recent recording already holds are
+//!   left out, since they are made again at full rate.
+//! - every catalogue message also keeps its JSON view on its own topic (`message_encoding =
+//!   json`, schema inferred), so every field stays plottable; frames' JSON views are their
+//!   metadata only.
+//!
+//! Stamps are converted to UTC with the recording's `harvest.clock` record when it has one; the
+//! camera's mounting comes from its `harvest.calibration` record.
 
-use crate::base64;
 use crate::json_schema::infer_schema;
 use crate::wall_clock::ClockPair;
-use harvest_ipc::camera_model::CameraIntrinsics;
-use harvest_ipc::payloads::RgbdFrame;
-use harvest_ipc::payloads::rgbd_frame::{
-    DEPTH_HEIGHT_PX, DEPTH_WIDTH_PX, RGB_HEIGHT_PX, RGB_WIDTH_PX,
-};
+use harvest_foxglove_mapping::mounting_files::robot_from_camera_text;
+use harvest_foxglove_mapping::topics::{self, MappedSink, Topic, encode_into};
+use harvest_foxglove_mapping::{EncodedMapper, ImageSettings, MapError, Mounting, TimeBase};
 use mcap::records::{MessageHeader, Metadata};
 use mcap::{WriteOptions, Writer};
-use serde_json::{Value, json};
+use serde_json::Value;
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::Path;
 
-const RAW_IMAGE_SCHEMA: &str = r#"{"title":"foxglove.RawImage","type":"object","properties":{"timestamp":{"type":"object","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}},"frame_id":{"type":"string"},"width":{"type":"integer","minimum":0},"height":{"type":"integer","minimum":0},"encoding":{"type":"string"},"step":{"type":"integer","minimum":0},"data":{"type":"string","contentEncoding":"base64"}}}"#;
-const CALIBRATION_SCHEMA: &str = r#"{"title":"foxglove.CameraCalibration","type":"object","properties":{"timestamp":{"type":"object","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0,"maximum":999999999}}},"frame_id":{"type":"string"},"width":{"type":"integer","minimum":0},"height":{"type":"integer","minimum":0},"distortion_model":{"type":"string"},"D":{"type":"array","items":{"type":"number"}},"K":{"type":"array","items":{"type":"number"},"minItems":9,"maxItems":9},"R":{"type":"array","items":{"type":"number"},"minItems":9,"maxItems":9},"P":{"type":"array","items":{"type":"number"},"minItems":12,"maxItems":12}}}"#;
-
-/// A Foxglove-readable MCAP being written.
-pub struct FoxgloveWriter {
+/// The mcap writer and its channels (the sink of the mapping).
+struct Output {
     writer: Writer<BufWriter<File>>,
     /// Output topic -> channel id.
     channels: BTreeMap<String, u16>,
+    sequences: BTreeMap<u16, u32>,
+    buffer: Vec<u8>,
+    messages_written: u64,
+}
+
+fn mcap_text(error: mcap::McapError) -> String {
+    crate::mcap_error::mcap_error_text(&error)
+}
+
+impl Output {
+    fn write(
+        &mut self,
+        channel_id: u16,
+        log_time_ns: u64,
+        publish_time_ns: u64,
+    ) -> Result<(), String> {
+        let sequence = self.sequences.entry(channel_id).or_insert(0);
+        *sequence = sequence.wrapping_add(1);
+        let header = MessageHeader {
+            channel_id,
+            sequence: *sequence,
+            log_time: log_time_ns,
+            publish_time: publish_time_ns,
+        };
+        self.writer
+            .write_to_known_channel(&header, &self.buffer)
+            .map_err(mcap_text)?;
+        self.messages_written += 1;
+        Ok(())
+    }
+}
+
+impl MappedSink for Output {
+    type Error = String;
+
+    fn write<M: foxglove::Encode>(
+        &mut self,
+        topic: Topic<M>,
+        log_time_ns: u64,
+        message: &M,
+    ) -> Result<(), String> {
+        let id = match self.channels.get(topic.name) {
+            Some(id) => *id,
+            None => {
+                let description = topic.describe();
+                let schema_id = match &description.schema {
+                    Some(schema) => self
+                        .writer
+                        .add_schema(&schema.name, &schema.encoding, &schema.data)
+                        .map_err(mcap_text)?,
+                    None => 0,
+                };
+                let metadata = BTreeMap::from([(
+                    "description".to_owned(),
+                    description.description.to_owned(),
+                )]);
+                let id = self
+                    .writer
+                    .add_channel(
+                        schema_id,
+                        topic.name,
+                        &description.message_encoding,
+                        &metadata,
+                    )
+                    .map_err(mcap_text)?;
+                self.channels.insert(topic.name.to_owned(), id);
+                id
+            }
+        };
+        encode_into(message, &mut self.buffer).map_err(|error| error.to_string())?;
+        Output::write(self, id, log_time_ns, log_time_ns)
+    }
+}
+
+/// A Foxglove-readable MCAP being written.
+pub struct FoxgloveWriter {
+    output: Output,
     clock: Option<ClockPair>,
-    text: Vec<u8>,
-    pub messages_written: u64,
+    mounting: Mounting,
+    /// Made on the first mapped message, once the clock and calibration records are known.
+    mapper: Option<EncodedMapper>,
+    image: ImageSettings,
 }
 
 impl FoxgloveWriter {
-    pub fn create(path: &Path) -> Result<Self, String> {
+    /// Creates `path`; camera images are mapped with `image`.
+    pub fn create(path: &Path, image: ImageSettings) -> Result<Self, String> {
         let file = File::create(path).map_err(|error| format!("{}: {error}", path.display()))?;
         let options = WriteOptions::new()
             .profile("")
@@ -44,19 +124,46 @@ impl FoxgloveWriter {
             .compression_threads(0)
             .chunk_size(Some(8 << 20));
         let writer = Writer::with_options(BufWriter::with_capacity(1 << 20, file), options)
-            .map_err(|error| crate::mcap_error::mcap_error_text(&error))?;
+            .map_err(mcap_text)?;
         Ok(Self {
-            writer,
-            channels: BTreeMap::new(),
+            output: Output {
+                writer,
+                channels: BTreeMap::new(),
+                sequences: BTreeMap::new(),
+                buffer: Vec::new(),
+                messages_written: 0,
+            },
             clock: None,
-            text: Vec::new(),
-            messages_written: 0,
+            mounting: Mounting::default(),
+            mapper: None,
+            image,
         })
     }
 
-    /// Uses `pair` to convert stamps to UTC from now on.
-    pub fn set_clock(&mut self, pair: ClockPair) {
-        self.clock.get_or_insert(pair);
+    pub fn messages_written(&self) -> u64 {
+        self.output.messages_written
+    }
+
+    /// Takes in a metadata record of the input (clock, calibration) and copies it.
+    pub fn write_metadata(&mut self, metadata: &Metadata) -> Result<(), String> {
+        if let Some(pair) = crate::metadata::parse_clock(metadata) {
+            self.clock.get_or_insert(pair);
+        }
+        if metadata.name == crate::metadata::CALIBRATION
+            && self.mounting.robot_from_camera.is_none()
+            && let Some(text) = metadata.metadata.get("text")
+        {
+            match robot_from_camera_text(text, "the recording's harvest.calibration record") {
+                Ok(transform) => self.mounting.robot_from_camera = Some(transform),
+                Err(error) => {
+                    tracing::warn!(%error, "the export leaves the camera unplaced in the 3D view")
+                }
+            }
+        }
+        self.output
+            .writer
+            .write_metadata(metadata)
+            .map_err(mcap_text)
     }
 
     fn stamp(&self, monotonic_ns: u64) -> u64 {
@@ -65,191 +172,64 @@ impl FoxgloveWriter {
             .unwrap_or(monotonic_ns)
     }
 
-    pub fn write_metadata(&mut self, metadata: &Metadata) -> Result<(), String> {
-        self.writer
-            .write_metadata(metadata)
-            .map_err(|error| crate::mcap_error::mcap_error_text(&error))
-    }
-
-    fn channel(
-        &mut self,
-        topic: &str,
-        schema_name: &str,
-        schema: &dyn Fn() -> String,
-    ) -> Result<u16, String> {
-        if let Some(id) = self.channels.get(topic) {
-            return Ok(*id);
-        }
-        let error_text = |error: mcap::McapError| crate::mcap_error::mcap_error_text(&error);
-        let schema_id = self
-            .writer
-            .add_schema(schema_name, "jsonschema", schema().as_bytes())
-            .map_err(error_text)?;
-        let id = self
-            .writer
-            .add_channel(schema_id, topic, "json", &BTreeMap::new())
-            .map_err(error_text)?;
-        self.channels.insert(topic.to_owned(), id);
-        Ok(id)
-    }
-
-    fn write_json(
-        &mut self,
-        channel_id: u16,
-        sequence: u32,
-        log_time_ns: u64,
-        publish_time_ns: u64,
-        value: &Value,
-    ) -> Result<(), String> {
-        self.text.clear();
-        serde_json::to_writer(&mut self.text, value).map_err(|error| error.to_string())?;
-        let header = MessageHeader {
-            channel_id,
-            sequence,
-            log_time: self.stamp(log_time_ns),
-            publish_time: self.stamp(publish_time_ns),
-        };
-        self.writer
-            .write_to_known_channel(&header, &self.text)
-            .map_err(|error| crate::mcap_error::mcap_error_text(&error))?;
-        self.messages_written += 1;
-        Ok(())
+    /// True for the mapped channels a recording already holds (left out: made again).
+    pub fn is_mapped_output(topic: &str, message_encoding: &str) -> bool {
+        message_encoding == "protobuf" && topics::all().iter().any(|mapped| mapped.name == topic)
     }
 
     /// Writes a message's JSON view on its own topic, with a schema inferred from it.
-    pub fn write_payload(
+    pub fn write_json(
         &mut self,
         topic: &str,
         type_name: &str,
-        sequence: u32,
         log_time_ns: u64,
         publish_time_ns: u64,
         value: &Value,
     ) -> Result<(), String> {
-        let id = self.channel(topic, type_name, &|| {
-            infer_schema(type_name, value).to_string()
-        })?;
-        self.write_json(id, sequence, log_time_ns, publish_time_ns, value)
+        let id = match self.output.channels.get(topic) {
+            Some(id) => *id,
+            None => {
+                let schema = infer_schema(type_name, value).to_string();
+                let schema_id = self
+                    .output
+                    .writer
+                    .add_schema(type_name, "jsonschema", schema.as_bytes())
+                    .map_err(mcap_text)?;
+                let id = self
+                    .output
+                    .writer
+                    .add_channel(schema_id, topic, "json", &BTreeMap::new())
+                    .map_err(mcap_text)?;
+                self.output.channels.insert(topic.to_owned(), id);
+                id
+            }
+        };
+        self.output.buffer.clear();
+        serde_json::to_writer(&mut self.output.buffer, value).map_err(|error| error.to_string())?;
+        let (log_time_ns, publish_time_ns) = (self.stamp(log_time_ns), self.stamp(publish_time_ns));
+        self.output.write(id, log_time_ns, publish_time_ns)
     }
 
-    /// Writes a frame as two raw images and two calibrations.
-    pub fn write_frame(
+    /// Maps one recorded message of a stack channel (encoded with this build's payload
+    /// version). Returns `false` when the mapping does not read that channel.
+    pub fn write_mapped(
         &mut self,
         topic: &str,
-        sequence: u32,
+        bytes: &[u8],
         log_time_ns: u64,
-        publish_time_ns: u64,
-        frame: &RgbdFrame,
-    ) -> Result<(), String> {
-        let stamp_ns = self.stamp(frame.header.capture_ns);
-        let timestamp =
-            json!({ "sec": stamp_ns / 1_000_000_000, "nsec": stamp_ns % 1_000_000_000 });
-        let rgb_topic = format!("{topic}/rgb");
-        let depth_topic = format!("{topic}/depth");
-        let stamps = (sequence, log_time_ns, publish_time_ns);
-        let rgb = RawImage {
-            frame_id: "camera_color",
-            encoding: "rgb8",
-            width: RGB_WIDTH_PX,
-            height: RGB_HEIGHT_PX,
-            bytes_per_px: 3,
+    ) -> Result<bool, MapError<String>> {
+        let time = match self.clock {
+            Some(pair) => TimeBase::realtime(pair.monotonic_ns, pair.realtime_ns),
+            None => TimeBase::MONOTONIC,
         };
-        self.write_raw_image(&rgb_topic, &rgb, &frame.rgb, &timestamp, stamps)?;
-        let depth_bytes: Vec<u8> = frame
-            .depth_mm
-            .iter()
-            .flat_map(|depth| depth.to_le_bytes())
-            .collect();
-        let depth = RawImage {
-            frame_id: "camera_depth",
-            encoding: "16UC1",
-            width: DEPTH_WIDTH_PX,
-            height: DEPTH_HEIGHT_PX,
-            bytes_per_px: 2,
-        };
-        self.write_raw_image(&depth_topic, &depth, &depth_bytes, &timestamp, stamps)?;
-        let calibrations = [
-            (
-                format!("{rgb_topic}/calibration"),
-                "camera_color",
-                frame.meta.rgb_intrinsics,
-            ),
-            (
-                format!("{depth_topic}/calibration"),
-                "camera_depth",
-                frame.meta.depth_intrinsics,
-            ),
-        ];
-        for (calibration_topic, frame_id, intrinsics) in calibrations {
-            let calibration = calibration_json(&timestamp, frame_id, &intrinsics);
-            let id = self.channel(&calibration_topic, "foxglove.CameraCalibration", &|| {
-                CALIBRATION_SCHEMA.to_owned()
-            })?;
-            self.write_json(id, sequence, log_time_ns, publish_time_ns, &calibration)?;
-        }
-        Ok(())
-    }
-
-    fn write_raw_image(
-        &mut self,
-        topic: &str,
-        image: &RawImage,
-        pixels: &[u8],
-        timestamp: &Value,
-        (sequence, log_time_ns, publish_time_ns): (u32, u64, u64),
-    ) -> Result<(), String> {
-        let mut data = String::new();
-        base64::encode_into(pixels, &mut data);
-        let message = json!({
-            "timestamp": timestamp,
-            "frame_id": image.frame_id,
-            "width": image.width,
-            "height": image.height,
-            "encoding": image.encoding,
-            "step": image.width * image.bytes_per_px,
-            "data": data,
-        });
-        let id = self.channel(topic, "foxglove.RawImage", &|| RAW_IMAGE_SCHEMA.to_owned())?;
-        self.write_json(id, sequence, log_time_ns, publish_time_ns, &message)
+        let mapper = self
+            .mapper
+            .get_or_insert_with(|| EncodedMapper::new(time, self.image, self.mounting));
+        mapper.map(topic, bytes, log_time_ns, &mut self.output)
     }
 
     pub fn finish(mut self) -> Result<(), String> {
-        self.writer
-            .finish()
-            .map_err(|error| crate::mcap_error::mcap_error_text(&error))?;
+        self.output.writer.finish().map_err(mcap_text)?;
         Ok(())
     }
-}
-
-/// The fixed fields of one raw image stream.
-struct RawImage {
-    frame_id: &'static str,
-    encoding: &'static str,
-    width: usize,
-    height: usize,
-    bytes_per_px: usize,
-}
-
-/// Pinhole intrinsics as a `foxglove.CameraCalibration` (OpenCV `plumb_bob` = k1,k2,p1,p2,k3).
-fn calibration_json(timestamp: &Value, frame_id: &str, intrinsics: &CameraIntrinsics) -> Value {
-    let CameraIntrinsics {
-        width_px,
-        height_px,
-        fx_px,
-        fy_px,
-        cx_px,
-        cy_px,
-        distortion,
-    } = *intrinsics;
-    json!({
-        "timestamp": timestamp,
-        "frame_id": frame_id,
-        "width": width_px,
-        "height": height_px,
-        "distortion_model": "plumb_bob",
-        "D": distortion,
-        "K": [fx_px, 0.0, cx_px, 0.0, fy_px, cy_px, 0.0, 0.0, 1.0],
-        "R": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-        "P": [fx_px, 0.0, cx_px, 0.0, 0.0, fy_px, cy_px, 0.0, 0.0, 0.0, 1.0, 0.0],
-    })
 }

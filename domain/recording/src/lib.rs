@@ -11,7 +11,6 @@
 //! [`rec_cat`], [`export`] (JSON, PNG, Foxglove). Users: the recorder process, `harvest rec`,
 //! `harvest replay` and `harvest monitor --recording`.
 
-pub mod base64;
 pub mod export;
 pub mod foxglove_export;
 pub mod json_schema;

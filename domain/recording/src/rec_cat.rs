@@ -5,6 +5,7 @@
 //! payload's `to_json` view. Messages of unknown schemas or of another payload version are
 //! skipped with one warning per topic.
 
+use crate::foxglove_export::FoxgloveWriter;
 use crate::payload_codec::{JsonDecoder, SchemaMatch, json_decoder};
 use crate::recording_file::ReadError;
 use crate::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
@@ -33,6 +34,9 @@ pub struct CatReport {
     pub printed: u64,
     /// Topic -> (messages skipped, why).
     pub undecodable: BTreeMap<String, (u64, String)>,
+    /// Topic -> messages of the channels mapped for Foxglove (protobuf views made from the raw
+    /// channels by the recorder), not printed.
+    pub mapped_views: BTreeMap<String, u64>,
     /// Why the file could not be read to its end, if so.
     pub incomplete: Option<String>,
     /// The output was closed (e.g. piped into `head`).
@@ -72,6 +76,13 @@ pub fn cat(path: &Path, options: &CatOptions, out: &mut dyn Write) -> Result<Cat
             }
             let channel = &message.channel;
             if !filter.matches_topic(&channel.topic) {
+                return ControlFlow::Continue(());
+            }
+            if FoxgloveWriter::is_mapped_output(&channel.topic, &channel.message_encoding) {
+                *report
+                    .mapped_views
+                    .entry(channel.topic.clone())
+                    .or_insert(0) += 1;
                 return ControlFlow::Continue(());
             }
             let schema = channel

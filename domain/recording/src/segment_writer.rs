@@ -5,6 +5,7 @@ use crate::mcap_error::mcap_error_text;
 use crate::schema::TopicInfo;
 use mcap::records::{MessageHeader, Metadata};
 use mcap::{McapError, WriteOptions, Writer};
+use std::collections::BTreeMap;
 use std::io::{Seek, SeekFrom, Write};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -140,6 +141,20 @@ impl<W: Seek> Seek for SizeTracked<W> {
     }
 }
 
+/// A channel whose messages are not catalogue payloads but carry a schema of their own (the
+/// recorder's mapped Foxglove channels: protobuf with a `FileDescriptorSet`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ForeignChannel {
+    pub topic: String,
+    pub schema_name: String,
+    /// `protobuf`, `jsonschema`, ...
+    pub schema_encoding: String,
+    pub schema_data: Vec<u8>,
+    /// `protobuf`, `json`, ...
+    pub message_encoding: String,
+    pub metadata: BTreeMap<String, String>,
+}
+
 /// An MCAP writer with the channels of one file.
 pub struct SegmentWriter<W: Write + Seek> {
     writer: Writer<SizeTracked<W>>,
@@ -189,6 +204,68 @@ impl<W: Write + Seek> SegmentWriter<W> {
         Ok(channel_id)
     }
 
+    /// Registers the foreign channel `channel` under `index` (of the same index space as the
+    /// catalogue topics), once.
+    pub fn add_foreign_channel(
+        &mut self,
+        index: usize,
+        channel: &ForeignChannel,
+    ) -> Result<u16, McapError> {
+        if let Some(Some(id)) = self.channel_ids.get(index) {
+            return Ok(*id);
+        }
+        let schema_id = self.writer.add_schema(
+            &channel.schema_name,
+            &channel.schema_encoding,
+            &channel.schema_data,
+        )?;
+        let channel_id = self.writer.add_channel(
+            schema_id,
+            &channel.topic,
+            &channel.message_encoding,
+            &channel.metadata,
+        )?;
+        if index >= self.channel_ids.len() {
+            self.channel_ids.resize(index + 1, None);
+        }
+        self.channel_ids[index] = Some(channel_id);
+        Ok(channel_id)
+    }
+
+    /// Writes one message of the foreign channel `index` (added on first use).
+    pub fn write_foreign_message(
+        &mut self,
+        index: usize,
+        channel: &ForeignChannel,
+        sequence: u32,
+        log_time_ns: u64,
+        publish_time_ns: u64,
+        data: &[u8],
+    ) -> Result<(), McapError> {
+        let channel_id = self.add_foreign_channel(index, channel)?;
+        self.write_on(channel_id, sequence, log_time_ns, publish_time_ns, data)
+    }
+
+    fn write_on(
+        &mut self,
+        channel_id: u16,
+        sequence: u32,
+        log_time_ns: u64,
+        publish_time_ns: u64,
+        data: &[u8],
+    ) -> Result<(), McapError> {
+        let header = MessageHeader {
+            channel_id,
+            sequence,
+            log_time: log_time_ns,
+            publish_time: publish_time_ns,
+        };
+        self.writer.write_to_known_channel(&header, data)?;
+        self.messages += 1;
+        self.messages_in_open_chunk += 1;
+        Ok(())
+    }
+
     /// Writes one message of topic `index` (added on first use).
     pub fn write_message(
         &mut self,
@@ -200,16 +277,7 @@ impl<W: Write + Seek> SegmentWriter<W> {
         data: &[u8],
     ) -> Result<(), McapError> {
         let channel_id = self.add_channel(index, topic)?;
-        let header = MessageHeader {
-            channel_id,
-            sequence,
-            log_time: log_time_ns,
-            publish_time: publish_time_ns,
-        };
-        self.writer.write_to_known_channel(&header, data)?;
-        self.messages += 1;
-        self.messages_in_open_chunk += 1;
-        Ok(())
+        self.write_on(channel_id, sequence, log_time_ns, publish_time_ns, data)
     }
 
     pub fn write_metadata(&mut self, metadata: &Metadata) -> Result<(), McapError> {

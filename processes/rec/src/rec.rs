@@ -1,5 +1,6 @@
 //! `harvest rec info|cat|export|recover`: the recording tools' command line.
 
+use harvest_foxglove_mapping::ImageSettings;
 use harvest_recording::export::{ExportError, ExportOptions, export};
 use harvest_recording::metadata;
 use harvest_recording::rec_cat::{CatError, CatOptions, cat};
@@ -32,16 +33,25 @@ pub enum RecCommand {
         #[arg(long, value_parser = parse_duration)]
         end: Option<Duration>,
     },
-    /// Camera frames as PNG and/or the recording as a Foxglove-readable MCAP (JSON).
+    /// Camera frames as PNG and/or the recording as a Foxglove-readable MCAP (the mapped
+    /// channels at full rate, protobuf, plus each message's JSON view).
     Export {
         #[arg(value_name = "FILE")]
         file: PathBuf,
         /// Write each RGB-D frame as `<topic>-<n>-rgb.png` and `-depth.png` (16-bit mm) here.
         #[arg(long, value_name = "DIR")]
         png: Option<PathBuf>,
-        /// Write a JSON-encoded MCAP with foxglove.RawImage/CameraCalibration for frames.
+        /// Write an MCAP Foxglove and Lichtblick open: camera JPEG with overlays, 3D scene,
+        /// transforms, plots, event log (every message mapped, not only the viewing rate).
         #[arg(long, value_name = "OUT.mcap")]
         foxglove: Option<PathBuf>,
+        /// Integer factor the exported camera images are downscaled by; the default is the live
+        /// view's (960x540); 1 exports full-size 1920x1080 images (about 3x the file size).
+        #[arg(long, default_value_t = ImageSettings::VIEWING.scale)]
+        image_scale: u32,
+        /// JPEG quality of the exported camera images, 1-100.
+        #[arg(long, default_value_t = ImageSettings::VIEWING.jpeg_quality)]
+        jpeg_quality: u8,
         /// Only topics matching one of these globs; repeatable.
         #[arg(long = "topic", value_name = "GLOB")]
         topics: Vec<String>,
@@ -118,6 +128,12 @@ pub fn run_rec(command: &RecCommand) -> Result<(), RecError> {
             for (topic, (count, reason)) in &report.undecodable {
                 eprintln!("rec cat: skipped {count} message(s) of {topic}: {reason}");
             }
+            let mapped_views: u64 = report.mapped_views.values().sum();
+            if mapped_views > 0 {
+                eprintln!(
+                    "rec cat: left out {mapped_views} message(s) of the channels mapped for Foxglove (protobuf views of the raw channels)"
+                );
+            }
             if let Some(reason) = &report.incomplete {
                 eprintln!("rec cat: {}: {reason}", file.display());
             }
@@ -126,6 +142,8 @@ pub fn run_rec(command: &RecCommand) -> Result<(), RecError> {
             file,
             png,
             foxglove,
+            image_scale,
+            jpeg_quality,
             topics,
             start,
             end,
@@ -133,6 +151,10 @@ pub fn run_rec(command: &RecCommand) -> Result<(), RecError> {
             let options = ExportOptions {
                 png_dir: png.clone(),
                 foxglove: foxglove.clone(),
+                foxglove_image: ImageSettings {
+                    scale: *image_scale,
+                    jpeg_quality: *jpeg_quality,
+                },
                 topics: topics.clone(),
                 start: *start,
                 end: *end,

@@ -13,6 +13,7 @@
 use crate::keyboard::{Key, Keyboard};
 use harvest_ipc::catalogue::{self, PROCESS_HEALTH};
 use harvest_ipc::{Channel, ChannelVisitor, Context, Domain, Payload, Publisher};
+use harvest_recording::foxglove_export::FoxgloveWriter;
 use harvest_recording::recording_file::ReadError;
 use harvest_recording::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
 use harvest_recording::schema::schema_name;
@@ -101,6 +102,9 @@ pub struct ReplayReport {
     pub published: BTreeMap<String, u64>,
     /// Topics not replayed: messages skipped and why.
     pub skipped: BTreeMap<String, (u64, String)>,
+    /// Messages of the channels mapped for Foxglove (protobuf views of the raw channels, made
+    /// again by whoever views them), not replayed.
+    pub mapped_views: u64,
     pub loops: u32,
     /// Recorded time covered by the published messages (one pass), ns.
     pub recorded_span_ns: u64,
@@ -143,6 +147,13 @@ impl std::fmt::Display for ReplayReport {
         }
         for (topic, (count, reason)) in &self.skipped {
             writeln!(f, "  skipped {topic}: {count} message(s): {reason}")?;
+        }
+        if self.mapped_views > 0 {
+            writeln!(
+                f,
+                "  {} message(s) of the mapped Foxglove channels left out",
+                self.mapped_views
+            )?;
         }
         for (file, reason) in &self.incomplete {
             writeln!(f, "  {}: {reason}", file.display())?;
@@ -275,6 +286,7 @@ pub fn run_replay_with(
         end: ReplayEnd::Finished,
         published: BTreeMap::new(),
         skipped: BTreeMap::new(),
+        mapped_views: 0,
         loops: 0,
         recorded_span_ns: 0,
         wall_time: Duration::ZERO,
@@ -301,6 +313,10 @@ pub fn run_replay_with(
                     }
                     let topic = &message.channel.topic;
                     if !filter.matches_topic(topic) {
+                        return ControlFlow::Continue(());
+                    }
+                    if FoxgloveWriter::is_mapped_output(topic, &message.channel.message_encoding) {
+                        report.mapped_views += 1;
                         return ControlFlow::Continue(());
                     }
                     let port = ports.entry(topic.clone()).or_insert_with(|| {

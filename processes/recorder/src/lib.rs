@@ -1,11 +1,13 @@
 //! `harvest recorder`: taps every selected catalogue channel of a domain into MCAP files
 //! ([`recorder`]), written on a thread of their own ([`writer_thread`]) into size-limited
-//! segments of an output directory ([`output_dir`]). The format is `harvest-recording`; the tools
+//! segments of an output directory ([`output_dir`]). Besides the raw channels it writes them
+//! mapped for Foxglove at the viewing rates ([`view_thread`]). The format is `harvest-recording`; the tools
 //! that read it (`harvest rec`, `harvest replay`) are `harvest-rec`.
 
 pub mod output_dir;
 pub mod recorder;
 pub mod tap;
+pub mod view_thread;
 pub mod writer_thread;
 
 pub use recorder::{

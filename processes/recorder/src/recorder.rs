@@ -7,7 +7,10 @@
 //! what is still queued, writes per-channel drop counts and finishes the file.
 
 use crate::tap::{Tap, TapCounts, TypedTap};
+use crate::view_thread::{self, ViewFeed};
 use crate::writer_thread::{OutputSettings, WriteError, WriterHandle};
+use harvest_foxglove_mapping::Mounting;
+use harvest_foxglove_mapping::mounting_files::{camera_from_lidar_file, robot_from_camera_file};
 use harvest_ipc::catalogue::{self, Layer};
 use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::{
@@ -94,9 +97,17 @@ pub struct RecorderArgs {
     /// Launch file of the stack, stored in the recording's metadata.
     #[arg(long)]
     pub launch_file: Option<PathBuf>,
-    /// Calibration file, stored in the recording's metadata.
+    /// Calibration file, stored in the recording's metadata; its `robot_from_camera` also
+    /// places the camera in the mapped 3D view.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
+    /// LiDAR extrinsic file (`camera_from_lidar`): places the LiDAR cloud in the mapped 3D view.
+    #[arg(long, value_name = "PATH")]
+    pub lidar_extrinsic: Option<PathBuf>,
+    /// Record only the raw channels: leave out the channels mapped to Foxglove's schemas
+    /// (protobuf, at the viewing rates) that let the file open in Foxglove as it is.
+    #[arg(long)]
+    pub no_foxglove: bool,
     /// Scenario name or file, stored in the recording's metadata.
     #[arg(long)]
     pub scenario: Option<String>,
@@ -127,6 +138,8 @@ impl Default for RecorderArgs {
             queue_size: 512 << 20,
             launch_file: None,
             calibration: None,
+            lidar_extrinsic: None,
+            no_foxglove: false,
             scenario: None,
             notes: Vec::new(),
             retry_interval: Duration::from_secs(1),
@@ -377,12 +390,25 @@ pub fn run_recorder_until(
     let started = ClockPair::now();
     let recording_fields =
         recording_fields(args, &settings, domain, process_name, &topics, started);
+    let foreign = if args.no_foxglove {
+        Vec::new()
+    } else {
+        view_thread::foreign_channels()
+    };
     let mut writer = WriterHandle::spawn(
         settings,
         topics.clone(),
+        foreign,
         recording_fields,
         session_records(args),
     )?;
+    if !args.no_foxglove {
+        let view =
+            ViewFeed::spawn(&topics, view_mounting(args), writer.enqueuer()).map_err(|error| {
+                RecorderError::Wait(format!("cannot start the view thread: {error}"))
+            })?;
+        writer.attach_view(view);
+    }
     let waiter = Waiter::new().map_err(|error| RecorderError::Wait(error.to_string()))?;
 
     let mut taps: Vec<Box<dyn Tap>> = Vec::new();
@@ -434,6 +460,16 @@ pub fn run_recorder_until(
             )
         })
         .collect();
+    if let Some(view) = writer.finish_view() {
+        tracing::info!(
+            admitted = view.admitted,
+            written = view.written,
+            dropped_behind = view.dropped_behind,
+            dropped_by_queue = view.dropped_by_queue,
+            failed = view.failed,
+            "mapped Foxglove channels"
+        );
+    }
     let drops = drops_record(&taps, &unopened);
     let _ = health.report(
         ProcessRunState::Stopping,
@@ -749,6 +785,29 @@ fn recording_fields(
             "header.publish_ns, CLOCK_MONOTONIC ns".to_owned(),
         ),
     ])
+}
+
+/// The sensor mountings for the mapped 3D view; a file that cannot be used leaves its sensor
+/// out of the view (with a warning), it never stops the recording.
+fn view_mounting(args: &RecorderArgs) -> Mounting {
+    let robot_from_camera = args.calibration.as_deref().and_then(|path| {
+        robot_from_camera_file(path)
+            .inspect_err(
+                |error| tracing::warn!(%error, "the mapped view leaves the camera unplaced"),
+            )
+            .ok()
+    });
+    let camera_from_lidar = args.lidar_extrinsic.as_deref().and_then(|path| {
+        camera_from_lidar_file(path)
+            .inspect_err(
+                |error| tracing::warn!(%error, "the mapped view leaves the LiDAR unplaced"),
+            )
+            .ok()
+    });
+    Mounting {
+        robot_from_camera,
+        camera_from_lidar,
+    }
 }
 
 fn session_records(args: &RecorderArgs) -> Vec<mcap::records::Metadata> {

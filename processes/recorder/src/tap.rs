@@ -95,6 +95,7 @@ impl<T: Payload> Tap for TypedTap<T> {
                 writer.give_back(data);
                 continue;
             }
+            writer.offer_view(self.topic_index, self.topic(), log_time_ns, &data);
             let header = sample.header();
             let message = QueuedMessage {
                 topic: self.topic_index,

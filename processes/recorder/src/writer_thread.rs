@@ -8,10 +8,11 @@
 //! overflow, any publisher).
 
 use crate::output_dir::{create_segment, enforce_size_bound};
+use crate::view_thread::{ViewFeed, ViewReport};
 use harvest_recording::mcap_error::mcap_error_text;
 use harvest_recording::metadata;
 use harvest_recording::schema::TopicInfo;
-use harvest_recording::segment_writer::{ChunkSettings, SegmentWriter};
+use harvest_recording::segment_writer::{ChunkSettings, ForeignChannel, SegmentWriter};
 use harvest_recording::wall_clock::{ClockPair, format_utc_compact, format_utc_iso};
 use mcap::records::Metadata;
 use std::collections::BTreeMap;
@@ -47,7 +48,7 @@ pub struct OutputSettings {
 /// One encoded message on its way to the file.
 #[derive(Debug)]
 pub struct QueuedMessage {
-    /// Index in the recording's topic table.
+    /// Index in the recording's topic table: the catalogue topics, then the foreign channels.
     pub topic: usize,
     /// `msg_seq` of the header (MCAP stores 32 bits: wraps after 4e9 messages).
     pub sequence: u32,
@@ -112,6 +113,8 @@ pub struct WriterHandle {
     max_queued_bytes: usize,
     failed: Arc<AtomicBool>,
     thread: JoinHandle<Result<WriterReport, WriteError>>,
+    /// The mapped channels' thread, when the recording has them.
+    view: Option<ViewFeed>,
 }
 
 /// Buffers at least this big are pooled as "large" (frames); smaller ones as "small".
@@ -124,10 +127,11 @@ const QUEUE_MESSAGES: usize = 16 * 1024;
 impl WriterHandle {
     /// Creates the output directory and the first segment, then starts the writer thread.
     /// `recording_fields` go into every segment's `harvest.recording` record, `session_records`
-    /// follow it.
+    /// follow it. Topic indices `topics.len()..` name the `foreign` channels.
     pub fn spawn(
         settings: OutputSettings,
         topics: Vec<TopicInfo>,
+        foreign: Vec<ForeignChannel>,
         recording_fields: BTreeMap<String, String>,
         session_records: Vec<Metadata>,
     ) -> Result<Self, WriteError> {
@@ -142,11 +146,12 @@ impl WriterHandle {
         let max_queued_bytes = settings.queue_bytes;
         let mut state = WriterState {
             report: WriterReport {
-                messages_per_topic: vec![0; topics.len()],
+                messages_per_topic: vec![0; topics.len() + foreign.len()],
                 ..WriterReport::default()
             },
             settings,
             topics,
+            foreign: foreign.into_iter().map(Arc::new).collect(),
             registered: Vec::new(),
             recording_fields,
             session_records,
@@ -175,7 +180,26 @@ impl WriterHandle {
             max_queued_bytes,
             failed,
             thread,
+            view: None,
         })
+    }
+
+    /// Hands the messages offered with [`Self::offer_view`] to `view` from now on.
+    pub fn attach_view(&mut self, view: ViewFeed) {
+        self.view = Some(view);
+    }
+
+    /// Offers an encoded message of catalogue topic `index` to the mapped channels, if any.
+    pub fn offer_view(&mut self, index: usize, topic: &'static str, log_time_ns: u64, data: &[u8]) {
+        if let Some(view) = self.view.as_mut() {
+            view.offer(index, topic, log_time_ns, data);
+        }
+    }
+
+    /// Stops the mapped channels' thread once it has queued what it holds (before
+    /// [`Self::finish`], so its last messages make it into the file).
+    pub fn finish_view(&mut self) -> Option<ViewReport> {
+        self.view.take().map(ViewFeed::finish)
     }
 
     /// Registers a topic in the recording (it appears in every segment, even without messages).
@@ -243,16 +267,57 @@ impl WriterHandle {
         }
     }
 
+    /// A handle another thread queues messages with (the view thread's mapped channels), under
+    /// the same byte bound.
+    pub fn enqueuer(&self) -> Enqueuer {
+        Enqueuer {
+            commands: self.commands.clone(),
+            queued_bytes: self.queued_bytes.clone(),
+            max_queued_bytes: self.max_queued_bytes,
+            failed: self.failed.clone(),
+        }
+    }
+
     /// True once writing failed (the error comes from [`Self::finish`]).
     pub fn has_failed(&self) -> bool {
         self.failed.load(Ordering::Relaxed) || self.thread.is_finished()
     }
 
     /// Writes `trailing` metadata, finishes the open segment and waits for the thread.
-    pub fn finish(self, trailing: Vec<Metadata>) -> Result<WriterReport, WriteError> {
+    pub fn finish(mut self, trailing: Vec<Metadata>) -> Result<WriterReport, WriteError> {
+        let _ = self.finish_view();
         let _ = self.commands.send(Command::Finish(trailing));
         drop(self.commands);
         self.thread.join().unwrap_or(Err(WriteError::Panicked))
+    }
+}
+
+/// Queues messages for the writer from another thread; drops (returns `false`) when the queue
+/// is full, like [`WriterHandle::try_enqueue`].
+#[derive(Debug, Clone)]
+pub struct Enqueuer {
+    commands: SyncSender<Command>,
+    queued_bytes: Arc<AtomicUsize>,
+    max_queued_bytes: usize,
+    failed: Arc<AtomicBool>,
+}
+
+impl Enqueuer {
+    pub fn try_enqueue(&self, message: QueuedMessage) -> bool {
+        let bytes = message.data.len();
+        if self.queued_bytes.load(Ordering::Relaxed) + bytes > self.max_queued_bytes
+            || self.failed.load(Ordering::Relaxed)
+        {
+            return false;
+        }
+        self.queued_bytes.fetch_add(bytes, Ordering::Relaxed);
+        match self.commands.try_send(Command::Message(message)) {
+            Ok(()) => true,
+            Err(_) => {
+                self.queued_bytes.fetch_sub(bytes, Ordering::Relaxed);
+                false
+            }
+        }
     }
 }
 
@@ -261,6 +326,8 @@ type OpenSegment = (PathBuf, SegmentWriter<BufWriter<File>>);
 struct WriterState {
     settings: OutputSettings,
     topics: Vec<TopicInfo>,
+    /// Channels of their own schema (the mapped Foxglove channels), indices after `topics`.
+    foreign: Vec<Arc<ForeignChannel>>,
     /// Topic indices registered so far, re-added to each new segment.
     registered: Vec<usize>,
     recording_fields: BTreeMap<String, String>,
@@ -391,7 +458,7 @@ impl WriterState {
         let writer = SegmentWriter::new(
             BufWriter::with_capacity(1 << 20, file),
             &self.settings.chunks,
-            self.topics.len(),
+            self.topics.len() + self.foreign.len(),
         )
         .map_err(|reason| WriteError::Write {
             file: path.clone(),
@@ -447,34 +514,51 @@ impl WriterState {
     }
 
     fn add_channel(&mut self, topic: usize) -> Result<(), WriteError> {
-        let Some(info) = self.topics.get(topic).copied() else {
+        if let Some(info) = self.topics.get(topic).copied() {
+            return self.with_segment(|segment| segment.add_channel(topic, &info).map(|_| ()));
+        }
+        let Some(foreign) = self.foreign.get(topic - self.topics.len()).cloned() else {
             return Ok(());
         };
-        self.with_segment(|segment| segment.add_channel(topic, &info).map(|_| ()))
+        self.with_segment(|segment| segment.add_foreign_channel(topic, &foreign).map(|_| ()))
     }
 
     fn write(&mut self, message: &QueuedMessage) -> Result<(), WriteError> {
-        let Some(info) = self.topics.get(message.topic).copied() else {
-            return Ok(());
+        let info = self.topics.get(message.topic).copied();
+        let foreign = match info {
+            Some(_) => None,
+            None => match self.foreign.get(message.topic - self.topics.len()) {
+                Some(foreign) => Some(Arc::clone(foreign)),
+                None => return Ok(()),
+            },
         };
         if self.current.is_none() {
             self.open_segment()?;
         }
-        self.with_segment(|segment| {
-            segment.write_message(
+        self.with_segment(|segment| match (&info, &foreign) {
+            (Some(info), _) => segment.write_message(
                 message.topic,
-                &info,
+                info,
                 message.sequence,
                 message.log_time_ns,
                 message.publish_time_ns,
                 &message.data,
-            )
+            ),
+            (None, Some(foreign)) => segment.write_foreign_message(
+                message.topic,
+                foreign,
+                message.sequence,
+                message.log_time_ns,
+                message.publish_time_ns,
+                &message.data,
+            ),
+            (None, None) => Ok(()),
         })?;
         if let Some(count) = self.report.messages_per_topic.get_mut(message.topic) {
             *count += 1;
         }
         tracing::trace!(
-            topic = info.spec.topic,
+            topic = message.topic,
             bytes = message.data.len(),
             "message written"
         );

@@ -236,6 +236,8 @@ fn small_chunk_recording(dir: &Path, count: u32) -> PathBuf {
     let domain = unique_domain("chunks");
     let mut args = test_args(dir);
     args.include = vec!["arm1/state".into()];
+    // Chunks of the raw channel alone (counted below), without the mapped Foxglove channels.
+    args.no_foxglove = true;
     args.chunk_size = 400;
     args.chunk_interval = Duration::from_secs(60);
     let recorder = RunningRecorder::start(&domain, args);

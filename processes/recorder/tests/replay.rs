@@ -122,6 +122,10 @@ fn replayed_messages_are_identical_to_the_recorded_ones() {
     );
     assert!(health.receive().expect("receive").is_none());
     assert!(report.skipped.is_empty(), "{:?}", report.skipped);
+    assert!(
+        report.mapped_views > 0,
+        "the recording's mapped Foxglove channels are left out, not replayed"
+    );
     println!("{report}");
 }
 

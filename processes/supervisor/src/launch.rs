@@ -55,6 +55,7 @@ pub const KNOWN_COMMANDS: &[&str] = &[
     // Operator (issue 15).
     "executive",
     "console",
+    "foxglove",
 ];
 
 /// When a process that exited is started again.

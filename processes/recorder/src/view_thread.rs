@@ -1,0 +1,239 @@
+//! The recording's mapped channels: besides the raw channels (bincode, what replay, the monitor
+//! and the `rec` tools read), the recorder writes the stack's channels mapped to Foxglove's
+//! schemas (protobuf, `harvest-foxglove-mapping`) at the viewing rates, so a recording opens in
+//! Foxglove or Lichtblick as it is.
+//!
+//! The receiving thread offers each encoded message of a mapped channel ([`ViewFeed::offer`]);
+//! what the channel's viewing rate admits is copied to this thread over a bounded queue (bounded
+//! in bytes too: at most two camera frames), decoded, mapped (the camera image downscaled and
+//! JPEG-encoded) and queued for the writer like any message. When this thread falls behind, its
+//! input is dropped and counted: the raw channels never wait for the view. Mapped messages carry
+//! the raw message's log time (monotonic ns), so both share one timeline in the file.
+
+use crate::writer_thread::{Enqueuer, QueuedMessage};
+use harvest_foxglove_mapping::encoded::is_mapped;
+use harvest_foxglove_mapping::topics::{self, MappedSink, Topic, TopicDescription, encode_into};
+use harvest_foxglove_mapping::{
+    EncodedMapper, ImageSettings, Mounting, RateLimit, TimeBase, ViewingRates,
+};
+use harvest_recording::schema::TopicInfo;
+use harvest_recording::segment_writer::ForeignChannel;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::{self, Receiver, SyncSender};
+use std::thread::JoinHandle;
+
+/// Encoded input bytes that may wait for the view thread (two 6.8 MB frames).
+const MAX_PENDING_BYTES: usize = 16 << 20;
+/// Input messages that may wait.
+const MAX_PENDING_MESSAGES: usize = 256;
+
+/// The mapped topics as the recording's foreign channels.
+pub fn foreign_channels() -> Vec<ForeignChannel> {
+    topics::all().iter().map(foreign_channel).collect()
+}
+
+fn foreign_channel(topic: &TopicDescription) -> ForeignChannel {
+    let (schema_name, schema_encoding, schema_data) = match &topic.schema {
+        Some(schema) => (
+            schema.name.clone(),
+            schema.encoding.clone(),
+            schema.data.to_vec(),
+        ),
+        None => (String::new(), String::new(), Vec::new()),
+    };
+    ForeignChannel {
+        topic: topic.name.to_owned(),
+        schema_name,
+        schema_encoding,
+        schema_data,
+        message_encoding: topic.message_encoding.clone(),
+        metadata: BTreeMap::from([
+            ("description".to_owned(), topic.description.to_owned()),
+            ("mapping".to_owned(), "harvest-foxglove-mapping".to_owned()),
+        ]),
+    }
+}
+
+struct ViewInput {
+    topic: &'static str,
+    log_time_ns: u64,
+    data: Vec<u8>,
+}
+
+/// What the view thread did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ViewReport {
+    /// Raw messages offered and admitted by the viewing rates.
+    pub admitted: u64,
+    /// Admitted messages dropped because the view thread was behind.
+    pub dropped_behind: u64,
+    /// Mapped messages queued for the writer.
+    pub written: u64,
+    /// Mapped messages the writer queue had no room for.
+    pub dropped_by_queue: u64,
+    /// Raw messages that did not decode or map.
+    pub failed: u64,
+}
+
+/// The receiving side's handle on the view thread.
+pub struct ViewFeed {
+    inputs: SyncSender<ViewInput>,
+    pending_bytes: Arc<AtomicUsize>,
+    /// Topic index -> the channel's viewing-rate limit (mapped channels only).
+    limits: BTreeMap<usize, RateLimit>,
+    admitted: u64,
+    dropped_behind: u64,
+    thread: JoinHandle<ViewReport>,
+}
+
+impl ViewFeed {
+    /// Starts the view thread for the recording's `topics` (catalogue indices) whose mapped
+    /// channels follow at `topics.len()` in the writer's table.
+    pub fn spawn(
+        topics: &[TopicInfo],
+        mounting: Mounting,
+        enqueuer: Enqueuer,
+    ) -> std::io::Result<Self> {
+        let rates = ViewingRates::VIEWING;
+        let limits = topics
+            .iter()
+            .enumerate()
+            .filter(|(_, topic)| is_mapped(topic.spec.topic))
+            .map(|(index, topic)| (index, RateLimit::new(rates.min_interval(topic.spec.topic))))
+            .collect();
+        let positions = topics::all()
+            .iter()
+            .enumerate()
+            .map(|(position, topic)| (topic.name, topics.len() + position))
+            .collect();
+        let (inputs, receiver) = mpsc::sync_channel(MAX_PENDING_MESSAGES);
+        let pending_bytes = Arc::new(AtomicUsize::new(0));
+        let thread_pending = pending_bytes.clone();
+        let sink = RecordingSink {
+            enqueuer,
+            positions,
+            sequences: BTreeMap::new(),
+            report: ViewReport::default(),
+            buffer: Vec::new(),
+        };
+        let thread = std::thread::Builder::new()
+            .name("recorder-view".to_owned())
+            .spawn(move || run(receiver, thread_pending, mounting, sink))?;
+        Ok(Self {
+            inputs,
+            pending_bytes,
+            limits,
+            admitted: 0,
+            dropped_behind: 0,
+            thread,
+        })
+    }
+
+    /// Offers one encoded message of the catalogue topic `index`: copied to the view thread when
+    /// the topic is mapped, its viewing rate admits it and the thread keeps up.
+    pub fn offer(&mut self, index: usize, topic: &'static str, log_time_ns: u64, data: &[u8]) {
+        let Some(limit) = self.limits.get_mut(&index) else {
+            return;
+        };
+        if !limit.admit(log_time_ns) {
+            return;
+        }
+        self.admitted += 1;
+        if self.pending_bytes.load(Ordering::Relaxed) + data.len() > MAX_PENDING_BYTES {
+            self.dropped_behind += 1;
+            return;
+        }
+        self.pending_bytes.fetch_add(data.len(), Ordering::Relaxed);
+        let input = ViewInput {
+            topic,
+            log_time_ns,
+            data: data.to_vec(),
+        };
+        if let Err(error) = self.inputs.try_send(input) {
+            let input = match error {
+                mpsc::TrySendError::Full(input) | mpsc::TrySendError::Disconnected(input) => input,
+            };
+            self.pending_bytes
+                .fetch_sub(input.data.len(), Ordering::Relaxed);
+            self.dropped_behind += 1;
+        }
+    }
+
+    /// Maps what is still queued and stops the thread.
+    pub fn finish(self) -> ViewReport {
+        drop(self.inputs);
+        let mut report = self.thread.join().unwrap_or_else(|_| {
+            tracing::error!("the recorder's view thread panicked; mapped channels are incomplete");
+            ViewReport::default()
+        });
+        report.admitted = self.admitted;
+        report.dropped_behind = self.dropped_behind;
+        report
+    }
+}
+
+/// Queues mapped messages for the writer.
+struct RecordingSink {
+    enqueuer: Enqueuer,
+    /// Mapped topic name -> index in the writer's table.
+    positions: BTreeMap<&'static str, usize>,
+    sequences: BTreeMap<usize, u32>,
+    report: ViewReport,
+    buffer: Vec<u8>,
+}
+
+impl MappedSink for RecordingSink {
+    type Error = std::convert::Infallible;
+
+    fn write<M: foxglove::Encode>(
+        &mut self,
+        topic: Topic<M>,
+        log_time_ns: u64,
+        message: &M,
+    ) -> Result<(), Self::Error> {
+        let Some(&index) = self.positions.get(topic.name) else {
+            return Ok(());
+        };
+        if let Err(error) = encode_into(message, &mut self.buffer) {
+            tracing::warn!(topic = topic.name, %error, "cannot encode a mapped message");
+            return Ok(());
+        }
+        let sequence = self.sequences.entry(index).or_insert(0);
+        *sequence = sequence.wrapping_add(1);
+        let queued = QueuedMessage {
+            topic: index,
+            sequence: *sequence,
+            log_time_ns,
+            publish_time_ns: log_time_ns,
+            data: std::mem::take(&mut self.buffer),
+        };
+        if self.enqueuer.try_enqueue(queued) {
+            self.report.written += 1;
+        } else {
+            self.report.dropped_by_queue += 1;
+        }
+        Ok(())
+    }
+}
+
+fn run(
+    inputs: Receiver<ViewInput>,
+    pending_bytes: Arc<AtomicUsize>,
+    mounting: Mounting,
+    mut sink: RecordingSink,
+) -> ViewReport {
+    let mut mapper = EncodedMapper::new(TimeBase::MONOTONIC, ImageSettings::VIEWING, mounting);
+    let mut warned = false;
+    while let Ok(input) = inputs.recv() {
+        pending_bytes.fetch_sub(input.data.len(), Ordering::Relaxed);
+        if let Err(error) = mapper.map(input.topic, &input.data, input.log_time_ns, &mut sink) {
+            sink.report.failed += 1;
+            if !std::mem::replace(&mut warned, true) {
+                tracing::warn!(%error, "cannot map a recorded message for the Foxglove view");
+            }
+        }
+    }
+    sink.report
+}
