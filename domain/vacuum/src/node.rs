@@ -29,8 +29,14 @@
 //! 3. attempts are tracked from the arms' states;
 //! 4. the policy's force-closes are applied (failure, release, out of workflow);
 //! 5. the arms' standing valve requests are answered: `Close` always, `OpenForAttach` once per
-//!    request (a request the policy closed again is not re-opened), oldest waiter first;
-//! 6. the policy is asked again for force-closes;
+//!    request (a request the policy closed again is not re-opened), oldest waiter first; whatever
+//!    the policy and whatever the arms report, a valve never opens beside the other arm's open
+//!    valve unless this node's own inference reads that cup sealed (the safety monitor's
+//!    opened-beside-unsealed rule, kept here as an interlock: arm states are outside data);
+//! 6. the policy is asked again for force-closes; then the interlock's second rule: when both
+//!    valves are open with neither cup sealed (the safety monitor's both-open-unsealed rule), the
+//!    failed one is closed (attach failed, apple dropped), or the later opened when none failed,
+//!    whatever the policy (the baseline never closes a failure on its own);
 //! 7. at most one target is dispatched.
 //!
 //! Emergency stop: every valve is commanded closed at once (`close_all`), open requests are
@@ -232,6 +238,8 @@ pub enum ValveCloseCause {
     Policy(CloseReason),
     /// Emergency stop.
     EmergencyStop,
+    /// The interlock: both valves were open with neither cup sealed (module docs, step 6).
+    Interlock,
 }
 
 /// Something the node did or saw this tick.
@@ -389,6 +397,8 @@ struct Withdrawal {
 struct ArmTrack {
     /// Commanded: source valve open (valve 1 or 3 open, 2 or 4 closed).
     valve_open: bool,
+    /// When the valve was last opened, ns.
+    opened_at_ns: u64,
     /// Dispatched, not yet taken up.
     dispatched: Option<Dispatch>,
     /// Taken up, running.
@@ -568,6 +578,7 @@ impl VacuumNode {
             self.supervise(input);
             self.answer_requests(input, now_ns);
             self.supervise(input);
+            self.interlock();
             self.dispatch(input, now_ns);
         }
         self.output.valve_commands = [
@@ -965,6 +976,40 @@ impl VacuumNode {
         }
     }
 
+    /// Step 6, the interlock's second rule (module docs): both valves open, neither cup sealed.
+    fn interlock(&mut self) {
+        let unsealed_open = |node: &Self, arm: ArmId| {
+            node.arms[arm.index()].valve_open
+                && node.inference.state(arm) != AttachmentState::Sealed
+        };
+        if !ArmId::ALL.iter().all(|&arm| unsealed_open(self, arm)) {
+            return;
+        }
+        let failed = ArmId::ALL.map(|arm| {
+            matches!(
+                self.inference.state(arm),
+                AttachmentState::AttachFailed | AttachmentState::Dropped
+            )
+        });
+        let close = if failed.iter().any(|&f| f) {
+            failed
+        } else if self.arms[1].opened_at_ns >= self.arms[0].opened_at_ns {
+            [false, true]
+        } else {
+            [true, false]
+        };
+        for arm in ArmId::ALL {
+            if close[arm.index()] {
+                self.arms[arm.index()].valve_open = false;
+                warn!(%arm, "interlock: both valves open with neither cup sealed; valve closed");
+                self.output.events.push(VacuumNodeEvent::ValveClosed {
+                    arm,
+                    cause: ValveCloseCause::Interlock,
+                });
+            }
+        }
+    }
+
     fn pair(&self, input: &VacuumNodeInput<'_>) -> PairStatus {
         PairStatus(ArmId::ALL.map(|arm| {
             let i = arm.index();
@@ -1044,8 +1089,15 @@ impl VacuumNode {
         if track.valve_open || track.granted_seq == Some(request.request_seq) {
             return;
         }
+        let other = arm.other();
+        // The interlock (module docs): only this node's valves and pressures, no arm report.
+        let beside_unsealed = self.arms[other.index()].valve_open
+            && self.inference.state(other) != AttachmentState::Sealed;
         let (code, reason) = if !self.config.arms_enabled[i] {
             (REFUSED_ARM_DISABLED, None)
+        } else if beside_unsealed {
+            let reason = RefuseReason::OtherArmAttempting;
+            (refuse_reason_code(&reason), Some(reason))
         } else {
             match self
                 .policy
@@ -1054,6 +1106,7 @@ impl VacuumNode {
                 Decision::Grant => {
                     let track = &mut self.arms[i];
                     track.valve_open = true;
+                    track.opened_at_ns = input.now_ns;
                     track.opened_in_cycle = true;
                     track.granted_seq = Some(request.request_seq);
                     track.refused = None;
