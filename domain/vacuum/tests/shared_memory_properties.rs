@@ -122,9 +122,11 @@ enum Wire {
     ValveRequest(usize),
     EmergencyStop,
     BoardReadings,
+    /// An arm's encoder feedback (the servo driver's hardware channel).
+    Encoders(usize),
 }
 
-const WIRES: [Wire; 12] = [
+const WIRES: [Wire; 14] = [
     Wire::Detections,
     Wire::Target(0),
     Wire::Target(1),
@@ -137,7 +139,40 @@ const WIRES: [Wire; 12] = [
     Wire::ValveRequest(1),
     Wire::EmergencyStop,
     Wire::BoardReadings,
+    Wire::Encoders(0),
+    Wire::Encoders(1),
 ];
+
+/// Encoder feedback as the wire delivers it: damage lands on the joint positions and rates.
+fn encoders(sample: EncoderSample, damage: Option<&Damage>) -> Option<EncoderSample> {
+    let mut sample = sample;
+    let mut values: Vec<f64> = sample
+        .position
+        .iter()
+        .chain(&sample.velocity)
+        .copied()
+        .collect();
+    match damage {
+        None => {}
+        Some(Damage::Lost) => return None,
+        Some(Damage::Byte(at, value)) => {
+            let at = at.index(values.len());
+            values[at] = f64::from(*value);
+        }
+        Some(Damage::Slot(at, value)) => {
+            let at = at.index(values.len());
+            values[at] = f64::from_bits(*value);
+        }
+        Some(Damage::Fill(seed)) => {
+            for (v, bits) in values.iter_mut().zip(wild_stream(*seed)) {
+                *v = f64::from_bits(bits);
+            }
+        }
+    }
+    sample.position.copy_from_slice(&values[..4]);
+    sample.velocity.copy_from_slice(&values[4..]);
+    Some(sample)
+}
 
 /// `damage` applied to `wire` from tick `start` for `ticks` ticks.
 #[derive(Debug, Clone)]
@@ -549,11 +584,14 @@ impl Stack {
             let plant = self.plants[arm];
             let input = ArmNodeInput {
                 now_ns,
-                feedback: Some(EncoderSample {
-                    capture_ns: now_ns,
-                    position: plant.q,
-                    velocity: plant.v,
-                }),
+                feedback: encoders(
+                    EncoderSample {
+                        capture_ns: now_ns,
+                        position: plant.q,
+                        velocity: plant.v,
+                    },
+                    damage(Wire::Encoders(arm)),
+                ),
                 target,
                 vacuum: vacuum_state,
                 grant,
