@@ -15,9 +15,9 @@ use harvest_ipc::payloads::{
 };
 use harvest_perception::calibration::Calibration;
 use harvest_perception::camera_setup::CameraSetup;
+use harvest_perception::config_file::parse_config;
 use harvest_perception::depth_source::FusedDepth;
 use harvest_perception::node::PerceptionNode;
-use harvest_perception::config_file::parse_config;
 use harvest_perception::pipeline::PerceptionConfig;
 use harvest_perception::synthetic::SyntheticScene;
 use proptest::prelude::*;

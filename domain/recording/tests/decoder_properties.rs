@@ -274,9 +274,12 @@ fn records_of_uncompressed_chunk(bytes: &[u8], offset: usize) -> Option<(usize, 
     let compression_len =
         u32::from_le_bytes(bytes.get(crc_at + 4..crc_at + 8)?.try_into().ok()?) as usize;
     let records_len_at = crc_at + 8 + compression_len;
-    let records_len =
-        u64::from_le_bytes(bytes.get(records_len_at..records_len_at + 8)?.try_into().ok()?)
-            as usize;
+    let records_len = u64::from_le_bytes(
+        bytes
+            .get(records_len_at..records_len_at + 8)?
+            .try_into()
+            .ok()?,
+    ) as usize;
     let start = records_len_at + 8;
     (start + records_len <= bytes.len()).then_some((crc_at, start, start + records_len))
 }

@@ -5,7 +5,9 @@
 //! Never a panic.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
-use harvest_ipc::catalogue::{ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, PERCEPTION_APPLES, VACUUM_STATE};
+use harvest_ipc::catalogue::{
+    ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, PERCEPTION_APPLES, VACUUM_STATE,
+};
 use harvest_ipc::payloads::{AppleDetections, ArmCommand, ArmState, EmergencyStop, VacuumState};
 use harvest_ipc::{Domain, Payload};
 use harvest_rec::replay::{ReplayArgs, run_replay_with};
