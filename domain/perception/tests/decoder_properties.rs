@@ -1,9 +1,12 @@
-//! Property tests of what perception reads from shared memory (issue 18, item 3): camera frames
+//! Property tests of what perception reads from outside (issue 18, item 3). From shared memory:
+//! camera frames
 //! whose metadata holds any bit pattern (NaN or zero focal lengths, sizes that do not match the
 //! buffers, rotations that are not rotations), LiDAR clouds of any content and point count, and
 //! laser scan results of any content, through the transport-free `PerceptionNode` and the
-//! LiDAR depth fusion as the perception process wires them. Nothing may panic; a frame is
-//! processed or rejected with an error, and every published detection is finite.
+//! LiDAR depth fusion as the perception process wires them. From files: the configuration and
+//! the calibration with values replaced by anything, lines dropped or doubled and bytes
+//! changed, refused with an error naming the file or used on a frame. Nothing may panic; a
+//! frame is processed or rejected with an error, and every published detection is finite.
 //!
 //! Payloads are filled through their raw bytes (`Payload` makes every bit pattern a valid
 //! value), so the properties hold whatever the field types of the payloads become.
@@ -15,7 +18,7 @@ use harvest_ipc::payloads::{
 };
 use harvest_perception::calibration::Calibration;
 use harvest_perception::camera_setup::CameraSetup;
-use harvest_perception::config_file::parse_config;
+use harvest_perception::config_file::{DEFAULT_CONFIG, parse_config};
 use harvest_perception::depth_source::FusedDepth;
 use harvest_perception::node::PerceptionNode;
 use harvest_perception::pipeline::PerceptionConfig;
@@ -131,6 +134,100 @@ fn frame_copy() -> Box<RgbdFrame> {
 fn frame_head(frame: &mut RgbdFrame) -> &mut [u8] {
     let end = std::mem::offset_of!(RgbdFrame, meta) + std::mem::size_of::<RgbdFrameMeta>();
     &mut bytes_of(frame)[..end]
+}
+
+/// Values that break settings: NaN, infinities, signs, zeros, extremes, wrong types.
+const WILD_VALUES: &[&str] = &[
+    "nan",
+    "inf",
+    "-inf",
+    "-1",
+    "0",
+    "-0.0",
+    "1e308",
+    "5e-324",
+    "18446744073709551615",
+    "9223372036854775807",
+    "-9223372036854775808",
+    "\"\"",
+    "\"x\"",
+    "true",
+    "[]",
+    "[nan, inf, -1]",
+    "{}",
+    "0.000001",
+    "100000",
+];
+
+/// One edit of a TOML text.
+#[derive(Debug, Clone)]
+enum TomlEdit {
+    /// The value of the n-th `key = value` line replaced.
+    Value(prop::sample::Index, &'static str),
+    /// The n-th line removed.
+    DropLine(prop::sample::Index),
+    /// The n-th line written twice.
+    DuplicateLine(prop::sample::Index),
+    /// One byte replaced (syntax errors, cut strings, control characters).
+    Byte(prop::sample::Index, u8),
+}
+
+fn toml_edit() -> impl Strategy<Value = TomlEdit> {
+    prop_oneof![
+        6 => (any::<prop::sample::Index>(), prop::sample::select(WILD_VALUES))
+            .prop_map(|(i, v)| TomlEdit::Value(i, v)),
+        1 => any::<prop::sample::Index>().prop_map(TomlEdit::DropLine),
+        1 => any::<prop::sample::Index>().prop_map(TomlEdit::DuplicateLine),
+        1 => (any::<prop::sample::Index>(), any::<u8>()).prop_map(|(i, b)| TomlEdit::Byte(i, b)),
+    ]
+}
+
+/// `text` with `edits` applied in order.
+fn mutate_toml(text: &str, edits: &[TomlEdit]) -> String {
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    for edit in edits {
+        if lines.is_empty() {
+            break;
+        }
+        match edit {
+            TomlEdit::Value(index, value) => {
+                let assignments: Vec<usize> = (0..lines.len())
+                    .filter(|&i| !lines[i].trim_start().starts_with('#') && lines[i].contains('='))
+                    .collect();
+                if assignments.is_empty() {
+                    continue;
+                }
+                let line = &mut lines[assignments[index.index(assignments.len())]];
+                if let Some(at) = line.find('=') {
+                    line.truncate(at + 1);
+                    line.push(' ');
+                    line.push_str(value);
+                }
+            }
+            TomlEdit::DropLine(index) => {
+                let at = index.index(lines.len());
+                lines.remove(at);
+            }
+            TomlEdit::DuplicateLine(index) => {
+                let at = index.index(lines.len());
+                let line = lines[at].clone();
+                lines.insert(at, line);
+            }
+            TomlEdit::Byte(index, byte) => {
+                let mut bytes = lines.join("\n").into_bytes();
+                if bytes.is_empty() {
+                    continue;
+                }
+                let at = index.index(bytes.len());
+                bytes[at] = *byte;
+                lines = String::from_utf8_lossy(&bytes)
+                    .lines()
+                    .map(str::to_owned)
+                    .collect();
+            }
+        }
+    }
+    lines.join("\n")
 }
 
 /// Every detection published is finite.
@@ -275,5 +372,35 @@ proptest! {
             }
             run_frame(&mut node, &mut fused, &frame_copy(), None, Some(&result))?;
         }
+    }
+
+    /// The documented configuration and the simulated camera's calibration, mutated: refused
+    /// with an error naming the file, or a node that processes frames.
+    #[test]
+    fn mutated_config_and_calibration_are_refused_by_name_or_used(
+        config_edits in prop::collection::vec(toml_edit(), 0..4),
+        calibration_edits in prop::collection::vec(toml_edit(), 0..3),
+    ) {
+        let config = match parse_config(&mutate_toml(DEFAULT_CONFIG, &config_edits), "mutated.toml") {
+            Ok(config) => config,
+            Err(error) => {
+                prop_assert!(error.to_string().contains("mutated.toml"), "{error}");
+                return Ok(());
+            }
+        };
+        let text = mutate_toml(
+            include_str!("../../../sim/camera_calibration.toml"),
+            &calibration_edits,
+        );
+        let calibration = match Calibration::parse(&text, "calibration.toml") {
+            Ok(calibration) => calibration,
+            Err(error) => {
+                prop_assert!(error.to_string().contains("calibration.toml"), "{error}");
+                return Ok(());
+            }
+        };
+        let mut node = PerceptionNode::new(config, calibration);
+        let mut fused = FusedDepth::new(harvest_lidar::CAD_CAMERA_FROM_LIDAR);
+        run_frame(&mut node, &mut fused, &frame_copy(), None, None)?;
     }
 }
