@@ -154,7 +154,7 @@ fuzz_target!(|data: &[u8]| {
                     let lo = params[arm].position_limits.min.to_array();
                     let hi = params[arm].position_limits.max.to_array();
                     for j in 0..4 {
-                        assert!(position[j].is_finite() && lo[j] <= position[j] && position[j] <= hi[j]);
+                        assert!(position[j].is_finite() && (lo[j]..=hi[j]).contains(&position[j]));
                         assert!(velocity[j].is_finite());
                     }
                 }

@@ -616,7 +616,7 @@ impl Stack {
                     let rate = params.rate_limits.to_array();
                     for j in 0..4 {
                         prop_assert!(
-                            position[j].is_finite() && lo[j] <= position[j] && position[j] <= hi[j],
+                            position[j].is_finite() && (lo[j]..=hi[j]).contains(&position[j]),
                             "tick {tick}: arm {} joint {j} set-point {} outside [{}, {}]",
                             arm + 1,
                             position[j],

@@ -182,7 +182,7 @@ fn drive(config: ArmNodeConfig) -> Result<(), TestCaseError> {
             ServoOrder::Track { position, velocity } => {
                 for j in 0..4 {
                     prop_assert!(
-                        position[j].is_finite() && lo[j] <= position[j] && position[j] <= hi[j],
+                        position[j].is_finite() && (lo[j]..=hi[j]).contains(&position[j]),
                         "tick {tick}: joint {j} set-point {}",
                         position[j]
                     );
