@@ -145,6 +145,9 @@ pub fn vacuum_event(
                 ValveCloseCause::ArmRequest => "on the arm's request".to_owned(),
                 ValveCloseCause::Policy(reason) => format!("policy: {reason}"),
                 ValveCloseCause::EmergencyStop => "emergency stop".to_owned(),
+                ValveCloseCause::Interlock => {
+                    "interlock: both valves open, neither cup sealed".to_owned()
+                }
             });
             out
         }
