@@ -1,6 +1,8 @@
-//! The supervisor itself killed with SIGKILL (power cut of the process, OOM killer, `kill -9`):
-//! its children stop on their own (parent-death signal), its iceoryx2 node stays behind, and
-//! the next `harvest up` in the domain removes those stale resources, runs, and leaves nothing.
+//! The supervisor itself killed with SIGKILL (`kill -9`, the OOM killer): its children stop on
+//! their own (parent-death signal) and the next `harvest up` in the domain runs. When the whole
+//! stack is killed at once (systemd's final SIGKILL to the service, an OOM kill of the group),
+//! every node stays behind: the next start removes those stale resources, runs, and leaves
+//! nothing.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
@@ -11,6 +13,7 @@ use harvest_ipc::{Context, Domain};
 use std::collections::BTreeSet;
 use std::io::Read;
 use std::path::Path;
+use std::process::Child;
 use std::time::{Duration, Instant};
 
 fn launch(recordings: &Path) -> String {
@@ -64,6 +67,71 @@ fn is_running(pid: i32) -> bool {
         .is_some_and(|state| state != 'Z' && state != 'X')
 }
 
+/// Starts `harvest up --launch <launch>` and waits until every process sends heartbeats;
+/// returns the supervisor and its children's pids.
+fn start_stack(domain: &str, launch: &str) -> (Child, Vec<i32>) {
+    let mut supervisor = spawn_harvest(domain, &["up", "--launch", launch]);
+    // Drain the output so a full pipe never stalls the stack.
+    for pipe in [
+        supervisor
+            .stderr
+            .take()
+            .map(|pipe| Box::new(pipe) as Box<dyn Read + Send>),
+        supervisor
+            .stdout
+            .take()
+            .map(|pipe| Box::new(pipe) as Box<dyn Read + Send>),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        std::thread::spawn(move || {
+            let mut pipe = pipe;
+            let mut sink = Vec::new();
+            let _ = pipe.read_to_end(&mut sink);
+        });
+    }
+    let context =
+        Context::new(&Domain::new(domain).expect("domain"), "test-health").expect("context");
+    let health = context
+        .subscriber_with_buffer(PROCESS_HEALTH, 256)
+        .expect("health subscriber");
+    let expected: BTreeSet<&str> = ["sim", "arm1", "recorder"].into();
+    let mut seen = BTreeSet::new();
+    let deadline = Instant::now() + Duration::from_secs(90);
+    while seen != expected {
+        while let Ok(Some(beat)) = health.receive() {
+            if let Some(name) = expected.get(beat.process_name.as_str()) {
+                seen.insert(*name);
+            }
+        }
+        if Instant::now() > deadline {
+            let _ = supervisor.kill();
+            panic!("watchdog: heartbeats only from {seen:?} within 90 s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let stack = children(supervisor.id());
+    assert_eq!(stack.len(), 3, "{stack:?}");
+    (supervisor, stack)
+}
+
+fn sigkill(pid: i32) {
+    let _ = nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(pid),
+        nix::sys::signal::Signal::SIGKILL,
+    );
+}
+
+/// Waits (under a watchdog) until none of `pids` runs.
+fn wait_gone(pids: &[i32], what: &str) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while pids.iter().any(|pid| is_running(*pid)) {
+        assert!(Instant::now() < deadline, "watchdog: {what} {pids:?}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
 #[test]
 fn after_the_supervisor_is_killed_the_next_start_cleans_up_and_runs() {
     let _stack = one_stack_at_a_time();
@@ -72,62 +140,28 @@ fn after_the_supervisor_is_killed_the_next_start_cleans_up_and_runs() {
     let launch_file = work.write("launch.toml", &launch(&work.0.join("recordings")));
     let launch_path = launch_file.to_str().expect("utf-8 path");
 
-    // First run: wait until every process sends heartbeats, then SIGKILL the supervisor.
-    let mut first = spawn_harvest(&domain, &["up", "--launch", launch_path]);
-    let mut first_stderr = first.stderr.take().expect("stderr piped");
-    let stderr_reader = std::thread::spawn(move || {
-        let mut text = String::new();
-        let _ = first_stderr.read_to_string(&mut text);
-        text
-    });
-    let stack_children = {
-        let context =
-            Context::new(&Domain::new(&domain).expect("domain"), "test-health").expect("context");
-        let health = context
-            .subscriber_with_buffer(PROCESS_HEALTH, 256)
-            .expect("health subscriber");
-        let expected: BTreeSet<&str> = ["sim", "arm1", "recorder"].into();
-        let mut seen = BTreeSet::new();
-        let deadline = Instant::now() + Duration::from_secs(90);
-        while seen != expected {
-            while let Ok(Some(beat)) = health.receive() {
-                if let Some(name) = expected.get(beat.process_name.as_str()) {
-                    seen.insert(*name);
-                }
-            }
-            assert!(
-                Instant::now() < deadline,
-                "watchdog: heartbeats only from {seen:?} within 90 s"
-            );
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        children(first.id())
-    };
-    assert_eq!(stack_children.len(), 3, "{stack_children:?}");
-    nix::sys::signal::kill(
-        nix::unistd::Pid::from_raw(first.id() as i32),
-        nix::sys::signal::Signal::SIGKILL,
-    )
-    .expect("SIGKILL the supervisor");
-    let _ = first.wait().expect("reap the killed supervisor");
-    let first_stderr = stderr_reader.join().unwrap_or_default();
-    // The children got their parent-death signal and stop by themselves.
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while stack_children.iter().any(|pid| is_running(*pid)) {
-        assert!(
-            Instant::now() < deadline,
-            "watchdog: children {stack_children:?} outlived the killed supervisor:\n{first_stderr}"
-        );
-        std::thread::sleep(Duration::from_millis(50));
+    // The supervisor alone is killed: its children get their parent-death signal and stop
+    // (cleaning up after the dead supervisor's node as their own nodes go).
+    let (mut supervisor, stack) = start_stack(&domain, launch_path);
+    sigkill(supervisor.id() as i32);
+    let _ = supervisor.wait().expect("reap the killed supervisor");
+    wait_gone(&stack, "children outlived the killed supervisor");
+
+    // The next start runs; then the whole stack is killed at once: every node stays behind.
+    let (mut supervisor, stack) = start_stack(&domain, launch_path);
+    sigkill(supervisor.id() as i32);
+    for pid in &stack {
+        sigkill(*pid);
     }
-    // What the killed supervisor left: its node and ports.
+    let _ = supervisor.wait().expect("reap the killed supervisor");
+    wait_gone(&stack, "SIGKILLed children still running");
     let stale = list_leftover_files(&domain);
     assert!(
         !stale.is_empty(),
-        "the killed supervisor left nothing to clean up (test premise)"
+        "the killed stack left nothing to clean up (test premise)"
     );
 
-    // Second run in the same domain: cleans up, runs, stops cleanly.
+    // The next start removes the stale resources, runs, and stops cleanly.
     let (status, _, stderr) = run_harvest(
         &domain,
         &["up", "--launch", launch_path, "--duration", "8s"],
