@@ -3,6 +3,7 @@
 //! segments of an output directory ([`output_dir`]). The format is `harvest-recording`; the tools
 //! that read it (`harvest rec`, `harvest replay`) are `harvest-rec`.
 
+pub mod disk_space;
 pub mod output_dir;
 pub mod recorder;
 pub mod tap;

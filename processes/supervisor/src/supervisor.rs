@@ -17,6 +17,7 @@ use crate::launch::{Launch, ProcessSpec};
 use crate::restart_tracker::{RestartDecision, RestartTracker};
 use crate::status::{self, ProcessPhase, ProcessStatus};
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH};
+use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, RunEnd, Waiter};
 use harvest_log::{HarvestLog, HarvestLogSummary};
 use nix::sys::signal::Signal;
@@ -215,6 +216,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                 main_channel_rate_hz: 0.0,
                 detail: String::new(),
                 detail_value: 0,
+                run_state: None,
             },
             count_at_last_status: 0,
         })
@@ -279,6 +281,15 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                     process.status.main_channel_count = beat.main_channel_count;
                     process.status.detail = beat.detail.as_str().to_owned();
                     process.status.detail_value = beat.detail_value;
+                    let run_state = ProcessRunState::from_code(beat.run_state);
+                    if run_state != process.status.run_state {
+                        if run_state == Some(ProcessRunState::Degraded) {
+                            tracing::warn!(process = %process.spec.name, detail = %process.status.detail, value = beat.detail_value, "process reports itself degraded");
+                        } else if process.status.run_state == Some(ProcessRunState::Degraded) {
+                            tracing::info!(process = %process.spec.name, "process no longer degraded");
+                        }
+                    }
+                    process.status.run_state = run_state;
                 }
             });
             if let Err(error) = drained {
@@ -434,6 +445,7 @@ fn start(
             process.child = Some(child);
             process.started_at = now;
             process.last_heartbeat = None;
+            process.status.run_state = None;
         }
         Err(error) => {
             let reason = format!("cannot start {:?}: {error}", options.executable);
