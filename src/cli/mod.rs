@@ -374,6 +374,7 @@ fn up(
     if let Some(harvest) = summary.render_harvest() {
         print!("{harvest}");
     }
+    print!("{}", summary.render_safety());
     eprint!("{}", summary.render());
     Ok(if summary.failure.is_some() {
         ExitCode::FAILURE
