@@ -6,8 +6,9 @@
 //! finish ahead of what it writes). Every file reads back with the independent Python `mcap`
 //! reader and with `harvest rec info`.
 //!
-//! Mounting needs root (CI runs as root). Without root the test runs itself again inside a user
-//! and mount namespace (`unshare --user --map-root-user --mount`), where mounting a tmpfs is
+//! Mounting needs root with CAP_SYS_ADMIN (CI runs as root). When a probe mount fails (not root,
+//! or a container's root without the capability) the test runs itself again inside a user and
+//! mount namespace (`unshare --user --map-root-user --mount`), where mounting a tmpfs is
 //! allowed; either way the mount is removed at the end.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
@@ -188,7 +189,7 @@ print(json.dumps(out))
 
 #[test]
 fn a_full_recording_disk_finishes_the_file_and_the_stack_goes_on() {
-    if !is_root() && std::env::var_os(IN_NAMESPACE_ENV).is_none() {
+    if std::env::var_os(IN_NAMESPACE_ENV).is_none() && !can_mount_tmpfs() {
         run_in_user_and_mount_namespace();
         return;
     }
@@ -415,9 +416,10 @@ fn fill_up(path: &Path) {
     let _ = file.flush();
 }
 
-/// Whether this process runs with effective user id 0 (from /proc/self/status).
-fn is_root() -> bool {
-    std::fs::read_to_string("/proc/self/status")
+/// Whether this process may mount a tmpfs here: root (effective user id 0, from
+/// /proc/self/status) and a probe mount that succeeds.
+fn can_mount_tmpfs() -> bool {
+    let root = std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|status| {
             let uids = status
@@ -428,7 +430,21 @@ fn is_root() -> bool {
                 .nth(2)
                 .map(|effective| effective == "0")
         })
-        .unwrap_or(false)
+        .unwrap_or(false);
+    if !root {
+        return false;
+    }
+    let probe = TempDir::new("mount-probe");
+    let mounted = Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=1m", "tmpfs"])
+        .arg(&probe.0)
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|status| status.success());
+    if mounted {
+        let _ = Command::new("umount").arg(&probe.0).status();
+    }
+    mounted
 }
 
 /// Runs this test again inside a new user and mount namespace, where an unprivileged user may
