@@ -114,7 +114,7 @@ struct Beats {
 impl Beats {
     fn take(&mut self, subscriber: &harvest_ipc::Subscriber<harvest_ipc::payloads::ProcessHealth>) {
         while let Ok(Some(beat)) = subscriber.receive() {
-            if let Some(state) = ProcessRunState::from_code(beat.run_state) {
+            if let Ok(state) = beat.run_state.get() {
                 self.latest.insert(
                     beat.process_name.as_str().to_owned(),
                     (
