@@ -12,7 +12,8 @@
 //! same domain) fails at port creation, naming the channel, instead of becoming a second voice
 //! on the servos or valves. Channels with several writers say so with
 //! [`Qos::with_max_publishers`] and name their writers: `vacuum/valve_request` (the two arms),
-//! `harvest/events` (arms and vacuum supervisor), `system/health` (every process). A crashed
+//! `harvest/events` (arms and vacuum supervisor), `system/health` (every process),
+//! `operator/command` (`harvest ctl`, the console). A crashed
 //! writer's port is removed by the supervisor's stale-resource cleanup before its restart
 //! ([`crate::cleanup::remove_dead_nodes`]), so restarts still find the slot free. Replaying a
 //! recording into a domain where the stack runs is refused per channel for the channels the
@@ -241,12 +242,23 @@ pub const VACUUM_STATE: Channel<VacuumState> = Channel::new(
     Qos::STATE,
     "valves, 3 pressures and inferred attachment per arm",
 );
-/// One writer, the owner of the stop: the executive (`harvest executive`). Anyone else who must
-/// stop the robot asks it (an `operator/command` e-stop); release only by an explicit command.
+/// One writer, the owner of the stop: the executive (`harvest executive`). Anyone else who
+/// must stop the robot asks the owner (operators on `operator/command`, the safety monitor on
+/// `safety/violation`); nobody else can engage or release it.
 pub const EMERGENCY_STOP: Channel<EmergencyStop> = Channel::new(
     "safety/emergency_stop",
     Qos::STATE,
     "engaged: all arms stop, all valves close (writer: the executive)",
+);
+/// One writer, the independent safety monitor (`harvest monitor --on-violation report|stop`).
+/// Readers: the executive, which engages the protective stop for a violation whose action is
+/// `stop`; the recorder; `harvest up`'s summary. No history: a restarted executive must not
+/// engage the stop again for a violation the operator has already released.
+pub const SAFETY_VIOLATION: Channel<SafetyViolation> = Channel::new(
+    "safety/violation",
+    Qos::SMALL,
+    "safety rules the independent monitor found broken on the live channels, with the action \
+it asks for (report, or the protective stop)",
 );
 pub const HARVEST_EVENTS: Channel<HarvestEvent> = Channel::new(
     "harvest/events",
@@ -368,7 +380,8 @@ pub const HW_LIDAR_POINTS: Channel<PointCloud> = Channel::in_layer(
 
 // --- Operator channels (issue 15): commands, acknowledgements, the mode, manual arm orders.
 
-/// Operator commands to the executive (`harvest ctl`, the console, later the safety monitor).
+/// Operator commands to the executive (`harvest ctl`, the console; the safety monitor asks on
+/// `safety/violation` instead).
 pub const OPERATOR_COMMAND: Channel<OperatorCommand> = Channel::new(
     "operator/command",
     Qos {
@@ -432,6 +445,7 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(VALVE_GRANT);
     visitor.visit(VACUUM_STATE);
     visitor.visit(EMERGENCY_STOP);
+    visitor.visit(SAFETY_VIOLATION);
     visitor.visit(HARVEST_EVENTS);
     visitor.visit(PROCESS_HEALTH);
     visitor.visit(HW_CAMERA_RGBD);
@@ -504,8 +518,8 @@ mod tests {
                 ("vacuum/valve_request", 2),
                 ("harvest/events", 6),
                 ("system/health", 24),
-                // Operator clients (console, ctl sessions, the monitor's stop request): the
-                // executive decides which one controls.
+                // Operator clients (console, ctl sessions): the executive decides which one
+                // controls.
                 ("operator/command", 8)
             ]
         );

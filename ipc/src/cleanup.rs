@@ -54,12 +54,63 @@ pub fn remove_dead_nodes(domain: &Domain) -> Result<CleanupReport, CleanupError>
     Ok(report)
 }
 
+/// Whether [`remove_unused_registry`] removed the domain's node registry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RegistryRemoval {
+    /// Removed: no node of the domain was left.
+    Removed,
+    /// There was none (already removed, or the domain never ran).
+    Absent,
+    /// Kept: this many nodes of the domain exist (alive, dead with resources left, or another
+    /// user's).
+    InUse { nodes: usize },
+}
+
+/// Removes the domain's node registry, iceoryx2's global management segment
+/// (`/dev/shm/<prefix>…node.<version>.global_mgmt`, a node counter every node of the prefix
+/// opens when it is created), when no node of the domain is left, alive or dead (remove dead
+/// nodes first: [`remove_dead_nodes`]). iceoryx2 keeps that segment for good, so each domain would otherwise leave one
+/// file in /dev/shm; the next node of the domain creates it again.
+///
+/// iceoryx2 requires that no process uses the domain while it is removed. Nodes are checked
+/// just before; a process creating its first node in the same instant would keep the
+/// segment it opened and the next one would create a new counter, which cannot give two nodes
+/// one id (ids also hold the process id and the creation time).
+pub fn remove_unused_registry(domain: &Domain) -> Result<RegistryRemoval, CleanupError> {
+    let config = domain.iceoryx2_config();
+    let mut in_use = 0;
+    Node::<Ipc>::list(&config, |_| {
+        in_use += 1;
+        CallbackProgression::Continue
+    })
+    .map_err(|error| CleanupError {
+        domain: domain.name().to_owned(),
+        reason: format!("{error:?}"),
+    })?;
+    if in_use > 0 {
+        return Ok(RegistryRemoval::InUse { nodes: in_use });
+    }
+    // SAFETY: no node of the domain exists (checked just above; see the doc comment for the
+    // instant between the check and the removal).
+    let removed = unsafe { iceoryx2::testing::remove_global_mgmt_segment::<Ipc>(&config) }
+        .map_err(|error| CleanupError {
+            domain: domain.name().to_owned(),
+            reason: format!("removing the node registry: {error:?}"),
+        })?;
+    Ok(if removed {
+        RegistryRemoval::Removed
+    } else {
+        RegistryRemoval::Absent
+    })
+}
+
 /// Files of `domain` that still exist in /dev/shm and under the iceoryx2 root directory (for
 /// tests and `harvest clean --check`: after a clean shutdown this is empty).
 ///
 /// Not counted: iceoryx2's per-prefix global management segment (`*.global_mgmt`, a few KiB),
 /// which iceoryx2 keeps on purpose as the registry every node of the prefix attaches to; it
-/// holds no channel data and is reused by the next run of the domain.
+/// holds no channel data and is reused by the next run of the domain. `harvest clean` removes
+/// it once no node of the domain is left ([`remove_unused_registry`]).
 pub fn leftover_files(domain: &Domain) -> Vec<PathBuf> {
     let prefix = domain.file_prefix();
     let config = domain.iceoryx2_config();

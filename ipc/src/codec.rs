@@ -7,6 +7,7 @@
 //! MCAP schemas and channels so another tool can decode it. Swapping the codec means changing
 //! this file only.
 
+use bincode::config::Config;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
@@ -27,8 +28,21 @@ pub enum CodecError {
     Length { expected: usize, actual: usize },
 }
 
-fn config() -> impl bincode::config::Config {
+/// Most bytes one decode may read or set aside for containers. A length prefix is outside
+/// data: without a bound, a corrupt `u64` length in a recording or a copied message makes the
+/// decoder allocate that many bytes (an abort, not an error). The largest part of any payload
+/// decoded through the codec is about 10 KB (`GroundTruth`'s 256 apples); frames, images and
+/// point clouds decode their pixels and points outside it.
+pub const DECODE_LIMIT_BYTES: usize = 4 << 20;
+
+fn config() -> impl Config {
     bincode::config::standard().with_fixed_int_encoding()
+}
+
+fn decode_config() -> impl Config {
+    bincode::config::standard()
+        .with_fixed_int_encoding()
+        .with_limit::<DECODE_LIMIT_BYTES>()
 }
 
 /// Appends the encoding of `value` to `out`.
@@ -40,7 +54,7 @@ pub fn encode_into<T: Serialize + ?Sized>(value: &T, out: &mut Vec<u8>) -> Resul
 
 /// Decodes one value from the start of `bytes`; returns it and the bytes consumed.
 pub fn decode_prefix<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, usize), CodecError> {
-    bincode::serde::decode_from_slice(bytes, config())
+    bincode::serde::decode_from_slice(bytes, decode_config())
         .map_err(|error| CodecError::Decode(error.to_string()))
 }
 
@@ -80,5 +94,18 @@ mod tests {
         assert_eq!(&bytes[..2], &[0x02, 0x01]);
         assert_eq!(decode_exact::<Sample>(&bytes).expect("decode"), sample);
         assert!(decode_exact::<Sample>(&bytes[..5]).is_err());
+    }
+
+    /// Found by the recording property tests: a string whose length prefix is absurd made the
+    /// decoder try to allocate that many bytes and abort the process.
+    #[test]
+    fn an_absurd_length_prefix_is_an_error_not_an_allocation() {
+        let mut bytes = 0x36e0_c5b0_d16a_f68e_u64.to_le_bytes().to_vec();
+        bytes.extend_from_slice(b"abc");
+        let error = decode_exact::<String>(&bytes).expect_err("absurd length");
+        assert!(matches!(error, CodecError::Decode(_)), "{error}");
+        let mut bytes = ((DECODE_LIMIT_BYTES + 1) as u64).to_le_bytes().to_vec();
+        bytes.extend_from_slice(&[0; 16]);
+        assert!(decode_exact::<Vec<u8>>(&bytes).is_err());
     }
 }

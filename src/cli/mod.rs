@@ -5,6 +5,7 @@ pub mod logging;
 use anyhow::{Context as _, Result};
 use clap::{Parser, Subcommand};
 use harvest_ipc::Domain;
+use harvest_ipc::cleanup::RegistryRemoval;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -88,7 +89,8 @@ enum Command {
         #[command(subcommand)]
         command: harvest_rec::RecCommand,
     },
-    /// Remove stale iceoryx2 resources of dead processes in the domain.
+    /// Remove stale iceoryx2 resources of dead processes in the domain, and the domain's node
+    /// registry in /dev/shm once no process of the domain is left.
     Clean {
         /// Only list this domain's files still present; exit 1 if any.
         #[arg(long)]
@@ -391,6 +393,7 @@ fn up(
     if let Some(harvest) = summary.render_harvest() {
         print!("{harvest}");
     }
+    print!("{}", summary.render_safety());
     eprint!("{}", summary.render());
     Ok(if summary.failure.is_some() {
         ExitCode::FAILURE
@@ -420,6 +423,14 @@ fn clean(domain: &Domain, check: bool) -> Result<ExitCode> {
     );
     for (node, reason) in &report.failed_nodes {
         println!("  {node}: {reason}");
+    }
+    // With no node left, the domain's node registry in /dev/shm goes too.
+    match harvest_ipc::cleanup::remove_unused_registry(domain)? {
+        RegistryRemoval::Removed => println!("domain {domain}: node registry removed"),
+        RegistryRemoval::Absent => {}
+        RegistryRemoval::InUse { nodes } => {
+            println!("domain {domain}: node registry kept ({nodes} node(s) of the domain exist)")
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

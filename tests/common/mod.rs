@@ -235,9 +235,21 @@ pub fn run_harvest(domain: &str, args: &[&str], limit: Duration) -> (ExitStatus,
 }
 
 /// The domain's iceoryx2 files still present (must be none after a clean exit). Also removes
-/// the test's run directory.
+/// the test's run directory and, through `harvest clean`, the domain's node registry in
+/// /dev/shm once no node of the domain is left (so test runs do not pile up one file per
+/// domain); `harvest clean` runs after the check, so the check still sees what the stack left.
 pub fn leftover_files(domain: &str) -> String {
     let _ = std::fs::remove_dir_all(run_dir(domain));
+    let leftovers = list_leftover_files(domain);
+    let _ = Command::new(HARVEST)
+        .arg("clean")
+        .env("HARVEST_DOMAIN", domain)
+        .output();
+    leftovers
+}
+
+/// `harvest clean --check`: the domain's iceoryx2 files still present (listed, not removed).
+pub fn list_leftover_files(domain: &str) -> String {
     let output = Command::new(HARVEST)
         .args(["clean", "--check"])
         .env("HARVEST_DOMAIN", domain)

@@ -20,8 +20,9 @@
 //! session (another live session is refused; a session is live while it was heard within the
 //! heartbeat timeout); the mode; the arguments and the arms' states (idle, at rest, fresh);
 //! the joint limits and the clearance between the arms. The emergency stop needs the token but
-//! is taken from any session, since stopping is always allowed. In manual mode, a motion under
-//! way is stopped when the controlling session is not heard for the heartbeat timeout (500 ms
+//! is taken from any session, since stopping is always allowed. The safety monitor's protective
+//! stop ([`Executive::protective_stop`]) needs neither token nor session; it engages only. In
+//! manual mode, a motion under way is stopped when the controlling session is not heard for the heartbeat timeout (500 ms
 //! by default). Refused commands change nothing.
 
 use harvest_arm::manual_motion::MANUAL_SPEED_FRACTION;
@@ -399,6 +400,25 @@ impl Executive {
             self.set_mode(now_ns, OperatorModeCode::EmergencyStopped, code, reason);
         }
         decision
+    }
+
+    /// The protective stop the independent safety monitor asks for (`safety/violation` with
+    /// action `stop`): the emergency stop is engaged from any mode, without token or session
+    /// (the monitor holds no operator credential and can only ask for a stop, never release
+    /// it). Returns the actions to carry out; none when the stop is already engaged, so a
+    /// burst of violations publishes the stop once.
+    pub fn protective_stop(&mut self, now_ns: u64, violation: &str) -> Vec<Action> {
+        if self.mode == OperatorModeCode::EmergencyStopped {
+            return Vec::new();
+        }
+        let reason = format!("protective stop, safety monitor: {violation}");
+        warn!(%reason, "protective stop");
+        let mut actions = vec![Action::EngageEmergencyStop {
+            reason: reason.clone(),
+        }];
+        actions.extend(self.stop_manual_motion(self.mode));
+        self.set_mode(now_ns, OperatorModeCode::EmergencyStopped, 0, reason);
+        actions
     }
 
     /// Stop orders for any manual motion when leaving `from`.

@@ -6,7 +6,7 @@
 //! `header.publish_ns`, both `CLOCK_MONOTONIC` ns, with a `harvest.clock` metadata record
 //! mapping them to UTC (see [`metadata`]).
 //!
-//! Writing: [`segment_writer`]. Reading damaged files as far as they are valid: [`scan`],
+//! Writing: [`segment_writer`]; [`seal`] ends a file whose writing failed. Reading damaged files as far as they are valid: [`scan`],
 //! [`recording_file`]; [`recover`] rewrites what is valid. Tools' back ends: [`rec_info`],
 //! [`rec_cat`], [`export`] (JSON, PNG, Foxglove). Users: the recorder process, `harvest rec`,
 //! `harvest replay` and `harvest monitor --recording`.
@@ -24,6 +24,7 @@ pub mod recording_file;
 pub mod recover;
 pub mod scan;
 pub mod schema;
+pub mod seal;
 pub mod segment_writer;
 pub mod time_window;
 pub mod topic_filter;

@@ -18,7 +18,15 @@ pub fn mcap_error_text(error: &McapError) -> String {
     text
 }
 
-/// True when the error comes from a full file system.
+/// True when the error comes from a full file system (or an exhausted disk quota).
 pub fn is_disk_full(error: &McapError) -> bool {
-    matches!(error, McapError::Io(io) if io.kind() == std::io::ErrorKind::StorageFull)
+    matches!(error, McapError::Io(io) if is_out_of_space(io))
+}
+
+/// True for the I/O errors of a full file system or an exhausted disk quota.
+pub fn is_out_of_space(error: &std::io::Error) -> bool {
+    matches!(
+        error.kind(),
+        std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded
+    )
 }

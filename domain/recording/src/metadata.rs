@@ -3,7 +3,8 @@
 //!
 //! Every segment file starts with `harvest.recording` and `harvest.clock`, then the session
 //! records (`harvest.launch`, `harvest.calibration`, `harvest.scenario`, `harvest.notes`, each
-//! only when given); the last segment ends with `harvest.drops`.
+//! only when given); the last segment ends with `harvest.drops`, a segment closed because the
+//! disk filled up with `harvest.disk_full`.
 
 use crate::wall_clock::{ClockPair, format_utc_iso};
 use mcap::records::Metadata;
@@ -26,6 +27,8 @@ pub const NOTES: &str = "harvest.notes";
 pub const DROPS: &str = "harvest.drops";
 /// Written by `harvest rec recover` into the file it rewrote.
 pub const RECOVERY: &str = "harvest.recovery";
+/// Ends a segment the recorder closed because its disk was full (free and needed bytes).
+pub const DISK_FULL: &str = "harvest.disk_full";
 
 /// Version of the software that writes recordings (the workspace version).
 pub const SOFTWARE_VERSION: &str = env!("CARGO_PKG_VERSION");

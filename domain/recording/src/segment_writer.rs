@@ -1,5 +1,6 @@
 //! One MCAP file being written: chunked and compressed, channels registered per file, with the
-//! file's size tracked as it grows.
+//! file's size tracked as it grows, and a bound on what finishing it still writes (so a writer
+//! can hold that much disk space in reserve and always finish its file).
 
 use crate::mcap_error::mcap_error_text;
 use crate::schema::TopicInfo;
@@ -155,6 +156,27 @@ pub struct ForeignChannel {
     pub metadata: BTreeMap<String, String>,
 }
 
+/// Bytes of a Message record besides its data: opcode, length, channel id, sequence, two stamps.
+const MESSAGE_RECORD_OVERHEAD_BYTES: u64 = 1 + 8 + 2 + 4 + 8 + 8;
+/// A Chunk record besides its records (opcode, length, times, sizes, CRC, compression name),
+/// rounded up; also covers the compressor's frame headers.
+const CHUNK_OVERHEAD_BYTES: u64 = 256;
+/// A Chunk Index record without its per-channel offsets, rounded up.
+const CHUNK_INDEX_BYTES: u64 = 128;
+/// Per channel: an offset in each chunk index, an entry in the statistics, the record of a
+/// message index after each chunk (without its entries).
+const PER_CHANNEL_BYTES: u64 = 10 + 10 + 16;
+/// One entry of a message index.
+const MESSAGE_INDEX_ENTRY_BYTES: u64 = 16;
+/// A Metadata Index record without the name.
+const METADATA_INDEX_BYTES: u64 = 64;
+/// Statistics, summary offsets, Data End, Footer and the closing magic, rounded up.
+const SUMMARY_FIXED_BYTES: u64 = 2048;
+/// Chunks the count below may miss (the MCAP writer closes chunks by its own measure too).
+const CHUNK_COUNT_SLACK: u64 = 16;
+/// Everything the estimate does not itemize.
+const FINISH_SLACK_BYTES: u64 = 64 * 1024;
+
 /// An MCAP writer with the channels of one file.
 pub struct SegmentWriter<W: Write + Seek> {
     writer: Writer<SizeTracked<W>>,
@@ -164,6 +186,25 @@ pub struct SegmentWriter<W: Write + Seek> {
     messages: u64,
     /// Messages written since the last chunk was closed.
     messages_in_open_chunk: u64,
+    /// What [`Self::finish_bound_bytes`] counts.
+    finish_estimate: FinishEstimate,
+    /// The file holds complete records up to here, handed to the OS (see [`Self::flush`]).
+    flushed_bytes: u64,
+}
+
+/// The figures that bound what finishing a file still writes.
+#[derive(Debug, Clone, Copy, Default)]
+struct FinishEstimate {
+    chunk_size_bytes: u64,
+    /// Uncompressed records in the open chunk (as the MCAP writer measures it, or more).
+    open_chunk_bytes: u64,
+    /// Chunks closed so far (give or take [`CHUNK_COUNT_SLACK`]).
+    chunks: u64,
+    channels: u64,
+    /// Schema and Channel records, which the summary repeats.
+    schema_and_channel_bytes: u64,
+    /// The summary's Metadata Index records.
+    metadata_index_bytes: u64,
 }
 
 impl<W: Write + Seek> SegmentWriter<W> {
@@ -178,6 +219,11 @@ impl<W: Write + Seek> SegmentWriter<W> {
             channel_ids: vec![None; topic_count],
             messages: 0,
             messages_in_open_chunk: 0,
+            finish_estimate: FinishEstimate {
+                chunk_size_bytes: settings.chunk_size_bytes.max(1),
+                ..FinishEstimate::default()
+            },
+            flushed_bytes: 0,
         })
     }
 
@@ -186,17 +232,28 @@ impl<W: Write + Seek> SegmentWriter<W> {
         if let Some(Some(id)) = self.channel_ids.get(index) {
             return Ok(*id);
         }
+        let schema_name = topic.schema_name();
+        let schema_data = topic.schema_data();
+        let channel_metadata = topic.channel_metadata();
         let schema_id = self.writer.add_schema(
-            &topic.schema_name(),
+            &schema_name,
             harvest_ipc::codec::ENCODING,
-            topic.schema_data().as_bytes(),
+            schema_data.as_bytes(),
         )?;
         let channel_id = self.writer.add_channel(
             schema_id,
             topic.spec.topic,
             harvest_ipc::codec::ENCODING,
-            &topic.channel_metadata(),
+            &channel_metadata,
         )?;
+        let estimate = &mut self.finish_estimate;
+        estimate.channels += 1;
+        estimate.schema_and_channel_bytes += Self::schema_and_channel_bytes(
+            &schema_name,
+            &schema_data,
+            topic.spec.topic,
+            &channel_metadata,
+        );
         if index >= self.channel_ids.len() {
             self.channel_ids.resize(index + 1, None);
         }
@@ -225,6 +282,19 @@ impl<W: Write + Seek> SegmentWriter<W> {
             &channel.message_encoding,
             &channel.metadata,
         )?;
+        let estimate = &mut self.finish_estimate;
+        estimate.channels += 1;
+        // The same records as a catalogue channel's; the encodings are their own (counted on
+        // top of the codec's: an over-estimate keeps the reservation on the safe side).
+        estimate.schema_and_channel_bytes += Self::schema_and_channel_bytes(
+            &channel.schema_name,
+            "",
+            &channel.topic,
+            &channel.metadata,
+        ) + (channel.schema_data.len()
+            + channel.schema_encoding.len()
+            + channel.message_encoding.len())
+            as u64;
         if index >= self.channel_ids.len() {
             self.channel_ids.resize(index + 1, None);
         }
@@ -254,6 +324,14 @@ impl<W: Write + Seek> SegmentWriter<W> {
         publish_time_ns: u64,
         data: &[u8],
     ) -> Result<(), McapError> {
+        // The MCAP writer closes the open chunk before a message once the chunk holds more
+        // than the chunk size: count that chunk.
+        let estimate = &mut self.finish_estimate;
+        if estimate.open_chunk_bytes > estimate.chunk_size_bytes {
+            estimate.open_chunk_bytes = 0;
+            estimate.chunks += 1;
+        }
+        estimate.open_chunk_bytes += MESSAGE_RECORD_OVERHEAD_BYTES + data.len() as u64;
         let header = MessageHeader {
             channel_id,
             sequence,
@@ -282,7 +360,9 @@ impl<W: Write + Seek> SegmentWriter<W> {
 
     pub fn write_metadata(&mut self, metadata: &Metadata) -> Result<(), McapError> {
         // Writing metadata closes the open chunk first.
-        self.messages_in_open_chunk = 0;
+        self.count_chunk_closed();
+        self.finish_estimate.metadata_index_bytes +=
+            METADATA_INDEX_BYTES + metadata.name.len() as u64;
         self.writer.write_metadata(metadata)
     }
 
@@ -292,8 +372,72 @@ impl<W: Write + Seek> SegmentWriter<W> {
         if self.messages_in_open_chunk == 0 {
             return Ok(());
         }
+        self.flush()
+    }
+
+    /// Closes the open chunk (if any) and hands everything written to the OS: the file then
+    /// holds complete records up to [`Self::flushed_bytes`].
+    pub fn flush(&mut self) -> Result<(), McapError> {
+        self.count_chunk_closed();
+        self.writer.flush()?;
+        self.flushed_bytes = self.size_bytes();
+        Ok(())
+    }
+
+    /// The file's bytes up to the last successful [`Self::flush`]: complete records, in the
+    /// file. After a write error the file can be cut back to this and sealed
+    /// ([`crate::seal::seal_cut_file`]).
+    pub fn flushed_bytes(&self) -> u64 {
+        self.flushed_bytes
+    }
+
+    /// An upper bound on the bytes the file still grows by if a message of `message_bytes`
+    /// is written and the file is then finished: the rest of the open chunk and the message
+    /// (compressed output can exceed its input a little), their message indexes, and the
+    /// summary (schemas and channels again, one index per chunk and metadata record,
+    /// statistics) with the footer. A writer that keeps this much disk space in hand can
+    /// always finish its file.
+    pub fn finish_bound_bytes(&self, message_bytes: u64) -> u64 {
+        let estimate = &self.finish_estimate;
+        let channels = estimate.channels + 1;
+        let chunk_content =
+            estimate.open_chunk_bytes + MESSAGE_RECORD_OVERHEAD_BYTES + message_bytes;
+        let chunks_data = chunk_content + chunk_content / 64 + 2 * CHUNK_OVERHEAD_BYTES;
+        let message_indexes = MESSAGE_INDEX_ENTRY_BYTES * (self.messages_in_open_chunk + 1)
+            + 2 * channels * PER_CHANNEL_BYTES;
+        let chunk_indexes = (estimate.chunks + CHUNK_COUNT_SLACK)
+            * (CHUNK_INDEX_BYTES + channels * PER_CHANNEL_BYTES);
+        let summary = estimate.schema_and_channel_bytes
+            + chunk_indexes
+            + estimate.metadata_index_bytes
+            + SUMMARY_FIXED_BYTES;
+        chunks_data + message_indexes + summary + FINISH_SLACK_BYTES
+    }
+
+    fn count_chunk_closed(&mut self) {
+        if self.messages_in_open_chunk > 0 || self.finish_estimate.open_chunk_bytes > 0 {
+            self.finish_estimate.chunks += 1;
+        }
         self.messages_in_open_chunk = 0;
-        self.writer.flush()
+        self.finish_estimate.open_chunk_bytes = 0;
+    }
+
+    /// Bytes of a Schema and a Channel record (each appears in the data section and again in
+    /// the summary).
+    fn schema_and_channel_bytes(
+        schema_name: &str,
+        schema_data: &str,
+        topic: &str,
+        channel_metadata: &std::collections::BTreeMap<String, String>,
+    ) -> u64 {
+        let metadata_bytes: usize = channel_metadata
+            .iter()
+            .map(|(key, value)| 8 + key.len() + value.len())
+            .sum();
+        let encoding = harvest_ipc::codec::ENCODING.len();
+        let schema = 9 + 2 + 4 + schema_name.len() + 4 + encoding + 4 + schema_data.len();
+        let channel = 9 + 2 + 2 + 4 + topic.len() + 4 + encoding + 4 + metadata_bytes;
+        (schema + channel) as u64
     }
 
     /// Whether the open chunk holds messages not yet closed.

@@ -147,6 +147,9 @@ pub fn vacuum_event(
                     FixedString::format(format_args!("policy: {reason}"))
                 }
                 ValveCloseCause::EmergencyStop => FixedString::new("emergency stop"),
+                ValveCloseCause::Interlock => {
+                    FixedString::new("interlock: both valves open, neither cup sealed")
+                }
             };
             out
         }

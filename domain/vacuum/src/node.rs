@@ -29,8 +29,14 @@
 //! 3. attempts are tracked from the arms' states;
 //! 4. the policy's force-closes are applied (failure, release, out of workflow);
 //! 5. the arms' standing valve requests are answered: `Close` always, `OpenForAttach` once per
-//!    request (a request the policy closed again is not re-opened), oldest waiter first;
-//! 6. the policy is asked again for force-closes;
+//!    request (a request the policy closed again is not re-opened), oldest waiter first; whatever
+//!    the policy and whatever the arms report, a valve never opens beside the other arm's open
+//!    valve unless this node's own inference reads that cup sealed (the safety monitor's
+//!    opened-beside-unsealed rule, kept here as an interlock: arm states are outside data);
+//! 6. the policy is asked again for force-closes; then the interlock's second rule: when both
+//!    valves are open with neither cup sealed (the safety monitor's both-open-unsealed rule), the
+//!    failed one is closed (attach failed, apple dropped), or the later opened when none failed,
+//!    whatever the policy (the baseline never closes a failure on its own);
 //! 7. at most one target is dispatched.
 //!
 //! Emergency stop: every valve is commanded closed at once (`close_all`), open requests are
@@ -42,8 +48,8 @@
 //!
 //! Layout: the node's interface (`config`, `input`, `output`, `event`, `wire_codes`), what it
 //! tracks per arm (`arm_track`) and how the policy sees the arms (`policy_view`), then one file
-//! per part of the tick: `planning` (step 2), `attempts` (step 3), `valves` (steps 4-6 and the
-//! emergency stop), `dispatch` (step 7). Step 1 (the pressure inference) and the published
+//! per part of the tick: `planning` (step 2), `attempts` (step 3), `valves` (steps 4-6, the
+//! interlock and the emergency stop), `dispatch` (step 7). Step 1 (the pressure inference) and the published
 //! state are in this file.
 
 mod arm_track;
@@ -233,6 +239,7 @@ impl VacuumNode {
             self.supervise(input);
             self.answer_requests(input, now_ns);
             self.supervise(input);
+            self.interlock();
             self.dispatch(input, now_ns);
         }
         self.output.valve_commands = [

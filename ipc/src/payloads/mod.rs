@@ -11,6 +11,7 @@ pub mod platform;
 pub mod point_cloud;
 pub mod process_health;
 pub mod rgbd_frame;
+pub mod safety_violation;
 pub mod vacuum;
 // Operator channels (issue 15).
 pub mod arm_manual;
@@ -37,6 +38,7 @@ pub use platform::{PlatformCommand, PlatformFeedback, PlatformStatus};
 pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
 pub use process_health::{ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
+pub use safety_violation::{SafetyViolation, VIOLATION_TEXT_BYTES, ViolationAction, ViolationRule};
 pub use vacuum::{
     ArmAttachment, VacuumPolicyCode, VacuumState, ValveGrant, ValveRequest, ValveRequestKind,
 };

@@ -2,7 +2,10 @@
 //!
 //! Per tick (a wait-set interval of `--control-period-us`, 200 Hz by default, never a sleep):
 //! 1. the newest state of each arm and, every 100 ms, the platform's position are taken;
-//! 2. every command on `operator/command` goes through [`Executive::handle`]; its actions are
+//! 2. a violation on `safety/violation` whose action is `stop` (the independent safety monitor,
+//!    `harvest monitor --on-violation stop`) engages the protective stop
+//!    ([`Executive::protective_stop`]; release stays an operator command); then every command on
+//!    `operator/command` goes through [`Executive::handle`]; its actions are
 //!    carried out (e-stop engage/release on `safety/emergency_stop`, manual orders on
 //!    `armN/manual`, platform moves through the [`Platform`] trait) before the acknowledgement
 //!    goes out on `operator/ack` (a platform that refuses turns it into a refusal);
@@ -28,6 +31,7 @@ use harvest_hw::platform::sim::SimPlatform;
 use harvest_hw::platform::{Platform, PlatformTravel};
 use harvest_ipc::catalogue::{
     ARM_MANUAL, ARM_STATE, EMERGENCY_STOP, OPERATOR_ACK, OPERATOR_COMMAND, OPERATOR_MODE,
+    SAFETY_VIOLATION,
 };
 use harvest_ipc::control_loop::{Wake, run_control_loop};
 use harvest_ipc::payloads::{
@@ -182,6 +186,7 @@ pub fn run(
         PlatformDevice::None => PlatformLink::None,
     };
     let commands_in = context.subscriber_with_buffer(OPERATOR_COMMAND, 256)?;
+    let violations_in = context.subscriber_with_buffer(SAFETY_VIOLATION, 256)?;
     let arm_states_in = [
         context.subscriber(ARM_STATE[0])?,
         context.subscriber(ARM_STATE[1])?,
@@ -293,7 +298,24 @@ pub fn run(
                         return Ok(Flow::Continue);
                     };
 
-                    // 2. Commands.
+                    // 2. The safety monitor's stop requests, then the operator's commands.
+                    while let Some(violation) = violations_in.receive()? {
+                        if !violation.requests_stop() {
+                            continue;
+                        }
+                        let text = violation.description.as_str().to_owned();
+                        for action in executive.protective_stop(now_ns, &text) {
+                            if let Err(message) = apply(
+                                &action,
+                                now_ns,
+                                &mut estop_out,
+                                &mut manual_out,
+                                &mut platform,
+                            )? {
+                                tracing::warn!(%message, ?action, "action failed");
+                            }
+                        }
+                    }
                     while let Some(command) = commands_in.receive()? {
                         handled += 1;
                         let mut decision = executive.handle(now_ns, &command, &view);

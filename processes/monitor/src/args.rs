@@ -7,10 +7,11 @@ use harvest_ipc::Domain;
 use harvest_safety::safety_monitor::MonitorConfig;
 
 use crate::error::MonitorError;
-use crate::live::run_live;
+use crate::live::{LiveOptions, run_live};
 use crate::mapping::{DEFAULT_ATTACH_WINDOW_NS, MappingConfig, STACK_REACTION_NS};
 use crate::recording::check_recording;
 use crate::stack_monitor::MonitorReport;
+use crate::violation_message::OnViolation;
 
 /// Arguments of `harvest monitor`.
 #[derive(Debug, Clone, clap::Args)]
@@ -31,11 +32,16 @@ pub struct MonitorArgs {
     /// Minimum distance between the two end-effectors, m.
     #[arg(long, default_value_t = 0.10)]
     pub clearance_m: f64,
-    /// Live only: engage `safety/emergency_stop` this long after starting (e.g. 15s) and report
-    /// how long the stack takes to close every valve and brake both arms. The stop stays
-    /// engaged.
+    /// Live only: ask the executive for the protective stop (on `safety/violation`) this long
+    /// after starting (e.g. 15s) and report how long the stack takes to close every valve and
+    /// brake both arms. The stop stays engaged until an operator releases it.
     #[arg(long, value_parser = harvest_ipc::duration::parse_duration)]
     pub engage_stop_after: Option<Duration>,
+    /// Live only: what to do with a violation besides printing it: `print` (nothing more),
+    /// `report` (publish it on `safety/violation`), `stop` (publish it and have the executive
+    /// engage the protective stop). The default launch file runs `stop`.
+    #[arg(long, value_enum, default_value = "print")]
+    pub on_violation: OnViolation,
 }
 
 impl Default for MonitorArgs {
@@ -47,6 +53,7 @@ impl Default for MonitorArgs {
             reaction_ms: STACK_REACTION_NS / 1_000_000,
             clearance_m: 0.10,
             engage_stop_after: None,
+            on_violation: OnViolation::Print,
         }
     }
 }
@@ -95,12 +102,20 @@ pub fn run_monitor(
             value: format!("{:?}", args.engage_stop_after),
             reason: "only for the live stack, not with --recording",
         }),
+        Some(_) if args.on_violation != OnViolation::Print => Err(MonitorError::InvalidArgument {
+            arg: "--on-violation",
+            value: format!("{:?}", args.on_violation),
+            reason: "only for the live stack, not with --recording",
+        }),
         Some(path) => check_recording(path, mapping, checks, print),
         None => run_live(
             domain,
             process_name,
-            args.duration,
-            args.engage_stop_after,
+            LiveOptions {
+                duration: args.duration,
+                engage_stop_after: args.engage_stop_after,
+                on_violation: args.on_violation,
+            },
             mapping,
             checks,
             print,

@@ -10,7 +10,8 @@
 //! - [`stack_monitor`]: mapping + checker + counts, fed message by message;
 //! - [`recording`]: the same over an MCAP recording (the recorder's scanner and the payload
 //!   codec);
-//! - [`live`]: the same on a running stack (subscribers woken by the wait set);
+//! - [`live`]: the same on a running stack (subscribers woken by the wait set), publishing each
+//!   violation on `safety/violation` in the stack ([`violation_message`]);
 //! - [`args`]: the command line and [`args::run_monitor`].
 
 pub mod args;
@@ -19,6 +20,8 @@ pub mod live;
 pub mod mapping;
 pub mod recording;
 pub mod stack_monitor;
+pub mod violation_message;
+pub mod violation_outlet;
 
 pub use args::{MonitorArgs, run_monitor};
 pub use error::MonitorError;

@@ -4,6 +4,7 @@
 //! mapped for Foxglove at the viewing rates ([`view_thread`]). The format is `harvest-recording`; the tools
 //! that read it (`harvest rec`, `harvest replay`) are `harvest-rec`.
 
+pub mod disk_space;
 pub mod output_dir;
 pub mod recorder;
 pub mod tap;

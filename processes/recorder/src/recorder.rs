@@ -114,7 +114,9 @@ pub struct RecorderArgs {
     /// Extra `key=value` metadata; repeatable.
     #[arg(long = "note", value_name = "KEY=VALUE")]
     pub notes: Vec<String>,
-    /// How often channels that could not be opened are retried.
+    /// How often channels that could not be opened are retried, and how often the free space
+    /// is checked while the disk is full (recording resumes in a new segment once there is
+    /// room again).
     #[arg(long, default_value = "1s", value_parser = parse_duration)]
     pub retry_interval: Duration,
 }
@@ -183,6 +185,7 @@ impl RecorderArgs {
             split_duration: self.split_duration.filter(|duration| !duration.is_zero()),
             max_total_bytes: nonzero(self.max_total_size),
             queue_bytes: usize::try_from(self.queue_size).unwrap_or(usize::MAX),
+            disk_full_retry: self.retry_interval,
         };
         if self.prefix.is_empty() || self.prefix.contains('/') {
             return Err(RecorderError::InvalidOption {
@@ -265,6 +268,9 @@ pub struct RecordingReport {
     /// Selected channels that never opened, with the last reason.
     pub unopened: Vec<(&'static str, String)>,
     pub removed_files: Vec<PathBuf>,
+    /// How often the disk filled up (each time the open segment was finished and recording
+    /// paused until there was room again).
+    pub disk_full_events: u32,
 }
 
 impl RecordingReport {
@@ -311,6 +317,13 @@ impl std::fmt::Display for RecordingReport {
         }
         for (topic, reason) in &self.unopened {
             writeln!(f, "  not recorded: {topic}: {reason}")?;
+        }
+        if self.disk_full_events > 0 {
+            writeln!(
+                f,
+                "  the disk was full {} time(s): recording paused, messages dropped(queue)",
+                self.disk_full_events
+            )?;
         }
         Ok(())
     }
@@ -480,14 +493,23 @@ pub fn run_recorder_until(
     let written = writer.finish(vec![drops])?;
     let mut topic_reports: Vec<TopicReport> = taps
         .iter()
-        .map(|tap| TopicReport {
-            topic: tap.topic(),
-            counts: tap.counts(),
-            written: written
-                .messages_per_topic
+        .map(|tap| {
+            let mut counts = tap.counts();
+            // Messages already queued when the disk filled up were dropped by the writer.
+            counts.dropped_by_queue += written
+                .dropped_disk_full_per_topic
                 .get(tap.topic_index())
                 .copied()
-                .unwrap_or(0),
+                .unwrap_or(0);
+            TopicReport {
+                topic: tap.topic(),
+                counts,
+                written: written
+                    .messages_per_topic
+                    .get(tap.topic_index())
+                    .copied()
+                    .unwrap_or(0),
+            }
         })
         .collect();
     topic_reports.sort_by_key(|report| report.topic);
@@ -498,6 +520,7 @@ pub fn run_recorder_until(
         topics: topic_reports,
         unopened,
         removed_files: written.removed_files,
+        disk_full_events: written.disk_full_events,
     };
     for topic in &report.topics {
         let dropped = topic.counts.dropped_by_transport + topic.counts.dropped_by_queue;
@@ -639,6 +662,10 @@ fn open_pending(
     taps.extend(opener.opened);
 }
 
+/// The heartbeat's detail while the disk is full (with the dropped count as its value): the
+/// supervisor's status line shows it.
+pub const DISK_FULL_DETAIL: &str = "DISK FULL, paused; dropped";
+
 /// Heartbeats at `HEARTBEAT_PERIOD`, driven by the housekeeping tick.
 struct Heartbeat {
     last: Option<Instant>,
@@ -671,13 +698,19 @@ impl Heartbeat {
         }
         self.last = Some(Instant::now());
         let drops = total_drops(taps);
-        let state = if writer.has_failed() || drops > self.drops_at_last {
+        let disk_full = writer.is_disk_full();
+        let state = if writer.has_failed() || disk_full || drops > self.drops_at_last {
             ProcessRunState::Degraded
         } else {
             ProcessRunState::Running
         };
         self.drops_at_last = drops;
-        if let Err(error) = health.report(state, self.received(taps), "dropped", drops) {
+        let detail = if disk_full {
+            DISK_FULL_DETAIL
+        } else {
+            "dropped"
+        };
+        if let Err(error) = health.report(state, self.received(taps), detail, drops) {
             tracing::debug!(%error, "heartbeat not sent");
         }
     }

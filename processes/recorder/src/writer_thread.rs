@@ -6,12 +6,24 @@
 //! it over a bounded queue (bounded in bytes too); when the queue is full the message is
 //! dropped and counted, so a slow disk never stalls receiving (nor, through iceoryx2's safe
 //! overflow, any publisher).
+//!
+//! A full disk does not end the recording: the writer holds disk space ahead of what it writes
+//! ([`crate::disk_space`]), so when the disk fills up it finishes the open segment (a complete
+//! MCAP file ending with a `harvest.disk_full` record) and pauses. While paused, messages are
+//! dropped and counted, and [`WriterHandle::is_disk_full`] tells the recorder to report itself
+//! degraded. Every `disk_full_retry` the writer checks the free space, and once there is room
+//! for a segment again it starts the next one. Should a write still fail for lack of space (a
+//! file system without `fallocate` that something else filled), the segment is cut back to its
+//! last complete record and sealed ([`harvest_recording::seal`]), and the writer pauses the
+//! same way. Other write errors end the recording as before.
 
+use crate::disk_space::{OutOfSpace, SpaceReservation, free_bytes_in};
 use crate::output_dir::{create_segment, enforce_size_bound};
 use crate::view_thread::{ViewFeed, ViewReport};
-use harvest_recording::mcap_error::mcap_error_text;
+use harvest_recording::mcap_error::{is_disk_full, is_out_of_space, mcap_error_text};
 use harvest_recording::metadata;
 use harvest_recording::schema::TopicInfo;
+use harvest_recording::seal::seal_cut_file;
 use harvest_recording::segment_writer::{ChunkSettings, ForeignChannel, SegmentWriter};
 use harvest_recording::wall_clock::{ClockPair, format_utc_compact, format_utc_iso};
 use mcap::records::Metadata;
@@ -43,6 +55,8 @@ pub struct OutputSettings {
     pub max_total_bytes: Option<u64>,
     /// Encoded bytes allowed in flight between the receiving and the writer thread.
     pub queue_bytes: usize,
+    /// While the disk is full, how often the free space is checked to resume recording.
+    pub disk_full_retry: Duration,
 }
 
 /// One encoded message on its way to the file.
@@ -75,6 +89,10 @@ pub struct WriterReport {
     pub bytes_written: u64,
     /// Old recordings removed to stay under the size bound.
     pub removed_files: Vec<PathBuf>,
+    /// Messages per topic index that reached the writer while the disk was full (not written).
+    pub dropped_disk_full_per_topic: Vec<u64>,
+    /// How often the disk filled up (each time, the open segment was closed).
+    pub disk_full_events: u32,
 }
 
 /// Writing the recording failed.
@@ -92,12 +110,15 @@ pub enum WriteError {
         dir: PathBuf,
         source: std::io::Error,
     },
-    /// Writing into a segment failed (disk full, I/O error); the file keeps what was written
-    /// before and can be repaired with `harvest rec recover`.
+    /// Writing into a segment failed (I/O error); the file keeps what was written before and
+    /// can be repaired with `harvest rec recover`.
     #[error(
         "writing {file} failed: {reason}. The file is incomplete: `harvest rec recover {file} <out.mcap>` keeps what it holds"
     )]
     Write { file: PathBuf, reason: String },
+    /// The disk is full (the writer pauses instead of failing).
+    #[error("writing {file}: the disk is full ({reason})")]
+    DiskFull { file: PathBuf, reason: String },
     /// The writer thread panicked (a bug).
     #[error("the recording writer thread panicked")]
     Panicked,
@@ -112,6 +133,7 @@ pub struct WriterHandle {
     queued_bytes: Arc<AtomicUsize>,
     max_queued_bytes: usize,
     failed: Arc<AtomicBool>,
+    disk_full: Arc<AtomicBool>,
     thread: JoinHandle<Result<WriterReport, WriteError>>,
     /// The mapped channels' thread, when the recording has them.
     view: Option<ViewFeed>,
@@ -143,10 +165,12 @@ impl WriterHandle {
         let (recycle, recycled) = mpsc::channel();
         let queued_bytes = Arc::new(AtomicUsize::new(0));
         let failed = Arc::new(AtomicBool::new(false));
+        let disk_full = Arc::new(AtomicBool::new(false));
         let max_queued_bytes = settings.queue_bytes;
         let mut state = WriterState {
             report: WriterReport {
                 messages_per_topic: vec![0; topics.len() + foreign.len()],
+                dropped_disk_full_per_topic: vec![0; topics.len() + foreign.len()],
                 ..WriterReport::default()
             },
             settings,
@@ -160,8 +184,15 @@ impl WriterHandle {
             current: None,
             segment_started: Instant::now(),
             chunk_opened: None,
+            pause: None,
+            largest_message_bytes: 0,
+            disk_full: disk_full.clone(),
         };
-        state.open_segment()?;
+        match state.open_segment() {
+            Ok(()) => {}
+            Err(WriteError::DiskFull { reason, .. }) => state.pause(&reason),
+            Err(error) => return Err(error),
+        }
         let thread_failed = failed.clone();
         let thread_queued = queued_bytes.clone();
         let thread = std::thread::Builder::new()
@@ -179,6 +210,7 @@ impl WriterHandle {
             queued_bytes,
             max_queued_bytes,
             failed,
+            disk_full,
             thread,
             view: None,
         })
@@ -202,15 +234,22 @@ impl WriterHandle {
         self.view.take().map(ViewFeed::finish)
     }
 
+    /// True while the disk is full: the writer has closed its segment and drops messages until
+    /// there is room again.
+    pub fn is_disk_full(&self) -> bool {
+        self.disk_full.load(Ordering::Relaxed)
+    }
+
     /// Registers a topic in the recording (it appears in every segment, even without messages).
     pub fn add_channel(&self, topic: usize) {
         // Only fails when the writer thread is gone, which `finish` reports.
         let _ = self.commands.send(Command::AddChannel(topic));
     }
 
-    /// True while roughly `size_bytes` more fit in the queue.
+    /// True while roughly `size_bytes` more fit in the queue (never while the disk is full).
     pub fn has_room(&self, size_bytes: usize) -> bool {
         self.queued_bytes.load(Ordering::Relaxed) + size_bytes <= self.max_queued_bytes
+            && !self.is_disk_full()
     }
 
     /// An empty buffer for encoding a message of about `size_hint` bytes (recycled when one is
@@ -321,7 +360,23 @@ impl Enqueuer {
     }
 }
 
-type OpenSegment = (PathBuf, SegmentWriter<BufWriter<File>>);
+/// The segment being written.
+struct OpenSegment {
+    path: PathBuf,
+    writer: SegmentWriter<BufWriter<File>>,
+    /// Disk space held ahead of what `writer` has written.
+    space: SpaceReservation,
+}
+
+/// The writer is paused: the disk was full.
+struct DiskFullPause {
+    /// When the free space was last checked.
+    checked: Instant,
+}
+
+/// Free space on top of two chunks and two of the largest messages that a paused writer
+/// waits for before it starts a segment again (so it does not flap open and closed).
+const RESUME_MARGIN_BYTES: u64 = 16 << 20;
 
 struct WriterState {
     settings: OutputSettings,
@@ -339,6 +394,12 @@ struct WriterState {
     /// When the open chunk got its first message.
     chunk_opened: Option<Instant>,
     report: WriterReport,
+    /// Set while the disk is full.
+    pause: Option<DiskFullPause>,
+    /// The largest message seen so far (sizes the room needed to resume).
+    largest_message_bytes: u64,
+    /// Shared with the handle: true while paused.
+    disk_full: Arc<AtomicBool>,
 }
 
 impl WriterState {
@@ -408,16 +469,24 @@ impl WriterState {
                     break;
                 }
             };
-            if let Err(error) = result {
-                tracing::error!(%error, "recording writer failed; dropping further messages");
-                failed.store(true, Ordering::Relaxed);
-                failure = Some(error);
-                // The segment keeps what was written: its complete chunks stay recoverable.
-                // (Dropping the MCAP writer attempts its summary once more and ignores errors.)
-                if let Some((path, segment)) = self.current.take() {
-                    self.report.files.push(path);
-                    self.report.bytes_written += segment.size_bytes();
-                    drop(segment);
+            match result {
+                Ok(()) => {}
+                Err(WriteError::DiskFull { file, reason }) => {
+                    tracing::warn!(file = %file.display(), %reason, "writing failed: the disk is full");
+                    self.seal_after_failure();
+                    self.pause(&reason);
+                }
+                Err(error) => {
+                    tracing::error!(%error, "recording writer failed; dropping further messages");
+                    failed.store(true, Ordering::Relaxed);
+                    failure = Some(error);
+                    // The segment keeps what was written: its complete chunks stay recoverable.
+                    // (Dropping the MCAP writer attempts its summary once more and ignores
+                    // errors.)
+                    if let Some(segment) = self.current.take() {
+                        self.report.files.push(segment.path);
+                        self.report.bytes_written += segment.writer.size_bytes();
+                    }
                 }
             }
         }
@@ -430,15 +499,134 @@ impl WriterState {
     fn segment_path(&self) -> PathBuf {
         self.current
             .as_ref()
-            .map(|(path, _)| path.clone())
+            .map(|segment| segment.path.clone())
             .unwrap_or_default()
     }
 
     fn write_error(&self, error: &mcap::McapError) -> WriteError {
-        WriteError::Write {
-            file: self.segment_path(),
-            reason: mcap_error_text(error),
+        let file = self.segment_path();
+        let reason = mcap_error_text(error);
+        if is_disk_full(error) {
+            WriteError::DiskFull { file, reason }
+        } else {
+            WriteError::Write { file, reason }
         }
+    }
+
+    /// Closes the segment for a full disk (its room held ahead takes the rest of the file)
+    /// and pauses.
+    fn close_for_disk_full(&mut self, full: &OutOfSpace) {
+        let record = Metadata {
+            name: metadata::DISK_FULL.to_owned(),
+            metadata: BTreeMap::from([
+                ("dir".to_owned(), self.settings.dir.display().to_string()),
+                ("free_bytes".to_owned(), full.free_bytes.to_string()),
+                ("needed_bytes".to_owned(), full.needed_bytes.to_string()),
+                (
+                    "closed_utc".to_owned(),
+                    format_utc_iso(ClockPair::now().realtime_ns),
+                ),
+            ]),
+        };
+        match self.finish_segment(&[record]) {
+            Ok(()) => {}
+            Err(error) => {
+                tracing::warn!(%error, "cannot finish the segment on the full disk");
+                self.seal_after_failure();
+            }
+        }
+        self.pause(&full.to_string());
+    }
+
+    /// Pauses writing until the disk has room again.
+    fn pause(&mut self, reason: &str) {
+        if self.pause.is_none() {
+            self.report.disk_full_events += 1;
+            tracing::warn!(
+                dir = %self.settings.dir.display(),
+                %reason,
+                retry_s = self.settings.disk_full_retry.as_secs_f64(),
+                "the recording disk is full: recording paused (messages are dropped and counted) until there is room"
+            );
+        }
+        self.pause = Some(DiskFullPause {
+            checked: Instant::now(),
+        });
+        self.chunk_opened = None;
+        self.disk_full.store(true, Ordering::Relaxed);
+    }
+
+    /// While paused: starts the next segment once the disk has room for it.
+    fn try_resume(&mut self) -> Result<(), WriteError> {
+        let Some(pause) = self.pause.as_mut() else {
+            return Ok(());
+        };
+        if pause.checked.elapsed() < self.settings.disk_full_retry {
+            return Ok(());
+        }
+        pause.checked = Instant::now();
+        let needed_bytes = 2 * (self.settings.chunks.chunk_size_bytes + self.largest_message_bytes)
+            + RESUME_MARGIN_BYTES;
+        let free_bytes = match free_bytes_in(&self.settings.dir) {
+            Ok(free_bytes) => free_bytes,
+            Err(error) => {
+                tracing::debug!(%error, "cannot read the free space");
+                return Ok(());
+            }
+        };
+        if free_bytes < needed_bytes {
+            tracing::debug!(free_bytes, needed_bytes, "the recording disk is still full");
+            return Ok(());
+        }
+        self.segment_index += 1;
+        match self.open_segment() {
+            Ok(()) => {
+                self.pause = None;
+                self.disk_full.store(false, Ordering::Relaxed);
+                tracing::info!(
+                    path = %self.segment_path().display(),
+                    free_bytes,
+                    "the recording disk has room again: recording resumes"
+                );
+                Ok(())
+            }
+            Err(WriteError::DiskFull { reason, .. }) => {
+                self.pause(&reason);
+                Ok(())
+            }
+            Err(error) => Err(error),
+        }
+    }
+
+    /// After a write failed for lack of space: cuts the segment back to its last complete
+    /// record and seals it, so it reads to its end.
+    fn seal_after_failure(&mut self) {
+        let Some(segment) = self.current.take() else {
+            return;
+        };
+        self.chunk_opened = None;
+        let complete_bytes = segment.writer.flushed_bytes();
+        let (mut file, _unwritten) = segment.writer.into_stream().into_parts();
+        let size_bytes = match seal_cut_file(&mut file, complete_bytes) {
+            Ok(size_bytes) => {
+                tracing::warn!(
+                    path = %segment.path.display(),
+                    size_bytes,
+                    "segment cut back to its last complete record and sealed"
+                );
+                size_bytes
+            }
+            Err(error) => {
+                tracing::warn!(
+                    path = %segment.path.display(),
+                    %error,
+                    "segment left cut without an end: `harvest rec recover` reads it"
+                );
+                complete_bytes
+            }
+        };
+        self.report.files.push(segment.path);
+        self.report.bytes_written += size_bytes;
     }
 
     fn open_segment(&mut self) -> Result<(), WriteError> {
@@ -450,11 +638,23 @@ impl WriterState {
             &self.session_utc,
             self.segment_index,
         )
-        .map_err(|source| WriteError::CreateFile {
+        .map_err(|source| {
+            if is_out_of_space(&source) {
+                WriteError::DiskFull {
+                    file: dir.clone(),
+                    reason: source.to_string(),
+                }
+            } else {
+                WriteError::CreateFile {
+                    dir: dir.clone(),
+                    source,
+                }
+            }
+        })?;
+        let space = SpaceReservation::new(&file).map_err(|source| WriteError::CreateFile {
             dir: dir.clone(),
             source,
         })?;
-        tracing::info!(path = %path.display(), segment = self.segment_index, "recording to");
         let writer = SegmentWriter::new(
             BufWriter::with_capacity(1 << 20, file),
             &self.settings.chunks,
@@ -464,9 +664,39 @@ impl WriterState {
             file: path.clone(),
             reason,
         })?;
-        self.current = Some((path.clone(), writer));
+        self.current = Some(OpenSegment {
+            path: path.clone(),
+            writer,
+            space,
+        });
         self.segment_started = Instant::now();
         self.chunk_opened = None;
+        if let Err(error) = self.start_segment() {
+            // Nothing of value is in the new file: remove it.
+            if let Some(segment) = self.current.take() {
+                drop(segment.writer.into_stream().into_parts());
+                let _ = std::fs::remove_file(&segment.path);
+            }
+            return Err(error);
+        }
+        tracing::info!(path = %path.display(), segment = self.segment_index, "recording to");
+        if let Some(max_total_bytes) = self.settings.max_total_bytes {
+            match enforce_size_bound(&dir, &self.settings.prefix, max_total_bytes, Some(&path)) {
+                Ok(removed) => self
+                    .report
+                    .removed_files
+                    .extend(removed.into_iter().map(|f| f.path)),
+                Err(error) => {
+                    tracing::warn!(dir = %dir.display(), %error, "cannot apply the size bound")
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the new segment's metadata records and channels, holds room for them and for
+    /// finishing the file, and hands them to the disk.
+    fn start_segment(&mut self) -> Result<(), WriteError> {
         let clock = ClockPair::now();
         let mut recording = self.recording_fields.clone();
         recording.insert("segment".to_owned(), self.segment_index.to_string());
@@ -488,18 +718,23 @@ impl WriterState {
         for topic in self.registered.clone() {
             self.add_channel(topic)?;
         }
-        if let Some(max_total_bytes) = self.settings.max_total_bytes {
-            match enforce_size_bound(&dir, &self.settings.prefix, max_total_bytes, Some(&path)) {
-                Ok(removed) => self
-                    .report
-                    .removed_files
-                    .extend(removed.into_iter().map(|f| f.path)),
-                Err(error) => {
-                    tracing::warn!(dir = %dir.display(), %error, "cannot apply the size bound")
-                }
-            }
+        if let Err(full) = self.reserve_room(0) {
+            return Err(WriteError::DiskFull {
+                file: self.segment_path(),
+                reason: full.to_string(),
+            });
         }
-        Ok(())
+        self.with_segment(|segment| segment.flush())
+    }
+
+    /// Holds disk space for `message_bytes` more and for finishing the file after them.
+    fn reserve_room(&mut self, message_bytes: u64) -> Result<(), OutOfSpace> {
+        let Some(segment) = self.current.as_mut() else {
+            return Ok(());
+        };
+        let written_bytes = segment.writer.size_bytes();
+        let end_bytes = written_bytes + segment.writer.finish_bound_bytes(message_bytes);
+        segment.space.ensure(end_bytes, written_bytes)
     }
 
     fn with_segment(
@@ -507,7 +742,7 @@ impl WriterState {
         operation: impl FnOnce(&mut SegmentWriter<BufWriter<File>>) -> Result<(), mcap::McapError>,
     ) -> Result<(), WriteError> {
         let result = match self.current.as_mut() {
-            Some((_, segment)) => operation(segment),
+            Some(segment) => operation(&mut segment.writer),
             None => return Ok(()),
         };
         result.map_err(|error| self.write_error(&error))
@@ -532,8 +767,28 @@ impl WriterState {
                 None => return Ok(()),
             },
         };
-        if self.current.is_none() {
+        let message_bytes = message.data.len() as u64;
+        self.largest_message_bytes = self.largest_message_bytes.max(message_bytes);
+        if self.pause.is_some() {
+            self.try_resume()?;
+        }
+        if self.pause.is_none() && self.current.is_none() {
             self.open_segment()?;
+        }
+        if self.pause.is_none()
+            && let Err(full) = self.reserve_room(message_bytes)
+        {
+            self.close_for_disk_full(&full);
+        }
+        if self.pause.is_some() {
+            if let Some(count) = self
+                .report
+                .dropped_disk_full_per_topic
+                .get_mut(message.topic)
+            {
+                *count += 1;
+            }
+            return Ok(());
         }
         self.with_segment(|segment| match (&info, &foreign) {
             (Some(info), _) => segment.write_message(
@@ -580,6 +835,9 @@ impl WriterState {
     }
 
     fn on_timer(&mut self) -> Result<(), WriteError> {
+        if self.pause.is_some() {
+            return self.try_resume();
+        }
         if self
             .chunk_opened
             .is_some_and(|opened| opened.elapsed() >= self.settings.chunk_interval)
@@ -590,15 +848,15 @@ impl WriterState {
     }
 
     fn split_if_due(&mut self) -> Result<(), WriteError> {
-        let Some((_, segment)) = self.current.as_ref() else {
+        let Some(segment) = self.current.as_ref() else {
             return Ok(());
         };
         let by_size = self
             .settings
             .split_size_bytes
-            .is_some_and(|limit| segment.size_bytes() >= limit);
+            .is_some_and(|limit| segment.writer.size_bytes() >= limit);
         let by_time = self.settings.split_duration.is_some_and(|limit| {
-            self.segment_started.elapsed() >= limit && segment.message_count() > 0
+            self.segment_started.elapsed() >= limit && segment.writer.message_count() > 0
         });
         if by_size || by_time {
             self.finish_segment(&[])?;
@@ -612,23 +870,34 @@ impl WriterState {
         for record in trailing {
             self.with_segment(|segment| segment.write_metadata(record))?;
         }
-        let Some((path, segment)) = self.current.take() else {
+        let Some(segment) = self.current.take() else {
             return Ok(());
         };
         self.chunk_opened = None;
-        let size_bytes = segment.size_bytes();
-        let result = segment.finish();
-        self.report.files.push(path.clone());
+        let size_bytes = segment.writer.size_bytes();
+        let result = segment.writer.finish();
+        self.report.files.push(segment.path.clone());
         self.report.bytes_written += size_bytes;
         match result {
             Ok(_) => {
-                tracing::info!(path = %path.display(), size_bytes, "recording segment finished");
+                segment.space.release();
+                tracing::info!(path = %segment.path.display(), size_bytes, "recording segment finished");
                 Ok(())
             }
-            Err(error) => Err(WriteError::Write {
-                file: path,
-                reason: mcap_error_text(&error),
-            }),
+            Err(error) => {
+                let reason = mcap_error_text(&error);
+                if is_disk_full(&error) {
+                    Err(WriteError::DiskFull {
+                        file: segment.path,
+                        reason,
+                    })
+                } else {
+                    Err(WriteError::Write {
+                        file: segment.path,
+                        reason,
+                    })
+                }
+            }
         }
     }
 }

@@ -1,5 +1,6 @@
 //! The supervisor's view of each process, its live status lines and the final summary.
 
+use harvest_ipc::payloads::ProcessRunState;
 use std::fmt::Write as _;
 use std::time::Instant;
 
@@ -29,12 +30,17 @@ pub struct ProcessStatus {
     /// What the launch file's scheduling settings became (`fifo80 cpu1 mlock 41MiB`; refused
     /// parts marked `:EPERM`); empty when none were asked.
     pub scheduling: String,
+    /// The run state of the process's last heartbeat (None before the first one).
+    pub run_state: Option<ProcessRunState>,
 }
 
 impl ProcessStatus {
     pub fn state_label(&self) -> String {
         match &self.phase {
-            ProcessPhase::Running { pid } => format!("running pid {pid}"),
+            ProcessPhase::Running { pid } => match self.run_state {
+                Some(ProcessRunState::Degraded) => format!("DEGRADED pid {pid}"),
+                _ => format!("running pid {pid}"),
+            },
             ProcessPhase::WaitingToRestart { until } => {
                 let wait = until.saturating_duration_since(Instant::now());
                 format!("restart in {:.1}s", wait.as_secs_f64())

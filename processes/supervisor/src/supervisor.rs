@@ -17,7 +17,9 @@ use crate::launch::{Launch, ProcessSpec};
 use crate::restart_tracker::{RestartDecision, RestartTracker};
 use crate::scheduling::SchedulingOutcome;
 use crate::status::{self, ProcessPhase, ProcessStatus};
-use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH};
+use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH, SAFETY_VIOLATION};
+use harvest_ipc::payloads::ProcessRunState;
+use harvest_ipc::payloads::SafetyViolation;
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, RunEnd, Waiter};
 use harvest_log::{HarvestLog, HarvestLogSummary};
 use nix::sys::signal::Signal;
@@ -57,6 +59,22 @@ pub struct Summary {
     pub leftover_files: Vec<PathBuf>,
     /// The harvest as `harvest/events` told it (None when no harvest event arrived).
     pub harvest: Option<HarvestLogSummary>,
+    /// The safety monitor's violations (`safety/violation`), in words, in the order received.
+    pub safety_violations: Vec<String>,
+}
+
+/// One `safety/violation` message in words, as the summary names it.
+pub fn violation_line(violation: &SafetyViolation) -> String {
+    let rule = match violation.rule.get() {
+        Ok(rule) => format!("{rule:?}"),
+        Err(unknown) => unknown.to_string(),
+    };
+    let action = if violation.requests_stop() {
+        "protective stop requested"
+    } else {
+        "reported only"
+    };
+    format!("{rule}: {} ({action})", violation.description.as_str())
 }
 
 impl Summary {
@@ -64,6 +82,15 @@ impl Summary {
     /// event arrived.
     pub fn render_harvest(&self) -> Option<String> {
         self.harvest.as_ref().map(ToString::to_string)
+    }
+
+    /// The safety violations (what `harvest up` prints on stdout after the harvest summary).
+    pub fn render_safety(&self) -> String {
+        let mut out = format!("safety violations: {}\n", self.safety_violations.len());
+        for line in &self.safety_violations {
+            out.push_str(&format!("  VIOLATION {line}\n"));
+        }
+        out
     }
 
     /// The processes' final states (what `harvest up` prints on stderr at the end).
@@ -226,6 +253,9 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     let tick_guard = waiter.attach_interval(HOUSEKEEPING_PERIOD)?;
     let events = context.subscriber_with_buffer(HARVEST_EVENTS, 256)?;
     let events_guard = waiter.attach_listener(events.listener())?;
+    let violations = context.subscriber_with_buffer(SAFETY_VIOLATION, 256)?;
+    let violations_guard = waiter.attach_listener(violations.listener())?;
+    let mut safety_violations: Vec<String> = Vec::new();
     let mut harvest_log = HarvestLog::new(MonotonicClock::read_ns());
     let mut harvest_events = 0u64;
 
@@ -252,6 +282,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                 detail_value: 0,
                 deadline_misses: 0,
                 scheduling: String::new(),
+                run_state: None,
             },
             count_at_last_status: 0,
             scheduling: SchedulingOutcome::none(),
@@ -279,6 +310,13 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
 
     let run_end = waiter.run(|attachment| -> Result<Flow, SupervisorError> {
         let now = Instant::now();
+        if attachment.has_event_from(&violations_guard) {
+            violations.drain(|violation| {
+                let line = violation_line(violation);
+                tracing::error!(violation = %line, "safety violation");
+                safety_violations.push(line);
+            })?;
+        }
         if attachment.has_event_from(&events_guard) {
             let mut lines = Vec::new();
             events.drain(|event| {
@@ -318,6 +356,15 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                     process.status.detail = beat.detail.as_str().to_owned();
                     process.status.detail_value = beat.detail_value;
                     process.status.deadline_misses = beat.deadline_misses;
+                    let run_state = beat.run_state.get().ok();
+                    if run_state != process.status.run_state {
+                        if run_state == Some(ProcessRunState::Degraded) {
+                            tracing::warn!(process = %process.spec.name, detail = %process.status.detail, value = beat.detail_value, "process reports itself degraded");
+                        } else if process.status.run_state == Some(ProcessRunState::Degraded) {
+                            tracing::info!(process = %process.spec.name, "process no longer degraded");
+                        }
+                    }
+                    process.status.run_state = run_state;
                 }
             });
             if let Err(error) = drained {
@@ -420,6 +467,12 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     drop(health_guard);
     drop(tick_guard);
     drop(events_guard);
+    drop(violations_guard);
+    let drained = violations.drain(|violation| safety_violations.push(violation_line(violation)));
+    if let Err(error) = drained {
+        tracing::debug!(%error, "safety violations sent while stopping not received");
+    }
+    drop(violations);
     // Events sent while the stack stops (attempts cut short) still count.
     let drained = events.drain(|event| {
         harvest_events += 1;
@@ -452,6 +505,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         ended_by,
         leftover_files: harvest_ipc::cleanup::leftover_files(domain),
         harvest: (harvest_events > 0).then(|| harvest_log.summary()),
+        safety_violations,
     };
     // Every process of the stack is stopped: the domain is free for the next `harvest up`.
     drop(domain_lock);
@@ -489,6 +543,7 @@ fn start(
             process.child = Some(child);
             process.started_at = now;
             process.last_heartbeat = None;
+            process.status.run_state = None;
         }
         Err(error) => {
             let reason = format!("cannot start {:?}: {error}", options.executable);

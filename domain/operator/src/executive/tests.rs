@@ -421,3 +421,21 @@ fn disabling_an_arm_is_allowed_in_every_mode() {
     );
     assert_eq!(b.executive.arms_enabled(), [true, true]);
 }
+
+#[test]
+fn the_safety_monitor_engages_the_stop_once_and_only_an_operator_releases_it() {
+    let mut b = Bench::new(OperatorModeCode::Harvesting);
+    let actions = b.executive.protective_stop(b.now_ns, "both valves open");
+    assert!(matches!(
+        actions.as_slice(),
+        [Action::EngageEmergencyStop { reason }] if reason.contains("both valves open")
+    ));
+    assert_eq!(b.executive.mode(), OperatorModeCode::EmergencyStopped);
+    assert!(b.executive.last_change().reason.contains("safety monitor"));
+    // A burst of violations: the stop is published once.
+    assert!(b.executive.protective_stop(b.now_ns, "again").is_empty());
+    assert!(b.advance(1_000).is_empty());
+    assert_eq!(b.executive.mode(), OperatorModeCode::EmergencyStopped);
+    assert!(b.send(Command::Release).is_accepted());
+    assert_eq!(b.executive.mode(), OperatorModeCode::Idle);
+}

@@ -28,6 +28,8 @@ pub(super) struct Withdrawal {
 pub(super) struct ArmTrack {
     /// Commanded: source valve open (valve 1 or 3 open, 2 or 4 closed).
     pub(super) valve_open: bool,
+    /// When the valve was last opened, ns.
+    pub(super) opened_at_ns: u64,
     /// Dispatched, not yet taken up.
     pub(super) dispatched: Option<Dispatch>,
     /// Taken up, running.

@@ -16,6 +16,8 @@ pub enum ValveCloseCause {
     Policy(CloseReason),
     /// Emergency stop.
     EmergencyStop,
+    /// The interlock: both valves were open with neither cup sealed (module docs, step 6).
+    Interlock,
 }
 
 /// Something the node did or saw this tick.

@@ -1,4 +1,4 @@
-//! Steps 4 to 6 and the emergency stop: the policy's force-closes, the arms' standing valve
+//! Steps 4 to 6, the interlock and the emergency stop: the policy's force-closes, the arms' standing valve
 //! requests answered (oldest waiter first), and every valve closed on an emergency stop.
 
 use tracing::{debug, warn};
@@ -8,7 +8,8 @@ use super::{
     REFUSED_ARM_DISABLED, VacuumNode, VacuumNodeEvent, VacuumNodeInput, ValveCloseCause,
     refuse_reason_code,
 };
-use crate::policy::{Decision, Request, ValveOrder};
+use crate::policy::{Decision, RefuseReason, Request, ValveOrder};
+use crate::pressure::AttachmentState;
 use crate::replan::AttemptResult;
 use harvest_ipc::Header;
 use harvest_ipc::payloads::{ValveGrant, ValveRequest, ValveRequestKind};
@@ -57,6 +58,40 @@ impl VacuumNode {
                 self.output.events.push(VacuumNodeEvent::ValveClosed {
                     arm,
                     cause: ValveCloseCause::Policy(reason),
+                });
+            }
+        }
+    }
+
+    /// Step 6, the interlock's second rule (module docs): both valves open, neither cup sealed.
+    pub(super) fn interlock(&mut self) {
+        let unsealed_open = |node: &Self, arm: ArmId| {
+            node.arms[arm.index()].valve_open
+                && node.inference.state(arm) != AttachmentState::Sealed
+        };
+        if !ArmId::ALL.iter().all(|&arm| unsealed_open(self, arm)) {
+            return;
+        }
+        let failed = ArmId::ALL.map(|arm| {
+            matches!(
+                self.inference.state(arm),
+                AttachmentState::AttachFailed | AttachmentState::Dropped
+            )
+        });
+        let close = if failed.iter().any(|&f| f) {
+            failed
+        } else if self.arms[1].opened_at_ns >= self.arms[0].opened_at_ns {
+            [false, true]
+        } else {
+            [true, false]
+        };
+        for arm in ArmId::ALL {
+            if close[arm.index()] {
+                self.arms[arm.index()].valve_open = false;
+                warn!(%arm, "interlock: both valves open with neither cup sealed; valve closed");
+                self.output.events.push(VacuumNodeEvent::ValveClosed {
+                    arm,
+                    cause: ValveCloseCause::Interlock,
                 });
             }
         }
@@ -111,8 +146,15 @@ impl VacuumNode {
         if track.valve_open || track.granted_seq == Some(request.request_seq) {
             return;
         }
+        let other = arm.other();
+        // The interlock (module docs): only this node's valves and pressures, no arm report.
+        let beside_unsealed = self.arms[other.index()].valve_open
+            && self.inference.state(other) != AttachmentState::Sealed;
         let (code, reason) = if !self.config.arms_enabled[i] {
             (REFUSED_ARM_DISABLED, None)
+        } else if beside_unsealed {
+            let reason = RefuseReason::OtherArmAttempting;
+            (refuse_reason_code(&reason), Some(reason))
         } else {
             match self
                 .policy
@@ -121,6 +163,7 @@ impl VacuumNode {
                 Decision::Grant => {
                     let track = &mut self.arms[i];
                     track.valve_open = true;
+                    track.opened_at_ns = input.now_ns;
                     track.opened_in_cycle = true;
                     track.granted_seq = Some(request.request_seq);
                     track.refused = None;

@@ -1,0 +1,111 @@
+//! A safety rule the independent monitor (`harvest monitor`) found broken on the live channels,
+//! and whether it asks the executive to engage the protective stop.
+//!
+//! The monitor is the channel's one writer; the executive (the e-stop's one writer) reads it and
+//! engages `safety/emergency_stop` when `action` is [`ViolationAction::Stop`] (or unknown: the
+//! safe side). Nothing on this channel can release the stop: release stays an operator command.
+
+use crate::fixed_string::FixedString;
+use crate::header::Header;
+use crate::wire_code::WireCode;
+use iceoryx2::prelude::ZeroCopySend;
+use serde::{Deserialize, Serialize};
+
+/// Capacity of [`SafetyViolation::description`], bytes.
+pub const VIOLATION_TEXT_BYTES: usize = 160;
+
+/// The rule broken (the variants of `harvest_safety::safety_monitor::Violation`).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
+pub enum ViolationRule {
+    /// A valve opened while the other arm's valve was open with no seal.
+    OpenedBesideUnsealed = 1,
+    /// Both valves open with neither cup sealed for longer than one control period.
+    BothOpenUnsealed = 2,
+    /// A valve not closed by its deadline after a failure on its arm.
+    FailureNotClosed = 3,
+    /// A joint command outside its limits (or not finite).
+    JointOutOfLimits = 4,
+    /// A valve open during the emergency stop.
+    ValveOpenDuringEmergencyStop = 5,
+    /// A joint set-point sent during the emergency stop.
+    MovedDuringEmergencyStop = 6,
+    /// The end-effectors closer than the clearance.
+    EndEffectorsTooClose = 7,
+    /// No rule broken: `harvest monitor --engage-stop-after` asks for a stop to measure the
+    /// stack's reaction.
+    ReactionMeasurement = 8,
+}
+
+/// What the monitor asks for.
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
+pub enum ViolationAction {
+    /// Reported only (`--on-violation report`).
+    Report = 0,
+    /// The protective stop must be engaged (`--on-violation stop`).
+    Stop = 1,
+}
+
+/// One violation (`safety/violation`). `header.capture_ns` is when the monitor found it.
+#[repr(C)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+)]
+#[type_name("harvest.SafetyViolation.v1")]
+pub struct SafetyViolation {
+    pub header: Header,
+    /// When the rule was broken, as the monitor's trace dates it, ns (monotonic clock).
+    pub violated_ns: u64,
+    /// The rule.
+    pub rule: WireCode<ViolationRule>,
+    /// What the monitor asks for.
+    pub action: WireCode<ViolationAction>,
+    /// Arm 1 or 2 the rule concerns, 0 for both or none.
+    pub arm_id: u8,
+    pub _reserved: [u8; 5],
+    /// In words, as `harvest monitor` prints it.
+    pub description: FixedString<VIOLATION_TEXT_BYTES>,
+}
+
+crate::serde_payload!(
+    SafetyViolation,
+    "harvest.SafetyViolation",
+    1,
+    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
+violated_ns:u64; rule:u8 (1 opened beside unsealed, 2 both open unsealed, 3 failure not closed, \
+4 joint out of limits, 5 valve open during e-stop, 6 moved during e-stop, 7 end-effectors too \
+close, 8 reaction measurement); action:u8 (0 report, 1 stop); arm_id:u8; _reserved:[u8;5]; \
+description: u64 length + UTF-8"
+);
+
+impl SafetyViolation {
+    /// True unless the monitor only reports it: an unknown action code asks for the stop (the
+    /// safe side).
+    pub fn requests_stop(&self) -> bool {
+        !matches!(self.action.get(), Ok(ViolationAction::Report))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_unknown_action_code_requests_the_stop() {
+        let mut violation = SafetyViolation::default();
+        assert!(!violation.requests_stop());
+        violation.action.set(ViolationAction::Stop);
+        assert!(violation.requests_stop());
+        violation.action = WireCode::from_raw(77);
+        assert!(violation.requests_stop());
+    }
+}
