@@ -27,6 +27,7 @@ pub mod row;
 pub mod row_world;
 pub mod scenario;
 pub mod thread_link;
+pub mod tractor_device;
 pub mod world_motion;
 pub mod world_state;
 

@@ -23,6 +23,7 @@ use crate::platform_device::{PlatformDeviceConfig, PlatformDeviceError, Platform
 use crate::robot::{SimRobot, SimRobotError};
 use crate::row::RowPlatform;
 use crate::thread_link::ThreadLink;
+use crate::tractor_device::{TRACTOR_FEEDBACK_PERIOD, TractorDeviceServer, TractorMotion};
 use crate::world_state::{WorldState, WorldStateError, WorldStatePersister};
 use harvest_ipc::catalogue::{
     HW_ARM_ENCODERS, HW_ARM_SERVO, HW_VALVE_COMMAND, HW_VALVE_READINGS, SIM_GROUND_TRUTH,
@@ -53,8 +54,12 @@ pub struct PhysicsThreadConfig {
     pub platform: PlatformDeviceConfig,
     /// Where the stages' stops put the robot in the row frame.
     pub row_platform: RowPlatform,
-    /// Trailer position along the row, m.
+    /// Trailer position along the row at start, m.
     pub trailer_m: f64,
+    /// The tractor's creep speed, m/s.
+    pub tractor_speed_m_per_s: f64,
+    /// End of the row (the tractor stops there), m.
+    pub row_end_m: f64,
     /// Where the world's state is persisted (`None`: not persisted).
     pub state_file: Option<PathBuf>,
     /// Shortest interval between two writes of the state file.
@@ -203,12 +208,21 @@ pub fn run(
     let physics_tick = waiter.attach_interval(PHYSICS_PERIOD)?;
     let platform_tick = waiter.attach_interval(platform.period())?;
     let truth_tick = waiter.attach_interval(GROUND_TRUTH_PERIOD)?;
+    let mut tractor = TractorDeviceServer::open(
+        &context,
+        TractorMotion::new(
+            config.tractor_speed_m_per_s,
+            config.trailer_m,
+            config.row_end_m,
+        ),
+    )?;
+    let tractor_tick = waiter.attach_interval(TRACTOR_FEEDBACK_PERIOD)?;
     let mut persister = config.state_file.clone().map(|path| {
         WorldStatePersister::new(path, config.state_min_interval, config.saved_state.clone())
     });
-    let robot_offset_m = |stage_m: [f64; 2]| {
+    let robot_offset_m = |stage_m: [f64; 2], trailer_m: f64| {
         let [x, z] = config.row_platform.offset_m(stage_m);
-        [x, config.trailer_m, z]
+        [x, trailer_m, z]
     };
     let mut last_step = Instant::now();
     let mut snapshots_skipped = 0u64;
@@ -232,17 +246,24 @@ pub fn run(
                     snapshots_skipped += 1;
                 }
             }
-            if attachment.has_event_from(&platform_tick) {
-                platform.tick()?;
-                robot
-                    .world_mut()
-                    .set_robot_offset_m(robot_offset_m(platform.position_m()));
+            if attachment.has_event_from(&tractor_tick) {
+                tractor.tick()?;
+            }
+            if attachment.has_event_from(&platform_tick) || attachment.has_event_from(&tractor_tick)
+            {
+                if attachment.has_event_from(&platform_tick) {
+                    platform.tick()?;
+                }
+                robot.world_mut().set_robot_offset_m(robot_offset_m(
+                    platform.position_m(),
+                    tractor.position_m(),
+                ));
             }
             if attachment.has_event_from(&truth_tick) {
                 ports.publish_ground_truth(&robot)?;
                 if let Some(persister) = persister.as_mut() {
                     let state =
-                        WorldState::of(robot.world(), config.trailer_m, platform.position_m());
+                        WorldState::of(robot.world(), tractor.position_m(), platform.position_m());
                     persister.offer(state, Instant::now())?;
                 }
             }
@@ -250,7 +271,7 @@ pub fn run(
         })
         .map_err(harvest_ipc::RunError::flatten);
     if let Some(persister) = persister.as_mut() {
-        let state = WorldState::of(robot.world(), config.trailer_m, platform.position_m());
+        let state = WorldState::of(robot.world(), tractor.position_m(), platform.position_m());
         persister.offer(state, Instant::now())?;
         persister.flush()?;
     }

@@ -8,6 +8,8 @@
 //!   out at 50 Hz (see [`crate::platform_device`]);
 //! - with `--lidar`, the solid-state LiDAR's point frames on `hw/lidar/points` at 10 Hz (see
 //!   [`crate::lidar_device`]);
+//! - the tractor's targets (`hw/tractor/command`) in, the trailer's position
+//!   (`hw/tractor/feedback`) out at 20 Hz (see [`crate::tractor_device`]);
 //! - the true apples on `sim/ground_truth` (evaluation only).
 //!
 //! With `--row FILE` the world is a whole orchard row ([`crate::row`]): several sections along
@@ -131,6 +133,8 @@ impl SimThreadsConfig {
                 platform: PlatformDeviceConfig::default(),
                 row_platform: RowPlatform::default(),
                 trailer_m: 0.0,
+                tractor_speed_m_per_s: crate::row::RowTractor::default().speed_m_per_s,
+                row_end_m: 0.0,
                 state_file: None,
                 state_min_interval: STATE_MIN_INTERVAL,
                 saved_state: None,
@@ -164,13 +168,13 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
     if !(0.1..=120.0).contains(&args.camera_rate_hz) {
         return Err(SimError::BadRate(args.camera_rate_hz));
     }
-    let (mut world, row_platform, mut trailer_m) = match &args.row {
+    let (mut world, row_platform, tractor) = match &args.row {
         Some(path) => {
             let row = RowScenario::from_file(path)?;
             (
                 World::generate_row(&row, args.seed)?,
                 row.file.platform,
-                row.file.tractor.start_m,
+                row.file.tractor,
             )
         }
         None => {
@@ -178,10 +182,13 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
             (
                 World::generate(&scenario, args.seed)?,
                 RowPlatform::default(),
-                0.0,
+                crate::row::RowTractor::default(),
             )
         }
     };
+    let mut trailer_m = tractor.start_m;
+    // The trailer may drive until the robot's y = 0 is at the end of the canopy.
+    let row_end_m = world.scenario().canopy.y_range_m[1].max(trailer_m);
     let mut config = SimThreadsConfig::new(
         process_name,
         Duration::from_secs_f64(1.0 / args.camera_rate_hz),
@@ -242,6 +249,8 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
     };
     config.physics.row_platform = row_platform;
     config.physics.trailer_m = trailer_m;
+    config.physics.tractor_speed_m_per_s = tractor.speed_m_per_s;
+    config.physics.row_end_m = row_end_m.max(trailer_m);
     config.physics.state_file = Some(state_file);
     config.physics.saved_state = restored;
     let robot = SimRobot::from_world(world, crate::robot::SimRobotConfig::default())?;

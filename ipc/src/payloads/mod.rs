@@ -11,6 +11,7 @@ pub mod platform;
 pub mod point_cloud;
 pub mod process_health;
 pub mod rgbd_frame;
+pub mod tractor;
 pub mod vacuum;
 
 pub use alacs::{AlacsCommand, AlacsImage};
@@ -28,4 +29,5 @@ pub use platform::{PlatformCommand, PlatformFeedback};
 pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
 pub use process_health::{ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
+pub use tractor::{TractorCommand, TractorFeedback};
 pub use vacuum::{VacuumState, ValveGrant, ValveRequest, ValveRequestKind};
