@@ -10,14 +10,14 @@ use common::*;
 use harvest_hw::conformance::TestWatchdog;
 use harvest_hw::platform::sim::SimPlatform;
 use harvest_hw::platform::{Platform, PlatformTravel};
+use harvest_hw::tractor::Tractor;
 use harvest_hw::tractor::conformance::{TractorConformanceConfig, conformance_suite};
 use harvest_hw::tractor::sim::SimTractor;
-use harvest_hw::tractor::Tractor;
 use harvest_hw::{DeviceError, ErrorKind};
 use harvest_ipc::catalogue::SIM_GROUND_TRUTH;
+use harvest_ipc::payloads::GroundTruth;
 use harvest_ipc::payloads::TrueApple;
 use harvest_ipc::{Context, Domain, Subscriber};
-use harvest_ipc::payloads::GroundTruth;
 use harvest_sim::orchard::World;
 use harvest_sim::row::RowScenario;
 use harvest_sim::world_state::{OffTree, OffTreeApple, WorldState};
@@ -71,7 +71,10 @@ fn wait_for<T>(what: &str, mut probe: impl FnMut() -> Option<T>) -> T {
         if let Some(value) = probe() {
             return value;
         }
-        assert!(start.elapsed() < Duration::from_secs(60), "no {what} within 60 s");
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no {what} within 60 s"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
 }
@@ -161,7 +164,10 @@ fn the_world_follows_the_platform_and_the_trailer_within_the_row_travel_and_surv
             .expect("platform");
     let mut tractor = SimTractor::connect(&context, Duration::from_secs(20)).expect("tractor");
     let at = settle_platform(&mut platform);
-    assert!((at[0] - 0.05).abs() < 1e-9 && (at[1] - 0.1).abs() < 1e-9, "{at:?}");
+    assert!(
+        (at[0] - 0.05).abs() < 1e-9 && (at[1] - 0.1).abs() < 1e-9,
+        "{at:?}"
+    );
     assert!((settle_tractor(&mut tractor) - 0.4).abs() < 1e-9);
     let before = truth_after(&truth, now_ns());
     assert_eq!(before.len(), world.apples().len());
@@ -172,11 +178,16 @@ fn the_world_follows_the_platform_and_the_trailer_within_the_row_travel_and_surv
     let generated = world.apples()[0].center_in_robot_m;
     let seen = before[0].center_in_robot_m;
     for (axis, offset) in [0.05, 0.4, 0.0].into_iter().enumerate() {
-        assert!((seen[axis] - (generated[axis] - offset)).abs() < 1e-9, "{seen:?} {generated:?}");
+        assert!(
+            (seen[axis] - (generated[axis] - offset)).abs() < 1e-9,
+            "{seen:?} {generated:?}"
+        );
     }
 
     // The row's travel (0.3 m in-out) is narrower than the driver's: the device refuses.
-    platform.move_to(0.4, 0.1).expect("inside the driver's travel");
+    platform
+        .move_to(0.4, 0.1)
+        .expect("inside the driver's travel");
     let refused = wait_for("refusal", || match platform.position() {
         Err(error) => Some(error),
         Ok(_) => None,
@@ -191,7 +202,11 @@ fn the_world_follows_the_platform_and_the_trailer_within_the_row_travel_and_surv
     assert!((trailer_m - 1.0).abs() < 1e-9, "{trailer_m}");
     let moved = truth_after(&truth, now_ns());
     let shift = [0.2 - 0.05, 1.0 - 0.4, 0.3 - 0.1];
-    for (apple, earlier) in moved.iter().zip(&before).filter(|(apple, _)| apple.state == 0) {
+    for (apple, earlier) in moved
+        .iter()
+        .zip(&before)
+        .filter(|(apple, _)| apple.state == 0)
+    {
         for axis in 0..3 {
             let expected = earlier.center_in_robot_m[axis] - shift[axis];
             assert!((apple.center_in_robot_m[axis] - expected).abs() < 1e-9);
@@ -231,5 +246,8 @@ fn the_world_follows_the_platform_and_the_trailer_within_the_row_travel_and_surv
     }
     let (status, _, stderr) = sim.interrupt_and_wait(Duration::from_secs(20));
     assert!(status.success(), "{stderr}");
-    assert!(stderr.contains("world restored from its state file"), "{stderr}");
+    assert!(
+        stderr.contains("world restored from its state file"),
+        "{stderr}"
+    );
 }

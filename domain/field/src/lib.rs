@@ -7,4 +7,6 @@
 
 pub mod positioning;
 
-pub use positioning::{Positioning, PositioningError, StageTravel, choose_offsets, reachable_count};
+pub use positioning::{
+    Positioning, PositioningError, StageTravel, choose_offsets, reachable_count,
+};

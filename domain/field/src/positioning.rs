@@ -41,7 +41,9 @@ pub struct Positioning {
 pub enum PositioningError {
     #[error("stage travel {travel:?} must be finite and positive on both stages")]
     InvalidTravel { travel: StageTravel },
-    #[error("current stage position {current_m:?} m is outside the travel {travel:?} or not finite")]
+    #[error(
+        "current stage position {current_m:?} m is outside the travel {travel:?} or not finite"
+    )]
     CurrentOutsideTravel {
         current_m: [f64; 2],
         travel: StageTravel,
@@ -167,8 +169,14 @@ mod tests {
                 assert!((0.0..=TRAVEL.in_out_max_m).contains(&chosen.offset_m[0]));
                 assert!((0.0..=TRAVEL.up_down_max_m).contains(&chosen.offset_m[1]));
                 assert!(chosen.reachable >= chosen.reachable_here);
-                let delta = [chosen.offset_m[0] - current[0], chosen.offset_m[1] - current[1]];
-                assert_eq!(reachable_count([&a1, &a2], &apples, delta), chosen.reachable);
+                let delta = [
+                    chosen.offset_m[0] - current[0],
+                    chosen.offset_m[1] - current[1],
+                ];
+                assert_eq!(
+                    reachable_count([&a1, &a2], &apples, delta),
+                    chosen.reachable
+                );
             }
         }
     }
@@ -220,6 +228,26 @@ mod tests {
                 total[k] += per_preset[k];
             }
         }
+        // The same rows with the up-down stops centred on the row frame's z = 0 (a stage
+        // range of [-0.4, 0.4] m): the fixed position is the stage's middle (the robot at
+        // z = 0, as at the default stops above); the chosen offsets may also go down.
+        let mut centred = [0usize; 2];
+        for preset in ["default", "gala_vertical_wall", "fuji_ufo"] {
+            for seed in 1..=3 {
+                for apples in stops(preset, seed, 3) {
+                    let chosen =
+                        choose_offsets([&a1, &a2], &apples, TRAVEL, [0.0, 0.4]).expect("chosen");
+                    centred[0] += chosen.reachable_here;
+                    centred[1] += chosen.reachable;
+                }
+            }
+        }
+        println!(
+            "positioning centred up-down stops: reachable per stop fixed {:.1} , chosen {:.1} , ratio {:.2}",
+            centred[0] as f64 / 27.0,
+            centred[1] as f64 / 27.0,
+            centred[1] as f64 / centred[0].max(1) as f64
+        );
         let ratio = total[2] as f64 / total[1].max(1) as f64;
         println!(
             "positioning all: apples {} , reachable per stop fixed {:.1} , chosen {:.1} , ratio {ratio:.2}",
@@ -227,6 +255,11 @@ mod tests {
             total[1] as f64 / 27.0,
             total[2] as f64 / 27.0
         );
-        assert!(total[2] > total[1], "chosen {} vs fixed {}", total[2], total[1]);
+        assert!(
+            total[2] > total[1],
+            "chosen {} vs fixed {}",
+            total[2],
+            total[1]
+        );
     }
 }
