@@ -11,6 +11,7 @@ pub mod platform;
 pub mod point_cloud;
 pub mod process_health;
 pub mod rgbd_frame;
+pub mod tractor;
 pub mod vacuum;
 // Operator channels (issue 15).
 pub mod arm_manual;
@@ -37,6 +38,7 @@ pub use platform::{PlatformCommand, PlatformFeedback, PlatformStatus};
 pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
 pub use process_health::{ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
+pub use tractor::{TractorCommand, TractorFeedback, TractorStatus};
 pub use vacuum::{
     ArmAttachment, VacuumPolicyCode, VacuumState, ValveGrant, ValveRequest, ValveRequestKind,
 };
