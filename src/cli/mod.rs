@@ -40,6 +40,10 @@ enum Command {
         /// Stop once the vacuum supervisor reports that nothing is left to pick.
         #[arg(long)]
         until_harvested: bool,
+        /// Stop once the executive's stop-and-go cycle finished the row's last stop (a launch
+        /// with a row, e.g. processes/supervisor/launch/row.toml).
+        #[arg(long)]
+        until_row_done: bool,
     },
     /// Simulated robot: the orchard world serving the hardware channels.
     #[cfg(feature = "sim-tools")]
@@ -192,7 +196,8 @@ impl Cli {
                 launch,
                 duration,
                 until_harvested,
-            } => up(launch, duration, until_harvested, domain),
+                until_row_done,
+            } => up(launch, duration, until_harvested, until_row_done, domain),
             Command::Arm(args) => {
                 harvest_arm_process::run(&args, &domain, process_name)
                     .with_context(|| stack_process_context("arm process", &domain))?;
@@ -355,6 +360,7 @@ fn up(
     launch: Option<PathBuf>,
     duration: Option<Duration>,
     until_harvested: bool,
+    until_row_done: bool,
     domain: Domain,
 ) -> Result<ExitCode> {
     let launch = match &launch {
@@ -368,6 +374,7 @@ fn up(
         duration,
         executable,
         until_harvested,
+        until_row_done,
     })?;
     if let Some(harvest) = summary.render_harvest() {
         print!("{harvest}");

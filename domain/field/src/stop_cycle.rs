@@ -213,6 +213,18 @@ impl StopCycle {
         self.phase
     }
 
+    /// True while new approaches must wait: the trailer drives, the arms park, the platform
+    /// moves, or fresh detections are awaited (the owner tells the vacuum supervisor).
+    pub fn holds_approaches(&self) -> bool {
+        matches!(
+            self.phase,
+            StopPhase::Arriving
+                | StopPhase::Parking
+                | StopPhase::Positioning { .. }
+                | StopPhase::Settling { .. }
+        )
+    }
+
     /// The stop being worked (1-based).
     pub fn stop_number(&self) -> u32 {
         self.stop.stop

@@ -607,7 +607,7 @@ impl Executive {
         state.mode = self.mode as u8;
         state.emergency_stop_engaged = u8::from(self.emergency_stop_engaged());
         state.arms_enabled = self.arms_enabled.map(u8::from);
-        state._reserved = [0; 2];
+        state._reserved = [0; 1];
         state.controlling_session = self.controller.as_ref().map_or(0, |c| c.session_id);
         state.controller =
             FixedString::new(self.controller.as_ref().map_or("", |c| c.client.as_str()));

@@ -313,7 +313,11 @@ pub struct OperatorModeState {
     pub platform_in_motion: u8,
     /// 1 when the executive drives a platform and `platform_position_m` is its feedback.
     pub platform_present: u8,
-    pub _reserved: [u8; 2],
+    /// 1 while the row's stop-and-go cycle holds new approaches (the trailer drives, the arms
+    /// park, the platform repositions, fresh detections are awaited): the vacuum supervisor
+    /// dispatches no new target, the running attempts finish.
+    pub field_hold: u8,
+    pub _reserved: [u8; 1],
     /// The controlling session (0: none).
     pub controlling_session: u64,
     /// When the mode (or the controller) last changed, ns.
@@ -335,7 +339,7 @@ crate::serde_payload!(
     1,
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
 mode:u8 (1 idle, 2 harvesting, 3 paused, 4 manual, 5 estopped); emergency_stop_engaged:u8; \
-arms_enabled:[u8;2]; platform_in_motion:u8; platform_present:u8; _reserved:[u8;2]; \
+arms_enabled:[u8;2]; platform_in_motion:u8; platform_present:u8; field_hold:u8; _reserved:[u8;1]; \
 controlling_session:u64; last_change_ns:u64; platform_position_m:[f64;2]; \
 last_change_code:u16; _reserved2:[u8;6]; controller: u64 length + UTF-8; last_change_reason: \
 u64 length + UTF-8"
