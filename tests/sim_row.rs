@@ -193,10 +193,7 @@ fn the_world_follows_the_platform_and_the_trailer_within_the_row_travel_and_surv
     platform
         .move_to(0.4, 0.1)
         .expect("inside the driver's travel");
-    let refused = wait_for("refusal", || match platform.position() {
-        Err(error) => Some(error),
-        Ok(_) => None,
-    });
+    let refused = wait_for("refusal", || platform.position().err());
     assert_eq!(refused.kind(), ErrorKind::InvalidRequest, "{refused}");
     // Moves inside the travel move the world the other way.
     platform.move_to(0.2, 0.3).expect("move");
@@ -212,8 +209,8 @@ fn the_world_follows_the_platform_and_the_trailer_within_the_row_travel_and_surv
         .zip(&before)
         .filter(|(apple, _)| apple.state == TrueAppleState::OnTree)
     {
-        for axis in 0..3 {
-            let expected = earlier.center_in_robot_m[axis] - shift[axis];
+        for (axis, shift_m) in shift.iter().enumerate() {
+            let expected = earlier.center_in_robot_m[axis] - shift_m;
             assert!((apple.center_in_robot_m[axis] - expected).abs() < 1e-9);
         }
     }
