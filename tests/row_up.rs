@@ -2,7 +2,9 @@
 //! `harvest up --launch processes/supervisor/launch/row.toml --until-row-done` works a two-stop
 //! row in a private domain (the executive's stop cycle positions the platform, waits for fresh
 //! detections, harvests, advances the tractor), prints one line per stop and a row summary,
-//! and its counts match the simulator's ground truth.
+//! and its counts match the simulator's ground truth; a `kill -9` of the sim process mid-row
+//! (restarted by `harvest up`, its world restored from its state file) harvests no apple twice,
+//! loses none, and the row completes.
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
@@ -11,7 +13,7 @@ use common::*;
 use harvest_ipc::catalogue::SIM_GROUND_TRUTH;
 use harvest_ipc::payloads::TrueAppleState;
 use harvest_ipc::{Context, Domain};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -34,6 +36,34 @@ fn count_after(line: &str, key: &str) -> Option<u32> {
 fn a_two_stop_row_completes_with_counts_matching_ground_truth() {
     let _stack = one_stack_at_a_time();
     let domain = unique_domain("row");
+    let (stdout, truth) = run_row(&domain, None);
+    check_row(&stdout, truth);
+}
+
+#[test]
+fn a_kill_9_of_the_sim_mid_row_harvests_no_apple_twice_and_the_row_completes() {
+    let _stack = one_stack_at_a_time();
+    let domain = unique_domain("rowkill");
+    let (stdout, truth) = run_row(&domain, Some(3));
+    check_row(&stdout, truth);
+}
+
+/// The sim process among the supervisor's children.
+fn sim_pid(supervisor: u32) -> Option<u32> {
+    children_of(supervisor).into_iter().find(|pid| {
+        std::fs::read(format!("/proc/{pid}/cmdline")).is_ok_and(|cmdline| {
+            cmdline
+                .split(|b| *b == 0)
+                .nth(1)
+                .is_some_and(|arg| arg == b"sim")
+        })
+    })
+}
+
+/// Runs the row; with `kill_after`, kills the sim with SIGKILL once the ground truth shows
+/// that many apples harvested. Returns stdout and the last ground-truth harvested count.
+fn run_row(domain: &str, kill_after: Option<usize>) -> (String, Option<usize>) {
+    let domain = domain.to_owned();
 
     // Ground truth, read while the stack runs: apples on the dropping module.
     let stop = Arc::new(AtomicBool::new(false));
@@ -59,7 +89,7 @@ fn a_two_stop_row_completes_with_counts_matching_ground_truth() {
         })
     };
 
-    let (status, stdout, stderr) = run_harvest(
+    let child = spawn_harvest(
         &domain,
         &[
             "up",
@@ -69,16 +99,50 @@ fn a_two_stop_row_completes_with_counts_matching_ground_truth() {
             "--duration",
             "400s",
         ],
-        Duration::from_secs(460),
     );
+    let supervisor = child.id();
+    let killed = Arc::new(AtomicU32::new(0));
+    let killer = kill_after.map(|count| {
+        let (stop, truth_harvested, killed) =
+            (stop.clone(), truth_harvested.clone(), killed.clone());
+        std::thread::spawn(move || {
+            while !stop.load(Ordering::SeqCst) {
+                let harvested = *truth_harvested.lock().expect("lock");
+                if harvested.is_some_and(|h| h >= count)
+                    && let Some(pid) = sim_pid(supervisor)
+                {
+                    nix::sys::signal::kill(
+                        nix::unistd::Pid::from_raw(pid as i32),
+                        nix::sys::signal::Signal::SIGKILL,
+                    )
+                    .expect("kill -9 sim");
+                    killed.store(pid, Ordering::SeqCst);
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        })
+    });
+    let (status, stdout, stderr) = wait_with_watchdog(child, Duration::from_secs(460));
     stop.store(true, Ordering::SeqCst);
     truth_thread.join().expect("truth thread");
+    if let Some(killer) = killer {
+        killer.join().expect("killer thread");
+        assert_ne!(killed.load(Ordering::SeqCst), 0, "the sim was never killed");
+        assert_eq!(summary_restarts(&stderr, "sim"), Some(1), "{stderr}");
+    }
 
     assert!(status.success(), "harvest up failed:\n{stdout}\n{stderr}");
     assert!(
         stderr.contains("harvest up ended: row done"),
         "the row did not complete:\n{stdout}\n{stderr}"
     );
+    let truth = *truth_harvested.lock().expect("lock");
+    (stdout, truth)
+}
+
+/// The per-stop lines, the row line, the harvest summary and the ground truth agree.
+fn check_row(stdout: &str, truth: Option<usize>) {
     // One line per stop, in order, then the row's line.
     let stops: Vec<&str> = stdout.lines().filter(|l| l.contains("stop ")).collect();
     let stop_lines: Vec<&str> = stops
@@ -100,10 +164,9 @@ fn a_two_stop_row_completes_with_counts_matching_ground_truth() {
         .sum();
     assert_eq!(per_stop, row_harvested, "{stdout}");
     // The harvest log's summary and the simulator agree with the row's count.
-    let harvested = summary_count(&stdout, "harvested").expect("summary line");
+    let harvested = summary_count(stdout, "harvested").expect("summary line");
     assert!(harvested > 0, "nothing harvested:\n{stdout}");
     assert_eq!(harvested, row_harvested, "{stdout}");
-    let truth = *truth_harvested.lock().expect("lock");
     assert_eq!(
         truth,
         Some(harvested as usize),

@@ -28,6 +28,10 @@ pub struct StopCycleConfig {
     /// attempt) for this long after fresh detections, ns; or earlier, when the vacuum
     /// supervisor reports the harvest complete.
     pub quiet_ns: u64,
+    /// A platform move or tractor advance not finished after this long is sent again (the
+    /// device may have lost it, e.g. a restarted simulator), ns. Targets are absolute, so a
+    /// repeat never moves further.
+    pub resend_ns: u64,
 }
 
 /// What the stack shows at one tick.
@@ -62,12 +66,12 @@ pub enum FieldAction {
 /// Where the cycle is.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum StopPhase {
-    /// The trailer drives to the stop.
-    Arriving,
+    /// The trailer drives to the stop (since `since_ns`).
+    Arriving { since_ns: u64 },
     /// Waiting for the arms to park and a detection set taken at rest.
     Parking,
-    /// The platform moves to the chosen offsets.
-    Positioning { target_m: [f64; 2] },
+    /// The platform moves to the chosen offsets (sent at `sent_ns`).
+    Positioning { target_m: [f64; 2], sent_ns: u64 },
     /// Waiting for a detection set captured after the platform came to rest (at `since_ns`).
     Settling { since_ns: u64 },
     /// The arms harvest; `last_activity_ns` is the newest assignment or attempt end.
@@ -195,7 +199,7 @@ impl StopCycle {
         Ok(Self {
             config,
             arms,
-            phase: StopPhase::Arriving,
+            phase: StopPhase::Arriving { since_ns: 0 },
             stop: StopReport {
                 stop: 1,
                 ..StopReport::default()
@@ -218,7 +222,7 @@ impl StopCycle {
     pub fn holds_approaches(&self) -> bool {
         matches!(
             self.phase,
-            StopPhase::Arriving
+            StopPhase::Arriving { .. }
                 | StopPhase::Parking
                 | StopPhase::Positioning { .. }
                 | StopPhase::Settling { .. }
@@ -278,7 +282,7 @@ impl StopCycle {
         }
         if matches!(
             self.phase,
-            StopPhase::Arriving | StopPhase::Positioning { .. }
+            StopPhase::Arriving { .. } | StopPhase::Positioning { .. }
         ) {
             return Err(NextStopRefusal::InMotion);
         }
@@ -290,7 +294,22 @@ impl StopCycle {
         let row_started = *self.row_started_ns.get_or_insert(now_ns);
         let _ = row_started;
         match self.phase {
-            StopPhase::Arriving => {
+            StopPhase::Arriving { since_ns } => {
+                if let (Some((position_m, _)), Some(target_m)) =
+                    (view.tractor, self.stop_position_m)
+                    && (position_m - target_m).abs() >= 0.01
+                    && now_ns.saturating_sub(since_ns) >= self.config.resend_ns
+                {
+                    tracing::warn!(
+                        position_m,
+                        target_m,
+                        "tractor not there yet: advance sent again"
+                    );
+                    self.phase = StopPhase::Arriving { since_ns: now_ns };
+                    return vec![FieldAction::AdvanceTractor {
+                        distance_m: target_m - position_m,
+                    }];
+                }
                 if let Some((position_m, false)) = view.tractor {
                     let arrived = self
                         .stop_position_m
@@ -325,6 +344,7 @@ impl StopCycle {
                         tracing::info!(stop = self.stop.stop, ?chosen, "platform offsets chosen");
                         self.phase = StopPhase::Positioning {
                             target_m: chosen.offset_m,
+                            sent_ns: now_ns,
                         };
                         vec![FieldAction::MovePlatform {
                             target_m: chosen.offset_m,
@@ -340,12 +360,19 @@ impl StopCycle {
                     }
                 }
             }
-            StopPhase::Positioning { target_m } => {
+            StopPhase::Positioning { target_m, sent_ns } => {
                 if let Some((at_m, false)) = view.platform
                     && (at_m[0] - target_m[0]).abs() < 1e-3
                     && (at_m[1] - target_m[1]).abs() < 1e-3
                 {
                     self.phase = StopPhase::Settling { since_ns: now_ns };
+                } else if now_ns.saturating_sub(sent_ns) >= self.config.resend_ns {
+                    tracing::warn!(?target_m, "platform not there yet: move sent again");
+                    self.phase = StopPhase::Positioning {
+                        target_m,
+                        sent_ns: now_ns,
+                    };
+                    return vec![FieldAction::MovePlatform { target_m }];
                 }
                 Vec::new()
             }
@@ -418,7 +445,7 @@ impl StopCycle {
         self.stop_position_m = self
             .stop_position_m
             .map(|at| at + self.config.stop_spacing_m);
-        self.phase = StopPhase::Arriving;
+        self.phase = StopPhase::Arriving { since_ns: now_ns };
         actions.push(FieldAction::AdvanceTractor {
             distance_m: self.config.stop_spacing_m,
         });
@@ -440,6 +467,7 @@ mod tests {
                 up_down_max_m: 0.8,
             },
             quiet_ns: 1_000,
+            resend_ns: 1_000_000,
         }
     }
 
@@ -519,7 +547,13 @@ mod tests {
         // Still at the old place: not arrived.
         t += 10;
         cycle.tick(t, &view(0.0, [0.0; 2], t));
-        assert_eq!(cycle.phase(), StopPhase::Arriving);
+        assert!(matches!(cycle.phase(), StopPhase::Arriving { .. }));
+        // A lost advance (the trailer never moved) is sent again, for the remaining distance.
+        t += 1_000_000;
+        assert_eq!(
+            cycle.tick(t, &view(0.0, [0.0; 2], t)),
+            vec![FieldAction::AdvanceTractor { distance_m: 2.0 }]
+        );
         let actions = harvest_stop(&mut cycle, &mut t, 2.0);
         let Some(FieldAction::RowFinished(row)) = actions.last() else {
             panic!("{actions:?}")

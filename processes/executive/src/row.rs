@@ -37,6 +37,9 @@ pub struct RowOptions {
     pub quiet_ms: u64,
 }
 
+/// A platform move or tractor advance not done after this long is sent again, ns.
+const RESEND_NS: u64 = 10_000_000_000;
+
 /// How long the tractor driver waits for its first feedback.
 const TRACTOR_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -66,6 +69,7 @@ impl RowLink {
                 up_down_max_m: travel_max_m[1],
             },
             quiet_ns: options.quiet_ms * 1_000_000,
+            resend_ns: RESEND_NS,
         };
         let cycle = StopCycle::new(config, [ArmParams::arm1(), ArmParams::arm2()])
             .map_err(|error| ExecutiveProcessError::Row(error.to_string()))?;
