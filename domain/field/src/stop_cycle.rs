@@ -68,8 +68,8 @@ pub enum FieldAction {
 pub enum StopPhase {
     /// The trailer drives to the stop (since `since_ns`).
     Arriving { since_ns: u64 },
-    /// Waiting for the arms to park and a detection set taken at rest.
-    Parking,
+    /// Waiting for the arms to park and a detection set taken at rest (since `since_ns`).
+    Parking { since_ns: u64 },
     /// The platform moves to the chosen offsets (sent at `sent_ns`).
     Positioning { target_m: [f64; 2], sent_ns: u64 },
     /// Waiting for a detection set captured after the platform came to rest (at `since_ns`).
@@ -223,7 +223,7 @@ impl StopCycle {
         matches!(
             self.phase,
             StopPhase::Arriving { .. }
-                | StopPhase::Parking
+                | StopPhase::Parking { .. }
                 | StopPhase::Positioning { .. }
                 | StopPhase::Settling { .. }
         )
@@ -318,14 +318,25 @@ impl StopCycle {
                         self.stop_position_m = Some(position_m);
                         self.stop.trailer_m = position_m;
                         self.stop_started_ns = now_ns;
-                        self.phase = StopPhase::Parking;
+                        self.phase = StopPhase::Parking { since_ns: now_ns };
                         tracing::info!(stop = self.stop.stop, position_m, "at the stop");
                     }
                 }
                 Vec::new()
             }
-            StopPhase::Parking => {
+            StopPhase::Parking { since_ns } => {
                 let Some((current_m, false)) = view.platform else {
+                    // A platform "moving" this long has lost its command (a restarted device
+                    // never acts on it): hold the stages where they are.
+                    if let Some((current_m, true)) = view.platform
+                        && now_ns.saturating_sub(since_ns) >= self.config.resend_ns
+                    {
+                        tracing::warn!(?current_m, "platform still moving: held where it is");
+                        self.phase = StopPhase::Parking { since_ns: now_ns };
+                        return vec![FieldAction::MovePlatform {
+                            target_m: current_m,
+                        }];
+                    }
                     return Vec::new();
                 };
                 let Some((capture_ns, apples)) = &view.detections else {
@@ -507,7 +518,7 @@ mod tests {
     fn harvest_stop(cycle: &mut StopCycle, t: &mut u64, trailer_m: f64) -> Vec<FieldAction> {
         *t += 10;
         assert!(cycle.tick(*t, &view(trailer_m, [0.0; 2], 0)).is_empty());
-        assert_eq!(cycle.phase(), StopPhase::Parking);
+        assert!(matches!(cycle.phase(), StopPhase::Parking { .. }));
         *t += 10;
         let actions = cycle.tick(*t, &view(trailer_m, [0.0; 2], *t));
         let [FieldAction::MovePlatform { target_m }] = actions[..] else {
