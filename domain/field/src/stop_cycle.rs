@@ -280,10 +280,15 @@ impl StopCycle {
         if view.arms_holding {
             return Err(NextStopRefusal::ArmsHoldApples);
         }
-        if matches!(
-            self.phase,
-            StopPhase::Arriving { .. } | StopPhase::Positioning { .. }
-        ) {
+        let trailer_moving = view.tractor.is_some_and(|(_, moving)| moving);
+        let platform_moving = view.platform.is_some_and(|(_, moving)| moving);
+        if trailer_moving
+            || platform_moving
+            || matches!(
+                self.phase,
+                StopPhase::Arriving { .. } | StopPhase::Positioning { .. }
+            )
+        {
             return Err(NextStopRefusal::InMotion);
         }
         Ok(self.finish_stop(now_ns, view))
@@ -601,6 +606,49 @@ mod tests {
         assert_eq!(
             cycle.next_stop(t, &view(0.0, [0.0; 2], t)),
             Err(NextStopRefusal::InMotion)
+        );
+    }
+
+    #[test]
+    fn next_stop_is_refused_while_the_platform_or_the_trailer_moves_and_after_the_row() {
+        let mut cycle = cycle(false);
+        let mut t = 0;
+        assert!(harvest_stop(&mut cycle, &mut t, 0.0).is_empty());
+        assert_eq!(cycle.phase(), StopPhase::WaitingForOperator);
+        let platform_moving = FieldView {
+            platform: Some(([0.1, 0.1], true)),
+            ..view(0.0, [0.0; 2], t)
+        };
+        assert_eq!(
+            cycle.next_stop(t, &platform_moving),
+            Err(NextStopRefusal::InMotion)
+        );
+        let trailer_moving = FieldView {
+            tractor: Some((0.3, true)),
+            ..view(0.0, [0.0; 2], t)
+        };
+        assert_eq!(
+            cycle.next_stop(t, &trailer_moving),
+            Err(NextStopRefusal::InMotion)
+        );
+        assert_eq!(
+            cycle.phase(),
+            StopPhase::WaitingForOperator,
+            "a refusal changes nothing"
+        );
+        // Stop 1 ends on the operator's word, stop 2 too: then the row is done.
+        let actions = cycle.next_stop(t, &view(0.0, [0.0; 2], t)).unwrap();
+        assert!(matches!(
+            actions.first(),
+            Some(FieldAction::StopFinished(_))
+        ));
+        let actions = harvest_stop(&mut cycle, &mut t, 2.0);
+        assert!(actions.is_empty(), "{actions:?}");
+        let actions = cycle.next_stop(t, &view(2.0, [0.0; 2], t)).unwrap();
+        assert!(matches!(actions.last(), Some(FieldAction::RowFinished(_))));
+        assert_eq!(
+            cycle.next_stop(t, &view(2.0, [0.0; 2], t)),
+            Err(NextStopRefusal::RowDone)
         );
     }
 

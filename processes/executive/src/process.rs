@@ -5,7 +5,8 @@
 //! 2. every command on `operator/command` goes through [`Executive::handle`]; its actions are
 //!    carried out (e-stop engage/release on `safety/emergency_stop`, manual orders on
 //!    `armN/manual`, platform moves through the [`Platform`] trait) before the acknowledgement
-//!    goes out on `operator/ack` (a platform that refuses turns it into a refusal);
+//!    goes out on `operator/ack` (a platform that refuses turns it into a refusal; "next stop"
+//!    goes to the row's stop cycle, whose refusal becomes the acknowledgement's);
 //! 3. [`Executive::tick`] stops a manual motion whose controlling session went silent;
 //! 4. `operator/mode` is published on every change and at 10 Hz.
 //!
@@ -85,8 +86,8 @@ pub struct ExecutiveArgs {
     /// Distance between two stops along the row, m.
     #[arg(long, default_value_t = 2.0)]
     pub stop_spacing_m: f64,
-    /// Advance to the next stop once a stop is harvested (the operator's "next stop" command
-    /// is not wired yet: a row needs it).
+    /// Advance to the next stop once a stop is harvested (without it, the operator ends each
+    /// stop: `harvest ctl next-stop`).
     #[arg(long)]
     pub auto_advance: bool,
     /// A stop is harvested once the arms are parked and nothing was assigned or attempted for
@@ -201,12 +202,6 @@ pub fn run(
         PlatformDevice::None => PlatformLink::None,
     };
     let mut row = if args.row_stops > 0 {
-        if !args.auto_advance {
-            return Err(ExecutiveProcessError::Row(
-                "--row-stops needs --auto-advance (the operator's next-stop command is not wired yet)"
-                    .to_owned(),
-            ));
-        }
         let travel = PlatformTravel::default();
         Some(RowLink::connect(
             &context,
@@ -241,6 +236,7 @@ pub fn run(
             InitialMode::Idle => OperatorModeCode::Idle,
             InitialMode::Harvesting => OperatorModeCode::Harvesting,
         },
+        field_row: row.is_some(),
         ..ExecutiveConfig::default()
     };
     let started_ns = MonotonicClock::read_ns();
@@ -339,6 +335,29 @@ pub fn run(
                         let mut decision = executive.handle(now_ns, &command, &view);
                         let actions = std::mem::take(&mut decision.actions);
                         for action in &actions {
+                            if *action == Action::NextStop {
+                                // The row's stop cycle has the last word.
+                                let platform_now =
+                                    view.platform.map(|p| (p.position_m, p.in_motion));
+                                let outcome = match row.as_mut() {
+                                    Some(row) => {
+                                        row.next_stop(now_ns, &arm_states, platform_now)?
+                                    }
+                                    None => Err(Refusal::NoRow.to_string()),
+                                };
+                                match outcome {
+                                    Ok((what, target_m)) => {
+                                        decision.reason = what;
+                                        if let Some(target_m) = target_m
+                                            && let Err(message) = platform.move_to(target_m)
+                                        {
+                                            tracing::warn!(%message, ?target_m, "platform move refused");
+                                        }
+                                    }
+                                    Err(reason) => decision.refuse(Refusal::NextStop(reason)),
+                                }
+                                continue;
+                            }
                             if let Err(message) = apply(
                                 action,
                                 now_ns,
@@ -484,6 +503,8 @@ fn apply(
         }
         Action::PlatformMoveTo { target_m } => return Ok(platform.move_to(*target_m)),
         Action::PlatformStop => return Ok(platform.stop()),
+        // Carried out by the row's stop cycle in the command loop of `run`.
+        Action::NextStop => {}
     }
     Ok(Ok(()))
 }

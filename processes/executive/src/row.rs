@@ -14,7 +14,9 @@
 //! advance the tractor, and publish `StopFinished` / `RowFinished` events on `harvest/events`
 //! (the lines `harvest up` prints).
 
-use harvest_field::{FieldAction, FieldView, StageTravel, StopCycle, StopCycleConfig, StopReport};
+use harvest_field::{
+    FieldAction, FieldView, NextStopRefusal, StageTravel, StopCycle, StopCycleConfig, StopReport,
+};
 use harvest_hw::tractor::Tractor;
 use harvest_hw::tractor::sim::SimTractor;
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PERCEPTION_APPLES};
@@ -100,6 +102,18 @@ impl RowLink {
         arm_states: &[Option<ArmState>; 2],
         platform: Option<([f64; 2], bool)>,
     ) -> Result<Option<[f64; 2]>, ExecutiveProcessError> {
+        self.take_inputs()?;
+        if self.done || !harvesting {
+            return Ok(None);
+        }
+        let view = self.view(arm_states, platform);
+        let actions = self.cycle.tick(now_ns, &view);
+        self.carry_out(now_ns, actions)
+    }
+
+    /// The newest detections and the new harvest events (ended attempts count for the stop
+    /// they ended in, also when "next stop" comes between two ticks).
+    fn take_inputs(&mut self) -> Result<(), ExecutiveProcessError> {
         if let Some(sample) = self.apples_in.receive_latest()? {
             let apples = sample
                 .apples
@@ -124,9 +138,44 @@ impl RowLink {
                 _ => {}
             }
         })?;
-        if self.done || !harvesting {
-            return Ok(None);
+        Ok(())
+    }
+
+    /// The operator's "next stop" ([`StopCycle::next_stop`]): the stop's figures are published,
+    /// the trailer advances. `Err` is the cycle's refusal, in words; `Ok` says what was done
+    /// and the platform target to move to, if any.
+    pub fn next_stop(
+        &mut self,
+        now_ns: u64,
+        arm_states: &[Option<ArmState>; 2],
+        platform: Option<([f64; 2], bool)>,
+    ) -> Result<Result<(String, Option<[f64; 2]>), String>, ExecutiveProcessError> {
+        self.take_inputs()?;
+        if self.done {
+            return Ok(Err(NextStopRefusal::RowDone.to_string()));
         }
+        let view = self.view(arm_states, platform);
+        let stop = self.cycle.stop_number();
+        match self.cycle.next_stop(now_ns, &view) {
+            Ok(actions) => {
+                let target = self.carry_out(now_ns, actions)?;
+                let what = if self.done {
+                    format!("stop {stop} ended: the row is done")
+                } else {
+                    format!("stop {stop} ended: advancing to stop {}", stop + 1)
+                };
+                Ok(Ok((what, target)))
+            }
+            Err(refusal) => Ok(Err(refusal.to_string())),
+        }
+    }
+
+    /// What the stop cycle sees now.
+    fn view(
+        &mut self,
+        arm_states: &[Option<ArmState>; 2],
+        platform: Option<([f64; 2], bool)>,
+    ) -> FieldView {
         let tractor = match self.tractor.position() {
             Ok(position) => Some((position.position_m, position.in_motion)),
             Err(error) => {
@@ -137,15 +186,23 @@ impl RowLink {
         let parked = |state: &Option<ArmState>| {
             state.is_some_and(|s| s.phase == ArmPhase::Idle && s.holding == 0)
         };
-        let view = FieldView {
+        FieldView {
             tractor,
             platform,
             arms_parked: arm_states.iter().all(parked),
             arms_holding: arm_states.iter().flatten().any(|s| s.holding != 0),
             detections: self.detections.clone(),
-        };
+        }
+    }
+
+    /// Carries out the stop cycle's actions; returns the platform target to move to, if any.
+    fn carry_out(
+        &mut self,
+        now_ns: u64,
+        actions: Vec<FieldAction>,
+    ) -> Result<Option<[f64; 2]>, ExecutiveProcessError> {
         let mut platform_target = None;
-        for action in self.cycle.tick(now_ns, &view) {
+        for action in actions {
             match action {
                 FieldAction::MovePlatform { target_m } => platform_target = Some(target_m),
                 FieldAction::AdvanceTractor { distance_m } => {
