@@ -45,6 +45,10 @@ const RESEND_NS: u64 = 10_000_000_000;
 /// How long the tractor driver waits for its first feedback.
 const TRACTOR_TIMEOUT: Duration = Duration::from_secs(5);
 
+/// The answer of the row to "next stop": what was done and the platform target to move to (if
+/// any), or the stop cycle's refusal in words.
+pub type NextStopOutcome = Result<(String, Option<[f64; 2]>), String>;
+
 /// The stop cycle with its ports and the tractor.
 pub struct RowLink {
     cycle: StopCycle,
@@ -149,7 +153,7 @@ impl RowLink {
         now_ns: u64,
         arm_states: &[Option<ArmState>; 2],
         platform: Option<([f64; 2], bool)>,
-    ) -> Result<Result<(String, Option<[f64; 2]>), String>, ExecutiveProcessError> {
+    ) -> Result<NextStopOutcome, ExecutiveProcessError> {
         self.take_inputs()?;
         if self.done {
             return Ok(Err(NextStopRefusal::RowDone.to_string()));
