@@ -113,6 +113,14 @@ fn ctl_commands_the_executive_and_prints_its_answers() {
         "{}",
         text(&platform)
     );
+    // "Next stop" with no row configured (no `--row-stops`): refused with the reason, exit 1.
+    let next_stop = ctl(&domain, &runtime.0, &["next-stop"]);
+    assert_eq!(next_stop.status.code(), Some(1), "{}", text(&next_stop));
+    assert!(
+        text(&next_stop).contains("no row configured"),
+        "{}",
+        text(&next_stop)
+    );
     let bad_joint = ctl(
         &domain,
         &runtime.0,

@@ -9,6 +9,7 @@ pub mod error_kind;
 pub mod lidar;
 pub mod platform;
 pub mod rgbd_camera;
+pub mod tractor;
 pub mod valve_board;
 
 pub use error_kind::{DeviceError, ErrorKind};

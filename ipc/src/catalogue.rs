@@ -354,6 +354,20 @@ pub const HW_PLATFORM_FEEDBACK: Channel<PlatformFeedback> = Channel::in_layer(
     Qos::STATE,
     "platform stage positions and motion state, 50 Hz",
 );
+// Issue 17 (field row): the tractor pulling the trailer along the row.
+pub const HW_TRACTOR_COMMAND: Channel<TractorCommand> = Channel::in_layer(
+    Layer::Hardware,
+    "hw/tractor/command",
+    Qos::STATE,
+    "target along the row (or stop) to the tractor pulling the trailer",
+);
+pub const HW_TRACTOR_FEEDBACK: Channel<TractorFeedback> = Channel::in_layer(
+    Layer::Hardware,
+    "hw/tractor/feedback",
+    Qos::STATE,
+    "trailer position along the row and motion state, 20 Hz",
+);
+// End of issue 17's tractor channels.
 pub const SIM_GROUND_TRUTH: Channel<GroundTruth> = Channel::in_layer(
     Layer::Evaluation,
     "sim/ground_truth",
@@ -459,6 +473,8 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(HW_ALACS_IMAGE);
     visitor.visit(HW_PLATFORM_COMMAND);
     visitor.visit(HW_PLATFORM_FEEDBACK);
+    visitor.visit(HW_TRACTOR_COMMAND);
+    visitor.visit(HW_TRACTOR_FEEDBACK);
     visitor.visit(SIM_GROUND_TRUTH);
     visitor.visit(LIDAR_POINTS);
     visitor.visit(HW_LIDAR_POINTS);

@@ -23,8 +23,13 @@ pub mod render_rgbd;
 pub mod render_thread;
 pub mod robot;
 pub mod rosette_scan;
+pub mod row;
+pub mod row_world;
 pub mod scenario;
 pub mod thread_link;
+pub mod tractor_device;
+pub mod world_motion;
+pub mod world_state;
 
 pub use ground_truth::{AppleTruth, WorldTruth};
 pub use orchard::{Apple, AppleId, AppleState, OrchardError, World};

@@ -103,6 +103,9 @@ pub enum OrchardError {
         spacing_m: f64,
         min_spacing_m: f64,
     },
+    /// A row without sections (a loaded [`crate::row::RowScenario`] always has one).
+    #[error("a row needs at least one section")]
+    EmptyRow,
     /// The camera pose of the scenario is degenerate.
     #[error("camera pose: {0}")]
     CameraPose(#[from] CameraPoseError),
@@ -118,6 +121,9 @@ pub struct World {
     pub(crate) leaves: Vec<Leaf>,
     pub(crate) branches: Vec<Branch>,
     pub(crate) physics: PhysicsState,
+    /// Where the robot stands in the row frame (trailer along y, platform stages along x and
+    /// z), m; the geometry above is kept in the robot frame (see [`crate::world_motion`]).
+    pub(crate) robot_offset_m: [f64; 3],
 }
 
 /// Mean projected area factor of a leaf tilted uniformly up to 60 degrees from facing the robot:
@@ -162,6 +168,7 @@ impl World {
             apples,
             leaves,
             branches,
+            robot_offset_m: [0.0; 3],
         })
     }
 

@@ -7,8 +7,12 @@
 //!   valves, vacuum, attach/detach) is stepped by the elapsed host time, encoder feedback goes
 //!   out on `hw/armN/encoders` and the valve board's readings on `hw/valves/readings`, and the
 //!   world's moving state is handed to the render thread ([`ThreadLink::publish_step`]);
-//! - the platform controller at its feedback period (see [`crate::platform_device`]);
-//! - the evaluation-only ground truth on `sim/ground_truth` at 10 Hz.
+//! - the platform controller at its feedback period (see [`crate::platform_device`]); the
+//!   stages' positions (and the trailer's) move the robot in the world
+//!   ([`crate::world_motion`]);
+//! - the evaluation-only ground truth on `sim/ground_truth` at 10 Hz, and with it the world's
+//!   state offered to the state file ([`crate::world_state`]), written at most every
+//!   [`PhysicsThreadConfig::state_min_interval`] and once more when the thread stops.
 //!
 //! Simulated time advances with the host clock (each step's `dt` is the time since the last
 //! one, clamped to [0.1 ms, 50 ms]), as it did when one thread served every device.
@@ -17,7 +21,10 @@ use crate::orchard::AppleState;
 use crate::physics::ArmId;
 use crate::platform_device::{PlatformDeviceConfig, PlatformDeviceError, PlatformDeviceServer};
 use crate::robot::{SimRobot, SimRobotError};
+use crate::row::RowPlatform;
 use crate::thread_link::ThreadLink;
+use crate::tractor_device::{TRACTOR_FEEDBACK_PERIOD, TractorDeviceServer, TractorMotion};
+use crate::world_state::{WorldState, WorldStateError, WorldStatePersister};
 use harvest_ipc::catalogue::{
     HW_ARM_ENCODERS, HW_ARM_SERVO, HW_VALVE_COMMAND, HW_VALVE_READINGS, SIM_GROUND_TRUTH,
 };
@@ -27,6 +34,7 @@ use harvest_ipc::payloads::{
     ValveBoardReadings,
 };
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, Publisher, Subscriber, Waiter};
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 /// Servo and physics period of the simulated robot (200 Hz).
@@ -45,6 +53,20 @@ pub struct PhysicsThreadConfig {
     pub node_name: String,
     /// The simulated platform controller.
     pub platform: PlatformDeviceConfig,
+    /// Where the stages' stops put the robot in the row frame.
+    pub row_platform: RowPlatform,
+    /// Trailer position along the row at start, m.
+    pub trailer_m: f64,
+    /// The tractor's creep speed, m/s.
+    pub tractor_speed_m_per_s: f64,
+    /// End of the row (the tractor stops there), m.
+    pub row_end_m: f64,
+    /// Where the world's state is persisted (`None`: not persisted).
+    pub state_file: Option<PathBuf>,
+    /// Shortest interval between two writes of the state file.
+    pub state_min_interval: Duration,
+    /// What the state file held at start (the world was restored from it).
+    pub saved_state: Option<WorldState>,
 }
 
 /// Why the physics thread stopped with an error.
@@ -59,6 +81,9 @@ pub enum PhysicsThreadError {
     /// The platform controller failed.
     #[error(transparent)]
     Platform(#[from] PlatformDeviceError),
+    /// The world's state could not be persisted.
+    #[error(transparent)]
+    WorldState(#[from] WorldStateError),
 }
 
 harvest_ipc::from_ipc_errors!(PhysicsThreadError);
@@ -188,6 +213,22 @@ pub fn run(
     let physics_tick = waiter.attach_interval(PHYSICS_PERIOD)?;
     let platform_tick = waiter.attach_interval(platform.period())?;
     let truth_tick = waiter.attach_interval(GROUND_TRUTH_PERIOD)?;
+    let mut tractor = TractorDeviceServer::open(
+        &context,
+        TractorMotion::new(
+            config.tractor_speed_m_per_s,
+            config.trailer_m,
+            config.row_end_m,
+        ),
+    )?;
+    let tractor_tick = waiter.attach_interval(TRACTOR_FEEDBACK_PERIOD)?;
+    let mut persister = config.state_file.clone().map(|path| {
+        WorldStatePersister::new(path, config.state_min_interval, config.saved_state.clone())
+    });
+    let robot_offset_m = |stage_m: [f64; 2], trailer_m: f64| {
+        let [x, z] = config.row_platform.offset_m(stage_m);
+        [x, trailer_m, z]
+    };
     let mut last_step = Instant::now();
     let mut snapshots_skipped = 0u64;
     tracing::info!(node = %config.node_name, "physics thread running at 200 Hz");
@@ -210,15 +251,36 @@ pub fn run(
                     snapshots_skipped += 1;
                 }
             }
-            if attachment.has_event_from(&platform_tick) {
-                platform.tick()?;
+            if attachment.has_event_from(&tractor_tick) {
+                tractor.tick()?;
+            }
+            if attachment.has_event_from(&platform_tick) || attachment.has_event_from(&tractor_tick)
+            {
+                if attachment.has_event_from(&platform_tick) {
+                    platform.tick()?;
+                }
+                robot.world_mut().set_robot_offset_m(robot_offset_m(
+                    platform.position_m(),
+                    tractor.position_m(),
+                ));
             }
             if attachment.has_event_from(&truth_tick) {
                 ports.publish_ground_truth(&robot)?;
+                if let Some(persister) = persister.as_mut() {
+                    let state =
+                        WorldState::of(robot.world(), tractor.position_m(), platform.position_m());
+                    persister.offer(state, Instant::now())?;
+                }
             }
             Ok(Flow::Continue)
         })
-        .map_err(harvest_ipc::RunError::flatten)?;
+        .map_err(harvest_ipc::RunError::flatten);
+    if let Some(persister) = persister.as_mut() {
+        let state = WorldState::of(robot.world(), tractor.position_m(), platform.position_m());
+        persister.offer(state, Instant::now())?;
+        persister.flush()?;
+    }
+    let end = end?;
     tracing::info!(
         ?end,
         physics_ticks = link.physics_ticks(),

@@ -19,8 +19,9 @@
 //! platform movement); `tau` = 0.2 s; 0.1 mm encoder resolution; feedback at 50 Hz (an Arduino
 //! Uno reporting over serial). The stages start at their stops (homed at power-up).
 //!
-//! Moving the platform does not move the simulated world relative to the robot: the orchard is
-//! in the robot frame and does not yet follow the stages.
+//! Moving the platform moves the robot in the simulated world: the physics thread turns the
+//! stages' positions into the robot's offset in the row frame ([`crate::world_motion`]), so
+//! the renderers, the physics and the arms' reach follow the stages.
 //!
 //! - [`PlatformStages`]: the two stages' state and dynamics (pure, steppable);
 //! - [`PlatformDeviceServer`]: the stages behind the `hw/platform/*` channels, ticked by the
@@ -235,6 +236,11 @@ impl PlatformDeviceServer {
             feedback: context.publisher(HW_PLATFORM_FEEDBACK)?,
             last_tick: Instant::now(),
         })
+    }
+
+    /// The stages' positions `[in_out, up_down]`, m from their stops.
+    pub fn position_m(&self) -> [f64; 2] {
+        self.stages.position_m()
     }
 
     /// How often [`Self::tick`] should run (the feedback period).

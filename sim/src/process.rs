@@ -8,7 +8,19 @@
 //!   out at 50 Hz (see [`crate::platform_device`]);
 //! - with `--lidar`, the solid-state LiDAR's point frames on `hw/lidar/points` at 10 Hz (see
 //!   [`crate::lidar_device`]);
+//! - the tractor's targets (`hw/tractor/command`) in, the trailer's position
+//!   (`hw/tractor/feedback`) out at 20 Hz (see [`crate::tractor_device`]);
 //! - the true apples on `sim/ground_truth` (evaluation only).
+//!
+//! With `--row FILE` the world is a whole orchard row ([`crate::row`]): several sections along
+//! the row, the platform's stops in the row frame, the trailer's start. Moving the platform
+//! moves the robot in the world ([`crate::world_motion`]).
+//!
+//! The world's state (harvested and dropped apples, trailer and platform positions) is kept in
+//! a state file ([`crate::world_state`], by default `<iceoryx2 root>/harvest-sim/<domain>.world.toml`)
+//! and restored at start when it belongs to the same world (scenario or row, seed): a restart
+//! of the sim process, `kill -9` included, continues the same world. `--fresh-world` ignores
+//! (and then overwrites) it; `harvest sim` of another scenario or seed replaces it.
 //!
 //! Two threads serve the devices, as on the real robot where the servo controller does not stall
 //! while a camera exposes:
@@ -26,14 +38,17 @@
 
 use crate::alacs_device::AlacsDeviceConfig;
 use crate::lidar_device::LidarDeviceConfig;
+use crate::orchard::World;
 use crate::physics_thread::{PhysicsThreadConfig, PhysicsThreadError};
 use crate::platform_device::PlatformDeviceConfig;
 use crate::render_thread::{CameraRenderer, RenderThreadConfig, RenderThreadError, RgbdCamera};
 use crate::robot::SimRobot;
+use crate::row::{RowPlatform, RowScenario};
 use crate::scenario::Scenario;
 use crate::thread_link::ThreadLink;
+use crate::world_state::{WorldState, default_state_path};
 use harvest_ipc::Domain;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 #[derive(Debug, Clone, clap::Args)]
@@ -50,6 +65,17 @@ pub struct SimArgs {
     /// Also simulate the solid-state LiDAR (Livox Mid-70) on `hw/lidar/points`.
     #[arg(long)]
     pub lidar: bool,
+    /// A row file (several tree sections along a row; see `harvest_sim::row`): replaces
+    /// `--scenario` for the world, whose shared settings come from the row's first section.
+    #[arg(long)]
+    pub row: Option<PathBuf>,
+    /// Where the world's state is persisted (default:
+    /// `<iceoryx2 root>/harvest-sim/<domain>.world.toml`).
+    #[arg(long)]
+    pub state_file: Option<PathBuf>,
+    /// Start from the generated world even when the state file holds one (it is overwritten).
+    #[arg(long)]
+    pub fresh_world: bool,
 }
 
 /// Why the simulator stopped with an error.
@@ -58,6 +84,15 @@ pub enum SimError {
     /// The scenario could not be loaded.
     #[error(transparent)]
     Scenario(#[from] crate::scenario::ScenarioError),
+    /// The row file could not be loaded.
+    #[error(transparent)]
+    Row(#[from] crate::row::RowError),
+    /// The world of the row or scenario could not be generated.
+    #[error(transparent)]
+    Orchard(#[from] crate::orchard::OrchardError),
+    /// The state file could not be read.
+    #[error(transparent)]
+    WorldState(#[from] crate::world_state::WorldStateError),
     /// The camera renderer could not be built from the scenario.
     #[error(transparent)]
     Render(#[from] crate::render_rgbd::RenderError),
@@ -96,6 +131,13 @@ impl SimThreadsConfig {
             physics: PhysicsThreadConfig {
                 node_name: format!("{process_name}-physics"),
                 platform: PlatformDeviceConfig::default(),
+                row_platform: RowPlatform::default(),
+                trailer_m: 0.0,
+                tractor_speed_m_per_s: crate::row::RowTractor::default().speed_m_per_s,
+                row_end_m: 0.0,
+                state_file: None,
+                state_min_interval: STATE_MIN_INTERVAL,
+                saved_state: None,
             },
             render: RenderThreadConfig {
                 node_name: process_name.to_owned(),
@@ -106,6 +148,10 @@ impl SimThreadsConfig {
         }
     }
 }
+
+/// Shortest interval between two writes of the world's state file (a bound on the write rate;
+/// at most this much of the world's history is lost to a `kill -9`).
+pub const STATE_MIN_INTERVAL: Duration = Duration::from_millis(200);
 
 /// Loads a scenario by preset name, or from a file when the argument is a path to one.
 pub fn load_scenario(name_or_path: &str) -> Result<Scenario, crate::scenario::ScenarioError> {
@@ -122,16 +168,96 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
     if !(0.1..=120.0).contains(&args.camera_rate_hz) {
         return Err(SimError::BadRate(args.camera_rate_hz));
     }
-    let scenario = load_scenario(&args.scenario)?;
-    let robot = SimRobot::new(&scenario, args.seed)?;
-    let mut camera = RgbdCamera::new(&scenario.camera)?;
-    let config = SimThreadsConfig::new(
+    let (mut world, row_platform, tractor) = match &args.row {
+        Some(path) => {
+            let row = RowScenario::from_file(path)?;
+            (
+                World::generate_row(&row, args.seed)?,
+                row.file.platform,
+                row.file.tractor,
+            )
+        }
+        None => {
+            let scenario = load_scenario(&args.scenario)?;
+            (
+                World::generate(&scenario, args.seed)?,
+                RowPlatform::default(),
+                crate::row::RowTractor::default(),
+            )
+        }
+    };
+    let mut trailer_m = tractor.start_m;
+    // The trailer may drive until the robot's y = 0 is at the end of the canopy.
+    let row_end_m = world.scenario().canopy.y_range_m[1].max(trailer_m);
+    let mut config = SimThreadsConfig::new(
         process_name,
         Duration::from_secs_f64(1.0 / args.camera_rate_hz),
         args.lidar,
     );
+    config.physics.platform.travel = row_platform.travel();
+    let state_file = args
+        .state_file
+        .clone()
+        .unwrap_or_else(|| default_state_path(domain));
+    let saved = if args.fresh_world {
+        None
+    } else {
+        WorldState::load(&state_file)?
+    };
+    let restored = match saved {
+        Some(state) if state.fits(&world) => {
+            let platform_m = if config
+                .physics
+                .platform
+                .travel
+                .first_violation(state.platform_m)
+                .is_none()
+            {
+                state.platform_m
+            } else {
+                tracing::warn!(platform_m = ?state.platform_m, "saved platform position outside the travel: stages homed");
+                [0.0; 2]
+            };
+            trailer_m = state.trailer_m;
+            config.physics.platform.start_m = platform_m;
+            let [x, z] = row_platform.offset_m(platform_m);
+            world.set_robot_offset_m([x, trailer_m, z]);
+            state.apply_apples(&mut world);
+            tracing::info!(
+                path = %state_file.display(),
+                off_tree = state.off_tree.len(),
+                trailer_m,
+                ?platform_m,
+                "world restored from its state file"
+            );
+            Some(state)
+        }
+        Some(state) => {
+            tracing::warn!(
+                path = %state_file.display(),
+                saved_world = %state.world,
+                saved_seed = state.seed,
+                "state file of another world: starting from the generated world (it will be replaced)"
+            );
+            None
+        }
+        None => {
+            let [x, z] = row_platform.offset_m([0.0; 2]);
+            world.set_robot_offset_m([x, trailer_m, z]);
+            None
+        }
+    };
+    config.physics.row_platform = row_platform;
+    config.physics.trailer_m = trailer_m;
+    config.physics.tractor_speed_m_per_s = tractor.speed_m_per_s;
+    config.physics.row_end_m = row_end_m.max(trailer_m);
+    config.physics.state_file = Some(state_file);
+    config.physics.saved_state = restored;
+    let robot = SimRobot::from_world(world, crate::robot::SimRobotConfig::default())?;
+    let mut camera = RgbdCamera::new(&robot.world().scenario().camera)?;
     tracing::info!(
         scenario = %args.scenario,
+        row = ?args.row,
         seed = args.seed,
         apples = robot.world().apples().len(),
         camera_rate_hz = args.camera_rate_hz,

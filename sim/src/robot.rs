@@ -218,6 +218,12 @@ impl SimRobot {
         seed: u64,
         config: SimRobotConfig,
     ) -> Result<Self, SimRobotError> {
+        Self::from_world(World::generate(scenario, seed)?, config)
+    }
+
+    /// The robot in an existing world (a row's, or one restored from a state file), arms at
+    /// home, valves as in [`SimRobot::new`], time zero.
+    pub fn from_world(world: World, config: SimRobotConfig) -> Result<Self, SimRobotError> {
         for (field, value) in [
             ("servo_time_constant_s", config.servo_time_constant_s),
             ("position_gain_per_s", config.position_gain_per_s),
@@ -228,7 +234,6 @@ impl SimRobot {
                 return Err(SimRobotError::InvalidConfig { field, value });
             }
         }
-        let world = World::generate(scenario, seed)?;
         let arms = [
             SimArm::new(ArmId::Arm1, ArmParams::arm1(), &config)?,
             SimArm::new(ArmId::Arm2, ArmParams::arm2(), &config)?,
@@ -370,6 +375,11 @@ impl SimRobot {
     /// The simulated world (ground truth; evaluation only).
     pub fn world(&self) -> &World {
         &self.world
+    }
+
+    /// The world, to move the robot in it ([`World::set_robot_offset_m`]).
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
     }
 
     /// Simulated time since creation, s.

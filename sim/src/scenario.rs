@@ -758,7 +758,7 @@ impl Checker {
 }
 
 /// Turns a toml deserialisation error into one naming origin, line, column and key.
-fn parse_error(origin: &str, text: &str, error: &toml::de::Error) -> ScenarioError {
+pub(crate) fn parse_error(origin: &str, text: &str, error: &toml::de::Error) -> ScenarioError {
     let message = error.message().trim().to_owned();
     let (line, column) = error.span().map_or((None, None), |span| {
         let (line, column) = line_column(text, span.start);
@@ -800,7 +800,7 @@ fn key_before(text: &str, offset: usize) -> Option<String> {
 }
 
 /// 1-based line and column of a byte offset.
-fn line_column(text: &str, offset: usize) -> (usize, usize) {
+pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let head = text.get(..offset.min(text.len())).unwrap_or(text);
     let line = head.matches('\n').count() + 1;
     let column = head.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;

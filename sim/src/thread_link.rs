@@ -11,8 +11,9 @@
 //! copy, never for a render), that step's snapshot is skipped and the next step's is published,
 //! so the physics never waits for the render thread.
 //!
-//! Leaves, branches, the backdrop and the scenario do not move, so the render thread's copy
-//! keeps them from the start. The vacuum and contact state of the render copy is not kept up
+//! Leaves, branches, the backdrop and the scenario move only when the robot moves (trailer,
+//! platform): the snapshot carries the robot's offset and the render copy follows it
+//! ([`World::set_robot_offset_m`]). The vacuum and contact state of the render copy is not kept up
 //! to date: no renderer reads it (the renderers draw no arms either).
 
 use crate::orchard::{AppleState, World};
@@ -24,6 +25,8 @@ use std::sync::{Mutex, MutexGuard, TryLockError};
 pub struct WorldSnapshot {
     /// Per apple, in the world's order: centre in the robot frame (m) and state.
     apples: Vec<([f64; 3], AppleState)>,
+    /// Where the robot stood in the row frame (see [`crate::world_motion`]), m.
+    robot_offset_m: [f64; 3],
     /// Physics steps taken when the snapshot was taken (0: the generated world).
     physics_tick: u64,
     /// Simulated time of the snapshot, ns.
@@ -36,6 +39,7 @@ impl WorldSnapshot {
     fn of(world: &World) -> Self {
         let mut snapshot = Self {
             apples: Vec::with_capacity(world.apples().len()),
+            robot_offset_m: world.robot_offset_m(),
             physics_tick: 0,
             sim_time_ns: 0,
             stamp_ns: 0,
@@ -46,6 +50,7 @@ impl WorldSnapshot {
 
     /// Copies the apples of `world` in place (no allocation once sized).
     fn copy_from(&mut self, world: &World) {
+        self.robot_offset_m = world.robot_offset_m();
         self.apples.clear();
         self.apples.extend(
             world
@@ -127,6 +132,8 @@ impl ThreadLink {
     /// newest published step. `world` must be a copy of the world the link was made from.
     pub fn sync_world(&self, world: &mut World) -> SnapshotStamp {
         let snapshot = self.lock_snapshot();
+        // Moves the leaves, branches and backdrop of the render copy with the robot.
+        world.set_robot_offset_m(snapshot.robot_offset_m);
         for (apple, (center_in_robot_m, state)) in world.apples.iter_mut().zip(&snapshot.apples) {
             apple.center_in_robot_m = *center_in_robot_m;
             apple.state = *state;

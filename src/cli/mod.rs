@@ -45,6 +45,10 @@ enum Command {
         /// affinity, nice, memory lock): every process runs with normal scheduling.
         #[arg(long)]
         no_scheduling: bool,
+        /// Stop once the executive's stop-and-go cycle finished the row's last stop (a launch
+        /// with a row, e.g. processes/supervisor/launch/row.toml).
+        #[arg(long)]
+        until_row_done: bool,
     },
     /// Simulated robot: the orchard world serving the hardware channels.
     #[cfg(feature = "sim-tools")]
@@ -203,7 +207,15 @@ impl Cli {
                 duration,
                 until_harvested,
                 no_scheduling,
-            } => up(launch, duration, until_harvested, no_scheduling, domain),
+                until_row_done,
+            } => up(
+                launch,
+                duration,
+                until_harvested,
+                no_scheduling,
+                until_row_done,
+                domain,
+            ),
             Command::Arm(args) => {
                 harvest_arm_process::run(&args, &domain, process_name)
                     .with_context(|| stack_process_context("arm process", &domain))?;
@@ -371,6 +383,7 @@ fn up(
     duration: Option<Duration>,
     until_harvested: bool,
     no_scheduling: bool,
+    until_row_done: bool,
     domain: Domain,
 ) -> Result<ExitCode> {
     let launch = match &launch {
@@ -389,6 +402,7 @@ fn up(
         duration,
         executable,
         until_harvested,
+        until_row_done,
     })?;
     if let Some(harvest) = summary.render_harvest() {
         print!("{harvest}");

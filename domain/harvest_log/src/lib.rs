@@ -110,6 +110,10 @@ pub struct HarvestLogSummary {
     pub complete: bool,
     /// Times an arm braked because its encoder feedback was missing or late.
     pub feedback_stalls: u32,
+    /// The stops of a row the executive's stop-and-go cycle finished (their lines).
+    pub stops: Vec<String>,
+    /// The row's own summary line, once its last stop was finished.
+    pub row: Option<String>,
 }
 
 fn opt(value: Option<f64>, digits: usize) -> String {
@@ -153,6 +157,9 @@ impl fmt::Display for HarvestLogSummary {
         if !self.rejected_targets.is_empty() {
             writeln!(f, "  rejected targets: {}", list(&self.rejected_targets))?;
         }
+        if let Some(row) = &self.row {
+            writeln!(f, "row summary ({} stops): {row}", self.stops.len())?;
+        }
         if self.feedback_stalls > 0 {
             writeln!(
                 f,
@@ -179,6 +186,8 @@ pub struct HarvestLog {
     rejected: BTreeMap<&'static str, u32>,
     first_assigned_ns: Option<u64>,
     complete: bool,
+    stops: Vec<String>,
+    row: Option<String>,
 }
 
 impl HarvestLog {
@@ -193,6 +202,8 @@ impl HarvestLog {
             rejected: BTreeMap::new(),
             first_assigned_ns: None,
             complete: false,
+            stops: Vec::new(),
+            row: None,
         }
     }
 
@@ -204,6 +215,11 @@ impl HarvestLog {
     /// True once the vacuum supervisor reported that nothing is left to pick.
     pub fn complete(&self) -> bool {
         self.complete
+    }
+
+    /// True once the executive's stop-and-go cycle finished the row's last stop.
+    pub fn row_done(&self) -> bool {
+        self.row.is_some()
     }
 
     /// Takes one event; returns the line to show for it, if any.
@@ -307,6 +323,16 @@ impl HarvestLog {
                 self.complete = true;
                 "harvest complete: nothing left to pick".to_owned()
             }
+            HarvestEventKind::StopFinished => {
+                let text = event.reason.as_str().to_owned();
+                self.stops.push(text.clone());
+                text
+            }
+            HarvestEventKind::RowFinished => {
+                let text = event.reason.as_str().to_owned();
+                self.row = Some(text.clone());
+                format!("row done: {text}")
+            }
             _ => return None,
         };
         Some(self.line(event, &text))
@@ -392,6 +418,8 @@ impl HarvestLog {
             rates: CycleRates::new(apples_attempted, apples_harvested, attempts, duration_s),
             mean_attempt_s,
             complete: self.complete,
+            stops: self.stops.clone(),
+            row: self.row.clone(),
             feedback_stalls: self.feedback_stalls,
         }
     }

@@ -33,4 +33,7 @@ pub enum Action {
     },
     /// Stop the platform stages where they are.
     PlatformStop,
+    /// End the harvest at the row's current stop and advance (the row's stop cycle,
+    /// `harvest_field::StopCycle::next_stop`, may still refuse: the ack then says why).
+    NextStop,
 }

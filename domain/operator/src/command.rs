@@ -95,6 +95,8 @@ pub enum Command {
     },
     Heartbeat,
     LeaveControl,
+    /// End the harvest at the row's current stop and advance to the next one.
+    NextStop,
 }
 
 fn arm_argument(arm_id: u8) -> Result<u8, Refusal> {
@@ -124,6 +126,7 @@ impl Command {
             Self::PlatformMove { .. } => OperatorCommandCode::PlatformMove,
             Self::Heartbeat => OperatorCommandCode::Heartbeat,
             Self::LeaveControl => OperatorCommandCode::LeaveControl,
+            Self::NextStop => OperatorCommandCode::NextStop,
         }
     }
 
@@ -178,6 +181,7 @@ impl Command {
             },
             OperatorCommandCode::Heartbeat => Self::Heartbeat,
             OperatorCommandCode::LeaveControl => Self::LeaveControl,
+            OperatorCommandCode::NextStop => Self::NextStop,
         })
     }
 
@@ -244,6 +248,7 @@ mod tests {
             },
             Command::Heartbeat,
             Command::LeaveControl,
+            Command::NextStop,
         ];
         for command in commands {
             let message = command.to_message(7, 9, "token", "test");

@@ -13,7 +13,9 @@
 //! `resume` (paused -> harvesting), `stop` (harvesting, paused, manual -> idle), `estop` (any ->
 //! estopped), `release` (estopped -> idle: never back to harvesting by itself), and a manual
 //! move (`home`, `jog`, `drop-off`, `platform` from idle, paused or manual -> manual).
-//! `arm N enable|disable` is allowed in every mode (a disabled arm gets no new apple and
+//! `next-stop` (harvesting, with a row configured) ends the row's current stop and advances;
+//! the row's stop cycle may still refuse it (an arm holds an apple, something moves, the row is
+//! done). `arm N enable|disable` is allowed in every mode (a disabled arm gets no new apple and
 //! finishes the one it picks).
 //!
 //! Every command passes, in order: a known code; the control token; the single controlling
@@ -49,6 +51,9 @@ pub struct ExecutiveConfig {
     /// Mode at start when no earlier mode is known (default idle; the simulated robot's launch
     /// profile starts harvesting).
     pub initial_mode: OperatorModeCode,
+    /// The executive works a row (`--row-stops`): "next stop" goes to its stop cycle; without
+    /// one, "next stop" is refused ([`Refusal::NoRow`]).
+    pub field_row: bool,
 }
 
 impl Default for ExecutiveConfig {
@@ -64,6 +69,7 @@ impl Default for ExecutiveConfig {
                 speed_fraction: MANUAL_SPEED_FRACTION,
             },
             initial_mode: OperatorModeCode::Idle,
+            field_row: false,
         }
     }
 }
@@ -125,6 +131,15 @@ impl Decision {
     /// True when the command was accepted.
     pub fn is_accepted(&self) -> bool {
         self.refusal.is_none()
+    }
+
+    /// Turns an accepted decision into `refusal` when carrying it out failed (a device or the
+    /// row's stop cycle said no); a refused decision keeps its first refusal.
+    pub fn refuse(&mut self, refusal: Refusal) {
+        if self.is_accepted() {
+            self.reason = refusal.to_string();
+            self.refusal = Some(refusal);
+        }
     }
 }
 
@@ -378,8 +393,23 @@ impl Executive {
             Command::PlatformMove { target_m } => {
                 self.platform_move(now_ns, message, view, target_m)
             }
+            Command::NextStop => self.next_stop(mode),
             Command::EmergencyStop | Command::LeaveControl => Decision::accepted("handled above"),
         }
+    }
+
+    /// "Next stop": only with a row and while harvesting (the stop cycle runs only then); the
+    /// process carries out [`Action::NextStop`] and the stop cycle may still refuse.
+    fn next_stop(&self, mode: OperatorModeCode) -> Decision {
+        if !self.config.field_row {
+            return Decision::refused(Refusal::NoRow);
+        }
+        if mode != OperatorModeCode::Harvesting {
+            return Decision::refused(Refusal::forbidden(Command::NextStop.name(), mode));
+        }
+        let mut decision = Decision::accepted("next stop: advancing");
+        decision.actions.push(Action::NextStop);
+        decision
     }
 
     fn emergency_stop(&mut self, now_ns: u64, code: u16, client: &str) -> Decision {
@@ -627,7 +657,7 @@ impl Executive {
         state.mode = self.mode as u8;
         state.emergency_stop_engaged = u8::from(self.emergency_stop_engaged());
         state.arms_enabled = self.arms_enabled.map(u8::from);
-        state._reserved = [0; 2];
+        state._reserved = [0; 1];
         state.controlling_session = self.controller.as_ref().map_or(0, |c| c.session_id);
         state.controller =
             FixedString::new(self.controller.as_ref().map_or("", |c| c.client.as_str()));

@@ -87,6 +87,12 @@ pub enum Refusal {
     /// No platform is driven by this executive.
     #[error("no platform device (the executive runs with `--platform none`)")]
     NoPlatform,
+    /// "Next stop" without a row (the executive runs without `--row-stops`).
+    #[error("no row configured (the executive runs without `--row-stops`)")]
+    NoRow,
+    /// The row's stop cycle refused "next stop" (its reason in words).
+    #[error("next stop refused: {0}")]
+    NextStop(String),
 }
 
 impl Refusal {
@@ -106,6 +112,7 @@ impl Refusal {
             Self::ArmStateUnknown(_) => OperatorRefusalCode::ArmStateUnknown,
             Self::Clearance { .. } => OperatorRefusalCode::Clearance,
             Self::NoPlatform => OperatorRefusalCode::Device,
+            Self::NoRow | Self::NextStop(_) => OperatorRefusalCode::Field,
         }
     }
 

@@ -66,6 +66,7 @@ impl CommandRequest {
             "home" => Command::Home,
             "heartbeat" => Command::Heartbeat,
             "leave-control" => Command::LeaveControl,
+            "next-stop" => Command::NextStop,
             "arm-enable" => Command::SetArmEnabled {
                 arm: arm("arm-enable")?,
                 enabled: true,

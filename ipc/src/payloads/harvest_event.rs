@@ -19,6 +19,8 @@ pub enum HarvestEventSource {
     Arm1 = 1,
     Arm2 = 2,
     Vacuum = 3,
+    /// The executive's stop-and-go cycle along a row (issue 17).
+    Field = 4,
 }
 
 impl HarvestEventSource {
@@ -37,6 +39,7 @@ impl HarvestEventSource {
             Self::Arm1 => "arm1",
             Self::Arm2 => "arm2",
             Self::Vacuum => "vacuum",
+            Self::Field => "field",
         }
     }
 }
@@ -81,6 +84,12 @@ pub enum HarvestEventKind {
     /// Vacuum: nothing is assigned, dispatched or running, both arms are idle and the newest
     /// detection sets hold nothing to pick: the harvest of what the camera sees is complete.
     HarvestComplete = 17,
+    /// Field: a stop of the row is done; `reason` holds its figures (positioning, reachable
+    /// before/after, out of reach, attempted, harvested), `position_in_robot_m[0]` the
+    /// trailer position along the row, m.
+    StopFinished = 18,
+    /// Field: the last stop of the row is done.
+    RowFinished = 19,
 }
 
 /// Why an attempt failed or a target was refused (code in [`HarvestEvent::cause`]).
@@ -193,10 +202,10 @@ crate::serde_payload!(
     "harvest.HarvestEvent",
     1,
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64 (event tick), \
-publish_ns:u64}; source:u8 (1 arm1, 2 arm2, 3 vacuum); kind:u8 (1 assigned, 2 target accepted, \
+publish_ns:u64}; source:u8 (1 arm1, 2 arm2, 3 vacuum, 4 field); kind:u8 (1 assigned, 2 target accepted, \
 3 target rejected, 4 target deferred, 5 phase changed, 6 attached, 7 cycle step, 8 attempt \
 ended, 9 valve opened, 10 valve closed, 11 valve refused, 12 emergency stop, 13 attempt \
-finished, 14 dispatch timed out, 15 replanned, 16 attachment changed, 17 harvest complete); \
+finished, 14 dispatch timed out, 15 replanned, 16 attachment changed, 17 harvest complete, 18 stop finished, 19 row finished); \
 arm_id:u8; phase:u8 (ArmState phase code); harvested:u8; cause:u8 (0 none, 1 approach timeout, \
 2 valve not granted, 3 no attachment, 4 apple lost, 5 valve not closed, 6 emergency stop, 7 \
 target not taken, 20 non-finite, 21 stale, 22 from future, 23 outside workspace, 24 busy, 25 \
@@ -242,7 +251,7 @@ mod tests {
             HarvestEventKind::from_code(17),
             Some(HarvestEventKind::HarvestComplete)
         );
-        assert_eq!(HarvestEventKind::ALL.len(), 17);
+        assert_eq!(HarvestEventKind::ALL.len(), 19);
         assert_eq!(
             HarvestCause::from_code(23),
             Some(HarvestCause::OutsideWorkspace)

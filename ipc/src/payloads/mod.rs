@@ -12,6 +12,7 @@ pub mod point_cloud;
 pub mod process_health;
 pub mod rgbd_frame;
 pub mod safety_violation;
+pub mod tractor;
 pub mod vacuum;
 // Operator channels (issue 15).
 pub mod arm_manual;
@@ -39,6 +40,7 @@ pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
 pub use process_health::{ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
 pub use safety_violation::{SafetyViolation, VIOLATION_TEXT_BYTES, ViolationAction, ViolationRule};
+pub use tractor::{TractorCommand, TractorFeedback, TractorStatus};
 pub use vacuum::{
     ArmAttachment, VacuumPolicyCode, VacuumState, ValveGrant, ValveRequest, ValveRequestKind,
 };

@@ -51,10 +51,13 @@ pub enum OperatorCommandCode {
     Heartbeat = 13,
     /// The session gives up control.
     LeaveControl = 14,
+    /// End the harvest at the row's current stop and advance to the next one
+    /// (`StopCycle::next_stop` in `domain/field`).
+    NextStop = 15,
 }
 
 impl OperatorCommandCode {
-    pub const ALL: [Self; 14] = [
+    pub const ALL: [Self; 15] = [
         Self::Start,
         Self::Pause,
         Self::Resume,
@@ -69,6 +72,7 @@ impl OperatorCommandCode {
         Self::PlatformMove,
         Self::Heartbeat,
         Self::LeaveControl,
+        Self::NextStop,
     ];
 
     /// The command of `code`, `None` for a code this build does not know.
@@ -93,6 +97,7 @@ impl OperatorCommandCode {
             Self::PlatformMove => "platform",
             Self::Heartbeat => "heartbeat",
             Self::LeaveControl => "leave-control",
+            Self::NextStop => "next-stop",
         }
     }
 }
@@ -163,10 +168,13 @@ pub enum OperatorRefusalCode {
     Clearance = 10,
     /// The device (platform) refused or is not present.
     Device = 11,
+    /// The row's stop-and-go cycle refused "next stop" (an arm holds an apple, the platform
+    /// or the trailer moves, the row is done, or no row is configured).
+    Field = 12,
 }
 
 impl OperatorRefusalCode {
-    pub const ALL: [Self; 11] = [
+    pub const ALL: [Self; 12] = [
         Self::UnknownCommand,
         Self::MissingToken,
         Self::WrongToken,
@@ -178,6 +186,7 @@ impl OperatorRefusalCode {
         Self::ArmStateUnknown,
         Self::Clearance,
         Self::Device,
+        Self::Field,
     ];
 
     pub fn from_code(code: u8) -> Option<Self> {
@@ -229,7 +238,7 @@ crate::serde_payload!(
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
 request_id:u64; session_id:u64; code:u16 (1 start, 2 pause, 3 resume, 4 stop, 5 estop, \
 6 release, 7 home, 8 arm enable, 9 arm disable, 10 jog, 11 drop-off, 12 platform move, \
-13 heartbeat, 14 leave control); arm_id:u8; joint:u8; _reserved:[u8;4]; value:f64; \
+13 heartbeat, 14 leave control, 15 next stop); arm_id:u8; joint:u8; _reserved:[u8;4]; value:f64; \
 platform_target_m:[f64;2]; token: u64 length + UTF-8; client: u64 length + UTF-8"
 );
 
@@ -283,7 +292,8 @@ crate::serde_payload!(
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
 request_id:u64; session_id:u64; code:u16; accepted:u8; refusal:u8 (0 none, 1 unknown command, \
 2 missing token, 3 wrong token, 4 other session in control, 5 forbidden by mode, 6 outside \
-limits, 7 bad argument, 8 arm busy, 9 arm state unknown, 10 clearance, 11 device); mode:u8; \
+limits, 7 bad argument, 8 arm busy, 9 arm state unknown, 10 clearance, 11 device, \
+12 field); mode:u8; \
 _reserved:[u8;3]; motion_duration_ms:u32; _reserved2:[u8;4]; reason: u64 length + UTF-8"
 );
 
@@ -313,7 +323,11 @@ pub struct OperatorModeState {
     pub platform_in_motion: u8,
     /// 1 when the executive drives a platform and `platform_position_m` is its feedback.
     pub platform_present: u8,
-    pub _reserved: [u8; 2],
+    /// 1 while the row's stop-and-go cycle holds new approaches (the trailer drives, the arms
+    /// park, the platform repositions, fresh detections are awaited): the vacuum supervisor
+    /// dispatches no new target, the running attempts finish.
+    pub field_hold: u8,
+    pub _reserved: [u8; 1],
     /// The controlling session (0: none).
     pub controlling_session: u64,
     /// When the mode (or the controller) last changed, ns.
@@ -335,7 +349,7 @@ crate::serde_payload!(
     1,
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
 mode:u8 (1 idle, 2 harvesting, 3 paused, 4 manual, 5 estopped); emergency_stop_engaged:u8; \
-arms_enabled:[u8;2]; platform_in_motion:u8; platform_present:u8; _reserved:[u8;2]; \
+arms_enabled:[u8;2]; platform_in_motion:u8; platform_present:u8; field_hold:u8; _reserved:[u8;1]; \
 controlling_session:u64; last_change_ns:u64; platform_position_m:[f64;2]; \
 last_change_code:u16; _reserved2:[u8;6]; controller: u64 length + UTF-8; last_change_reason: \
 u64 length + UTF-8"

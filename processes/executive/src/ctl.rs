@@ -102,6 +102,10 @@ pub enum CtlCommand {
     },
     /// Give up control (another session may take it at once).
     Leave,
+    /// End the harvest at the row's current stop and advance to the next one (refused while
+    /// an arm holds an apple, the platform or the trailer moves, the row is done, or the
+    /// executive works no row).
+    NextStop,
 }
 
 /// `enable` or `disable`.
@@ -158,6 +162,7 @@ impl CtlCommand {
                 target_m: [in_out, up_down],
             },
             Self::Leave => Command::LeaveControl,
+            Self::NextStop => Command::NextStop,
         })
     }
 }

@@ -8,7 +8,8 @@
 //!    `operator/command` goes through [`Executive::handle`]; its actions are
 //!    carried out (e-stop engage/release on `safety/emergency_stop`, manual orders on
 //!    `armN/manual`, platform moves through the [`Platform`] trait) before the acknowledgement
-//!    goes out on `operator/ack` (a platform that refuses turns it into a refusal);
+//!    goes out on `operator/ack` (a platform that refuses turns it into a refusal; "next stop"
+//!    goes to the row's stop cycle, whose refusal becomes the acknowledgement's);
 //! 3. [`Executive::tick`] stops a manual motion whose controlling session went silent;
 //! 4. `operator/mode` is published on every change and at 10 Hz.
 //!
@@ -27,6 +28,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
+use crate::row::{RowLink, RowOptions};
 use harvest_hw::platform::sim::SimPlatform;
 use harvest_hw::platform::{Platform, PlatformTravel};
 use harvest_ipc::catalogue::{
@@ -81,6 +83,21 @@ pub struct ExecutiveArgs {
     /// `harvest_operator::token::token_path`).
     #[arg(long)]
     pub token_file: Option<PathBuf>,
+    /// Work a row stop by stop (issue 17): this many stops (0: no row, the robot stays where
+    /// it is). Needs the simulated tractor (`harvest sim --row`).
+    #[arg(long, default_value_t = 0)]
+    pub row_stops: u32,
+    /// Distance between two stops along the row, m.
+    #[arg(long, default_value_t = 2.0)]
+    pub stop_spacing_m: f64,
+    /// Advance to the next stop once a stop is harvested (without it, the operator ends each
+    /// stop: `harvest ctl next-stop`).
+    #[arg(long)]
+    pub auto_advance: bool,
+    /// A stop is harvested once the arms are parked and nothing was assigned or attempted for
+    /// this long after fresh detections (or when the vacuum supervisor reports it complete), ms.
+    #[arg(long, default_value_t = 4000)]
+    pub stop_quiet_ms: u64,
 }
 
 /// Why the executive stopped with an error.
@@ -95,6 +112,9 @@ pub enum ExecutiveProcessError {
     /// The platform could not be reached.
     #[error("platform device: {0}")]
     Platform(String),
+    /// The row's stop-and-go cycle could not be set up.
+    #[error("row: {0}")]
+    Row(String),
     /// The transport failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
@@ -185,6 +205,21 @@ pub fn run(
         )),
         PlatformDevice::None => PlatformLink::None,
     };
+    let mut row = if args.row_stops > 0 {
+        let travel = PlatformTravel::default();
+        Some(RowLink::connect(
+            &context,
+            RowOptions {
+                stops: args.row_stops,
+                stop_spacing_m: args.stop_spacing_m,
+                auto_advance: args.auto_advance,
+                quiet_ms: args.stop_quiet_ms,
+            },
+            [travel.in_out_max_m, travel.up_down_max_m],
+        )?)
+    } else {
+        None
+    };
     let commands_in = context.subscriber_with_buffer(OPERATOR_COMMAND, 256)?;
     let violations_in = context.subscriber_with_buffer(SAFETY_VIOLATION, 256)?;
     let arm_states_in = [
@@ -206,6 +241,7 @@ pub fn run(
             InitialMode::Idle => OperatorModeCode::Idle,
             InitialMode::Harvesting => OperatorModeCode::Harvesting,
         },
+        field_row: row.is_some(),
         ..ExecutiveConfig::default()
     };
     let started_ns = MonotonicClock::read_ns();
@@ -216,7 +252,7 @@ pub fn run(
     let mut last_platform_poll_ns = 0u64;
     let mut platform_failures = 0u32;
     let mut last_mode_ns = 0u64;
-    let mut published: Option<(u8, [bool; 2], u64, u64)> = None;
+    let mut published: Option<(u8, [bool; 2], u64, u64, bool)> = None;
     let mut handled = 0u64;
     tracing::info!(period_us = args.control_period_us, platform = ?args.platform,
         initial_mode = ?args.initial_mode, "executive running");
@@ -321,6 +357,29 @@ pub fn run(
                         let mut decision = executive.handle(now_ns, &command, &view);
                         let actions = std::mem::take(&mut decision.actions);
                         for action in &actions {
+                            if *action == Action::NextStop {
+                                // The row's stop cycle has the last word.
+                                let platform_now =
+                                    view.platform.map(|p| (p.position_m, p.in_motion));
+                                let outcome = match row.as_mut() {
+                                    Some(row) => {
+                                        row.next_stop(now_ns, &arm_states, platform_now)?
+                                    }
+                                    None => Err(Refusal::NoRow.to_string()),
+                                };
+                                match outcome {
+                                    Ok((what, target_m)) => {
+                                        decision.reason = what;
+                                        if let Some(target_m) = target_m
+                                            && let Err(message) = platform.move_to(target_m)
+                                        {
+                                            tracing::warn!(%message, ?target_m, "platform move refused");
+                                        }
+                                    }
+                                    Err(reason) => decision.refuse(Refusal::NextStop(reason)),
+                                }
+                                continue;
+                            }
                             if let Err(message) = apply(
                                 action,
                                 now_ns,
@@ -351,19 +410,42 @@ pub fn run(
                         }
                     }
 
+                    // 3b. The row's stop-and-go cycle (only while harvesting).
+                    if let Some(row) = row.as_mut() {
+                        let harvesting = executive.mode() == OperatorModeCode::Harvesting;
+                        let platform_now = view.platform.map(|p| (p.position_m, p.in_motion));
+                        if let Some(target_m) =
+                            row.tick(now_ns, harvesting, &arm_states, platform_now)?
+                        {
+                            match platform.move_to(target_m) {
+                                Ok(()) => {
+                                    // Poll at once: the stop cycle waits for the move to end.
+                                    last_platform_poll_ns = 0;
+                                    view.platform = None;
+                                }
+                                Err(message) => {
+                                    tracing::warn!(%message, ?target_m, "platform move refused")
+                                }
+                            }
+                        }
+                    }
+
                     // 4. The mode.
+                    let field_hold = row.as_ref().is_some_and(RowLink::holds_approaches);
                     let change = executive.last_change();
                     let key = (
                         executive.mode() as u8,
                         executive.arms_enabled(),
                         change.at_ns,
                         executive.controller().map_or(0, |c| c.session_id),
+                        field_hold,
                     );
                     let changed = published != Some(key);
                     if changed || now_ns.saturating_sub(last_mode_ns) >= MODE_PERIOD_NS {
                         mode_out.publish_with(now_ns, |state| {
                             executive.fill_state(state);
                             state.platform_present = u8::from(platform.present());
+                            state.field_hold = u8::from(field_hold);
                             match view.platform {
                                 Some(p) => {
                                     state.platform_in_motion = u8::from(p.in_motion);
@@ -443,6 +525,8 @@ fn apply(
         }
         Action::PlatformMoveTo { target_m } => return Ok(platform.move_to(*target_m)),
         Action::PlatformStop => return Ok(platform.stop()),
+        // Carried out by the row's stop cycle in the command loop of `run`.
+        Action::NextStop => {}
     }
     Ok(Ok(()))
 }

@@ -47,6 +47,9 @@ pub struct UpOptions {
     /// Stop once the vacuum supervisor reports the harvest complete (`HarvestComplete` on
     /// `harvest/events`).
     pub until_harvested: bool,
+    /// Stop once the executive's stop-and-go cycle finished the row (`RowFinished` on
+    /// `harvest/events`).
+    pub until_row_done: bool,
 }
 
 /// How the run ended.
@@ -339,6 +342,10 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
             }
             if options.until_harvested && harvest_log.complete() {
                 ended_by = "harvest complete".to_owned();
+                return Ok(Flow::Stop);
+            }
+            if options.until_row_done && harvest_log.row_done() {
+                ended_by = "row done".to_owned();
                 return Ok(Flow::Stop);
             }
         }

@@ -391,7 +391,9 @@ fn control_loop<B: ValveBoard>(
                 if let Some(mode) = mode_in.receive_latest()? {
                     let harvesting = mode.mode_code()
                         == Some(harvest_ipc::payloads::OperatorModeCode::Harvesting);
-                    node.hold_dispatch(mode.arms_enabled.map(|on| !(harvesting && on != 0)));
+                    // The row's stop cycle holds new approaches while it repositions.
+                    let held = !harvesting || mode.field_hold != 0;
+                    node.hold_dispatch(mode.arms_enabled.map(|on| held || on == 0));
                 }
 
                 // 3. The node.

@@ -439,3 +439,67 @@ fn the_safety_monitor_engages_the_stop_once_and_only_an_operator_releases_it() {
     assert!(b.send(Command::Release).is_accepted());
     assert_eq!(b.executive.mode(), OperatorModeCode::Idle);
 }
+
+#[test]
+fn next_stop_goes_to_the_row_only_with_a_row_and_while_harvesting() {
+    // No row configured: refused whatever the mode, nothing to carry out.
+    let mut b = Bench::new(OperatorModeCode::Harvesting);
+    let decision = b.send(Command::NextStop);
+    assert_eq!(decision.refusal, Some(Refusal::NoRow));
+    assert_eq!(refusal_code(&decision), Some(OperatorRefusalCode::Field));
+    assert!(decision.actions.is_empty());
+    assert!(
+        decision.reason.contains("no row configured"),
+        "{}",
+        decision.reason
+    );
+
+    // With a row: routed to the stop cycle while harvesting.
+    let mut b = Bench::new(OperatorModeCode::Harvesting);
+    b.executive.config.field_row = true;
+    let mut decision = b.send(Command::NextStop);
+    assert!(decision.is_accepted(), "{}", decision.reason);
+    assert_eq!(decision.actions, vec![Action::NextStop]);
+    assert_eq!(b.executive.mode(), OperatorModeCode::Harvesting);
+    // The stop cycle's refusal becomes the acknowledgement's.
+    decision.refuse(Refusal::NextStop(
+        "an arm holds an apple: drop it off first".to_owned(),
+    ));
+    assert_eq!(refusal_code(&decision), Some(OperatorRefusalCode::Field));
+    assert_eq!(
+        decision.reason,
+        "next stop refused: an arm holds an apple: drop it off first"
+    );
+
+    // Paused or e-stopped: the stop cycle does not run, the trailer must not drive.
+    assert!(b.send(Command::Pause).is_accepted());
+    let paused = b.send(Command::NextStop);
+    assert_eq!(
+        refusal_code(&paused),
+        Some(OperatorRefusalCode::ForbiddenByMode)
+    );
+    assert!(paused.actions.is_empty());
+    assert!(b.send(Command::EmergencyStop).is_accepted());
+    let stopped = b.send(Command::NextStop);
+    assert_eq!(
+        refusal_code(&stopped),
+        Some(OperatorRefusalCode::ForbiddenByMode)
+    );
+    assert!(
+        stopped.reason.contains("release the emergency stop"),
+        "{}",
+        stopped.reason
+    );
+
+    // Another session's "next stop" is refused before it reaches the row.
+    let mut b = Bench::new(OperatorModeCode::Harvesting);
+    b.executive.config.field_row = true;
+    assert!(b.send(Command::Heartbeat).is_accepted());
+    let token = b.token.as_str().to_owned();
+    let other = b.send_as(2, &token, Command::NextStop);
+    assert_eq!(
+        refusal_code(&other),
+        Some(OperatorRefusalCode::OtherSessionInControl)
+    );
+    assert!(other.actions.is_empty());
+}
