@@ -6,6 +6,10 @@ use super::{CycleEvent, CyclePhase, TargetRequest, ValveRequest};
 use harvest_robot_model::joint::JointPosition;
 
 #[derive(Debug, Clone, PartialEq)]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "motions hold their trajectory in fixed arrays so a control tick allocates nothing; boxing would allocate"
+)]
 pub(super) enum AttachStage {
     WaitingValve { since_ns: u64 },
     WaitingAttachment { since_ns: u64 },
@@ -76,6 +80,10 @@ impl State {
 
 /// What the step of the current phase decided; `PickingCycle::advance` applies it.
 #[derive(Debug)]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "motions hold their trajectory in fixed arrays so a control tick allocates nothing; boxing would allocate"
+)]
 pub(super) enum Transition {
     /// Keep the current state (still moving or waiting); nothing happened.
     Stay,
