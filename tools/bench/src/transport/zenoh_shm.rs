@@ -21,7 +21,8 @@ use zenoh::handlers::FifoChannelHandler;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::sample::Sample;
 use zenoh::shm::{
-    BlockOn, GarbageCollect, MemoryLayout, PosixShmProviderBackend, ShmProvider, ShmProviderBuilder,
+    AllocAlignment, BlockOn, GarbageCollect, MemoryLayout, PosixShmProviderBackend, ShmProvider,
+    ShmProviderBuilder,
 };
 use zenoh::{Session, Wait};
 
@@ -52,9 +53,14 @@ impl<T: BenchMessage> ZenohShmSender<T> {
     pub fn connect(endpoint: &str, payload: &'static str) -> Result<Self, BenchError> {
         let key = key_expr(payload);
         let session = open_session(TRANSPORT, LinkEnd::Connect(endpoint))?;
-        let provider = ShmProviderBuilder::default_backend(pool_bytes::<T>())
-            .wait()
-            .map_err(|error| zenoh_error(TRANSPORT, "create the SHM provider", &key, error))?;
+        // The pool's alignment is the message's: the provider refuses allocations aligned
+        // more strictly than its pool.
+        let provider = ShmProviderBuilder::default_backend((
+            pool_bytes::<T>(),
+            AllocAlignment::for_type::<T>(),
+        ))
+        .wait()
+        .map_err(|error| zenoh_error(TRANSPORT, "create the SHM provider", &key, error))?;
         let publisher = declare_publisher(&session, TRANSPORT, &key)?;
         wait_for_subscriber(&publisher, TRANSPORT, &key)?;
         Ok(Self {
