@@ -142,5 +142,5 @@ pub fn free_bytes_in(dir: &Path) -> std::io::Result<u64> {
 }
 
 fn available_bytes(stats: &nix::sys::statvfs::Statvfs) -> u64 {
-    (stats.blocks_available() as u64).saturating_mul(stats.fragment_size() as u64)
+    stats.blocks_available().saturating_mul(stats.fragment_size())
 }
