@@ -221,7 +221,7 @@ fn wild_stream(seed: u64) -> impl Iterator<Item = u64> {
         state ^= state << 13;
         state ^= state >> 7;
         state ^= state << 17;
-        if state % 4 == 0 {
+        if state.is_multiple_of(4) {
             state
         } else {
             WILD[(state >> 8) as usize % WILD.len()]
@@ -402,7 +402,7 @@ impl Stack {
             tick.saturating_sub(self.valve_changed[i]) < VALVE_TRAVEL_TICKS
         });
         let mut pressure = [0.0f32; 2];
-        for arm in 0..2 {
+        for (arm, arm_pressure) in pressure.iter_mut().enumerate() {
             let inlet = 2 * arm;
             let plant = &mut self.plants[arm];
             if !self.valves[inlet] {
@@ -410,7 +410,7 @@ impl Stack {
                 continue;
             }
             if in_transit[inlet] {
-                pressure[arm] = 400.0;
+                *arm_pressure = 400.0;
                 continue;
             }
             let cup = forward(&self.params[arm].links, &JointPosition::from_array(plant.q));
@@ -419,7 +419,7 @@ impl Stack {
                 (0..3).map(|k| (pick[k] - cup[k]).powi(2)).sum::<f64>() < 0.015f64.powi(2)
             });
             plant.holding |= at_apple;
-            pressure[arm] = if plant.holding { 2300.0 } else { 700.0 };
+            *arm_pressure = if plant.holding { 2300.0 } else { 700.0 };
         }
         let mut readings = BoardReadings {
             stamp_ns: now_ns,
@@ -462,7 +462,7 @@ impl Stack {
         let estop = self.delivered.stop.unwrap_or(false);
 
         // The vacuum supervisor.
-        let detections = (tick % DETECTION_EVERY == 0).then(|| {
+        let detections = tick.is_multiple_of(DETECTION_EVERY).then(|| {
             detections(
                 &self.apples,
                 now_ns.saturating_sub(60_000_000),

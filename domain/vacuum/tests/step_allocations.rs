@@ -152,7 +152,7 @@ impl Orchard {
 
     /// One tick: the node and the event conversion (what is counted), then the world.
     fn tick(&mut self) {
-        let new_frame = (self.now_ns / PERIOD_NS) % 7 == 0;
+        let new_frame = (self.now_ns / PERIOD_NS).is_multiple_of(7);
         if new_frame {
             self.see();
         }

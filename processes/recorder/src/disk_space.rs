@@ -142,5 +142,7 @@ pub fn free_bytes_in(dir: &Path) -> std::io::Result<u64> {
 }
 
 fn available_bytes(stats: &nix::sys::statvfs::Statvfs) -> u64 {
-    stats.blocks_available().saturating_mul(stats.fragment_size())
+    stats
+        .blocks_available()
+        .saturating_mul(stats.fragment_size())
 }
