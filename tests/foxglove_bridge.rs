@@ -104,7 +104,9 @@ fn recording_of(domain: &str) -> PathBuf {
         .filter(|path| path.extension().is_some_and(|ext| ext == "mcap"))
         .collect();
     files.sort();
-    assert_eq!(files.len(), 1, "{files:?}");
+    // The default launch splits at 1 GiB: a fast machine fills more than one segment in the
+    // test's run. Every segment carries every channel; the first one is read.
+    assert!(!files.is_empty(), "no recording in {}", dir.display());
     files.remove(0)
 }
 

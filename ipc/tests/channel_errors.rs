@@ -38,9 +38,10 @@ fn a_channel_of_another_payload_type_is_incompatible() {
         other => panic!("expected Incompatible, got {other:?}"),
     }
     let message = error.to_string();
+    let expected_type = format!("{} v{}", ProcessHealth::TYPE_NAME, ProcessHealth::VERSION);
     for part in [
         "test/incompatible",
-        "harvest.ProcessHealth v1",
+        expected_type.as_str(),
         "another payload type",
         domain.name(),
     ] {

@@ -1,0 +1,11 @@
+//! Test support shared by the workspace's property tests; a dev-dependency only, never linked
+//! into a binary.
+//!
+//! - [`toml_mutation`]: one generator of damaged TOML files for every reader of outside files.
+
+#![allow(
+    clippy::expect_used,
+    reason = "test support: a setup that fails is a failed test"
+)]
+
+pub mod toml_mutation;
