@@ -139,6 +139,25 @@ impl Observer {
         }
         latest
     }
+
+    /// Checks that arm 1 is still the process `arm1` (`replaced` says what a different pid
+    /// would mean) and that it goes on publishing its state.
+    fn assert_arm1_still_publishing(&self, arm1: u32, replaced: &str) {
+        let before = self
+            .latest_arm1_seq(Duration::from_secs(5))
+            .expect("arm 1 state");
+        let still = self
+            .wait_for_arm1(None, Duration::from_secs(10))
+            .unwrap_or_else(|error| panic!("{error}"));
+        assert_eq!(still, arm1, "{replaced}");
+        let after = self
+            .latest_arm1_seq(Duration::from_secs(5))
+            .expect("arm 1 state");
+        assert!(
+            after > before,
+            "arm 1 stopped publishing: {before} -> {after}"
+        );
+    }
 }
 
 /// Stops `stack` with SIGINT and checks it ended cleanly with no restart of arm 1 beyond
@@ -187,20 +206,7 @@ fn a_second_harvest_up_in_the_same_domain_is_refused_naming_the_running_supervis
     );
 
     // The first stack is unaffected: the same arm 1 process goes on publishing.
-    let before = observer
-        .latest_arm1_seq(Duration::from_secs(5))
-        .expect("arm 1 state");
-    let still = observer
-        .wait_for_arm1(None, Duration::from_secs(10))
-        .unwrap_or_else(|error| panic!("{error}"));
-    assert_eq!(still, arm1, "arm 1 was restarted");
-    let after = observer
-        .latest_arm1_seq(Duration::from_secs(5))
-        .expect("arm 1 state");
-    assert!(
-        after > before,
-        "arm 1 stopped publishing: {before} -> {after}"
-    );
+    observer.assert_arm1_still_publishing(arm1, "arm 1 was restarted");
     drop(observer);
     stop_cleanly(&stack, first, 0);
 }
@@ -232,20 +238,7 @@ fn a_stray_arm_process_cannot_become_a_second_writer() {
     }
 
     // The stack's arm 1 keeps running and publishing.
-    let before = observer
-        .latest_arm1_seq(Duration::from_secs(5))
-        .expect("arm 1 state");
-    let still = observer
-        .wait_for_arm1(None, Duration::from_secs(10))
-        .unwrap_or_else(|error| panic!("{error}"));
-    assert_eq!(still, arm1, "the stack's arm 1 was replaced");
-    let after = observer
-        .latest_arm1_seq(Duration::from_secs(5))
-        .expect("arm 1 state");
-    assert!(
-        after > before,
-        "arm 1 stopped publishing: {before} -> {after}"
-    );
+    observer.assert_arm1_still_publishing(arm1, "the stack's arm 1 was replaced");
     drop(observer);
     stop_cleanly(&stack, running, 0);
 }
