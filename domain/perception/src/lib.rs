@@ -27,6 +27,7 @@ pub mod config_file;
 pub mod dbscan;
 pub mod depth_source;
 pub mod detector;
+pub mod downscale;
 pub mod estimate_checks;
 pub mod estimator;
 pub mod frame;

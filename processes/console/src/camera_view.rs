@@ -12,6 +12,7 @@ use std::time::Duration;
 use harvest_ipc::catalogue::CAMERA_RGBD;
 use harvest_ipc::payloads::rgbd_frame::{RGB_HEIGHT_PX, RGB_WIDTH_PX};
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, Waiter};
+use harvest_perception::downscale::downscale_rgb;
 use image::ImageEncoder;
 
 use crate::error::ConsoleError;
@@ -74,33 +75,6 @@ impl CameraView {
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner()) = Some(Arc::new(frame));
         self.fresh.notify_all();
-    }
-}
-
-/// Averages `factor` x `factor` blocks of an RGB8 image (`width` x `height`, row-major) into
-/// `out` (`width / factor` x `height / factor`).
-pub fn downscale_rgb(src: &[u8], width: usize, height: usize, factor: usize, out: &mut Vec<u8>) {
-    let factor = factor.max(1);
-    let (out_w, out_h) = (width / factor, height / factor);
-    out.clear();
-    out.resize(out_w * out_h * 3, 0);
-    let area = (factor * factor) as u32;
-    let mut sums = vec![0u32; out_w * 3];
-    for oy in 0..out_h {
-        sums.iter_mut().for_each(|s| *s = 0);
-        for row in src.chunks_exact(width * 3).skip(oy * factor).take(factor) {
-            for (ox, block) in row.chunks_exact(factor * 3).take(out_w).enumerate() {
-                for pixel in block.chunks_exact(3) {
-                    sums[ox * 3] += u32::from(pixel[0]);
-                    sums[ox * 3 + 1] += u32::from(pixel[1]);
-                    sums[ox * 3 + 2] += u32::from(pixel[2]);
-                }
-            }
-        }
-        let line = &mut out[oy * out_w * 3..(oy + 1) * out_w * 3];
-        for (value, sum) in line.iter_mut().zip(&sums) {
-            *value = ((sum + area / 2) / area) as u8;
-        }
     }
 }
 
@@ -181,7 +155,7 @@ pub fn run_camera_view(
             last_frame = Some(id);
             last_view_ns = now_ns;
             let started_ns = now_ns;
-            downscale_rgb(&frame.rgb, RGB_WIDTH_PX, RGB_HEIGHT_PX, scale, &mut small);
+            downscale_rgb(&frame.rgb, RGB_WIDTH_PX, scale, (width, height), &mut small);
             // The frame goes back to the camera's pool before the (longer) encoding.
             drop(frame);
             if let Err(error) = encode_jpeg(
@@ -234,7 +208,7 @@ mod tests {
         ]
         .concat();
         let mut out = Vec::new();
-        downscale_rgb(&src, 4, 2, 2, &mut out);
+        downscale_rgb(&src, 4, 2, (2, 1), &mut out);
         assert_eq!(out, vec![5, 10, 15, 150, 150, 150]);
     }
 
