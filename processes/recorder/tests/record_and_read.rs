@@ -270,6 +270,10 @@ fn segments_split_by_duration() {
         include: vec!["arm1/state".into()],
         split_size: 0,
         split_duration: Some(std::time::Duration::from_millis(1)),
+        // The mapped Foxglove view writes its own messages (the static transforms, the arm's
+        // pose) at times of its own; with them, which segment a raw message lands in is a race.
+        // This test is about the raw channel alone.
+        no_foxglove: true,
         ..test_args(dir.path())
     };
     let recorder = RunningRecorder::start(&domain, args);
