@@ -174,7 +174,7 @@ fn pipeline_bench_measures_a_real_stack_and_writes_json_and_svg() {
     assert_eq!(report["interrupted"], false);
     // The bench ran the stack in a domain of its own, not the test's.
     let bench_domain = report["domain"].as_str().expect("domain");
-    assert_ne!(bench_domain, domain);
+    assert_ne!(bench_domain, &*domain);
 
     let hops = report["hops"].as_array().expect("hops");
     let with_data: Vec<bool> = hops.iter().map(check_stage).collect();
@@ -241,7 +241,7 @@ fn attached_to_an_empty_domain_every_hop_is_no_data() {
     assert_eq!(report["scheduling"], "attached");
     check_report_shape(report);
     assert_eq!(report["settings"]["attached"], true);
-    assert_eq!(report["domain"], domain);
+    assert_eq!(report["domain"], &*domain);
     for stage in report["hops"]
         .as_array()
         .expect("hops")

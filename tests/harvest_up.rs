@@ -93,7 +93,7 @@ fn harvest_up_picks_a_small_orchard_and_summarizes_it() {
     let truth_harvested = Arc::new(Mutex::new(None::<usize>));
     let truth_thread = {
         let (stop, truth_harvested, domain) =
-            (stop.clone(), truth_harvested.clone(), domain.clone());
+            (stop.clone(), truth_harvested.clone(), domain.to_string());
         std::thread::spawn(move || {
             let domain = Domain::new(&domain).expect("domain");
             let context = Context::new(&domain, "test-truth").expect("context");

@@ -61,9 +61,8 @@ fn run_profile(launch: &str) -> (std::process::ExitStatus, String, String, Seen)
     let stop = Arc::new(AtomicBool::new(false));
     let seen = Arc::new(Mutex::new(Seen::default()));
     let watcher = {
-        let (stop, seen, domain) = (stop.clone(), seen.clone(), domain.clone());
+        let (stop, seen, domain) = (stop.clone(), seen.clone(), domain.domain().clone());
         std::thread::spawn(move || {
-            let domain = Domain::new(&domain).expect("domain");
             let context = Context::new(&domain, "test-lidar").expect("context");
             let truth = context.subscriber(SIM_GROUND_TRUTH).expect("subscriber");
             let apples = context.subscriber(PERCEPTION_APPLES).expect("subscriber");

@@ -46,7 +46,7 @@ const START_LIMIT: Duration = Duration::from_secs(40);
 
 /// A stack of [`LAUNCH`] in its own domain, and the test's view of its channels.
 struct Stack {
-    domain: String,
+    domain: common::TestDomain,
     _dir: TempDir,
     launch: String,
 }

@@ -27,7 +27,7 @@ use harvest_hw::rgbd_camera::sim::SimRgbdCamera;
 use harvest_hw::valve_board::conformance::conformance_suite as valve_suite;
 use harvest_hw::valve_board::sim::SimValveBoard;
 use harvest_hw::{DeviceError, ErrorKind};
-use harvest_ipc::{ArmId, Context, Domain, ManualClock};
+use harvest_ipc::{ArmId, Context, ManualClock};
 use harvest_sim::robot::SimRobot;
 use harvest_sim::scenario::Scenario;
 use std::cell::RefCell;
@@ -66,19 +66,18 @@ impl Drop for SimProcess {
 struct SimDevices {
     context: Context,
     _sim: SimProcess,
-    _domain: Domain,
+    _domain: common::TestDomain,
 }
 
 impl SimDevices {
     fn start(tag: &str) -> Self {
         let domain_name = unique_domain(tag);
         let sim = SimProcess::start(&domain_name);
-        let domain = Domain::new(&domain_name).expect("domain");
-        let context = Context::new(&domain, &format!("{tag}-test")).expect("node");
+        let context = Context::new(domain_name.domain(), &format!("{tag}-test")).expect("node");
         Self {
             context,
             _sim: sim,
-            _domain: domain,
+            _domain: domain_name,
         }
     }
 }
@@ -128,8 +127,8 @@ fn simulated_camera_passes_the_conformance_suite() {
     let _watchdog = TestWatchdog::arm("camera", WATCHDOG);
     let sim = SimDevices::start("camera");
     // The silent camera: the same driver in a domain where no device runs.
-    let silent_domain = Domain::new(&unique_domain("nocam")).expect("domain");
-    let silent_context = Context::new(&silent_domain, "silent-camera-test").expect("node");
+    let silent_domain = unique_domain("nocam");
+    let silent_context = Context::new(silent_domain.domain(), "silent-camera-test").expect("node");
     let camera = Scenario::preset(SCENARIO).expect("scenario").camera;
     let config = CameraConformanceConfig {
         rgb_intrinsics: camera.color_intrinsics(),
@@ -164,8 +163,8 @@ fn simulated_platform_passes_the_conformance_suite() {
 #[test]
 fn platform_driver_without_a_device_reports_a_timeout() {
     let _watchdog = TestWatchdog::arm("platform timeout", WATCHDOG);
-    let domain = Domain::new(&unique_domain("noplat")).expect("domain");
-    let context = Context::new(&domain, "silent-platform-test").expect("node");
+    let domain = unique_domain("noplat");
+    let context = Context::new(domain.domain(), "silent-platform-test").expect("node");
     let mut platform = SimPlatform::connect(
         &context,
         PlatformTravel::default(),

@@ -10,7 +10,11 @@ use std::time::Duration;
 /// Runs `harvest up --launch <tag>.toml --duration <duration>` on a fresh domain, the launch
 /// file holding `launch_toml`; returns the exit status, stderr and the domain (for
 /// [`leftover_files`]).
-fn up_with_launch(tag: &str, launch_toml: &str, duration: &str) -> (ExitStatus, String, String) {
+fn up_with_launch(
+    tag: &str,
+    launch_toml: &str,
+    duration: &str,
+) -> (ExitStatus, String, common::TestDomain) {
     let dir = TempDir::new(tag);
     let launch = dir.write(&format!("{tag}.toml"), launch_toml);
     let domain = unique_domain(tag);

@@ -188,7 +188,7 @@ impl<T: Payload> Subscriber<T> {
 mod tests {
     use crate::catalogue::{Channel, Qos};
     use crate::payloads::EmergencyStop;
-    use crate::{Context, Domain, Payload};
+    use crate::{Context, Domain, Payload, ScratchDomain};
 
     fn pending_events(listener: &iceoryx2::port::listener::Listener<crate::Ipc>) -> usize {
         let mut count = 0;
@@ -206,7 +206,7 @@ mod tests {
 
     #[test]
     fn drain_hands_every_sample_and_consumes_the_wake_ups() {
-        let domain = Domain::unique("drain");
+        let domain = ScratchDomain::new("drain");
         let context = Context::new(&domain, "drain-test").expect("context");
         let channel = Channel::<EmergencyStop>::ad_hoc("test/drain", Qos::SMALL);
         let subscriber = context.subscriber(channel).expect("subscriber");
@@ -224,7 +224,7 @@ mod tests {
 
     #[test]
     fn a_failing_handler_still_leaves_nothing_queued() {
-        let domain = Domain::unique("trydrain");
+        let domain = ScratchDomain::new("trydrain");
         let context = Context::new(&domain, "try-drain-test").expect("context");
         let channel = Channel::<EmergencyStop>::ad_hoc("test/try_drain", Qos::SMALL);
         let subscriber = context.subscriber(channel).expect("subscriber");
@@ -251,7 +251,7 @@ mod tests {
 
     #[test]
     fn poll_takes_every_sample_and_drains_the_wake_ups_once_idle() {
-        let domain = Domain::unique("poll");
+        let domain = ScratchDomain::new("poll");
         let context = Context::new(&domain, "poll-test").expect("context");
         let channel = Channel::<EmergencyStop>::ad_hoc("test/poll", Qos::SMALL);
         let subscriber = context.subscriber(channel).expect("subscriber");

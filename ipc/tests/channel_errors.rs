@@ -5,11 +5,11 @@
 use harvest_ipc::catalogue::{Channel, Qos};
 use harvest_ipc::error::{Incompatibility, OpenChannelError, PortKind, SendError};
 use harvest_ipc::payloads::{EmergencyStop, ProcessHealth};
-use harvest_ipc::{Context, Domain, Payload};
+use harvest_ipc::{Context, Domain, Payload, ScratchDomain};
 
 #[test]
 fn a_channel_of_another_payload_type_is_incompatible() {
-    let domain = Domain::unique("incompat");
+    let domain = ScratchDomain::new("incompat");
     let context = Context::new(&domain, "incompatible-test").expect("context");
     let stops = Channel::<EmergencyStop>::ad_hoc("test/incompatible", Qos::SMALL);
     let _stop_publisher = context
@@ -51,7 +51,7 @@ fn a_channel_of_another_payload_type_is_incompatible() {
 
 #[test]
 fn more_publishers_than_the_qos_allows_reach_the_port_limit() {
-    let domain = Domain::unique("publimit");
+    let domain = ScratchDomain::new("publimit");
     let context = Context::new(&domain, "port-limit-test").expect("context");
     let qos = Qos {
         max_publishers: 2,
@@ -76,7 +76,7 @@ fn more_publishers_than_the_qos_allows_reach_the_port_limit() {
 
 #[test]
 fn more_subscribers_than_the_qos_allows_reach_the_port_limit() {
-    let domain = Domain::unique("sublimit");
+    let domain = ScratchDomain::new("sublimit");
     let context = Context::new(&domain, "sub-limit-test").expect("context");
     let qos = Qos {
         max_subscribers: 1,
@@ -94,7 +94,7 @@ fn more_subscribers_than_the_qos_allows_reach_the_port_limit() {
 
 #[test]
 fn loaning_past_max_loans_exhausts_the_loans() {
-    let domain = Domain::unique("loans");
+    let domain = ScratchDomain::new("loans");
     let context = Context::new(&domain, "loan-test").expect("context");
     let channel = Channel::<EmergencyStop>::ad_hoc("test/loans", Qos::SMALL);
     let publisher = context.publisher(channel).expect("publisher");

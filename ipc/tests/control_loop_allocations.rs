@@ -13,7 +13,7 @@ use harvest_ipc::allocation_counter::{self, CountingAllocator};
 use harvest_ipc::catalogue::{ARM_STATE, HARVEST_EVENTS};
 use harvest_ipc::control_loop::{Wake, run_control_loop};
 use harvest_ipc::payloads::{ArmState, HarvestEvent, HarvestEventKind, HarvestEventSource};
-use harvest_ipc::{Context, Domain, FixedString, Flow, HealthReporter, Payload};
+use harvest_ipc::{Context, Domain, FixedString, Flow, HealthReporter, Payload, ScratchDomain};
 
 #[global_allocator]
 static ALLOCATOR: CountingAllocator = CountingAllocator;
@@ -33,7 +33,7 @@ fn a_running_control_loop_allocates_only_iceoryx2s_block_per_sample_sent() {
     const WARM_UP_TICKS: u64 = 20;
     // 0.8 s at 2 ms: a heartbeat (every 0.5 s) falls inside the counted ticks.
     const TICKS: u64 = 400;
-    let domain = Domain::unique("loopalloc");
+    let domain = ScratchDomain::new("loopalloc");
     let context = Context::new(&domain, "loop-alloc-test").expect("context");
     let mut state_out = context.publisher(ARM_STATE[0]).expect("publisher");
     let state_in = context.subscriber(ARM_STATE[0]).expect("subscriber");

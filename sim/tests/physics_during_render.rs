@@ -6,7 +6,7 @@
 
 use harvest_ipc::catalogue::HW_ARM_ENCODERS;
 use harvest_ipc::payloads::RgbdFrame;
-use harvest_ipc::{Context, Domain, MonotonicClock, Payload};
+use harvest_ipc::{Context, Domain, MonotonicClock, Payload, ScratchDomain};
 use harvest_sim::World;
 use harvest_sim::process::{SimError, SimThreadsConfig, run_threads};
 use harvest_sim::render_rgbd::RenderError;
@@ -71,7 +71,7 @@ fn wait_until(what: &str, mut done: impl FnMut() -> bool) {
 
 #[test]
 fn physics_steps_and_encoders_go_on_while_a_frame_is_rendered() {
-    let domain = Domain::unique("simrender");
+    let domain = ScratchDomain::new("simrender");
     let config = SimThreadsConfig::new("sim", Duration::from_millis(20), false);
     let robot = robot();
     let link = ThreadLink::new(robot.world());
@@ -126,7 +126,7 @@ fn physics_steps_and_encoders_go_on_while_a_frame_is_rendered() {
 
 #[test]
 fn a_render_failure_stops_the_physics_thread_and_is_reported() {
-    let domain = Domain::unique("simfail");
+    let domain = ScratchDomain::new("simfail");
     let config = SimThreadsConfig::new("sim", Duration::from_millis(20), false);
     let robot = robot();
     let link = ThreadLink::new(robot.world());

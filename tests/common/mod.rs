@@ -29,9 +29,40 @@ pub fn one_stack_at_a_time() -> std::sync::MutexGuard<'static, ()> {
     LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// A domain no other test (or concurrent run) uses.
-pub fn unique_domain(tag: &str) -> String {
-    harvest_ipc::Domain::unique(tag).name().to_owned()
+/// A domain no other test (or concurrent run) uses; what its processes leave in /dev/shm is
+/// removed when it is dropped (see [`harvest_ipc::ScratchDomain`]).
+pub fn unique_domain(tag: &str) -> TestDomain {
+    TestDomain(harvest_ipc::ScratchDomain::new(tag))
+}
+
+/// A test's domain, used as its name (`--domain`, `HARVEST_DOMAIN`).
+#[derive(Debug)]
+pub struct TestDomain(harvest_ipc::ScratchDomain);
+
+impl TestDomain {
+    pub fn domain(&self) -> &harvest_ipc::Domain {
+        self.0.domain()
+    }
+}
+
+impl std::ops::Deref for TestDomain {
+    type Target = str;
+
+    fn deref(&self) -> &str {
+        self.0.name()
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for TestDomain {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.name().as_ref()
+    }
+}
+
+impl std::fmt::Display for TestDomain {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.0.name())
+    }
 }
 
 /// A scratch directory removed on drop.
@@ -40,7 +71,7 @@ pub struct TempDir(pub PathBuf);
 impl TempDir {
     pub fn new(tag: &str) -> Self {
         let path =
-            std::env::temp_dir().join(format!("harvest-test-{}-{}", tag, unique_domain("d")));
+            std::env::temp_dir().join(format!("harvest-test-{tag}-{}", harvest_ipc::Domain::unique("d")));
         std::fs::create_dir_all(&path).expect("create temp dir");
         Self(path)
     }

@@ -6,7 +6,7 @@
 use harvest_hw::lidar::sim::SimLidar;
 use harvest_hw::lidar::{Lidar, LidarSpec};
 use harvest_ipc::payloads::PointCloud;
-use harvest_ipc::{Context, Domain};
+use harvest_ipc::{Context, ScratchDomain};
 use harvest_lidar::fusion::{Fusion, FusionConfig, PointFate};
 use harvest_sim::lidar_device::{LidarDeviceConfig, LidarDevicePort};
 use harvest_sim::render_rgbd::{apple_from_label, label};
@@ -26,7 +26,7 @@ fn noiseless() -> LidarDeviceConfig {
 
 #[test]
 fn integrated_cloud_over_ipc_fuses_onto_the_rendered_apples() {
-    let domain = Domain::unique("lidar_ipc");
+    let domain = ScratchDomain::new("lidar_ipc");
     let device_context = Context::new(&domain, "sim").expect("device node");
     let driver_context = Context::new(&domain, "lidar").expect("driver node");
     let mut driver = SimLidar::connect(&driver_context, Duration::from_secs(1)).expect("driver");

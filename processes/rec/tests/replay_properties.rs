@@ -9,14 +9,13 @@ use harvest_ipc::catalogue::{
     ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, PERCEPTION_APPLES, VACUUM_STATE,
 };
 use harvest_ipc::payloads::{AppleDetections, ArmCommand, ArmState, EmergencyStop, VacuumState};
-use harvest_ipc::{Domain, Payload};
+use harvest_ipc::{Payload, ScratchDomain};
 use harvest_rec::replay::{ReplayArgs, run_replay_with};
 use harvest_recording::schema::TopicInfo;
 use harvest_recording::segment_writer::{ChunkCompression, ChunkSettings, SegmentWriter};
 use proptest::prelude::*;
 use std::io::Cursor;
 use std::path::PathBuf;
-use std::sync::OnceLock;
 use std::time::Duration;
 
 /// Cases: each opens a replay node and its publishers in shared memory.
@@ -94,11 +93,6 @@ fn recording(messages: &[(usize, Vec<u64>)]) -> Vec<u8> {
     writer.finish().expect("finish").into_inner()
 }
 
-/// One domain for every case (each replay closes its node and ports when done).
-fn domain() -> &'static Domain {
-    static DOMAIN: OnceLock<Domain> = OnceLock::new();
-    DOMAIN.get_or_init(|| Domain::unique("rprop"))
-}
 
 fn scratch_file() -> PathBuf {
     use std::sync::atomic::{AtomicU64, Ordering};
@@ -130,7 +124,10 @@ proptest! {
         let mut args = ReplayArgs::for_files(vec![path.clone()]);
         args.fast = true;
         args.linger = Duration::ZERO;
-        let outcome = run_replay_with(&args, domain(), |_| {});
+        // A domain per case: the replay closes its node and ports when done, and the domain
+        // leaves nothing in /dev/shm when dropped.
+        let domain = ScratchDomain::new("rprop");
+        let outcome = run_replay_with(&args, &domain, |_| {});
         let _ = std::fs::remove_file(&path);
         match outcome {
             Ok(report) => {

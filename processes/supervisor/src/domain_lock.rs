@@ -260,7 +260,7 @@ mod tests {
 
     #[test]
     fn a_second_lock_of_a_domain_is_refused_naming_the_holder() {
-        let domain = Domain::unique("lock");
+        let domain = harvest_ipc::ScratchDomain::new("lock");
         let first = DomainLock::acquire(&domain, Duration::ZERO).expect("first lock");
         assert!(first.file_path().starts_with("/tmp/iceoryx2/harvest-up"));
         let text = std::fs::read_to_string(first.file_path()).expect("lock file");
@@ -290,7 +290,7 @@ mod tests {
 
     #[test]
     fn a_holder_whose_pid_is_gone_is_waited_for_then_reported() {
-        let domain = Domain::unique("lockgone");
+        let domain = harvest_ipc::ScratchDomain::new("lockgone");
         let first = DomainLock::acquire(&domain, Duration::ZERO).expect("first lock");
         // What a killed supervisor leaves while a child still holds the inherited lock: a pid
         // that no longer runs (pid_max is at most 2^22 on Linux).

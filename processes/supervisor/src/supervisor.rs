@@ -502,7 +502,14 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     drop(health);
     drop(context);
     drop(control);
-    let _alive_nodes = clean_dead_nodes(domain)?;
+    if clean_dead_nodes(domain)? == 0 {
+        // Nothing of the domain runs: its node registry, the one file iceoryx2 would keep in
+        // /dev/shm for good, goes too (a node still there, e.g. a `harvest ctl`, keeps it).
+        match harvest_ipc::cleanup::remove_unused_registry(domain) {
+            Ok(removal) => tracing::debug!(?removal, "domain's node registry"),
+            Err(error) => tracing::warn!(%error, "the domain's node registry is left in /dev/shm"),
+        }
+    }
     if let Some(error) = run_error {
         return Err(error);
     }

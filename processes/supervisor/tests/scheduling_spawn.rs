@@ -61,7 +61,7 @@ fn granted_settings_are_what_the_kernel_applied() {
         lock_memory: true,
     };
     let lock_file = std::fs::File::open("/dev/null").expect("a descriptor to pass");
-    let domain = harvest_ipc::Domain::unique("schedspawn");
+    let domain = harvest_ipc::ScratchDomain::new("schedspawn");
     let (mut process, outcome) = child::spawn(
         Path::new("/unused"),
         &sleeper(asked.clone()),
@@ -106,7 +106,7 @@ fn granted_settings_are_what_the_kernel_applied() {
 #[test]
 fn a_process_without_settings_is_started_as_before() {
     let lock_file = std::fs::File::open("/dev/null").expect("a descriptor to pass");
-    let domain = harvest_ipc::Domain::unique("schedspawn");
+    let domain = harvest_ipc::ScratchDomain::new("schedspawn");
     let (mut process, outcome) = child::spawn(
         Path::new("/unused"),
         &sleeper(Scheduling::default()),

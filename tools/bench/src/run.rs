@@ -6,7 +6,7 @@ use crate::error::BenchError;
 use crate::options::{BenchIpcArgs, Settings};
 use crate::report::{BenchReport, CaseResult, HostInfo, check_targets, compute_ratios};
 use crate::svg::render_svg;
-use harvest_ipc::Domain;
+use harvest_ipc::{Domain, ScratchDomain};
 use harvest_ipc::cleanup::{leftover_files, remove_dead_nodes};
 use std::path::Path;
 
@@ -16,8 +16,7 @@ use std::path::Path;
 pub fn run_bench_ipc(args: &BenchIpcArgs) -> Result<BenchReport, BenchError> {
     let cpus = std::thread::available_parallelism().map_or(1, usize::from);
     let settings = Settings::resolve(args, cpus)?;
-    let domain = Domain::unique("bench");
-    let _remove_domain = DomainRemoval(&domain);
+    let domain = ScratchDomain::new("bench");
     let _pinned = match settings.pin_cpus {
         Some((receiver, _)) => Some(AffinityRestore::pin(receiver)?),
         None => None,
@@ -108,45 +107,6 @@ fn clean_domain(domain: &Domain) {
         }
         Ok(_) => {}
         Err(error) => tracing::warn!(%error, "cannot check the benchmark domain for stale nodes"),
-    }
-}
-
-/// Removes the run's domain when the run ends, also when a case failed.
-struct DomainRemoval<'a>(&'a Domain);
-
-impl Drop for DomainRemoval<'_> {
-    fn drop(&mut self) {
-        remove_domain(self.0);
-    }
-}
-
-/// Removes the domain's global management segment, the one file iceoryx2 keeps per domain,
-/// once no node of the domain is left (the domain is unique to this run, so none can join).
-pub(crate) fn remove_domain(domain: &Domain) {
-    match remove_dead_nodes(domain) {
-        Ok(report) if report.alive_nodes == 0 => {
-            // SAFETY: no process uses this domain any more: its name is unique to this run,
-            // every peer process has exited, this process dropped its nodes, and no node of
-            // the domain is alive (checked just above).
-            let removed = unsafe {
-                iceoryx2::testing::remove_global_mgmt_segment::<harvest_ipc::Ipc>(
-                    &domain.iceoryx2_config(),
-                )
-            };
-            if let Err(error) = removed {
-                tracing::warn!(
-                    domain = domain.name(),
-                    ?error,
-                    "cannot remove the domain segment"
-                );
-            }
-        }
-        Ok(report) => tracing::warn!(
-            domain = domain.name(),
-            alive = report.alive_nodes,
-            "benchmark domain still has live nodes; keeping its segment"
-        ),
-        Err(error) => tracing::warn!(%error, "cannot list the benchmark domain's nodes"),
     }
 }
 

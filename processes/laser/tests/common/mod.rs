@@ -14,9 +14,10 @@ use harvest_ipc::{Context, Domain, Flow, Waiter};
 use harvest_sim::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer};
 use harvest_sim::{Scenario, World};
 
-/// A domain no other test (or concurrent run) uses.
-pub fn unique_domain(tag: &str) -> Domain {
-    Domain::unique(tag)
+/// A domain no other test (or concurrent run) uses; what it leaves in /dev/shm is removed when
+/// it is dropped.
+pub fn unique_domain(tag: &str) -> harvest_ipc::ScratchDomain {
+    harvest_ipc::ScratchDomain::new(tag)
 }
 
 /// The world the device shows: the `ideal` scenario (a grid of apples, no leaves), seed 5.

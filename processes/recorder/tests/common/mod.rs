@@ -16,9 +16,10 @@ use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-/// A domain no other test (or concurrent run) uses.
-pub fn unique_domain(tag: &str) -> Domain {
-    Domain::unique(tag)
+/// A domain no other test (or concurrent run) uses; what it leaves in /dev/shm is removed when
+/// it is dropped.
+pub fn unique_domain(tag: &str) -> harvest_ipc::ScratchDomain {
+    harvest_ipc::ScratchDomain::new(tag)
 }
 
 /// A scratch directory removed on drop.
@@ -26,7 +27,7 @@ pub struct TempDir(pub PathBuf);
 
 impl TempDir {
     pub fn new(tag: &str) -> Self {
-        let path = std::env::temp_dir().join(format!("harvest-rec-{tag}-{}", unique_domain("d")));
+        let path = std::env::temp_dir().join(format!("harvest-rec-{tag}-{}", Domain::unique("d")));
         std::fs::create_dir_all(&path).expect("create temp dir");
         Self(path)
     }

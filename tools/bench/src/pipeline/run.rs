@@ -13,13 +13,15 @@ use crate::pipeline::summary::Samples;
 use crate::pipeline::svg::render_pipeline_svg;
 use crate::pipeline::tracker::{PipelineTracker, Stage};
 use crate::report::HostInfo;
-use crate::run::{kernel_release, remove_domain, write_file};
+use crate::run::{kernel_release, write_file};
 use harvest_ipc::ArmId;
 use harvest_ipc::catalogue::{
     ARM_COMMAND, ARM_STATE, ARM_TARGET, CAMERA_RGBD, HW_CAMERA_RGBD, PERCEPTION_APPLES,
     VACUUM_STATE,
 };
-use harvest_ipc::{Context, Domain, Flow, MonotonicClock, Payload, RunEnd, Subscriber, Waiter};
+use harvest_ipc::{
+    Context, Domain, Flow, MonotonicClock, Payload, RunEnd, ScratchDomain, Subscriber, Waiter,
+};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -60,8 +62,8 @@ fn run_once(
     scheduling: RunScheduling,
 ) -> Result<PipelineReport, BenchError> {
     let cpus = std::thread::available_parallelism().map_or(1, usize::from);
-    let own_domain = (!settings.attached).then(|| Domain::unique("bpipe"));
-    let domain = own_domain.as_ref().unwrap_or(domain);
+    let own_domain = (!settings.attached).then(|| ScratchDomain::new("bpipe"));
+    let domain = own_domain.as_deref().unwrap_or(domain);
     tracing::info!(
         domain = domain.name(),
         ?settings,
@@ -103,7 +105,7 @@ fn run_once(
 
     let leftover_files = match &own_domain {
         Some(domain) => {
-            remove_domain(domain);
+            domain.remove_unused();
             harvest_ipc::cleanup::leftover_files(domain)
                 .iter()
                 .map(|path| path.display().to_string())
