@@ -120,6 +120,7 @@ fn run_typed<T: BenchMessage>(spec: &CaseSpec<'_>) -> Result<RunResult, BenchErr
             zenoh_endpoint = Some(endpoint);
             Some(receiver)
         }
+        Transport::CycloneDds => Some(cyclonedds_receiver::<T>(spec, &path)?),
     };
     let mut watchdog = Watchdog::new(spawn_peer(spec, &path, zenoh_endpoint)?, spec.label());
     watchdog.start_phase("connect", PHASE_GRACE);
@@ -235,7 +236,7 @@ fn zenoh_receiver<T: BenchMessage>(
     let receiver: Box<dyn ReceivePort<T>> = match spec.transport {
         Transport::ZenohShm => Box::new(ZenohShmReceiver::<T>::listen(&endpoint, spec.mode, name)?),
         Transport::ZenohTcp => Box::new(ZenohTcpReceiver::<T>::listen(&endpoint, spec.mode, name)?),
-        Transport::Ours | Transport::Iceoryx2 | Transport::UdsCopy => {
+        Transport::Ours | Transport::Iceoryx2 | Transport::UdsCopy | Transport::CycloneDds => {
             return Err(BenchError::InvalidOption {
                 option: "transports",
                 value: spec.transport.name().to_owned(),
@@ -253,6 +254,33 @@ fn zenoh_receiver<T: BenchMessage>(
 ) -> Result<(Box<dyn ReceivePort<T>>, String), BenchError> {
     Err(BenchError::TransportNotBuilt {
         transport: spec.transport.name(),
+        feature: "zenoh",
+    })
+}
+
+/// The receiving port of Cyclone DDS, on the case's topic (named after `control`).
+#[cfg(feature = "cyclonedds")]
+fn cyclonedds_receiver<T: BenchMessage>(
+    spec: &CaseSpec<'_>,
+    control: &Path,
+) -> Result<Box<dyn ReceivePort<T>>, BenchError> {
+    use crate::transport::cyclonedds::CycloneDdsReceiver;
+    Ok(Box::new(CycloneDdsReceiver::<T>::open(
+        control,
+        spec.mode,
+        spec.payload.name(),
+    )?))
+}
+
+/// Without the `cyclonedds` feature: how to build it.
+#[cfg(not(feature = "cyclonedds"))]
+fn cyclonedds_receiver<T: BenchMessage>(
+    spec: &CaseSpec<'_>,
+    _control: &Path,
+) -> Result<Box<dyn ReceivePort<T>>, BenchError> {
+    Err(BenchError::TransportNotBuilt {
+        transport: spec.transport.name(),
+        feature: "cyclonedds",
     })
 }
 

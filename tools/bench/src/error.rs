@@ -20,14 +20,17 @@ pub enum BenchError {
     },
     /// A transport was asked for that this build does not have.
     #[error(
-        "--transports {transport}: this build has no Zenoh peer transports; build with the \
-`zenoh` feature: `cargo build --release --features harvest-bench/zenoh` (the `harvest` binary) \
-or `cargo run --release -p harvest-bench --features zenoh --bin harvest-bench-peer -- bench ipc ...`"
+        "--transports {transport}: this build does not have it; build with the `{feature}` \
+feature: `cargo build --release --features harvest-bench/{feature}` (the `harvest` binary) or \
+`cargo run --release -p harvest-bench --features {feature} --bin harvest-bench-peer -- bench ipc ...`"
     )]
-    TransportNotBuilt { transport: &'static str },
-    /// A Zenoh call (a peer transport) failed.
+    TransportNotBuilt {
+        transport: &'static str,
+        feature: &'static str,
+    },
+    /// A call of a peer transport (Zenoh, Cyclone DDS) failed.
     #[error("{transport}: {operation} on {key:?} failed: {reason}")]
-    Zenoh {
+    PeerTransport {
         transport: &'static str,
         operation: &'static str,
         key: String,

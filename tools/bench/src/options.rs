@@ -33,15 +33,21 @@ pub enum Transport {
     /// Zenoh SHM provider and writes the message in place. Needs the `zenoh` feature.
     #[value(name = "zenoh-shm")]
     ZenohShm,
+    /// Eclipse Cyclone DDS (ROS 2's usual DDS) through Debian's `libddsc`: the copying
+    /// baseline's codec-encoded messages as a reliable DDS topic. Needs the `cyclonedds`
+    /// feature and `cyclonedds-dev`.
+    #[value(name = "cyclonedds")]
+    CycloneDds,
 }
 
 impl Transport {
-    pub const ALL: [Transport; 5] = [
+    pub const ALL: [Transport; 6] = [
         Self::Ours,
         Self::Iceoryx2,
         Self::UdsCopy,
         Self::ZenohTcp,
         Self::ZenohShm,
+        Self::CycloneDds,
     ];
 
     pub fn name(self) -> &'static str {
@@ -51,14 +57,26 @@ impl Transport {
             Self::UdsCopy => "uds-copy",
             Self::ZenohTcp => "zenoh-tcp",
             Self::ZenohShm => "zenoh-shm",
+            Self::CycloneDds => "cyclonedds",
         }
     }
 
-    /// Whether this build can measure the transport (the Zenoh peers need the `zenoh` feature).
+    /// Whether this build can measure the transport (the Zenoh peers need the `zenoh` feature,
+    /// Cyclone DDS the `cyclonedds` feature).
     pub fn is_built(self) -> bool {
         match self {
             Self::Ours | Self::Iceoryx2 | Self::UdsCopy => true,
             Self::ZenohTcp | Self::ZenohShm => cfg!(feature = "zenoh"),
+            Self::CycloneDds => cfg!(feature = "cyclonedds"),
+        }
+    }
+
+    /// The cargo feature that builds the transport (none for the ones always built).
+    pub fn feature(self) -> Option<&'static str> {
+        match self {
+            Self::Ours | Self::Iceoryx2 | Self::UdsCopy => None,
+            Self::ZenohTcp | Self::ZenohShm => Some("zenoh"),
+            Self::CycloneDds => Some("cyclonedds"),
         }
     }
 
@@ -74,6 +92,7 @@ impl Transport {
         } else {
             Err(BenchError::TransportNotBuilt {
                 transport: self.name(),
+                feature: self.feature().unwrap_or("?"),
             })
         }
     }
@@ -123,7 +142,7 @@ pub struct BenchIpcArgs {
     /// [default: 64B,1KiB,16KiB,256KiB,1MiB,4MiB,8MiB,16MiB,scan-request,detections,rgbd]
     #[arg(long, value_delimiter = ',')]
     pub sizes: Vec<String>,
-    /// Transports to measure; zenoh-tcp and zenoh-shm need a build with the `zenoh` feature
+    /// Transports to measure; zenoh-tcp and zenoh-shm need a build with the `zenoh` feature, cyclonedds one with the `cyclonedds` feature
     /// [default: every transport this build has]
     #[arg(long, value_delimiter = ',')]
     pub transports: Vec<Transport>,
@@ -382,7 +401,7 @@ mod tests {
             assert!(Transport::built().contains(&Transport::ZenohShm));
             assert!(resolved.is_ok());
         } else {
-            assert_eq!(Transport::built().len(), 3);
+            assert!(!Transport::built().contains(&Transport::ZenohShm));
             let message = resolved.expect_err("not built").to_string();
             assert!(
                 message.contains("zenoh-shm") && message.contains("--features"),

@@ -34,6 +34,7 @@ fn run_typed<T: BenchMessage>(args: &BenchPeerArgs, case: PayloadCase) -> Result
         Transport::Iceoryx2 => Box::new(RawSender::<T>::open(&domain, args.mode, payload)?),
         Transport::UdsCopy => Box::new(CopySender::<T>::connect(&args.control, payload)?),
         Transport::ZenohTcp | Transport::ZenohShm => zenoh_sender::<T>(args, payload)?,
+        Transport::CycloneDds => cyclonedds_sender::<T>(args, payload)?,
     };
     let mut writer = PayloadWriter::new(args.sender_write, std::mem::size_of::<T>());
     let mut send_call = latency_histogram()?;
@@ -109,7 +110,7 @@ fn zenoh_sender<T: BenchMessage>(
     match args.transport {
         Transport::ZenohShm => Ok(Box::new(ZenohShmSender::<T>::connect(endpoint, payload)?)),
         Transport::ZenohTcp => Ok(Box::new(ZenohTcpSender::<T>::connect(endpoint, payload)?)),
-        Transport::Ours | Transport::Iceoryx2 | Transport::UdsCopy => {
+        Transport::Ours | Transport::Iceoryx2 | Transport::UdsCopy | Transport::CycloneDds => {
             Err(BenchError::InvalidOption {
                 option: "transport",
                 value: args.transport.name().to_owned(),
@@ -127,6 +128,29 @@ fn zenoh_sender<T: BenchMessage>(
 ) -> Result<Box<dyn SendPort<T>>, BenchError> {
     Err(BenchError::TransportNotBuilt {
         transport: args.transport.name(),
+        feature: "zenoh",
+    })
+}
+
+/// The sending port of Cyclone DDS, on the case's topic (named after `--control`).
+#[cfg(feature = "cyclonedds")]
+fn cyclonedds_sender<T: BenchMessage>(
+    args: &BenchPeerArgs,
+    payload: &'static str,
+) -> Result<Box<dyn SendPort<T>>, BenchError> {
+    use crate::transport::cyclonedds::CycloneDdsSender;
+    Ok(Box::new(CycloneDdsSender::<T>::connect(&args.control, payload)?))
+}
+
+/// Without the `cyclonedds` feature: how to build it.
+#[cfg(not(feature = "cyclonedds"))]
+fn cyclonedds_sender<T: BenchMessage>(
+    args: &BenchPeerArgs,
+    _payload: &'static str,
+) -> Result<Box<dyn SendPort<T>>, BenchError> {
+    Err(BenchError::TransportNotBuilt {
+        transport: args.transport.name(),
+        feature: "cyclonedds",
     })
 }
 

@@ -143,7 +143,7 @@ fn label(result: &CaseResult) -> String {
 /// Ratios of the compared pairs of transports measured on the same payload and mode, plus the
 /// full-frame over 64 B ratio of each transport but the copying socket.
 pub fn compute_ratios(results: &[CaseResult]) -> Vec<Ratio> {
-    const PAIRS: [(&str, Transport, Transport); 6] = [
+    const PAIRS: [(&str, Transport, Transport); 8] = [
         ("ours / raw iceoryx2", Transport::Ours, Transport::Iceoryx2),
         ("copy / ours", Transport::UdsCopy, Transport::Ours),
         (
@@ -156,6 +156,12 @@ pub fn compute_ratios(results: &[CaseResult]) -> Vec<Ratio> {
         (
             "zenoh-tcp / uds-copy",
             Transport::ZenohTcp,
+            Transport::UdsCopy,
+        ),
+        ("cyclonedds / ours", Transport::CycloneDds, Transport::Ours),
+        (
+            "cyclonedds / uds-copy",
+            Transport::CycloneDds,
             Transport::UdsCopy,
         ),
     ];
@@ -184,6 +190,7 @@ pub fn compute_ratios(results: &[CaseResult]) -> Vec<Ratio> {
             Transport::Iceoryx2,
             Transport::ZenohShm,
             Transport::ZenohTcp,
+            Transport::CycloneDds,
         ] {
             if let (Some((a, la)), Some((b, lb))) = (
                 find(results, PayloadCase::Rgbd, transport, mode),

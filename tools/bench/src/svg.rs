@@ -19,6 +19,7 @@ fn color(transport: Transport) -> &'static str {
         Transport::UdsCopy => "#d62728",
         Transport::ZenohTcp => "#ff7f0e",
         Transport::ZenohShm => "#9467bd",
+        Transport::CycloneDds => "#8c564b",
     }
 }
 

@@ -1,8 +1,12 @@
 //! The transports, each as a sending port (peer process) and a receiving port (the measuring
 //! process), in both wake-up modes: ours, raw iceoryx2 and the copying socket always; the Zenoh
-//! peers with the `zenoh` feature.
+//! peers with the `zenoh` feature, Cyclone DDS with the `cyclonedds` feature.
 
 pub mod copy;
+#[cfg(feature = "cyclonedds")]
+pub mod cyclonedds;
+#[cfg(feature = "cyclonedds")]
+pub mod cyclonedds_ffi;
 pub mod ours;
 pub mod raw;
 #[cfg(feature = "zenoh")]

@@ -32,7 +32,7 @@ pub fn zenoh_error(
     key: &str,
     reason: impl std::fmt::Display,
 ) -> BenchError {
-    BenchError::Zenoh {
+    BenchError::PeerTransport {
         transport: transport.name(),
         operation,
         key: key.to_owned(),
