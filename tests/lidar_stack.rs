@@ -9,9 +9,9 @@
 mod common;
 
 use common::*;
+use harvest_ipc::Context;
 use harvest_ipc::catalogue::{PERCEPTION_APPLES, SIM_GROUND_TRUTH};
 use harvest_ipc::payloads::{DepthSourceCode, TrueAppleState};
-use harvest_ipc::{Context, Domain};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;

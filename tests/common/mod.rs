@@ -70,8 +70,10 @@ pub struct TempDir(pub PathBuf);
 
 impl TempDir {
     pub fn new(tag: &str) -> Self {
-        let path =
-            std::env::temp_dir().join(format!("harvest-test-{tag}-{}", harvest_ipc::Domain::unique("d")));
+        let path = std::env::temp_dir().join(format!(
+            "harvest-test-{tag}-{}",
+            harvest_ipc::Domain::unique("d")
+        ));
         std::fs::create_dir_all(&path).expect("create temp dir");
         Self(path)
     }

@@ -93,7 +93,6 @@ fn recording(messages: &[(usize, Vec<u64>)]) -> Vec<u8> {
     writer.finish().expect("finish").into_inner()
 }
 
-
 fn scratch_file() -> PathBuf {
     use std::sync::atomic::{AtomicU64, Ordering};
     static NEXT: AtomicU64 = AtomicU64::new(0);

@@ -139,7 +139,10 @@ fn cyclonedds_sender<T: BenchMessage>(
     payload: &'static str,
 ) -> Result<Box<dyn SendPort<T>>, BenchError> {
     use crate::transport::cyclonedds::CycloneDdsSender;
-    Ok(Box::new(CycloneDdsSender::<T>::connect(&args.control, payload)?))
+    Ok(Box::new(CycloneDdsSender::<T>::connect(
+        &args.control,
+        payload,
+    )?))
 }
 
 /// Without the `cyclonedds` feature: how to build it.

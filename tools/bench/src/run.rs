@@ -6,8 +6,8 @@ use crate::error::BenchError;
 use crate::options::{BenchIpcArgs, Settings};
 use crate::report::{BenchReport, CaseResult, HostInfo, check_targets, compute_ratios};
 use crate::svg::render_svg;
-use harvest_ipc::{Domain, ScratchDomain};
 use harvest_ipc::cleanup::{leftover_files, remove_dead_nodes};
+use harvest_ipc::{Domain, ScratchDomain};
 use std::path::Path;
 
 /// Runs the benchmark: for every payload, transport and mode, `repeats` runs, each with a

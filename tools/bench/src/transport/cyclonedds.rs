@@ -35,7 +35,10 @@ const WRITE_BLOCKING_NS: i64 = 10_000_000_000;
 pub fn topic_name(control: &Path, payload: &str) -> String {
     let stem = control
         .file_stem()
-        .map(|stem| stem.to_string_lossy().replace(|c: char| !c.is_ascii_alphanumeric(), "_"))
+        .map(|stem| {
+            stem.to_string_lossy()
+                .replace(|c: char| !c.is_ascii_alphanumeric(), "_")
+        })
         .unwrap_or_default();
     format!("harvest_bench_{payload}_{stem}")
 }
@@ -123,7 +126,11 @@ impl Drop for Participant {
         // SAFETY: deletes the participant and every entity created in it; none is used after.
         let code = unsafe { ffi::dds_delete(self.participant) };
         if code < 0 {
-            tracing::debug!(code, topic = self.topic_name, "deleting the DDS participant failed");
+            tracing::debug!(
+                code,
+                topic = self.topic_name,
+                "deleting the DDS participant failed"
+            );
         }
     }
 }
@@ -149,7 +156,11 @@ impl<T: BenchMessage> CycloneDdsSender<T> {
             // SAFETY: the writer is live and `status` is a valid place for the result.
             let code = unsafe { ffi::dds_get_publication_matched_status(writer, &mut status) };
             if code < 0 {
-                return Err(dds_error("publication matched status", &participant.topic_name, code));
+                return Err(dds_error(
+                    "publication matched status",
+                    &participant.topic_name,
+                    code,
+                ));
             }
             if status.current_count > 0 {
                 break;
