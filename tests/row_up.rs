@@ -189,11 +189,16 @@ fn check_row(stdout: &str, truth: Option<usize>) {
         Some(harvested as usize),
         "ground truth disagrees with the summary:\n{stdout}"
     );
-    // Out-of-reach apples are counted per stop, never silently dropped.
+    // Out-of-reach apples are counted per stop, never silently dropped; each stop says how
+    // many apples the laser refined and its failed attempts by cause.
     for line in &stop_lines {
         let detected = count_after(line, "of").expect("detected");
         let out = count_after(line, "out").expect("out of reach");
         assert!(out <= detected, "{line}");
+        let laser = count_after(line, "laser").expect("laser refined");
+        assert!(laser as usize <= detected as usize, "{line}");
+        assert!(line.contains(", failed: "), "{line}");
+        eprintln!("{line}");
     }
     assert!(stdout.contains("row summary (2 stops)"), "{stdout}");
 }
