@@ -268,6 +268,25 @@ restart = "on-failure"
         page_text(&browser, "control-status").starts_with("in control")
     });
 
+    // "Next stop": enabled while harvesting; this stack has no row, so the executive's refusal
+    // (over the real command channel) comes back to the page.
+    let next_stop_disabled = |browser: &Browser| {
+        browser.execute(
+            "return document.getElementById('btn-next-stop').disabled;",
+            json!([]),
+        )
+    };
+    assert_eq!(next_stop_disabled(&browser), json!(false));
+    browser.click("#btn-next-stop");
+    wait_until(
+        "the executive's answer to next-stop on the page",
+        Duration::from_secs(10),
+        || {
+            let answer = page_text(&browser, "last-answer");
+            answer.starts_with("next-stop: REFUSED") && answer.contains("no row configured")
+        },
+    );
+
     // Pause: the mode changes and no arm starts a new approach.
     browser.click("button[data-command=pause]");
     wait_until(
@@ -278,6 +297,11 @@ restart = "on-failure"
             mode.and_then(|m: harvest_ipc::payloads::OperatorModeState| m.mode_code())
                 == Some(OperatorModeCode::Paused)
         },
+    );
+    wait_until(
+        "next-stop disabled on the page while paused",
+        Duration::from_secs(5),
+        || next_stop_disabled(&browser) == json!(true),
     );
     let paused_ns = MonotonicClock::read_ns();
     let idle = |arms: &[Option<harvest_ipc::payloads::ArmState>; 2]| {

@@ -114,37 +114,40 @@ pub enum StepError {
 
 /// One harvest attempt: the arm's inlet is open near this apple.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Attempt {
-    apple: usize,
-    seal_blocked: bool,
+pub(crate) struct Attempt {
+    /// Index of the apple in [`World::apples`].
+    pub(crate) apple: usize,
+    pub(crate) seal_blocked: bool,
     /// The cup already slipped off this apple; no new seal until the valve closes.
-    exhausted: bool,
+    pub(crate) exhausted: bool,
 }
 
 /// A fruit on the cup.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Held {
-    apple: usize,
+pub(crate) struct Held {
+    /// Index of the apple in [`World::apples`].
+    pub(crate) apple: usize,
     /// Apple centre minus cup position at the moment of sealing, robot frame.
-    offset_m: [f64; 3],
-    twist_at_seal_rad: f64,
+    pub(crate) offset_m: [f64; 3],
+    pub(crate) twist_at_seal_rad: f64,
     /// Where the cup was when the stem let go.
-    detach_point_m: Option<[f64; 3]>,
+    pub(crate) detach_point_m: Option<[f64; 3]>,
     /// Retract travel after which an injected interference knocks the fruit off.
-    interference_travel_m: Option<f64>,
+    pub(crate) interference_travel_m: Option<f64>,
 }
 
+/// What one arm's cup is doing: the attempt under way and the fruit it holds.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-struct ArmContact {
-    attempt: Option<Attempt>,
-    held: Option<Held>,
+pub(crate) struct ArmContact {
+    pub(crate) attempt: Option<Attempt>,
+    pub(crate) held: Option<Held>,
 }
 
 /// Mutable physics state inside [`World`].
 #[derive(Debug, Clone)]
 pub(crate) struct PhysicsState {
-    vacuum: VacuumPlantState,
-    arms: [ArmContact; 2],
+    pub(crate) vacuum: VacuumPlantState,
+    pub(crate) arms: [ArmContact; 2],
     rng: SmallRng,
     time_s: f64,
 }

@@ -12,7 +12,9 @@
 //!   ([`crate::world_motion`]);
 //! - the evaluation-only ground truth on `sim/ground_truth` at 10 Hz, and with it the world's
 //!   state offered to the state file ([`crate::world_state`]), written at most every
-//!   [`PhysicsThreadConfig::state_min_interval`] and once more when the thread stops.
+//!   [`PhysicsThreadConfig::state_min_interval`] and once more when the thread stops; a step in
+//!   which an apple changed hands or the valves were commanded writes it at once, before that
+//!   step's readings go out.
 //!
 //! Simulated time advances with the host clock (each step's `dt` is the time since the last
 //! one, clamped to [0.1 ms, 50 ms]), as it did when one thread served every device.
@@ -115,7 +117,9 @@ impl PhysicsPorts {
     }
 
     /// Applies the newest commands the drivers sent, then advances the physics by `dt_s`.
-    fn step_devices(&self, robot: &mut SimRobot, dt_s: f64) -> Result<(), PhysicsThreadError> {
+    /// True when the step changed what must survive a restart at once: the valves were
+    /// commanded or an apple changed hands.
+    fn step_devices(&self, robot: &mut SimRobot, dt_s: f64) -> Result<bool, PhysicsThreadError> {
         for (arm, setpoints) in ARMS.into_iter().zip(&self.servo_in) {
             if let Some(setpoint) = setpoints.receive_latest()? {
                 if setpoint.hold != 0 {
@@ -128,13 +132,15 @@ impl PhysicsPorts {
                 }
             }
         }
+        let valves_before = robot.valves_commanded();
         if let Some(command) = self.valves_in.receive_latest()? {
             robot.set_valves(command.valve_open.map(|open| open != 0));
         }
-        for event in robot.step(dt_s)? {
+        let events = robot.step(dt_s)?;
+        for event in &events {
             tracing::debug!(?event, "world event");
         }
-        Ok(())
+        Ok(!events.is_empty() || robot.valves_commanded() != valves_before)
     }
 
     /// Publishes what the devices report: encoders of both arms and the valve board's
@@ -244,7 +250,13 @@ pub fn run(
                     .as_secs_f64()
                     .clamp(STEP_RANGE_S.0, STEP_RANGE_S.1);
                 last_step = now;
-                ports.step_devices(&mut robot, dt_s)?;
+                let changed_hands = ports.step_devices(&mut robot, dt_s)?;
+                if changed_hands && let Some(persister) = persister.as_mut() {
+                    // On disk before the stack sees this step's readings.
+                    let state =
+                        WorldState::of_robot(&robot, tractor.position_m(), platform.position_m());
+                    persister.store_now(state, now)?;
+                }
                 let capture_ns = MonotonicClock::read_ns();
                 ports.publish_device_state(&robot, capture_ns)?;
                 if !link.publish_step(robot.world(), robot.time_ns(), capture_ns) {
@@ -268,7 +280,7 @@ pub fn run(
                 ports.publish_ground_truth(&robot)?;
                 if let Some(persister) = persister.as_mut() {
                     let state =
-                        WorldState::of(robot.world(), tractor.position_m(), platform.position_m());
+                        WorldState::of_robot(&robot, tractor.position_m(), platform.position_m());
                     persister.offer(state, Instant::now())?;
                 }
             }
@@ -276,9 +288,8 @@ pub fn run(
         })
         .map_err(harvest_ipc::RunError::flatten);
     if let Some(persister) = persister.as_mut() {
-        let state = WorldState::of(robot.world(), tractor.position_m(), platform.position_m());
-        persister.offer(state, Instant::now())?;
-        persister.flush()?;
+        let state = WorldState::of_robot(&robot, tractor.position_m(), platform.position_m());
+        persister.store_now(state, Instant::now())?;
     }
     let end = end?;
     tracing::info!(

@@ -16,8 +16,8 @@
 //! the row, the platform's stops in the row frame, the trailer's start. Moving the platform
 //! moves the robot in the world ([`crate::world_motion`]).
 //!
-//! The world's state (harvested and dropped apples, trailer and platform positions) is kept in
-//! a state file ([`crate::world_state`], by default `<iceoryx2 root>/harvest-sim/<domain>.world.toml`)
+//! The world's state (harvested and dropped apples, trailer and platform positions, the arms'
+//! joints, the apples on the cups, valves and vacuum) is kept in a state file ([`crate::world_state`], by default `<iceoryx2 root>/harvest-sim/<domain>.world.toml`)
 //! and restored at start when it belongs to the same world (scenario or row, seed): a restart
 //! of the sim process, `kill -9` included, continues the same world. `--fresh-world` ignores
 //! (and then overwrites) it; `harvest sim` of another scenario or seed replaces it.
@@ -253,7 +253,10 @@ pub fn run(args: &SimArgs, domain: &Domain, process_name: &str) -> Result<(), Si
     config.physics.row_end_m = row_end_m.max(trailer_m);
     config.physics.state_file = Some(state_file);
     config.physics.saved_state = restored;
-    let robot = SimRobot::from_world(world, crate::robot::SimRobotConfig::default())?;
+    let mut robot = SimRobot::from_world(world, crate::robot::SimRobotConfig::default())?;
+    if let Some(state) = &config.physics.saved_state {
+        state.apply_robot(&mut robot)?;
+    }
     let mut camera = RgbdCamera::new(&robot.world().scenario().camera)?;
     tracing::info!(
         scenario = %args.scenario,

@@ -340,6 +340,28 @@ impl SimRobot {
         (servo.positions(), servo.velocities())
     }
 
+    /// Puts `arm`'s joints where a saved state had them (a restart of the simulator), drives
+    /// braking until the next set-point. Non-finite values are refused.
+    pub fn restore_arm(
+        &mut self,
+        arm: ArmId,
+        position: [f64; ARM_JOINTS],
+        velocity: [f64; ARM_JOINTS],
+    ) -> Result<(), SimRobotError> {
+        let sim_arm = &mut self.arms[arm.index()];
+        sim_arm
+            .servo
+            .restore(position, velocity)
+            .map_err(|source| SimRobotError::Servo { arm, source })?;
+        sim_arm.order = DriveOrder::Hold;
+        Ok(())
+    }
+
+    /// The valves' commanded positions, 1-4 (true = open).
+    pub fn valves_commanded(&self) -> [bool; VALVES] {
+        self.valves_open
+    }
+
     /// Commands valves 1-4 (true = open); the gates then move at their travel rate.
     pub fn set_valves(&mut self, open: [bool; VALVES]) {
         self.valves_open = open;

@@ -6,7 +6,7 @@
 
 use harvest_ipc::catalogue::HW_ARM_ENCODERS;
 use harvest_ipc::payloads::RgbdFrame;
-use harvest_ipc::{Context, Domain, MonotonicClock, Payload, ScratchDomain};
+use harvest_ipc::{Context, MonotonicClock, Payload, ScratchDomain};
 use harvest_sim::World;
 use harvest_sim::process::{SimError, SimThreadsConfig, run_threads};
 use harvest_sim::render_rgbd::RenderError;

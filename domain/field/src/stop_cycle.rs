@@ -103,6 +103,9 @@ pub struct StopReport {
     pub out_of_reach: usize,
     pub attempted: u32,
     pub harvested: u32,
+    /// Apples perception published at a laser-refined position during the stop (distinct
+    /// perception track ids).
+    pub laser_refined: usize,
     /// Failed attempts by cause label.
     pub failures: Vec<(String, u32)>,
     /// Time at the stop from arrival to done, ns.
@@ -132,6 +135,9 @@ impl RowReport {
     }
     pub fn harvested(&self) -> u32 {
         self.stops.iter().map(|s| s.harvested).sum()
+    }
+    pub fn laser_refined(&self) -> usize {
+        self.stops.iter().map(|s| s.laser_refined).sum()
     }
     /// Failures by cause over the row.
     pub fn failures(&self) -> Vec<(String, u32)> {
@@ -184,6 +190,8 @@ pub struct StopCycle {
     activity_ns: Option<u64>,
     /// The vacuum supervisor reported the harvest complete at this stamp.
     complete_ns: Option<u64>,
+    /// Perception track ids seen laser-refined during the current stop.
+    laser_refined_ids: Vec<u32>,
 }
 
 impl StopCycle {
@@ -212,6 +220,7 @@ impl StopCycle {
             done: Vec::new(),
             activity_ns: None,
             complete_ns: None,
+            laser_refined_ids: Vec::new(),
         })
     }
 
@@ -262,6 +271,15 @@ impl StopCycle {
                 Some(entry) => entry.1 += 1,
                 None => self.stop.failures.push((cause.to_owned(), 1)),
             }
+        }
+    }
+
+    /// Perception published apple `apple_id` (its track id) at a laser-refined position:
+    /// counted once for the current stop.
+    pub fn on_laser_refined(&mut self, apple_id: u32) {
+        if self.phase != StopPhase::RowDone && !self.laser_refined_ids.contains(&apple_id) {
+            self.laser_refined_ids.push(apple_id);
+            self.stop.laser_refined = self.laser_refined_ids.len();
         }
     }
 
@@ -451,6 +469,7 @@ impl StopCycle {
         let mut actions = vec![FieldAction::StopFinished(report)];
         self.activity_ns = None;
         self.complete_ns = None;
+        self.laser_refined_ids.clear();
         if number >= self.config.stops {
             self.phase = StopPhase::RowDone;
             actions.push(FieldAction::RowFinished(RowReport {

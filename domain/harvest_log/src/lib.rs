@@ -12,6 +12,11 @@
 //!   apple* and *per attempt* divide it by the harvested apples and by the attempts
 //!   ([`CycleRates`], shared with the evaluation).
 //!
+//! Along a row (the executive's stop-and-go cycle) each `StopFinished` line gets the failed
+//! attempts by cause that ended during that stop (after the previous stop's event, by the
+//! events' stamps on the one monotonic clock), and the row summary those of the whole row: the
+//! same cause labels as the summary's "failed attempts".
+//!
 //! "Harvested" is the arm's account (the apple was released at the drop-off with the seal
 //! held): the live stack has no ground truth. The evaluation scores against the simulator's.
 
@@ -116,6 +121,17 @@ pub struct HarvestLogSummary {
     pub row: Option<String>,
 }
 
+/// `label count, label count` (or `none`), in label order.
+fn cause_list(map: &BTreeMap<&'static str, u32>) -> String {
+    if map.is_empty() {
+        return "none".to_owned();
+    }
+    map.iter()
+        .map(|(k, v)| format!("{k} {v}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn opt(value: Option<f64>, digits: usize) -> String {
     value.map_or_else(|| "-".to_owned(), |v| format!("{v:.digits$}"))
 }
@@ -145,20 +161,23 @@ impl fmt::Display for HarvestLogSummary {
             opt(self.rates.seconds_per_attempt, 2),
             opt(self.mean_attempt_s, 2)
         )?;
-        let list = |map: &BTreeMap<&'static str, u32>| {
-            map.iter()
-                .map(|(k, v)| format!("{k} {v}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
         if !self.failure_causes.is_empty() {
-            writeln!(f, "  failed attempts: {}", list(&self.failure_causes))?;
+            writeln!(f, "  failed attempts: {}", cause_list(&self.failure_causes))?;
         }
         if !self.rejected_targets.is_empty() {
-            writeln!(f, "  rejected targets: {}", list(&self.rejected_targets))?;
+            writeln!(
+                f,
+                "  rejected targets: {}",
+                cause_list(&self.rejected_targets)
+            )?;
         }
         if let Some(row) = &self.row {
-            writeln!(f, "row summary ({} stops): {row}", self.stops.len())?;
+            writeln!(
+                f,
+                "row summary ({} stops): {row}, failed: {}",
+                self.stops.len(),
+                cause_list(&self.failure_causes)
+            )?;
         }
         if self.feedback_stalls > 0 {
             writeln!(
@@ -187,6 +206,8 @@ pub struct HarvestLog {
     first_assigned_ns: Option<u64>,
     complete: bool,
     stops: Vec<String>,
+    /// Stamp of the last `StopFinished`: attempts that ended after it belong to the next stop.
+    last_stop_ns: Option<u64>,
     row: Option<String>,
 }
 
@@ -203,6 +224,7 @@ impl HarvestLog {
             first_assigned_ns: None,
             complete: false,
             stops: Vec::new(),
+            last_stop_ns: None,
             row: None,
         }
     }
@@ -324,7 +346,13 @@ impl HarvestLog {
                 "harvest complete: nothing left to pick".to_owned()
             }
             HarvestEventKind::StopFinished => {
-                let text = event.reason.as_str().to_owned();
+                let failures = self.failures_since(self.last_stop_ns, t_ns);
+                self.last_stop_ns = Some(t_ns);
+                let text = format!(
+                    "{}, failed: {}",
+                    event.reason.as_str(),
+                    cause_list(&failures)
+                );
                 self.stops.push(text.clone());
                 text
             }
@@ -336,6 +364,18 @@ impl HarvestLog {
             _ => return None,
         };
         Some(self.line(event, &text))
+    }
+
+    /// Failed attempts by cause label that ended after `after_ns` (all when `None`) and at or
+    /// before `until_ns`.
+    fn failures_since(&self, after_ns: Option<u64>, until_ns: u64) -> BTreeMap<&'static str, u32> {
+        let mut failures = BTreeMap::new();
+        for attempt in self.attempts.iter().filter(|a| {
+            !a.harvested && after_ns.is_none_or(|after| a.end_ns > after) && a.end_ns <= until_ns
+        }) {
+            *failures.entry(attempt.cause.label()).or_insert(0) += 1;
+        }
+        failures
     }
 
     fn end_attempt(
@@ -459,6 +499,53 @@ mod tests {
             arm,
             apple,
         )
+    }
+
+    fn field(t_s: u64, kind: HarvestEventKind, line: &str) -> HarvestEvent {
+        let mut e = event(t_s, HarvestEventSource::Field, kind, 0, 0);
+        e.reason = harvest_ipc::FixedString::new(line);
+        e
+    }
+
+    #[test]
+    fn each_stop_line_gets_the_failures_of_its_own_stop() {
+        let mut log = HarvestLog::new(0);
+        let trace = [
+            assigned(1, 1, 1),
+            ended(2, 1, 1, Some(HarvestCause::NoAttachment)),
+            assigned(2, 2, 2),
+            ended(3, 2, 2, Some(HarvestCause::AppleLost)),
+            assigned(3, 1, 1),
+            ended(4, 1, 1, Some(HarvestCause::NoAttachment)),
+            field(5, HarvestEventKind::StopFinished, "stop 1"),
+            assigned(6, 1, 3),
+            ended(7, 1, 3, None),
+            field(8, HarvestEventKind::StopFinished, "stop 2"),
+            assigned(9, 1, 4),
+            ended(10, 1, 4, Some(HarvestCause::ApproachTimeout)),
+            field(11, HarvestEventKind::StopFinished, "stop 3"),
+            field(11, HarvestEventKind::RowFinished, "3 stops"),
+        ];
+        let lines: Vec<String> = trace.iter().filter_map(|e| log.on_event(e)).collect();
+        let stops: Vec<&String> = lines.iter().filter(|l| l.contains("stop ")).collect();
+        assert_eq!(stops.len(), 3, "{lines:?}");
+        assert!(
+            stops[0].ends_with("stop 1, failed: apple_lost 1, no_attachment 2"),
+            "{stops:?}"
+        );
+        assert!(stops[1].ends_with("stop 2, failed: none"), "{stops:?}");
+        assert!(
+            stops[2].ends_with("stop 3, failed: approach_timeout 1"),
+            "{stops:?}"
+        );
+        let summary = log.summary().to_string();
+        assert!(
+            summary.contains(
+                "row summary (3 stops): 3 stops, failed: apple_lost 1, approach_timeout 1, \
+                 no_attachment 2"
+            ),
+            "{summary}"
+        );
     }
 
     #[test]

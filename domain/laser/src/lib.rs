@@ -11,6 +11,7 @@ pub mod candidate;
 pub mod extraction;
 pub mod fusion;
 pub mod observed_unit;
+pub mod reach;
 pub mod scan;
 pub mod selection;
 pub mod service;
@@ -18,6 +19,7 @@ pub mod triangulation;
 
 pub use candidate::{CandidateConfig, PositionCandidate, TargetHint};
 pub use extraction::{ExtractionConfig, LaserLineExtractor, PixelRoi, StripePoint};
+pub use reach::{InReach, LaserReach, ReachError};
 pub use scan::{
     ProcessorConfig, ScanConfig, ScanError, ScanPlan, ScanPlanner, ScanProcessor, ScanResult,
     run_scan,

@@ -24,16 +24,15 @@ use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
 
 use crate::candidate::PositionCandidate;
 use crate::candidate::TargetHint;
-use crate::extraction::{ExtractionError, PixelRoi};
+use crate::extraction::ExtractionError;
 use crate::fusion::{FusedSphere, FusionConfig, fuse_slices};
 use crate::observed_unit::{ObservedUnit, ScanMotion};
+use crate::reach::{LaserReach, ReachError};
 use crate::scan::{
-    ProcessorConfig, ScanConfig, ScanError, ScanPlanError, ScanPlanner, ScanProcessor, ScanResult,
-    run_scan,
+    ProcessorConfig, ScanConfig, ScanError, ScanPlanError, ScanProcessor, ScanResult, run_scan,
 };
 
-/// Apple radius assumed when a request carries none usable (mean of the simulated orchard), m.
-pub const FALLBACK_APPLE_RADIUS_M: f64 = 0.037;
+pub use crate::reach::FALLBACK_APPLE_RADIUS_M;
 
 /// Why a request got no refined position.
 #[derive(Debug, thiserror::Error)]
@@ -66,11 +65,9 @@ impl<E: DeviceError> ScanRequestError<E> {
 /// The scan pipeline of one ALACS unit with its buffers (one image, the scan's motion).
 #[derive(Debug)]
 pub struct ScanService {
-    alacs_from_tof: RigidTransform,
+    reach: LaserReach,
     tof_from_alacs: RigidTransform,
-    planner: ScanPlanner,
     processor: ScanProcessor,
-    intrinsics: CameraIntrinsics,
     rgb: Vec<u8>,
     motion: ScanMotion,
     slide_position_m: Option<f64>,
@@ -88,14 +85,14 @@ impl ScanService {
         alacs_from_tof: RigidTransform,
     ) -> Result<Self, ExtractionError> {
         Ok(Self {
-            alacs_from_tof,
-            tof_from_alacs: alacs_from_tof.inverse(),
-            planner: ScanPlanner {
+            reach: LaserReach::new(
                 extrinsics,
-                config: ScanConfig::default(),
-            },
+                intrinsics,
+                alacs_from_tof,
+                ScanConfig::default(),
+            ),
+            tof_from_alacs: alacs_from_tof.inverse(),
             processor: ScanProcessor::new(intrinsics, extrinsics, ProcessorConfig::default())?,
-            intrinsics,
             rgb: Vec::new(),
             motion: ScanMotion::default(),
             slide_position_m: None,
@@ -106,7 +103,7 @@ impl ScanService {
     }
 
     pub fn alacs_from_tof(&self) -> &RigidTransform {
-        &self.alacs_from_tof
+        self.reach.alacs_from_tof()
     }
 
     /// The sphere the last scan's circles agreed on, if they did.
@@ -119,40 +116,14 @@ impl ScanService {
         &self.motion
     }
 
-    /// The target as the scan sees it: the box the rough apple (centre in the ALACS camera frame,
-    /// radius) covers in the ALACS image, and the rough centre. `None` when the centre does not
-    /// project into the image.
+    /// The target as the scan sees it ([`LaserReach::hint`]).
     pub fn hint(&self, rough_centre_in_alacs_m: [f64; 3], radius_m: f64) -> Option<TargetHint> {
-        let intrinsics = &self.intrinsics;
-        let (u_px, v_px) = intrinsics.project(rough_centre_in_alacs_m)?;
-        if !intrinsics.contains(u_px, v_px) {
-            return None;
-        }
-        let radius_m = if radius_m.is_finite() && radius_m > 0.0 {
-            radius_m
-        } else {
-            FALLBACK_APPLE_RADIUS_M
-        };
-        let distance_m = rough_centre_in_alacs_m
-            .iter()
-            .map(|c| c * c)
-            .sum::<f64>()
-            .sqrt();
-        // Apparent radius of a sphere: its silhouette's half-angle is asin(R / distance).
-        let radius_px = 0.5
-            * (intrinsics.fx_px + intrinsics.fy_px)
-            * (radius_m / distance_m).min(0.99).asin().tan();
-        let corner =
-            |centre_px: f64, sign: f64| (centre_px + sign * radius_px).round().max(0.0) as usize;
-        Some(TargetHint {
-            bbox_px: PixelRoi {
-                u_min_px: corner(u_px, -1.0),
-                v_min_px: corner(v_px, -1.0),
-                u_max_px: corner(u_px, 1.0),
-                v_max_px: corner(v_px, 1.0),
-            },
-            rough_centre_in_camera_m: rough_centre_in_alacs_m,
-        })
+        self.reach.hint(rough_centre_in_alacs_m, radius_m)
+    }
+
+    /// The unit's reach model (the check [`Self::answer`] makes before scanning).
+    pub fn reach(&self) -> &LaserReach {
+        &self.reach
     }
 
     /// Scans the apple of `request` on `unit` and writes the whole answer into `out` except the
@@ -175,29 +146,31 @@ impl ScanService {
         let started = Instant::now();
         self.motion.clear();
         self.fused = None;
-        let rough_in_alacs = self
-            .alacs_from_tof
-            .apply(request.rough_position_in_camera_m);
-        let outcome = match self.hint(rough_in_alacs, request.rough_radius_m) {
-            None => Err(ScanRequestError::NotInView {
-                centre_in_alacs_m: rough_in_alacs,
-            }),
-            Some(hint) => {
+        let outcome = match self
+            .reach
+            .check(request.rough_position_in_camera_m, request.rough_radius_m)
+        {
+            Err(ReachError::NotInView { centre_in_alacs_m }) => {
+                Err(ScanRequestError::NotInView { centre_in_alacs_m })
+            }
+            Err(ReachError::Plan(error)) => Err(ScanRequestError::Scan(ScanError::Plan(error))),
+            Ok(in_reach) => {
                 let mut observed =
                     ObservedUnit::new(unit, self.slide_position_m, before_step, &mut self.motion);
                 let result = run_scan(
                     &mut observed,
-                    &self.planner,
+                    self.reach.planner(),
                     &mut self.processor,
-                    &hint,
+                    &in_reach.hint,
                     &mut self.rgb,
                 );
                 self.slide_position_m = observed.slide_position_m();
+                let extrinsics = self.reach.planner().extrinsics;
                 result.map_err(ScanRequestError::from).map(|mut result| {
                     self.valid.clear();
                     self.valid
                         .extend(result.candidates.iter().filter_map(|c| c.as_ref().ok()));
-                    self.fused = fuse_slices(&self.valid, &self.planner.extrinsics, &self.fusion);
+                    self.fused = fuse_slices(&self.valid, &extrinsics, &self.fusion);
                     if let Some(fused) = &self.fused {
                         result.centre_in_camera_m = fused.centre_in_camera_m;
                     }

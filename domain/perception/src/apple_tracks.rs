@@ -42,6 +42,8 @@ pub struct AppleTrack {
     /// Frames the apple was detected in.
     pub frames_seen: u32,
     pub scan: ScanState,
+    /// The laser found it out of its reach at least once (counted once per apple).
+    pub out_of_laser_reach: bool,
 }
 
 /// The set of tracks with its association scratch.
@@ -128,6 +130,7 @@ impl AppleTracks {
                         last_seen_ns: now_ns,
                         frames_seen: 0,
                         scan: ScanState::NotRequested,
+                        out_of_laser_reach: false,
                     });
                     self.next_id = self.next_id.wrapping_add(1);
                     self.tracks.len() - 1

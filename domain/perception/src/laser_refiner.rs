@@ -8,6 +8,11 @@
 //! the refined position is stored on the apple's track and used for all its later detections,
 //! whose `method` then reads `LaserScan`.
 //!
+//! With the laser's reach model ([`LaserRefiner::set_reach`], the check the laser process
+//! makes before it scans: [`harvest_laser::reach`]) only apples the unit can scan are asked
+//! for; the others are counted ([`RefinerStats::out_of_laser_reach`], once per apple) and asked
+//! for once they come into reach (the platform moved).
+//!
 //! A scan's position is accepted only when it lies within `max_refinement_shift_m` of the
 //! apple's current ToF estimate (a larger jump means the line fell on another apple) and, unless
 //! `accept_single_image_answers`, when it is the sphere fitted to all stripes rather than one
@@ -17,6 +22,7 @@
 
 use harvest_ipc::camera_model::RigidTransform;
 use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
+use harvest_laser::LaserReach;
 use tracing::{debug, trace};
 
 use crate::apple_tracks::{AppleTracks, ScanState, distance_m};
@@ -50,6 +56,8 @@ pub enum ScanResultOutcome {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RefinerStats {
     pub requests: u64,
+    /// Apples the policy picked but the laser cannot reach (not asked for), each counted once.
+    pub out_of_laser_reach: u64,
     pub refined: u64,
     pub scan_failures: u64,
     pub refused: u64,
@@ -63,6 +71,7 @@ pub struct RefinerStats {
 #[derive(Debug, Clone)]
 pub struct LaserRefiner {
     config: LaserScanConfig,
+    reach: Option<LaserReach>,
     tracks: AppleTracks,
     track_of: Vec<usize>,
     candidates: Vec<(f64, usize)>,
@@ -76,6 +85,7 @@ impl LaserRefiner {
     pub fn new(config: LaserScanConfig) -> Self {
         Self {
             config,
+            reach: None,
             tracks: AppleTracks::new(),
             track_of: Vec::new(),
             candidates: Vec::new(),
@@ -87,6 +97,16 @@ impl LaserRefiner {
 
     pub fn config(&self) -> &LaserScanConfig {
         &self.config
+    }
+
+    /// Asks only for apples `reach` says the laser can scan (without: every apple the policy
+    /// picks is asked for).
+    pub fn set_reach(&mut self, reach: LaserReach) {
+        self.reach = Some(reach);
+    }
+
+    pub fn reach(&self) -> Option<&LaserReach> {
+        self.reach.as_ref()
     }
 
     pub fn stats(&self) -> &RefinerStats {
@@ -182,9 +202,22 @@ impl LaserRefiner {
                 position_confidence: apple.position_confidence,
                 fallback: apple.fallback,
             };
-            if let Some(priority) = config.scan_priority(&evidence) {
-                self.candidates.push((priority, apple_index));
+            let Some(priority) = config.scan_priority(&evidence) else {
+                continue;
+            };
+            if let Some(reach) = &self.reach
+                && let Err(why) = reach.check(apple.position_in_camera_m, apple.radius_m)
+            {
+                if let Some(track) = self.tracks.get_mut(track_index)
+                    && !track.out_of_laser_reach
+                {
+                    track.out_of_laser_reach = true;
+                    self.stats.out_of_laser_reach += 1;
+                    debug!(apple_id = track.id, %why, "out of the laser's reach: not asked for");
+                }
+                continue;
             }
+            self.candidates.push((priority, apple_index));
         }
         self.candidates
             .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
@@ -355,6 +388,62 @@ mod tests {
             candidates_in_camera_m: candidates,
             ..LaserScanResult::default()
         }
+    }
+
+    /// The apple of [`apple`] moved to `position_in_camera_m`.
+    fn apple_at(position_in_camera_m: [f64; 3]) -> AppleEstimate {
+        AppleEstimate {
+            position_in_camera_m,
+            position_in_robot_m: robot_from_camera().apply(position_in_camera_m),
+            ..apple(0.0, 0.3, 0.5)
+        }
+    }
+
+    /// The laser's reach model (the check the laser process makes before scanning) keeps the
+    /// apples it cannot scan out of the requests; they are counted once.
+    #[test]
+    fn only_apples_in_the_lasers_reach_are_asked_for() {
+        use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsExtrinsics, alacs_camera_intrinsics};
+        use harvest_laser::{LaserReach, ReachError, ScanConfig};
+        let reach = LaserReach::new(
+            AlacsExtrinsics::paper_table1(),
+            alacs_camera_intrinsics(),
+            ALACS_FROM_TOF_CAMERA,
+            ScanConfig::default(),
+        );
+        let tof_from_alacs = ALACS_FROM_TOF_CAMERA.inverse();
+        let in_reach = tof_from_alacs.apply([0.03, 0.02, 0.9]);
+        let beyond_stroke = (1..60)
+            .flat_map(|k| [-0.02 * k as f64, 0.02 * k as f64])
+            .map(|x| tof_from_alacs.apply([x, 0.0, 0.9]))
+            .find(|centre| matches!(reach.check(*centre, 0.04), Err(ReachError::Plan(_))))
+            .expect("an apple in view beyond the slide's stroke");
+        let behind = tof_from_alacs.apply([0.0, 0.0, -0.9]);
+        assert!(reach.check(in_reach, 0.04).is_ok());
+        let apples = [
+            apple_at(beyond_stroke),
+            apple_at(in_reach),
+            apple_at(behind),
+        ];
+        let config = LaserScanConfig {
+            max_scans_per_frame: 3,
+            max_pending_scans: 3,
+            ..LaserScanConfig::default()
+        };
+        // Without the reach model all three are asked for.
+        let mut unfiltered = LaserRefiner::new(config);
+        let mut out = Vec::new();
+        unfiltered.update(&apples, FOCAL_PX, 0, &mut out);
+        assert_eq!(unfiltered.requests().len(), 3);
+        let mut refiner = LaserRefiner::new(config);
+        refiner.set_reach(reach);
+        refiner.update(&apples, FOCAL_PX, 0, &mut out);
+        let asked: Vec<u32> = refiner.requests().iter().map(|r| r.apple_id).collect();
+        assert_eq!(asked, vec![1]);
+        refiner.update(&apples, FOCAL_PX, 33_000_000, &mut out);
+        assert!(refiner.requests().is_empty());
+        assert_eq!(refiner.stats().requests, 1);
+        assert_eq!(refiner.stats().out_of_laser_reach, 2);
     }
 
     #[test]

@@ -64,6 +64,11 @@ impl PerceptionNode {
             .handle_result(result, &self.calibration.camera.robot_from_camera)
     }
 
+    /// Asks the laser only for apples in its reach (see [`LaserRefiner::set_reach`]).
+    pub fn set_laser_reach(&mut self, reach: harvest_laser::LaserReach) {
+        self.refiner.set_reach(reach);
+    }
+
     /// Tracks, scan policy and their counters.
     pub fn laser_refiner(&self) -> &LaserRefiner {
         &self.refiner

@@ -8,7 +8,8 @@
 //! while the mode is harvesting, and its platform moves go through the same driver as the
 //! operator's.
 //!
-//! Per tick: the newest detection set (`perception/apples`), the arms' states, the platform's
+//! Per tick: the newest detection set (`perception/apples`; its laser-refined apples are
+//! counted per stop), the arms' states, the platform's
 //! and the tractor's positions and the new `harvest/events` (assignments, ended attempts, the
 //! vacuum supervisor's "harvest complete") feed the cycle; its actions move the platform,
 //! advance the tractor, and publish `StopFinished` / `RowFinished` events on `harvest/events`
@@ -22,7 +23,7 @@ use harvest_hw::tractor::sim::SimTractor;
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PERCEPTION_APPLES};
 use harvest_ipc::payloads::{
     AppleDetections, ArmPhase, ArmState, HarvestCause, HarvestEvent, HarvestEventKind,
-    HarvestEventSource,
+    HarvestEventSource, LocalizationMethod,
 };
 use harvest_ipc::{Context, FixedString, Publisher, Subscriber};
 use harvest_robot_model::params::ArmParams;
@@ -125,6 +126,11 @@ impl RowLink {
                 .map(|apple| apple.position_in_robot_m)
                 .collect();
             self.detections = Some((sample.source_capture_ns, apples));
+            for apple in sample.apples.iter() {
+                if apple.method == LocalizationMethod::LaserScan {
+                    self.cycle.on_laser_refined(apple.apple_id);
+                }
+            }
         }
         let cycle = &mut self.cycle;
         self.events_in.drain(|event| {
@@ -262,10 +268,12 @@ impl RowLink {
     }
 }
 
-/// One stop as `harvest up` prints it (fits a harvest event's reason).
+/// One stop as `harvest up` prints it (fits a harvest event's reason; the failures by cause,
+/// which would not, are added by the harvest log from the attempts it saw end during the stop).
 fn stop_line(report: &StopReport) -> String {
     format!(
-        "stop {} @{:.2} m: platform ({:.2}, {:.2}) m, reach {}->{} of {}, out {}, att {}, ok {}",
+        "stop {} @{:.2} m: platform ({:.2}, {:.2}) m, reach {}->{} of {}, out {}, laser {}, att {}, \
+         ok {}",
         report.stop,
         report.trailer_m,
         report.offset_m[0],
@@ -274,6 +282,7 @@ fn stop_line(report: &StopReport) -> String {
         report.reachable_after,
         report.detected,
         report.out_of_reach,
+        report.laser_refined,
         report.attempted,
         report.harvested
     )

@@ -20,7 +20,7 @@ use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT};
 use harvest_ipc::payloads::{LaserScanResult, LaserScanStatus, ProcessRunState};
 use harvest_ipc::{Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, Waiter, WireCode};
 
-use harvest_laser::calibration::{CalibrationFileError, read_calibration_file};
+use harvest_laser::calibration::{CalibrationFileError, read_extrinsics};
 use harvest_laser::extraction::ExtractionError;
 use harvest_laser::service::ScanService;
 
@@ -69,14 +69,7 @@ pub fn load_extrinsics(args: &LaserArgs) -> Result<AlacsExtrinsics, LaserProcess
     let Some(path) = &args.calibration else {
         return Err(LaserProcessError::MissingCalibration);
     };
-    let file = read_calibration_file(path)?;
-    // `read_calibration_file` has already refused unusable values.
-    file.alacs_extrinsics().ok_or_else(|| {
-        LaserProcessError::Calibration(CalibrationFileError::InvalidExtrinsics {
-            path: path.clone(),
-            values: file.extrinsics,
-        })
-    })
+    Ok(read_extrinsics(path)?)
 }
 
 /// Runs until SIGINT/SIGTERM.

@@ -6,7 +6,9 @@
 //!
 //! Laser refinement (`[laser]` in the config): before each frame every `laser/scan_result`
 //! that has arrived is taken (never waited for); after it, the scans the frame asked for are
-//! published on `laser/scan_request`.
+//! published on `laser/scan_request`. With `--laser-calibration FILE` (the ALACS unit's
+//! calibration) only apples in the laser's reach are asked for
+//! ([`harvest_laser::reach::LaserReach`], the same check the laser process makes).
 //!
 //! Depth source (`depth_source` in the config, or `--depth-source`): with `lidar_fused` the
 //! process also subscribes to `lidar/points`; before each frame the newest cloud that has arrived
@@ -14,6 +16,7 @@
 //! and the frame is localized from that image. The extrinsic is `--lidar-extrinsic FILE` (written
 //! by `harvest calibrate lidar-camera --output`); it is required, as the camera calibration is.
 
+use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, alacs_camera_intrinsics};
 use harvest_ipc::catalogue::{
     CAMERA_RGBD, LASER_SCAN_REQUEST, LASER_SCAN_RESULT, LIDAR_POINTS, PERCEPTION_APPLES,
 };
@@ -21,6 +24,8 @@ use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
 };
+use harvest_laser::calibration::read_extrinsics;
+use harvest_laser::{LaserReach, ScanConfig};
 use harvest_lidar::ExtrinsicFile;
 use harvest_perception::calibration::Calibration;
 use harvest_perception::config_file::{ConfigFileError, read_config};
@@ -47,6 +52,12 @@ pub struct PerceptionArgs {
     /// Ask the laser scanner for no scans (overrides the config's `laser.enabled`).
     #[arg(long)]
     pub no_laser: bool,
+    /// ALACS calibration file (the laser process's `--calibration`, e.g.
+    /// `sim/alacs_calibration.toml`): with it only apples in the laser's reach are asked for
+    /// (the check the laser makes before it scans); without it every apple the scan policy
+    /// picks is asked for.
+    #[arg(long)]
+    pub laser_calibration: Option<PathBuf>,
     /// Depth image to localize from (overrides the config's `depth_source`).
     #[arg(long)]
     pub depth_source: Option<DepthSource>,
@@ -68,6 +79,9 @@ pub enum PerceptionProcessError {
         flag: &'static str,
         what: &'static str,
     },
+    /// The `--laser-calibration` file cannot be used (named in the message).
+    #[error(transparent)]
+    LaserCalibration(#[from] harvest_laser::calibration::CalibrationFileError),
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
@@ -117,6 +131,18 @@ pub fn run(
         }
     };
     let mut node = PerceptionNode::new(config, calibration);
+    match &args.laser_calibration {
+        Some(path) => node.set_laser_reach(LaserReach::new(
+            read_extrinsics(path)?,
+            alacs_camera_intrinsics(),
+            ALACS_FROM_TOF_CAMERA,
+            ScanConfig::default(),
+        )),
+        None if config.laser.enabled => tracing::warn!(
+            "no --laser-calibration: scans are asked for apples whatever the laser's reach"
+        ),
+        None => {}
+    }
 
     let context = Context::new(domain, process_name)?;
     let frames = context.subscriber(CAMERA_RGBD)?;

@@ -55,6 +55,13 @@ pub enum ServoError {
     /// A command value is NaN or infinite.
     #[error("joint {joint}: command {command:?} is not finite")]
     NonFiniteCommand { joint: Joint, command: ServoCommand },
+    /// A restored joint position or rate is NaN or infinite.
+    #[error("joint {joint}: restored position {position} / rate {velocity} is not finite")]
+    NonFiniteRestore {
+        joint: Joint,
+        position: f64,
+        velocity: f64,
+    },
 }
 
 /// The four joints of one arm driven by first-order servos.
@@ -165,6 +172,33 @@ impl ServoModel {
     /// Joint velocities `[D, theta, phi, twist]` (m/s or rad/s).
     pub fn velocities(&self) -> [f64; JOINTS] {
         self.velocity
+    }
+
+    /// Puts the joints where a saved state had them (a restart of the simulator): positions
+    /// clamped to the limits, rates to the rate limits; non-finite values are refused.
+    pub fn restore(
+        &mut self,
+        position: [f64; JOINTS],
+        velocity: [f64; JOINTS],
+    ) -> Result<(), ServoError> {
+        for joint in Joint::ALL {
+            let k = joint.index();
+            if !(position[k].is_finite() && velocity[k].is_finite()) {
+                return Err(ServoError::NonFiniteRestore {
+                    joint,
+                    position: position[k],
+                    velocity: velocity[k],
+                });
+            }
+        }
+        let (lo, hi) = (
+            self.position_limits.min.to_array(),
+            self.position_limits.max.to_array(),
+        );
+        self.position = std::array::from_fn(|k| position[k].clamp(lo[k], hi[k]));
+        self.velocity =
+            std::array::from_fn(|k| velocity[k].clamp(-self.max_velocity[k], self.max_velocity[k]));
+        Ok(())
     }
 
     /// The joint position ranges the servos stop at.

@@ -141,6 +141,17 @@ pub fn read_calibration_file(path: &Path) -> Result<LaserCalibrationFile, Calibr
     Ok(file)
 }
 
+/// The extrinsics of the calibration file at `path` (what the laser scans with and what its
+/// reach is computed from, [`crate::reach::LaserReach`]).
+pub fn read_extrinsics(path: &Path) -> Result<AlacsExtrinsics, CalibrationFileError> {
+    let file = read_calibration_file(path)?;
+    file.alacs_extrinsics()
+        .ok_or_else(|| CalibrationFileError::InvalidExtrinsics {
+            path: path.to_path_buf(),
+            values: file.extrinsics,
+        })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -15,7 +15,7 @@ pub use csv::{SampleFileError, parse_samples_csv, read_samples_csv, write_sample
 pub use error::CalibrationError;
 pub use file::{
     CalibrationFileError, ExtrinsicsRecord, FitRecord, LaserCalibrationFile, read_calibration_file,
-    write_calibration_file,
+    read_extrinsics, write_calibration_file,
 };
 pub use fit::{FitOutcome, RansacOptions, fit_all, fit_ransac};
 pub use least_squares::{LmOptions, LmSolution, levenberg_marquardt};

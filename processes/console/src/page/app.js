@@ -182,6 +182,8 @@ function renderStatus(status) {
     estop.className = 'estop-released';
   }
   $('controller').textContent = mode && mode.controller ? mode.controller : 'none';
+  // "Next stop" is a harvesting command (the executive refuses it in any other mode).
+  $('btn-next-stop').disabled = !(mode && mode.name === 'harvesting');
   $('mode-change').textContent = mode ? mode.last_change : '';
   status.arms.forEach((arm, i) => {
     const n = i + 1;
