@@ -188,7 +188,7 @@ impl<T: Payload> Subscriber<T> {
 mod tests {
     use crate::catalogue::{Channel, Qos};
     use crate::payloads::EmergencyStop;
-    use crate::{Context, Domain, Payload, ScratchDomain};
+    use crate::{Context, Payload, ScratchDomain};
 
     fn pending_events(listener: &iceoryx2::port::listener::Listener<crate::Ipc>) -> usize {
         let mut count = 0;

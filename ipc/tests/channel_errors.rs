@@ -5,7 +5,7 @@
 use harvest_ipc::catalogue::{Channel, Qos};
 use harvest_ipc::error::{Incompatibility, OpenChannelError, PortKind, SendError};
 use harvest_ipc::payloads::{EmergencyStop, ProcessHealth};
-use harvest_ipc::{Context, Domain, Payload, ScratchDomain};
+use harvest_ipc::{Context, Payload, ScratchDomain};
 
 #[test]
 fn a_channel_of_another_payload_type_is_incompatible() {
