@@ -193,7 +193,9 @@ impl Recorder {
                 (a.id, d)
             })
             .min_by(|a, b| a.1.total_cmp(&b.1));
-        let near = nearest.filter(|(_, d)| *d < NEAR_APPLE_M).map(|(id, _)| id.0);
+        let near = nearest
+            .filter(|(_, d)| *d < NEAR_APPLE_M)
+            .map(|(id, _)| id.0);
         let nearest = nearest.filter(|(_, d)| *d < 0.05);
         self.attempts.push(AttemptRecord {
             arm: arm as u8 + 1,

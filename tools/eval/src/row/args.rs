@@ -98,8 +98,16 @@ mod tests {
         assert_eq!(cli.args.arms, defaults.arms);
         assert_eq!(cli.args.seeds, defaults.seeds);
         assert_eq!(cli.args.detections, DetectionsArg::Perception);
-        let cli = Cli::try_parse_from(["x", "--rows", "a.toml", "--arms", "2", "--detections", "model"])
-            .expect("values");
+        let cli = Cli::try_parse_from([
+            "x",
+            "--rows",
+            "a.toml",
+            "--arms",
+            "2",
+            "--detections",
+            "model",
+        ])
+        .expect("values");
         assert_eq!(cli.args.rows, ["a.toml"]);
         assert_eq!(cli.args.arms, [2]);
         assert_eq!(cli.args.detections, DetectionsArg::Model);

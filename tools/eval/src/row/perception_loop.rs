@@ -173,13 +173,13 @@ impl DetectionLoop {
                     .map_err(render_error)?;
                 frame.header.capture_ns = now_ns;
                 frame.header.publish_ns = now_ns;
-                let stats = node.process(frame, &mut set).map_err(|error| {
-                    HarvestEvalError::Device {
-                        device: "perception",
-                        stamp_ns: now_ns,
-                        message: error.to_string(),
-                    }
-                })?;
+                let stats =
+                    node.process(frame, &mut set)
+                        .map_err(|error| HarvestEvalError::Device {
+                            device: "perception",
+                            stamp_ns: now_ns,
+                            message: error.to_string(),
+                        })?;
                 if let Some(rejection) = stats.rejection {
                     tracing::warn!(%rejection, "perception rejected a frame");
                 }

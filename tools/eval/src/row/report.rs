@@ -41,7 +41,8 @@ const ROW_PRESETS: [(&str, &str); 2] = [
 ];
 
 /// Paper 003, Table 2: (orchard, attempted, success, 1st attempt, >= 2 attempts).
-pub const PAPER_TABLE_2: [(u32, u32, u32, u32, u32); 2] = [(1, 322, 260, 222, 38), (2, 285, 227, 201, 26)];
+pub const PAPER_TABLE_2: [(u32, u32, u32, u32, u32); 2] =
+    [(1, 322, 260, 222, 38), (2, 285, 227, 201, 26)];
 /// Paper 003, section 4.2: cycle time per attempt, dual and single arm, s.
 pub const PAPER_CYCLE_PER_ATTEMPT_S: (f64, f64) = (5.97, 8.29);
 
@@ -215,8 +216,16 @@ impl ArmSummary {
         }
         self.harvest_s += run.harvest_s;
         self.row_s += run.row_s;
-        self.reach_chosen += run.stops.iter().map(|s| s.truth_reachable_chosen).sum::<usize>();
-        self.reach_fixed += run.stops.iter().map(|s| s.truth_reachable_fixed).sum::<usize>();
+        self.reach_chosen += run
+            .stops
+            .iter()
+            .map(|s| s.truth_reachable_chosen)
+            .sum::<usize>();
+        self.reach_fixed += run
+            .stops
+            .iter()
+            .map(|s| s.truth_reachable_fixed)
+            .sum::<usize>();
         self.truncated += u32::from(run.truncated);
         self.safety_violations += run.safety_violations;
     }
@@ -283,7 +292,8 @@ impl RowEvalReport {
     /// The tables as text.
     pub fn render_text(&self) -> String {
         let mut out = String::new();
-        let pct = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{:.1} %", v * 100.0));
+        let pct =
+            |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{:.1} %", v * 100.0));
         let s = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.2} s"));
         let _ = writeln!(
             out,
@@ -294,7 +304,10 @@ impl RowEvalReport {
             self.detections,
             self.frame_interval_s
         );
-        let _ = writeln!(out, "\nper row run (truth: on row / in reach / out of reach)");
+        let _ = writeln!(
+            out,
+            "\nper row run (truth: on row / in reach / out of reach)"
+        );
         for run in &self.runs {
             let _ = writeln!(
                 out,
@@ -341,11 +354,23 @@ impl RowEvalReport {
                 );
             }
         }
-        let _ = writeln!(out, "\nTable 2 (structure of paper 003's), summed over rows and seeds");
+        let _ = writeln!(
+            out,
+            "\nTable 2 (structure of paper 003's), summed over rows and seeds"
+        );
         let _ = writeln!(
             out,
             "  {:<14} {:>9} {:>14} {:>6} {:>6} {:>8} {:>10} {:>10} {:>10} {:>10}",
-            "", "attempted", "success", "1st", ">=2", "attempts", "ok/att", "s/attempt", "row s/att", "row s/apple"
+            "",
+            "attempted",
+            "success",
+            "1st",
+            ">=2",
+            "attempts",
+            "ok/att",
+            "s/attempt",
+            "row s/att",
+            "row s/apple"
         );
         for (orchard, attempted, success, first, more) in PAPER_TABLE_2 {
             let _ = writeln!(
@@ -353,7 +378,10 @@ impl RowEvalReport {
                 "  {:<14} {:>9} {:>14} {:>6} {:>6} {:>8} {:>10} {:>10} {:>10} {:>10}",
                 format!("paper orch. {orchard}"),
                 attempted,
-                format!("{success} ({:.1} %)", f64::from(success) * 100.0 / f64::from(attempted)),
+                format!(
+                    "{success} ({:.1} %)",
+                    f64::from(success) * 100.0 / f64::from(attempted)
+                ),
                 first,
                 more,
                 "-",
@@ -363,7 +391,10 @@ impl RowEvalReport {
                 "-"
             );
         }
-        for (arms, paper_s) in [(1u8, PAPER_CYCLE_PER_ATTEMPT_S.1), (2, PAPER_CYCLE_PER_ATTEMPT_S.0)] {
+        for (arms, paper_s) in [
+            (1u8, PAPER_CYCLE_PER_ATTEMPT_S.1),
+            (2, PAPER_CYCLE_PER_ATTEMPT_S.0),
+        ] {
             let _ = writeln!(
                 out,
                 "  {:<14} {:>9} {:>14} {:>6} {:>6} {:>8} {:>10} {:>10} {:>10} {:>10}",
@@ -417,14 +448,20 @@ impl RowEvalReport {
             let _ = write!(
                 paper,
                 " {:>12}",
-                cause.paper_count().map_or_else(|| "-".to_owned(), |n| n.to_string())
+                cause
+                    .paper_count()
+                    .map_or_else(|| "-".to_owned(), |n| n.to_string())
             );
         }
         let _ = writeln!(out, "{paper} {:>12}", "-");
         for sum in &self.by_arms {
             let mut line = format!("  {:<14}", format!("sim {} arm", sum.arms));
             for cause in Table3Cause::ALL {
-                let _ = write!(line, " {:>12}", sum.failures.get(&cause).copied().unwrap_or(0));
+                let _ = write!(
+                    line,
+                    " {:>12}",
+                    sum.failures.get(&cause).copied().unwrap_or(0)
+                );
             }
             let _ = writeln!(out, "{line} {:>12}", sum.perception_failures);
             let mut missed = format!("  {:<14}", format!("  missed {}", sum.missed));
@@ -437,8 +474,14 @@ impl RowEvalReport {
             }
             let _ = writeln!(out, "{missed}");
         }
-        let _ = writeln!(out, "  (missed: in reach, never attempted, left on the tree; by the apple's flags)");
-        let _ = writeln!(out, "\nplatform positioning (ground truth, apples in reach summed over stops)");
+        let _ = writeln!(
+            out,
+            "  (missed: in reach, never attempted, left on the tree; by the apple's flags)"
+        );
+        let _ = writeln!(
+            out,
+            "\nplatform positioning (ground truth, apples in reach summed over stops)"
+        );
         for sum in &self.by_arms {
             let _ = writeln!(
                 out,

@@ -378,7 +378,9 @@ pub fn run_row(config: &RowRunConfig) -> Result<RowOutcome, RowEvalError> {
     }
     let row_s = row_report
         .as_ref()
-        .map_or(Episode::t_s(episode.now_ns()), |r| r.duration_ns as f64 * 1e-9);
+        .map_or(Episode::t_s(episode.now_ns()), |r| {
+            r.duration_ns as f64 * 1e-9
+        });
     let frames = detections.frames();
     let world = episode.robot().borrow().world().clone();
     let outcome = episode.finish(truncated);

@@ -10,9 +10,9 @@ use super::args::DetectionsArg;
 use super::perception_loop::FramePolicy;
 use super::report::{RowRunReport, load_row};
 use super::runner::{RowOutcome, RowRunConfig, run_row};
+use crate::harvest::TimingArg;
 use crate::harvest::calibration::pressure_for;
 use crate::harvest::timing::{SCENARIO_ATTACH_TIMEOUT_NS, apply_timing};
-use crate::harvest::TimingArg;
 
 /// One section of the default fruiting wall: one stop.
 const ONE_STOP: &str = r#"name = "one_stop"
@@ -25,7 +25,12 @@ fn config(arms: u8, seed: u64) -> RowRunConfig {
     let mut row = RowScenario::from_toml_str("one_stop.toml", ONE_STOP).expect("row");
     let mut arm_node = ArmNodeConfig::default();
     let mut pressure = PressureConfig::default();
-    apply_timing(&mut row.scenarios[0], &mut arm_node, &mut pressure, TimingArg::Scenario);
+    apply_timing(
+        &mut row.scenarios[0],
+        &mut arm_node,
+        &mut pressure,
+        TimingArg::Scenario,
+    );
     assert_eq!(pressure.attach_timeout_ns, SCENARIO_ATTACH_TIMEOUT_NS);
     let pressure = pressure_for(&row.scenarios[0].vacuum, pressure).expect("thresholds");
     RowRunConfig {
@@ -80,9 +85,16 @@ fn check_truth(outcome: &RowOutcome, report: &RowRunReport) {
     assert_eq!(harvested_attempts, report.harvested);
     assert_eq!(failed, report.failure_detail.values().sum::<u32>());
     assert!(report.failures.values().sum::<u32>() >= failed);
-    assert!(report.attempts > 0, "perception found apples to pick: {report:?}");
+    assert!(
+        report.attempts > 0,
+        "perception found apples to pick: {report:?}"
+    );
     assert!(report.frames > 0);
-    assert_eq!(report.safety_violations, 0, "{:?}", outcome.episode.violations);
+    assert_eq!(
+        report.safety_violations, 0,
+        "{:?}",
+        outcome.episode.violations
+    );
 }
 
 #[test]

@@ -17,8 +17,17 @@ use crate::harvest::records::{AttemptRecord, FailureCause};
 
 /// True apples on the tree in reach of one of `arms` (1: arm 1 alone, 2: both) when the robot
 /// stands `shift_m` `[x, y, z]` further than now (robot frame).
-pub fn reachable_apples(world: &World, arms: u8, shift_m: [f64; 3], config: &ArmNodeConfig) -> Vec<u32> {
-    let enabled: &[ArmId] = if arms >= 2 { &ArmId::ALL } else { &ArmId::ALL[..1] };
+pub fn reachable_apples(
+    world: &World,
+    arms: u8,
+    shift_m: [f64; 3],
+    config: &ArmNodeConfig,
+) -> Vec<u32> {
+    let enabled: &[ArmId] = if arms >= 2 {
+        &ArmId::ALL
+    } else {
+        &ArmId::ALL[..1]
+    };
     world
         .apples()
         .iter()
