@@ -13,14 +13,14 @@ use crate::harvest::HarvestEvalError;
 #[derive(Debug, thiserror::Error)]
 pub enum RowEvalError {
     /// The row scenario could not be loaded (file, line and key named by the row reader).
-    #[error("row `{row}`: {source}")]
+    #[error("row `{row}`")]
     Row {
         /// The `--rows` value.
         row: String,
         source: Box<RowError>,
     },
     /// The row's world could not be generated.
-    #[error("row `{row}` seed {seed}: {source}")]
+    #[error("row `{row}` seed {seed}")]
     World {
         row: String,
         seed: u64,
