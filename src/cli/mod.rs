@@ -146,6 +146,10 @@ enum EvalCommand {
     /// Complete harvests in the simulator (arm, vacuum and assignment logic under a simulated
     /// clock): cycle times per apple and per attempt, success, per-apple events.
     Harvest(harvest_eval::harvest::EvalHarvestArgs),
+    /// Rows stop by stop under a simulated clock with perception in the loop (the executive's
+    /// stop-and-go cycle, platform positioning): Table 2 and Table 3 of paper 003, single vs
+    /// dual arm.
+    Row(harvest_eval::row::EvalRowArgs),
     /// Laser refinement of ToF apple positions: error before/after and the time a scan costs.
     Laser(harvest_eval::laser::EvalLaserArgs),
     /// Fused LiDAR-camera vs ToF fruit localization repeatability per distance (Table III
@@ -274,6 +278,12 @@ impl Cli {
             Command::Eval(EvalCommand::Harvest(args)) => {
                 let report =
                     harvest_eval::harvest::run_eval_harvest(&args).context("harvest evaluation")?;
+                print!("{}", report.render_text());
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Eval(EvalCommand::Row(args)) => {
+                let report = harvest_eval::row::run_eval_row(&args).context("row evaluation")?;
                 print!("{}", report.render_text());
                 Ok(ExitCode::SUCCESS)
             }

@@ -5,6 +5,9 @@
 //!   its detections and 3D positions against the simulated world's ground truth.
 //! - [`harvest`]: `harvest eval harvest` runs the arm and vacuum processes' logic in process on
 //!   a simulated clock against the simulated robot and scores the harvest (cycle times, success).
+//! - [`row`]: `harvest eval row` works orchard rows stop by stop (the executive's
+//!   `harvest_field::StopCycle`, platform positioning, tractor) on the same simulated clock,
+//!   with perception on rendered frames in the loop, single vs dual arm (Tables 2 and 3).
 //! - [`laser`]: `harvest eval laser`, what the ALACS scan adds and the scan policy costs.
 //! - [`lidar`]: `harvest eval lidar`, fused versus ToF localization (Table III).
 //! - [`cycle_model`]: a discrete-event model of the picking timeline driven by the coordination
@@ -16,5 +19,6 @@ pub mod harvest;
 pub mod laser;
 pub mod lidar;
 pub mod perception;
+pub mod row;
 
 pub use perception::{EvalError, EvalPerceptionArgs, PerceptionReport, run_eval_perception};

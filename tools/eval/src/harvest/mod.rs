@@ -31,7 +31,9 @@ pub mod timing;
 pub use args::{EvalHarvestArgs, PolicyArg, TimingArg};
 pub use error::HarvestEvalError;
 pub use report::{HarvestReport, HarvestSummary, run_eval_harvest};
-pub use runner::{EmergencyStopReaction, EpisodeConfig, EpisodeOutcome, run_episode};
+pub use runner::{
+    DetectionFeed, EmergencyStopReaction, Episode, EpisodeConfig, EpisodeOutcome, run_episode,
+};
 
 #[cfg(test)]
 mod tests;

@@ -11,6 +11,9 @@ use harvest_sim::physics::{DropCause, ReleaseOutcome, WorldEvent};
 use harvest_vacuum::node::{VacuumNodeEvent, ValveCloseCause};
 use serde::Serialize;
 
+/// Radius around a target within which the nearest true apple is recorded, m.
+pub const NEAR_APPLE_M: f64 = 0.15;
+
 /// Why an attempt did not harvest its apple, judged from the simulator's ground truth first
 /// and the arm's own report second.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
@@ -79,6 +82,10 @@ pub struct AttemptRecord {
     pub apple: Option<u32>,
     /// Distance between the target centre and the true centre at dispatch, m.
     pub target_error_m: Option<f64>,
+    /// The true apple on the tree nearest the target within [`NEAR_APPLE_M`] (also when the
+    /// target matched none within 5 cm): whose flags (exposure, occlusion, cluster) a
+    /// mislocalized target is attributed to.
+    pub near_apple: Option<u32>,
     /// Dispatch time, s.
     pub dispatched_s: f64,
     /// When the arm accepted it, s.
@@ -185,13 +192,17 @@ impl Recorder {
                     .sqrt();
                 (a.id, d)
             })
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .filter(|(_, d)| *d < 0.05);
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        let near = nearest
+            .filter(|(_, d)| *d < NEAR_APPLE_M)
+            .map(|(id, _)| id.0);
+        let nearest = nearest.filter(|(_, d)| *d < 0.05);
         self.attempts.push(AttemptRecord {
             arm: arm as u8 + 1,
             planner_apple: target.apple_id,
             apple: nearest.map(|(id, _)| id.0),
             target_error_m: nearest.map(|(_, d)| d),
+            near_apple: near,
             dispatched_s: t_s,
             started_s: None,
             ended_s: None,

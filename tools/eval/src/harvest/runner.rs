@@ -60,6 +60,16 @@ const DETECTION_STREAM: u64 = 0x5eed_de7e_c710_0001;
 /// Joint rate below which an arm counts as stopped, m/s or rad/s.
 const STOPPED_RATE: f64 = 1e-3;
 
+/// Where an episode's detection sets come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DetectionFeed {
+    /// Captured by the runner from the ground truth through [`DetectionModel`].
+    Model,
+    /// Handed in by the owner of the episode ([`Episode::deliver`]), e.g. perception on
+    /// rendered frames (`harvest eval row`).
+    External,
+}
+
 /// What to run.
 #[derive(Debug, Clone)]
 pub struct EpisodeConfig {
@@ -73,8 +83,10 @@ pub struct EpisodeConfig {
     pub seed: u64,
     /// Simulated time limit, s.
     pub max_episode_s: f64,
-    /// Detection sets.
+    /// Detection sets (used with [`DetectionFeed::Model`]).
     pub detection: DetectionModel,
+    /// Where the detection sets come from.
+    pub detection_feed: DetectionFeed,
     /// Keep the full event log.
     pub keep_events: bool,
     /// Feed the safety monitor.
@@ -99,6 +111,7 @@ impl EpisodeConfig {
             seed,
             max_episode_s: 900.0,
             detection: DetectionModel::default(),
+            detection_feed: DetectionFeed::Model,
             keep_events: true,
             check_safety: true,
             emergency_stop_at_s: None,
@@ -171,8 +184,9 @@ fn device_error(
     }
 }
 
-/// Everything one episode steps.
-struct Episode {
+/// Everything one episode steps. [`run_episode`] runs one to its end; an owner that moves the
+/// world or feeds the detections itself (`harvest eval row`) steps it with [`Episode::tick`].
+pub struct Episode {
     config: EpisodeConfig,
     clock: ManualClock,
     robot: SharedRobot,
@@ -223,9 +237,17 @@ pub fn run_episode(config: &EpisodeConfig) -> Result<EpisodeOutcome, HarvestEval
 }
 
 impl Episode {
-    fn new(config: EpisodeConfig) -> Result<Self, HarvestEvalError> {
+    /// An episode in the world of `config.scenario` generated from `config.seed`.
+    pub fn new(config: EpisodeConfig) -> Result<Self, HarvestEvalError> {
+        let robot = SimRobot::new(&config.scenario, config.seed)?;
+        Self::with_robot(config, robot)
+    }
+
+    /// An episode on `robot` (e.g. in a row's world); `config.scenario` is not used for the
+    /// world.
+    pub fn with_robot(config: EpisodeConfig, robot: SimRobot) -> Result<Self, HarvestEvalError> {
         let clock = ManualClock::starting_at(EPOCH_NS);
-        let robot = Rc::new(RefCell::new(SimRobot::new(&config.scenario, config.seed)?));
+        let robot = Rc::new(RefCell::new(robot));
         let servos = [
             InProcessServos::new(robot.clone(), ArmId::Arm1, clock.clone()),
             InProcessServos::new(robot.clone(), ArmId::Arm2, clock.clone()),
@@ -274,11 +296,45 @@ impl Episode {
         })
     }
 
-    fn t_s(now_ns: u64) -> f64 {
+    /// Simulated time since the episode started, s, of the stack-clock stamp `now_ns`.
+    pub fn t_s(now_ns: u64) -> f64 {
         now_ns.saturating_sub(EPOCH_NS) as f64 * 1e-9
     }
 
-    fn tick(&mut self, now_ns: u64) -> Result<(), HarvestEvalError> {
+    /// The stack clock now, ns (advances one control period per [`Episode::tick`]).
+    pub fn now_ns(&self) -> u64 {
+        self.clock.now_ns()
+    }
+
+    /// The simulated robot (and its world).
+    pub fn robot(&self) -> &SharedRobot {
+        &self.robot
+    }
+
+    /// The arms' latest published states.
+    pub fn arm_states(&self) -> &[Option<ArmState>; 2] {
+        &self.arm_states
+    }
+
+    /// The event log and the attempts so far.
+    pub fn recorder(&self) -> &Recorder {
+        &self.recorder
+    }
+
+    /// Hands in a detection set delivered to the vacuum supervisor at `deliver_ns` (sets are
+    /// delivered in the order handed in).
+    pub fn deliver(&mut self, deliver_ns: u64, set: Box<AppleDetections>) {
+        self.pending_sets.push_back((deliver_ns, set));
+    }
+
+    /// Holds the dispatch of new targets per arm (see `VacuumNode::hold_dispatch`).
+    pub fn hold_dispatch(&mut self, held: [bool; 2]) {
+        self.vacuum.hold_dispatch(held);
+    }
+
+    /// One control period at `now_ns` (= [`Episode::now_ns`]); advances the robot and the
+    /// clock.
+    pub fn tick(&mut self, now_ns: u64) -> Result<(), HarvestEvalError> {
         let t_s = Self::t_s(now_ns);
         let estop_at = self.config.emergency_stop_at_s;
         let estop = estop_at.is_some_and(|at| t_s >= at);
@@ -302,7 +358,7 @@ impl Episode {
         }
 
         // 1. Detections.
-        if now_ns >= self.next_capture_ns {
+        if self.config.detection_feed == DetectionFeed::Model && now_ns >= self.next_capture_ns {
             self.set_seq += 1;
             let set = {
                 let robot = self.robot.borrow();
@@ -502,7 +558,10 @@ impl Episode {
         }
     }
 
-    fn finished(&self) -> bool {
+    /// Nothing left to do: the vacuum supervisor has nothing assigned, dispatched or running,
+    /// both arms are idle and a detection set was processed since the last attempt ended (or,
+    /// with an emergency stop, its reaction is measured).
+    pub fn finished(&self) -> bool {
         if let Some(m) = &self.estop {
             return m.commanded_s.is_some()
                 && m.valves_closed_s.is_some()
@@ -516,7 +575,8 @@ impl Episode {
         arms_idle && self.vacuum.is_idle() && self.last_replan_ns > self.last_attempt_end_ns
     }
 
-    fn finish(mut self, truncated: bool) -> EpisodeOutcome {
+    /// Ends the episode: classifies the attempts and collects the outcome.
+    pub fn finish(mut self, truncated: bool) -> EpisodeOutcome {
         let end_ns = self.clock.now_ns();
         self.recorder.finalize();
         let robot = self.robot.borrow();

@@ -1,0 +1,627 @@
+//! The report of `harvest eval row` and its entry point [`run_eval_row`].
+//!
+//! Definitions:
+//! - *attempts* are targets taken by an arm (or dispatched and never taken); *attempted apples*
+//!   the true apples an attempt aimed at; *success rate per attempt* is harvested / attempts,
+//!   *per apple* harvested / attempted apples (Table 2's);
+//! - *cycle time per attempt* is the time the stops spent harvesting (from the first fresh
+//!   set after positioning to the stop done) over the attempts, the field's "average cycle time
+//!   per attempt" (paper 003, section 4.2: dual 5.97 s, single 8.29 s); the same with the
+//!   whole row (travel, parking, positioning, settling) is printed beside it;
+//! - *positioning ratio*: apples in reach (ground truth, at the start of each stop's harvest)
+//!   with the chosen platform offsets over those in reach with the platform at its fixed
+//!   position (stages at 0), same world, same moment, summed over the stops.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+use harvest_arm::node::ArmNodeConfig;
+use harvest_sim::row::RowScenario;
+use harvest_vacuum::pressure::PressureConfig;
+use serde::Serialize;
+
+use super::args::{DetectionsArg, EvalRowArgs};
+use super::error::RowEvalError;
+use super::perception_loop::FramePolicy;
+use super::runner::{RowOutcome, RowRunConfig, StopFigures, run_row};
+use super::truth::{Table3Cause, attempt_causes, missed_causes};
+use crate::harvest::calibration::pressure_for;
+use crate::harvest::timing::apply_timing;
+
+/// The rows of `sim/rows/`, by name.
+const ROW_PRESETS: [(&str, &str); 2] = [
+    (
+        "two_stops",
+        include_str!("../../../../sim/rows/two_stops.toml"),
+    ),
+    (
+        "three_sections",
+        include_str!("../../../../sim/rows/three_sections.toml"),
+    ),
+];
+
+/// Paper 003, Table 2: (orchard, attempted, success, 1st attempt, >= 2 attempts).
+pub const PAPER_TABLE_2: [(u32, u32, u32, u32, u32); 2] =
+    [(1, 322, 260, 222, 38), (2, 285, 227, 201, 26)];
+/// Paper 003, section 4.2: cycle time per attempt, dual and single arm, s.
+pub const PAPER_CYCLE_PER_ATTEMPT_S: (f64, f64) = (5.97, 8.29);
+
+/// Loads a row by preset name or file path.
+pub fn load_row(name: &str) -> Result<RowScenario, RowEvalError> {
+    let error = |source| RowEvalError::Row {
+        row: name.to_owned(),
+        source: Box::new(source),
+    };
+    match ROW_PRESETS.iter().find(|(preset, _)| *preset == name) {
+        Some((preset, text)) => {
+            RowScenario::from_toml_str(&format!("sim/rows/{preset}.toml"), text).map_err(error)
+        }
+        None => RowScenario::from_file(std::path::Path::new(name)).map_err(error),
+    }
+}
+
+/// One row run, summarized.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RowRunReport {
+    pub row: String,
+    pub seed: u64,
+    pub arms: u8,
+    pub apples_on_row: usize,
+    /// In reach (ground truth) at some stop with the chosen offsets.
+    pub reachable: usize,
+    /// On the row but never in reach: counted, not dropped.
+    pub out_of_reach: usize,
+    /// Detected at the stops (stop cycle, before positioning).
+    pub detected: usize,
+    pub attempts: u32,
+    pub apples_attempted: u32,
+    pub harvested: u32,
+    pub first_attempt_successes: u32,
+    /// In reach, never attempted, still on the tree.
+    pub missed: u32,
+    /// Table 3 causes of the failed attempts (an attempt may count under several perception
+    /// causes, as in the paper).
+    pub failures: BTreeMap<Table3Cause, u32>,
+    /// Failed attempts caused by perception (each once).
+    pub perception_failures: u32,
+    /// Failed attempts by the harvest evaluation's cause.
+    pub failure_detail: BTreeMap<String, u32>,
+    /// Missed apples by their perception flags.
+    pub missed_causes: BTreeMap<Table3Cause, u32>,
+    pub harvest_s: f64,
+    pub row_s: f64,
+    pub frames: u64,
+    pub truncated: bool,
+    pub safety_violations: u32,
+    pub stops: Vec<StopFigures>,
+}
+
+impl RowRunReport {
+    /// The summary of `outcome`.
+    pub fn of(outcome: &RowOutcome) -> Self {
+        let attempts = &outcome.episode.recorder.attempts;
+        let mut failures = BTreeMap::new();
+        let mut failure_detail = BTreeMap::new();
+        let mut perception_failures = 0;
+        for attempt in attempts {
+            let causes = attempt_causes(&outcome.world, attempt);
+            if causes.is_empty() {
+                continue;
+            }
+            if causes.iter().any(|c| {
+                matches!(
+                    c,
+                    Table3Cause::Exposure
+                        | Table3Cause::Occlusion
+                        | Table3Cause::Cluster
+                        | Table3Cause::Localization
+                        | Table3Cause::FalseDetection
+                )
+            }) {
+                perception_failures += 1;
+            }
+            for cause in causes {
+                *failures.entry(cause).or_insert(0) += 1;
+            }
+            let detail = attempt
+                .cause
+                .map_or_else(|| "unclassified".to_owned(), |c| format!("{c:?}"));
+            *failure_detail.entry(detail).or_insert(0) += 1;
+        }
+        let apples = &outcome.episode.apples;
+        let attempted: std::collections::BTreeSet<u32> = apples.iter().map(|a| a.apple).collect();
+        let missed: Vec<u32> = outcome
+            .reachable
+            .iter()
+            .copied()
+            .filter(|id| {
+                !attempted.contains(id)
+                    && outcome
+                        .world
+                        .apples()
+                        .get(*id as usize)
+                        .is_some_and(|a| a.state == harvest_sim::AppleState::OnTree)
+            })
+            .collect();
+        Self {
+            row: outcome.name.clone(),
+            seed: outcome.seed,
+            arms: outcome.arms,
+            apples_on_row: outcome.apples_on_row,
+            reachable: outcome.reachable.len(),
+            out_of_reach: outcome.apples_on_row - outcome.reachable.len(),
+            detected: outcome.stops.iter().map(|s| s.detected).sum(),
+            attempts: attempts.len() as u32,
+            apples_attempted: apples.len() as u32,
+            harvested: outcome.harvested() as u32,
+            first_attempt_successes: apples.iter().filter(|a| a.first_attempt_success).count()
+                as u32,
+            missed: missed.len() as u32,
+            failures,
+            perception_failures,
+            failure_detail,
+            missed_causes: missed_causes(&outcome.world, &missed),
+            harvest_s: outcome.stops.iter().map(|s| s.harvest_s).sum(),
+            row_s: outcome.row_s,
+            frames: outcome.frames,
+            truncated: outcome.row_report.is_none(),
+            safety_violations: outcome.episode.violations.len() as u32,
+            stops: outcome.stops.clone(),
+        }
+    }
+}
+
+/// Rows and seeds of one arm count, summed.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct ArmSummary {
+    pub arms: u8,
+    pub runs: u32,
+    pub apples_on_row: usize,
+    pub reachable: usize,
+    pub out_of_reach: usize,
+    pub attempts: u32,
+    pub apples_attempted: u32,
+    pub harvested: u32,
+    pub first_attempt_successes: u32,
+    pub missed: u32,
+    pub failures: BTreeMap<Table3Cause, u32>,
+    pub perception_failures: u32,
+    pub missed_causes: BTreeMap<Table3Cause, u32>,
+    pub harvest_s: f64,
+    pub row_s: f64,
+    pub reach_chosen: usize,
+    pub reach_fixed: usize,
+    pub truncated: u32,
+    pub safety_violations: u32,
+}
+
+impl ArmSummary {
+    fn add(&mut self, run: &RowRunReport) {
+        self.arms = run.arms;
+        self.runs += 1;
+        self.apples_on_row += run.apples_on_row;
+        self.reachable += run.reachable;
+        self.out_of_reach += run.out_of_reach;
+        self.attempts += run.attempts;
+        self.apples_attempted += run.apples_attempted;
+        self.harvested += run.harvested;
+        self.first_attempt_successes += run.first_attempt_successes;
+        self.missed += run.missed;
+        for (cause, n) in &run.failures {
+            *self.failures.entry(*cause).or_insert(0) += n;
+        }
+        self.perception_failures += run.perception_failures;
+        for (cause, n) in &run.missed_causes {
+            *self.missed_causes.entry(*cause).or_insert(0) += n;
+        }
+        self.harvest_s += run.harvest_s;
+        self.row_s += run.row_s;
+        self.reach_chosen += run
+            .stops
+            .iter()
+            .map(|s| s.truth_reachable_chosen)
+            .sum::<usize>();
+        self.reach_fixed += run
+            .stops
+            .iter()
+            .map(|s| s.truth_reachable_fixed)
+            .sum::<usize>();
+        self.truncated += u32::from(run.truncated);
+        self.safety_violations += run.safety_violations;
+    }
+
+    /// Harvested / attempts.
+    pub fn success_per_attempt(&self) -> Option<f64> {
+        ratio(self.harvested as f64, self.attempts as f64)
+    }
+
+    /// Harvested / attempted apples (Table 2's).
+    pub fn success_per_apple(&self) -> Option<f64> {
+        ratio(self.harvested as f64, self.apples_attempted as f64)
+    }
+
+    /// Harvesting time over attempts, s.
+    pub fn seconds_per_attempt(&self) -> Option<f64> {
+        ratio(self.harvest_s, self.attempts as f64)
+    }
+
+    /// Whole-row time over attempts, s.
+    pub fn row_seconds_per_attempt(&self) -> Option<f64> {
+        ratio(self.row_s, self.attempts as f64)
+    }
+
+    /// Whole-row time over harvested apples, s.
+    pub fn row_seconds_per_apple(&self) -> Option<f64> {
+        ratio(self.row_s, self.harvested as f64)
+    }
+
+    /// Truth reach with the chosen offsets over the fixed position.
+    pub fn positioning_ratio(&self) -> Option<f64> {
+        ratio(self.reach_chosen as f64, self.reach_fixed as f64)
+    }
+}
+
+fn ratio(a: f64, b: f64) -> Option<f64> {
+    (b > 0.0).then(|| a / b)
+}
+
+/// The report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RowEvalReport {
+    pub rows: Vec<String>,
+    pub seed: u64,
+    pub seeds: u32,
+    pub detections: DetectionsArg,
+    pub frame_interval_s: f64,
+    pub runs: Vec<RowRunReport>,
+    pub by_arms: Vec<ArmSummary>,
+}
+
+impl RowEvalReport {
+    /// Dual-arm time per attempt relative to single arm: `1 - dual / single`.
+    pub fn dual_saving(&self) -> Option<f64> {
+        let of = |arms| {
+            self.by_arms
+                .iter()
+                .find(|s| s.arms == arms)
+                .and_then(ArmSummary::seconds_per_attempt)
+        };
+        Some(1.0 - of(2)? / of(1)?)
+    }
+
+    /// The tables as text.
+    pub fn render_text(&self) -> String {
+        let mut out = String::new();
+        let pct =
+            |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{:.1} %", v * 100.0));
+        let s = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.2} s"));
+        let _ = writeln!(
+            out,
+            "harvest eval row: rows {}, seeds {}..{}, detections {:?}, frame at least every {} s while harvesting",
+            self.rows.join(", "),
+            self.seed,
+            self.seed + u64::from(self.seeds.max(1)) - 1,
+            self.detections,
+            self.frame_interval_s
+        );
+        let _ = writeln!(
+            out,
+            "\nper row run (truth: on row / in reach / out of reach)"
+        );
+        for run in &self.runs {
+            let _ = writeln!(
+                out,
+                "  {} seed {} arms {}: apples {}/{}/{}, detected {}, attempts {}, harvested {} \
+                 (missed in reach {}), harvest {:.1} s, row {:.1} s, frames {}{}{}",
+                run.row,
+                run.seed,
+                run.arms,
+                run.apples_on_row,
+                run.reachable,
+                run.out_of_reach,
+                run.detected,
+                run.attempts,
+                run.harvested,
+                run.missed,
+                run.harvest_s,
+                run.row_s,
+                run.frames,
+                if run.truncated { ", TRUNCATED" } else { "" },
+                if run.safety_violations > 0 {
+                    format!(", {} SAFETY VIOLATIONS", run.safety_violations)
+                } else {
+                    String::new()
+                }
+            );
+            for stop in &run.stops {
+                let _ = writeln!(
+                    out,
+                    "    stop {} @{:.2} m: platform ({:.2}, {:.2}) m, detected {}, reach det {}->{} \
+                     (out {}), truth fixed {} -> chosen {}, att {}, ok {}, {:.1} s",
+                    stop.stop,
+                    stop.trailer_m,
+                    stop.offset_m[0],
+                    stop.offset_m[1],
+                    stop.detected,
+                    stop.reachable_before,
+                    stop.reachable_after,
+                    stop.out_of_reach,
+                    stop.truth_reachable_fixed,
+                    stop.truth_reachable_chosen,
+                    stop.attempts,
+                    stop.harvested,
+                    stop.stop_s
+                );
+            }
+        }
+        let _ = writeln!(
+            out,
+            "\nTable 2 (structure of paper 003's), summed over rows and seeds"
+        );
+        let _ = writeln!(
+            out,
+            "  {:<14} {:>9} {:>14} {:>6} {:>6} {:>8} {:>10} {:>10} {:>10} {:>10}",
+            "",
+            "attempted",
+            "success",
+            "1st",
+            ">=2",
+            "attempts",
+            "ok/att",
+            "s/attempt",
+            "row s/att",
+            "row s/apple"
+        );
+        for (orchard, attempted, success, first, more) in PAPER_TABLE_2 {
+            let _ = writeln!(
+                out,
+                "  {:<14} {:>9} {:>14} {:>6} {:>6} {:>8} {:>10} {:>10} {:>10} {:>10}",
+                format!("paper orch. {orchard}"),
+                attempted,
+                format!(
+                    "{success} ({:.1} %)",
+                    f64::from(success) * 100.0 / f64::from(attempted)
+                ),
+                first,
+                more,
+                "-",
+                "-",
+                "-",
+                "-",
+                "-"
+            );
+        }
+        for (arms, paper_s) in [
+            (1u8, PAPER_CYCLE_PER_ATTEMPT_S.1),
+            (2, PAPER_CYCLE_PER_ATTEMPT_S.0),
+        ] {
+            let _ = writeln!(
+                out,
+                "  {:<14} {:>9} {:>14} {:>6} {:>6} {:>8} {:>10} {:>10} {:>10} {:>10}",
+                format!("paper {arms} arm"),
+                "-",
+                "-",
+                "-",
+                "-",
+                "-",
+                "-",
+                format!("{paper_s:.2} s"),
+                "-",
+                "-"
+            );
+        }
+        for sum in &self.by_arms {
+            let _ = writeln!(
+                out,
+                "  {:<14} {:>9} {:>14} {:>6} {:>6} {:>8} {:>10} {:>10} {:>10} {:>10}",
+                format!("sim {} arm", sum.arms),
+                sum.apples_attempted,
+                format!("{} ({})", sum.harvested, pct(sum.success_per_apple())),
+                sum.first_attempt_successes,
+                sum.harvested.saturating_sub(sum.first_attempt_successes),
+                sum.attempts,
+                pct(sum.success_per_attempt()),
+                s(sum.seconds_per_attempt()),
+                s(sum.row_seconds_per_attempt()),
+                s(sum.row_seconds_per_apple())
+            );
+        }
+        let paper_saving = 1.0 - PAPER_CYCLE_PER_ATTEMPT_S.0 / PAPER_CYCLE_PER_ATTEMPT_S.1;
+        let _ = writeln!(
+            out,
+            "  dual vs single arm, time per attempt: {} less (paper {:.1} % less; target >= 28 %)",
+            pct(self.dual_saving()),
+            paper_saving * 100.0
+        );
+        let _ = writeln!(
+            out,
+            "\nTable 3 (categories of paper 003's) over the failed attempts; perception causes \
+             from the target apple's flags (several may apply, as in the paper)"
+        );
+        let mut header = format!("  {:<14}", "");
+        for cause in Table3Cause::ALL {
+            let _ = write!(header, " {:>12}", cause.label());
+        }
+        let _ = writeln!(out, "{header} {:>12}", "perception");
+        let mut paper = format!("  {:<14}", "paper (videos)");
+        for cause in Table3Cause::ALL {
+            let _ = write!(
+                paper,
+                " {:>12}",
+                cause
+                    .paper_count()
+                    .map_or_else(|| "-".to_owned(), |n| n.to_string())
+            );
+        }
+        let _ = writeln!(out, "{paper} {:>12}", "-");
+        for sum in &self.by_arms {
+            let mut line = format!("  {:<14}", format!("sim {} arm", sum.arms));
+            for cause in Table3Cause::ALL {
+                let _ = write!(
+                    line,
+                    " {:>12}",
+                    sum.failures.get(&cause).copied().unwrap_or(0)
+                );
+            }
+            let _ = writeln!(out, "{line} {:>12}", sum.perception_failures);
+            let mut missed = format!("  {:<14}", format!("  missed {}", sum.missed));
+            for cause in Table3Cause::ALL {
+                let _ = write!(
+                    missed,
+                    " {:>12}",
+                    sum.missed_causes.get(&cause).copied().unwrap_or(0)
+                );
+            }
+            let _ = writeln!(out, "{missed}");
+        }
+        let _ = writeln!(
+            out,
+            "  (missed: in reach, never attempted, left on the tree; by the apple's flags)"
+        );
+        let _ = writeln!(
+            out,
+            "\nplatform positioning (ground truth, apples in reach summed over stops)"
+        );
+        for sum in &self.by_arms {
+            let _ = writeln!(
+                out,
+                "  sim {} arm: fixed position {}, chosen offsets {}, ratio {}; row: {} apples, {} in \
+                 reach, {} out of reach{}{}",
+                sum.arms,
+                sum.reach_fixed,
+                sum.reach_chosen,
+                sum.positioning_ratio()
+                    .map_or_else(|| "-".to_owned(), |r| format!("{r:.2}")),
+                sum.apples_on_row,
+                sum.reachable,
+                sum.out_of_reach,
+                if sum.truncated > 0 {
+                    format!(", {} runs TRUNCATED", sum.truncated)
+                } else {
+                    String::new()
+                },
+                if sum.safety_violations > 0 {
+                    format!(", {} SAFETY VIOLATIONS", sum.safety_violations)
+                } else {
+                    String::new()
+                }
+            );
+        }
+        out
+    }
+}
+
+/// Checks the arguments.
+fn validate(args: &EvalRowArgs) -> Result<(), RowEvalError> {
+    let invalid = |arg, value: String, reason| RowEvalError::InvalidArgument { arg, value, reason };
+    if args.rows.is_empty() {
+        return Err(invalid("--rows", String::new(), "name at least one row"));
+    }
+    if args.seeds == 0 {
+        return Err(invalid("--seeds", "0".to_owned(), "at least one seed"));
+    }
+    if args.arms.is_empty() {
+        return Err(invalid("--arms", String::new(), "name 1, 2 or both"));
+    }
+    for (arg, value) in [
+        ("--frame-interval-s", args.frame_interval_s),
+        ("--perception-latency-s", args.perception_latency_s),
+        ("--max-row-s", args.max_row_s),
+    ] {
+        if !(value.is_finite() && value > 0.0) {
+            return Err(invalid(arg, value.to_string(), "must be finite and > 0"));
+        }
+    }
+    Ok(())
+}
+
+/// Runs every row with every seed and arm count; writes the JSON report if asked.
+pub fn run_eval_row(args: &EvalRowArgs) -> Result<RowEvalReport, RowEvalError> {
+    validate(args)?;
+    let mut arms_list = args.arms.clone();
+    arms_list.sort_unstable();
+    arms_list.dedup();
+    let frames = FramePolicy {
+        harvest_interval_ns: (args.frame_interval_s * 1e9) as u64,
+        waiting_interval_ns: 500_000_000,
+        latency_ns: (args.perception_latency_s * 1e9) as u64,
+    };
+    let mut runs = Vec::new();
+    for name in &args.rows {
+        let mut row = load_row(name)?;
+        // The timing profile applies to every section's hardware (the row's world takes the
+        // first section's vacuum settings).
+        let mut arm_node = ArmNodeConfig::default();
+        let mut pressure = PressureConfig::default();
+        for scenario in &mut row.scenarios {
+            arm_node = ArmNodeConfig::default();
+            pressure = PressureConfig::default();
+            apply_timing(scenario, &mut arm_node, &mut pressure, args.timing);
+        }
+        let Some(first) = row.scenarios.first() else {
+            continue;
+        };
+        let pressure = pressure_for(&first.vacuum, pressure)
+            .map_err(crate::harvest::HarvestEvalError::from)?;
+        for k in 0..args.seeds {
+            for &arms in &arms_list {
+                let config = RowRunConfig {
+                    name: row.file.name.clone(),
+                    row: row.clone(),
+                    seed: args.seed + u64::from(k),
+                    arms,
+                    policy: args.policy.kind(),
+                    arm_node,
+                    pressure,
+                    detections: args.detections,
+                    frames,
+                    quiet_ns: args.stop_quiet_ms * 1_000_000,
+                    max_row_s: args.max_row_s,
+                };
+                let outcome = run_row(&config)?;
+                let report = RowRunReport::of(&outcome);
+                tracing::info!(
+                    row = %report.row,
+                    seed = report.seed,
+                    arms,
+                    attempts = report.attempts,
+                    harvested = report.harvested,
+                    frames = report.frames,
+                    "row done"
+                );
+                runs.push(report);
+            }
+        }
+    }
+    let mut by_arms: Vec<ArmSummary> = Vec::new();
+    for &arms in &arms_list {
+        let mut sum = ArmSummary {
+            arms,
+            ..ArmSummary::default()
+        };
+        for run in runs.iter().filter(|r| r.arms == arms) {
+            sum.add(run);
+        }
+        by_arms.push(sum);
+    }
+    let report = RowEvalReport {
+        rows: args.rows.clone(),
+        seed: args.seed,
+        seeds: args.seeds,
+        detections: args.detections,
+        frame_interval_s: args.frame_interval_s,
+        runs,
+        by_arms,
+    };
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&report).map_err(|e| RowEvalError::Write {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+        std::fs::write(path, text).map_err(|e| RowEvalError::Write {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+    }
+    Ok(report)
+}
