@@ -13,7 +13,7 @@ use harvest_ipc::allocation_counter::{self, CountingAllocator};
 use harvest_ipc::catalogue::{ARM_STATE, HARVEST_EVENTS};
 use harvest_ipc::control_loop::{Wake, run_control_loop};
 use harvest_ipc::payloads::{ArmState, HarvestEvent, HarvestEventKind, HarvestEventSource};
-use harvest_ipc::{Context, Domain, FixedString, Flow, HealthReporter, Payload, ScratchDomain};
+use harvest_ipc::{Context, FixedString, Flow, HealthReporter, Payload, ScratchDomain};
 
 #[global_allocator]
 static ALLOCATOR: CountingAllocator = CountingAllocator;
