@@ -22,6 +22,8 @@ pub mod render_rate;
 pub mod render_rgbd;
 pub mod render_thread;
 pub mod robot;
+#[cfg(test)]
+mod robot_test_moves;
 pub mod rosette_scan;
 pub mod row;
 pub mod row_world;

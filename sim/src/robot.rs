@@ -418,46 +418,16 @@ impl SimRobot {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::robot_test_moves::{DT, move_to, nearest_apple, run};
     use crate::orchard::AppleState;
     use crate::physics::ReleaseOutcome;
     use harvest_robot_model::kinematics::inverse;
-
-    const DT: f64 = 0.005;
 
     fn ideal() -> SimRobot {
         SimRobot::new(&Scenario::preset("ideal").expect("ideal"), 1).expect("robot")
     }
 
-    fn run(robot: &mut SimRobot, seconds: f64) -> Vec<WorldEvent> {
-        let mut all = Vec::new();
-        for _ in 0..(seconds / DT).round() as usize {
-            all.extend(robot.step(DT).expect("step"));
-        }
-        all
-    }
 
-    /// Streams set-points that move `arm` linearly in joint space to `goal` over `seconds`.
-    fn move_to(robot: &mut SimRobot, arm: ArmId, goal: [f64; 4], seconds: f64) -> Vec<WorldEvent> {
-        let (start, _) = robot.encoders(arm);
-        let steps = (seconds / DT).round() as usize;
-        let velocity: [f64; 4] = std::array::from_fn(|j| (goal[j] - start[j]) / seconds);
-        let mut events = Vec::new();
-        for k in 0..steps {
-            let s = k as f64 / steps as f64;
-            let position = std::array::from_fn(|j| start[j] + (goal[j] - start[j]) * s);
-            robot
-                .set_servo_setpoint(arm, position, velocity)
-                .expect("set-point");
-            events.extend(robot.step(DT).expect("step"));
-        }
-        for _ in 0..100 {
-            robot
-                .set_servo_setpoint(arm, goal, [0.0; 4])
-                .expect("set-point");
-            events.extend(robot.step(DT).expect("step"));
-        }
-        events
-    }
 
     #[test]
     fn starts_at_home_with_the_end_effector_given_by_eq_1() {
@@ -588,21 +558,7 @@ mod tests {
     fn a_scripted_pick_harvests_an_apple() {
         let mut robot = ideal();
         let params = *robot.arm_params(ArmId::Arm1);
-        let home_m = robot.end_effector_in_robot_m(ArmId::Arm1);
-        let apple = robot
-            .world()
-            .apples()
-            .iter()
-            .min_by(|a, b| {
-                let d = |x: &crate::orchard::Apple| {
-                    (0..3)
-                        .map(|i| (x.center_in_robot_m[i] - home_m[i]).powi(2))
-                        .sum::<f64>()
-                };
-                d(a).total_cmp(&d(b))
-            })
-            .cloned()
-            .expect("an apple");
+        let apple = nearest_apple(&robot, ArmId::Arm1);
         let c = apple.center_in_robot_m;
         let pick = [c[0] - apple.radius_m, c[1], c[2]];
         let q = inverse(&params, pick).expect("reachable").to_array();

@@ -592,42 +592,16 @@ mod restart_tests {
     //! A restart of the simulator in the middle of a pick: the state is stored, the robot
     //! dropped, a new one generated from the same scenario and seed and restored from the file.
     use super::*;
+    use crate::robot_test_moves::{DT, move_to, nearest_apple, run};
     use crate::physics::{ReleaseOutcome, StepInputs, WorldEvent};
     use crate::scenario::Scenario;
     use harvest_robot_model::kinematics::inverse;
-
-    const DT: f64 = 0.005;
 
     fn scenario() -> Scenario {
         Scenario::preset("ideal").expect("ideal")
     }
 
-    fn run(robot: &mut SimRobot, seconds: f64) -> Vec<WorldEvent> {
-        let mut all = Vec::new();
-        for _ in 0..(seconds / DT).round() as usize {
-            all.extend(robot.step(DT).expect("step"));
-        }
-        all
-    }
 
-    /// Streams set-points that move `arm` linearly in joint space to `goal` over `seconds`.
-    fn move_to(robot: &mut SimRobot, arm: ArmId, goal: [f64; 4], seconds: f64) -> Vec<WorldEvent> {
-        let (start, _) = robot.encoders(arm);
-        let steps = (seconds / DT).round() as usize;
-        let velocity: [f64; 4] = std::array::from_fn(|j| (goal[j] - start[j]) / seconds);
-        let mut events = Vec::new();
-        for k in 0..=steps {
-            let s = k as f64 / steps as f64;
-            let position = std::array::from_fn(|j| start[j] + (goal[j] - start[j]) * s);
-            let velocity = if k == steps { [0.0; 4] } else { velocity };
-            robot
-                .set_servo_setpoint(arm, position, velocity)
-                .expect("set-point");
-            events.extend(robot.step(DT).expect("step"));
-        }
-        events.extend(run(robot, 0.3));
-        events
-    }
 
     /// Stores `robot`'s state, then builds the robot a restarted sim would from the file.
     fn restart(robot: &SimRobot, path: &Path) -> SimRobot {
@@ -657,21 +631,7 @@ mod restart_tests {
         let path = dir.join("d.world.toml");
         let mut robot = SimRobot::new(&scenario(), 1).expect("robot");
         let params = *robot.arm_params(ArmId::Arm1);
-        let home_m = robot.end_effector_in_robot_m(ArmId::Arm1);
-        let apple = robot
-            .world()
-            .apples()
-            .iter()
-            .min_by(|a, b| {
-                let d = |x: &crate::orchard::Apple| {
-                    (0..3)
-                        .map(|i| (x.center_in_robot_m[i] - home_m[i]).powi(2))
-                        .sum::<f64>()
-                };
-                d(a).total_cmp(&d(b))
-            })
-            .cloned()
-            .expect("an apple");
+        let apple = nearest_apple(&robot, ArmId::Arm1);
         let c = apple.center_in_robot_m;
         let q = inverse(&params, [c[0] - apple.radius_m, c[1], c[2]])
             .expect("reachable")

@@ -83,7 +83,7 @@ pub enum StopPhase {
 }
 
 /// One stop's figures.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct StopReport {
     /// 1-based.
     pub stop: u32,

@@ -13,6 +13,7 @@
 
 use crate::error::BenchError;
 use crate::message::{BenchMessage, Phase, fill_byte_lines, phase_of};
+use harvest_ipc::MonotonicClock;
 use serde::Serialize;
 
 /// The sender's write before each send (see the module docs).
@@ -87,6 +88,25 @@ impl PayloadWriter {
                 message.set_phase(phase);
             }
         }
+    }
+
+    /// [`write`](Self::write), then the header of a transport that does not stamp it itself:
+    /// `msg_seq`, `capture_ns` read before writing and `publish_ns` read after, which it
+    /// returns (the start of the measured latency).
+    pub fn write_stamped<T: BenchMessage>(
+        &mut self,
+        message: &mut T,
+        msg_seq: u64,
+        phase: Phase,
+    ) -> u64 {
+        let capture_ns = MonotonicClock::read_ns();
+        self.write(message, msg_seq, phase);
+        let header = message.header_mut();
+        header.msg_seq = msg_seq;
+        header.capture_ns = capture_ns;
+        let publish_ns = MonotonicClock::read_ns();
+        header.publish_ns = publish_ns;
+        publish_ns
     }
 }
 

@@ -190,13 +190,7 @@ impl<T: BenchMessage> CycloneDdsSender<T> {
 impl<T: BenchMessage> SendPort<T> for CycloneDdsSender<T> {
     fn send(&mut self, phase: Phase, writer: &mut PayloadWriter) -> Result<u64, BenchError> {
         let msg_seq = self.next_seq;
-        let capture_ns = MonotonicClock::read_ns();
-        writer.write(&mut *self.message, msg_seq, phase);
-        let header = self.message.header_mut();
-        header.msg_seq = msg_seq;
-        header.capture_ns = capture_ns;
-        let publish_ns = MonotonicClock::read_ns();
-        header.publish_ns = publish_ns;
+        let publish_ns = writer.write_stamped(&mut *self.message, msg_seq, phase);
         self.encoded.clear();
         self.message
             .encode(&mut self.encoded)

@@ -130,14 +130,7 @@ impl<T: BenchMessage> SendPort<T> for RawSender<T> {
         // SAFETY: `T: Payload` guarantees every bit pattern is a valid `T`, and loaned
         // shared-memory bytes are always initialized (as in harvest_ipc's Publisher::loan).
         let mut sample = unsafe { uninit.assume_init() };
-        let capture_ns = MonotonicClock::read_ns();
-        let message = sample.payload_mut();
-        writer.write(message, msg_seq, phase);
-        let header = message.header_mut();
-        header.msg_seq = msg_seq;
-        header.capture_ns = capture_ns;
-        let publish_ns = MonotonicClock::read_ns();
-        header.publish_ns = publish_ns;
+        let publish_ns = writer.write_stamped(sample.payload_mut(), msg_seq, phase);
         sample
             .send()
             .map_err(|error| self.services.error("send", error))?;

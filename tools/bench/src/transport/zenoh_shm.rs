@@ -93,13 +93,7 @@ impl<T: BenchMessage> SendPort<T> for ZenohShmSender<T> {
                 "the provider returned a buffer of the wrong size or alignment",
             )
         })?;
-        let capture_ns = MonotonicClock::read_ns();
-        writer.write(message, msg_seq, phase);
-        let header = message.header_mut();
-        header.msg_seq = msg_seq;
-        header.capture_ns = capture_ns;
-        let publish_ns = MonotonicClock::read_ns();
-        header.publish_ns = publish_ns;
+        let publish_ns = writer.write_stamped(message, msg_seq, phase);
         self.publisher
             .put(buffer)
             .wait()

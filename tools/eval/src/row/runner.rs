@@ -23,7 +23,7 @@ use std::collections::BTreeSet;
 
 use harvest_arm::node::ArmNodeConfig;
 use harvest_field::{
-    FieldAction, FieldView, RowReport, StageTravel, StopCycle, StopCycleConfig, StopPhase,
+    FieldAction, FieldView, RowReport, StageTravel, StopCycle, StopCycleConfig, StopPhase, StopReport,
 };
 use harvest_ipc::payloads::ArmPhase as PhaseCode;
 use harvest_robot_model::params::ArmParams;
@@ -73,18 +73,10 @@ pub struct RowRunConfig {
 /// One stop's figures.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StopFigures {
-    pub stop: u32,
-    /// Trailer position along the row, m.
-    pub trailer_m: f64,
-    /// Platform stages chosen `[in_out, up_down]`, m.
-    pub offset_m: [f64; 2],
-    /// The stop cycle's counts (from detections): detected before positioning, in reach
-    /// before, predicted, after positioning (fresh set), detected out of reach.
-    pub detected: usize,
-    pub reachable_before: usize,
-    pub reachable_predicted: usize,
-    pub reachable_after: usize,
-    pub out_of_reach: usize,
+    /// The stop cycle's own report (counts from detections: detected before positioning, in
+    /// reach before, predicted, after positioning, out of reach; the chosen offsets).
+    #[serde(flatten)]
+    pub cycle: StopReport,
     /// Ground truth when harvesting began: apples on the tree in reach with the chosen offsets,
     /// and with the platform at its fixed position (stages at 0).
     pub truth_reachable_chosen: usize,
@@ -320,20 +312,13 @@ pub fn run_row(config: &RowRunConfig) -> Result<RowOutcome, RowEvalError> {
                         "stop finished"
                     );
                     stops_out.push(StopFigures {
-                        stop: report.stop,
-                        trailer_m: report.trailer_m,
-                        offset_m: report.offset_m,
-                        detected: report.detected,
-                        reachable_before: report.reachable_before,
-                        reachable_predicted: report.reachable_predicted,
-                        reachable_after: report.reachable_after,
-                        out_of_reach: report.out_of_reach,
                         truth_reachable_chosen: truth_at_start.0,
                         truth_reachable_fixed: truth_at_start.1,
                         attempts,
                         harvested,
                         harvest_s: t_s - from_s,
                         stop_s: report.duration_ns as f64 * 1e-9,
+                        cycle: report,
                     });
                     harvest_started_ns = None;
                     truth_at_start = (0, 0);
