@@ -25,7 +25,7 @@ fn a_short_soak_explains_its_one_kill() {
             "--warmup",
             "12s",
             "--kill-every",
-            "14s",
+            "10s",
             "--max-kills",
             "1",
             "--ctl-every",

@@ -448,8 +448,16 @@ slope over the second half (instance judged):"
                 .map_or("-".to_owned(), |n| n.to_string()),
             self.violations_seen
         );
-        for line in &self.stack.violation_lines {
+        const SHOWN_VIOLATIONS: usize = 10;
+        for line in self.stack.violation_lines.iter().take(SHOWN_VIOLATIONS) {
             let _ = writeln!(out, "  VIOLATION {line}");
+        }
+        if self.stack.violation_lines.len() > SHOWN_VIOLATIONS {
+            let _ = writeln!(
+                out,
+                "  ... {} more (--out keeps them all)",
+                self.stack.violation_lines.len() - SHOWN_VIOLATIONS
+            );
         }
         let refused = self.ctl.iter().filter(|c| c.exit_code == Some(1)).count();
         let _ = writeln!(
