@@ -69,6 +69,12 @@ enum Command {
     #[cfg(feature = "sim-tools")]
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Soak: the default stack in a domain of its own for --duration under random SIGKILLs,
+    /// operator commands and bad inputs; reports restarts, RSS and descriptors per process,
+    /// shared-memory files, recorder drops, harvested vs ground truth, safety violations, and
+    /// exits 1 when a verdict fails.
+    #[cfg(feature = "sim-tools")]
+    Soak(harvest_bench::SoakArgs),
     /// The sending process of one benchmark case (started by `harvest bench ipc`).
     #[cfg(feature = "sim-tools")]
     #[command(name = "bench-peer", hide = true)]
@@ -185,6 +191,8 @@ impl Cli {
             Command::Bench(_) => "bench",
             #[cfg(feature = "sim-tools")]
             Command::Eval(_) => "eval",
+            #[cfg(feature = "sim-tools")]
+            Command::Soak(_) => "soak",
             Command::Recorder(_) => "recorder",
             Command::Foxglove(_) => "foxglove",
             Command::Laser(_) => "laser",
@@ -263,6 +271,16 @@ impl Cli {
                     .context("pipeline benchmark")?;
                 print!("{}", report.table());
                 Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Soak(args) => {
+                let report = harvest_bench::run_soak(&args).context("soak")?;
+                print!("{}", report.render());
+                Ok(if report.passed() {
+                    ExitCode::SUCCESS
+                } else {
+                    ExitCode::FAILURE
+                })
             }
             #[cfg(feature = "sim-tools")]
             Command::Eval(EvalCommand::Perception(args)) => {

@@ -12,6 +12,9 @@
 //! - [`run_bench_peer`] / [`BenchPeerArgs`]: the hidden peer subcommand.
 //! - [`run_bench_pipeline`] / [`BenchPipelineArgs`]: `harvest bench pipeline`, per-hop latency
 //!   in a running stack and the arm control loop's jitter ([`pipeline`]).
+//! - [`run_soak`] / [`SoakArgs`]: `harvest soak`, the stack for a long time under kills,
+//!   operator commands and bad inputs, with memory, descriptors and shared memory sampled
+//!   ([`soak`]).
 
 pub mod affinity;
 pub mod bench_payload;
@@ -26,6 +29,7 @@ pub mod pipeline;
 pub mod report;
 pub mod run;
 pub mod sender_write;
+pub mod soak;
 pub mod socket_io;
 pub mod stats;
 pub mod svg;
@@ -41,4 +45,5 @@ pub use pipeline::{BenchPipelineArgs, PipelineComparison, PipelineReport, run_be
 pub use report::BenchReport;
 pub use run::run_bench_ipc;
 pub use sender_write::SenderWrite;
+pub use soak::{SoakArgs, SoakReport, run_soak};
 pub use svg::render_svg;

@@ -1,0 +1,140 @@
+//! The bad inputs the soak writes into the stack's channels itself: the channels that accept
+//! more than one writer (`operator/command`, `harvest/events`, `system/health`; the others refuse
+//! a second publisher). Every payload is any-bit-pattern (harvest_ipc::any_bit_pattern), so random
+//! bytes in every field are a message a buggy or hostile writer could send.
+
+use harvest_ipc::catalogue::{HARVEST_EVENTS, OPERATOR_COMMAND, PROCESS_HEALTH};
+use harvest_ipc::payloads::{HarvestEvent, OperatorCommand, ProcessHealth, ProcessRunState};
+use harvest_ipc::wire_code::WireCode;
+use harvest_ipc::{Context, FixedString, MonotonicClock, Payload, Publisher};
+use rand::rngs::SmallRng;
+use rand::{Rng, RngCore};
+
+/// An unknown `HarvestEventKind` code.
+const UNKNOWN_EVENT_KIND: u8 = 0xEE;
+/// An unknown `OperatorCommandCode`.
+const UNKNOWN_COMMAND_CODE: u16 = 0xBEEF;
+
+/// The soak's writers into the stack's shared channels (each None when the channel refused it:
+/// all writer slots taken).
+pub struct BadInputWriters {
+    operator: Option<Publisher<OperatorCommand>>,
+    events: Option<Publisher<HarvestEvent>>,
+    health: Option<Publisher<ProcessHealth>>,
+}
+
+impl BadInputWriters {
+    pub fn open(context: &Context) -> Self {
+        fn open<T: Payload>(
+            context: &Context,
+            channel: harvest_ipc::Channel<T>,
+        ) -> Option<Publisher<T>> {
+            match context.publisher(channel) {
+                Ok(publisher) => Some(publisher),
+                Err(error) => {
+                    tracing::warn!(topic = channel.spec.topic, %error, "no bad inputs on this channel");
+                    None
+                }
+            }
+        }
+        Self {
+            operator: open(context, OPERATOR_COMMAND),
+            events: open(context, HARVEST_EVENTS),
+            health: open(context, PROCESS_HEALTH),
+        }
+    }
+
+    /// Random bytes in every field of an operator command.
+    pub fn garbage_operator_command(&mut self, rng: &mut SmallRng) -> Result<String, String> {
+        let publisher = self
+            .operator
+            .as_mut()
+            .ok_or("operator/command refused the soak")?;
+        publisher
+            .publish_with(rng.random(), |command| fill_random(command, rng))
+            .map(|_| "random bytes on operator/command".to_owned())
+            .map_err(|error| error.to_string())
+    }
+
+    /// The real token, an unknown command code, a NaN value.
+    pub fn unknown_command_code(
+        &mut self,
+        rng: &mut SmallRng,
+        token: &str,
+    ) -> Result<String, String> {
+        let publisher = self
+            .operator
+            .as_mut()
+            .ok_or("operator/command refused the soak")?;
+        publisher
+            .publish_with(MonotonicClock::read_ns(), |command| {
+                fill_random(command, rng);
+                command.code = UNKNOWN_COMMAND_CODE;
+                command.value = f64::NAN;
+                command.platform_target_m = [f64::INFINITY, f64::NAN];
+                command.token = FixedString::new(token);
+                command.client = FixedString::new("soak bad input");
+            })
+            .map(|_| format!("code {UNKNOWN_COMMAND_CODE:#x} with the real token, NaN value"))
+            .map_err(|error| error.to_string())
+    }
+
+    /// Random bytes in a harvest event whose kind is an unknown code (a known kind with random
+    /// fields would be counted by the harvest summary as a real event).
+    pub fn garbage_harvest_event(&mut self, rng: &mut SmallRng) -> Result<String, String> {
+        let publisher = self
+            .events
+            .as_mut()
+            .ok_or("harvest/events refused the soak")?;
+        publisher
+            .publish_with(rng.random(), |event| {
+                fill_random(event, rng);
+                event.kind = WireCode::from_raw(UNKNOWN_EVENT_KIND);
+            })
+            .map(|_| format!("random bytes on harvest/events, kind {UNKNOWN_EVENT_KIND:#x}"))
+            .map_err(|error| error.to_string())
+    }
+
+    /// Random bytes in a heartbeat.
+    pub fn garbage_heartbeat(&mut self, rng: &mut SmallRng) -> Result<String, String> {
+        let publisher = self
+            .health
+            .as_mut()
+            .ok_or("system/health refused the soak")?;
+        publisher
+            .publish_with(rng.random(), |beat| fill_random(beat, rng))
+            .map(|_| "random bytes on system/health".to_owned())
+            .map_err(|error| error.to_string())
+    }
+
+    /// A heartbeat named `process` with a pid that is not its own, state degraded.
+    pub fn spoofed_heartbeat(&mut self, process: &str, wrong_pid: u32) -> Result<String, String> {
+        let publisher = self
+            .health
+            .as_mut()
+            .ok_or("system/health refused the soak")?;
+        publisher
+            .publish_with(MonotonicClock::read_ns(), |beat| {
+                beat.process_name = FixedString::new(process);
+                beat.pid = wrong_pid;
+                beat.run_state = WireCode::new(ProcessRunState::Degraded);
+                beat._reserved = [0; 3];
+                beat.main_channel_count = u64::MAX;
+                beat.detail_value = u64::MAX;
+                beat.detail = FixedString::new("spoofed by the soak");
+                beat.deadline_misses = u64::MAX;
+            })
+            .map(|_| format!("heartbeat as {process:?} with pid {wrong_pid}, degraded"))
+            .map_err(|error| error.to_string())
+    }
+}
+
+/// Random bytes over the whole payload (the header is stamped by the send).
+fn fill_random<T: Payload>(value: &mut T, rng: &mut SmallRng) {
+    // SAFETY: `T: Payload` requires `T: AnyBitPattern` (derived and checked at compile time: no
+    // padding, every bit pattern a valid value), so any bytes written over it leave a valid `T`.
+    let bytes = unsafe {
+        std::slice::from_raw_parts_mut((value as *mut T).cast::<u8>(), std::mem::size_of::<T>())
+    };
+    rng.fill_bytes(bytes);
+}
