@@ -418,16 +418,14 @@ impl SimRobot {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::robot_test_moves::{DT, move_to, nearest_apple, run};
     use crate::orchard::AppleState;
     use crate::physics::ReleaseOutcome;
+    use crate::robot_test_moves::{DT, move_to, nearest_apple, run};
     use harvest_robot_model::kinematics::inverse;
 
     fn ideal() -> SimRobot {
         SimRobot::new(&Scenario::preset("ideal").expect("ideal"), 1).expect("robot")
     }
-
-
 
     #[test]
     fn starts_at_home_with_the_end_effector_given_by_eq_1() {

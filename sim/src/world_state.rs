@@ -592,16 +592,14 @@ mod restart_tests {
     //! A restart of the simulator in the middle of a pick: the state is stored, the robot
     //! dropped, a new one generated from the same scenario and seed and restored from the file.
     use super::*;
-    use crate::robot_test_moves::{DT, move_to, nearest_apple, run};
     use crate::physics::{ReleaseOutcome, StepInputs, WorldEvent};
+    use crate::robot_test_moves::{move_to, nearest_apple, run};
     use crate::scenario::Scenario;
     use harvest_robot_model::kinematics::inverse;
 
     fn scenario() -> Scenario {
         Scenario::preset("ideal").expect("ideal")
     }
-
-
 
     /// Stores `robot`'s state, then builds the robot a restarted sim would from the file.
     fn restart(robot: &SimRobot, path: &Path) -> SimRobot {

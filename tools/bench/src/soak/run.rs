@@ -40,7 +40,7 @@ pub fn run_soak(args: &SoakArgs) -> Result<SoakReport, SoakError> {
             source,
         })?,
     };
-    let domain = Domain::unique("soak");
+    let domain = harvest_ipc::ScratchDomain::new("soak");
     let scratch = std::env::temp_dir().join(format!("harvest-soak-{}", domain.name()));
     std::fs::create_dir_all(&scratch).map_err(|source| SoakError::File {
         path: scratch.clone(),
@@ -77,7 +77,7 @@ pub fn run_soak(args: &SoakArgs) -> Result<SoakReport, SoakError> {
     // Whatever happened: the world state file of the domain, the scratch directory.
     let state_file = harvest_sim::world_state::default_state_path(&domain);
     let _ = std::fs::remove_file(&state_file);
-    crate::run::remove_domain(&domain);
+    domain.remove_unused();
     if !args.keep_files {
         if let Err(error) = std::fs::remove_dir_all(&scratch) {
             tracing::warn!(path = %scratch.display(), %error, "scratch directory not removed");

@@ -338,7 +338,7 @@ impl RowEvalReport {
                     out,
                     "    stop {} @{:.2} m: platform ({:.2}, {:.2}) m, detected {}, reach det {}->{} \
                      (out {}), truth fixed {} -> chosen {}, att {}, ok {}, {:.1} s",
-                    stop.stop,
+                    stop.cycle.stop,
                     stop.cycle.trailer_m,
                     stop.cycle.offset_m[0],
                     stop.cycle.offset_m[1],

@@ -23,7 +23,8 @@ use std::collections::BTreeSet;
 
 use harvest_arm::node::ArmNodeConfig;
 use harvest_field::{
-    FieldAction, FieldView, RowReport, StageTravel, StopCycle, StopCycleConfig, StopPhase, StopReport,
+    FieldAction, FieldView, RowReport, StageTravel, StopCycle, StopCycleConfig, StopPhase,
+    StopReport,
 };
 use harvest_ipc::payloads::ArmPhase as PhaseCode;
 use harvest_robot_model::params::ArmParams;
