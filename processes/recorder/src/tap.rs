@@ -1,5 +1,6 @@
 //! A tap on one catalogue channel: a subscriber with the channel's largest buffer whose
-//! samples are stamped on receipt, encoded with `Payload::encode` and queued for the writer.
+//! samples are stamped on receipt, encoded with `Payload::encode` (the one copy out of shared
+//! memory) and queued for the writer; the view thread shares that buffer.
 
 use crate::writer_thread::{QueuedMessage, WriterHandle};
 use harvest_ipc::error::{OpenChannelError, ReceiveError};
@@ -7,6 +8,7 @@ use harvest_ipc::{
     Channel, Context, Ipc, MonotonicClock, Payload, Subscriber, WaitSetGuard, Waiter,
 };
 use std::cell::Cell;
+use std::sync::Arc;
 
 /// Counters of one tapped channel.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -95,6 +97,7 @@ impl<T: Payload> Tap for TypedTap<T> {
                 writer.give_back(data);
                 continue;
             }
+            let data = Arc::new(data);
             writer.offer_view(self.topic_index, self.topic(), log_time_ns, &data);
             let header = sample.header();
             let message = QueuedMessage {

@@ -4,13 +4,14 @@
 //! Foxglove or Lichtblick as it is.
 //!
 //! The receiving thread offers each encoded message of a mapped channel ([`ViewFeed::offer`]);
-//! what the channel's viewing rate admits is copied to this thread over a bounded queue (bounded
-//! in bytes too: at most two camera frames), decoded, mapped (the camera image downscaled and
+//! what the channel's viewing rate admits goes to this thread over a bounded queue (bounded in
+//! bytes too: at most two camera frames) as a shared handle on the writer's buffer, not a copy
+//! ([`MessageBytes`]), decoded, mapped (the camera image downscaled and
 //! JPEG-encoded) and queued for the writer like any message. When this thread falls behind, its
 //! input is dropped and counted: the raw channels never wait for the view. Mapped messages carry
 //! the raw message's log time (monotonic ns), so both share one timeline in the file.
 
-use crate::writer_thread::{Enqueuer, QueuedMessage};
+use crate::writer_thread::{Enqueuer, MessageBytes, QueuedMessage};
 use harvest_foxglove_mapping::encoded::is_mapped;
 use harvest_foxglove_mapping::topics::{self, MappedSink, Topic, TopicDescription, encode_into};
 use harvest_foxglove_mapping::{
@@ -59,7 +60,7 @@ fn foreign_channel(topic: &TopicDescription) -> ForeignChannel {
 struct ViewInput {
     topic: &'static str,
     log_time_ns: u64,
-    data: Vec<u8>,
+    data: MessageBytes,
 }
 
 /// What the view thread did.
@@ -131,9 +132,15 @@ impl ViewFeed {
         })
     }
 
-    /// Offers one encoded message of the catalogue topic `index`: copied to the view thread when
-    /// the topic is mapped, its viewing rate admits it and the thread keeps up.
-    pub fn offer(&mut self, index: usize, topic: &'static str, log_time_ns: u64, data: &[u8]) {
+    /// Offers one encoded message of the catalogue topic `index`: shared with the view thread
+    /// when the topic is mapped, its viewing rate admits it and the thread keeps up.
+    pub fn offer(
+        &mut self,
+        index: usize,
+        topic: &'static str,
+        log_time_ns: u64,
+        data: &MessageBytes,
+    ) {
         let Some(limit) = self.limits.get_mut(&index) else {
             return;
         };
@@ -149,7 +156,7 @@ impl ViewFeed {
         let input = ViewInput {
             topic,
             log_time_ns,
-            data: data.to_vec(),
+            data: Arc::clone(data),
         };
         if let Err(error) = self.inputs.try_send(input) {
             let input = match error {
@@ -207,7 +214,7 @@ impl MappedSink for RecordingSink {
             sequence: *sequence,
             log_time_ns,
             publish_time_ns: log_time_ns,
-            data: std::mem::take(&mut self.buffer),
+            data: Arc::new(std::mem::take(&mut self.buffer)),
         };
         if self.enqueuer.try_enqueue(queued) {
             self.report.written += 1;
@@ -234,6 +241,7 @@ fn run(
                 tracing::warn!(%error, "cannot map a recorded message for the Foxglove view");
             }
         }
+        sink.enqueuer.release(input.data);
     }
     sink.report
 }

@@ -7,6 +7,10 @@
 //! dropped and counted, so a slow disk never stalls receiving (nor, through iceoryx2's safe
 //! overflow, any publisher).
 //!
+//! A queued message's bytes are shared ([`MessageBytes`]): the view thread holds the same
+//! buffer as the writer instead of a copy of it (a camera frame is 6.8 MB). Whichever of the two
+//! lets go of a buffer last returns it to the pool ([`reclaim`]).
+//!
 //! A full disk does not end the recording: the writer holds disk space ahead of what it writes
 //! ([`crate::disk_space`]), so when the disk fills up it finishes the open segment (a complete
 //! MCAP file ending with a `harvest.disk_full` record) and pauses. While paused, messages are
@@ -59,6 +63,15 @@ pub struct OutputSettings {
     pub disk_full_retry: Duration,
 }
 
+/// An encoded message's bytes, shared by the writer and the view thread without copying.
+pub type MessageBytes = Arc<Vec<u8>>;
+
+/// Gives back the buffer of `bytes` when this is its last holder (`None` while another thread
+/// still holds it: that one reclaims it when done).
+pub fn reclaim(bytes: MessageBytes) -> Option<Vec<u8>> {
+    Arc::into_inner(bytes)
+}
+
 /// One encoded message on its way to the file.
 #[derive(Debug)]
 pub struct QueuedMessage {
@@ -70,7 +83,7 @@ pub struct QueuedMessage {
     pub log_time_ns: u64,
     /// `header.publish_ns`.
     pub publish_time_ns: u64,
-    pub data: Vec<u8>,
+    pub data: MessageBytes,
 }
 
 enum Command {
@@ -128,6 +141,8 @@ pub enum WriteError {
 pub struct WriterHandle {
     commands: SyncSender<Command>,
     recycled: Receiver<Vec<u8>>,
+    /// What other threads holding a message's buffer last return it with.
+    recycle: Sender<Vec<u8>>,
     free_small: Vec<Vec<u8>>,
     free_large: Vec<Vec<u8>>,
     queued_bytes: Arc<AtomicUsize>,
@@ -197,7 +212,10 @@ impl WriterHandle {
         let thread_queued = queued_bytes.clone();
         let thread = std::thread::Builder::new()
             .name("recorder-writer".to_owned())
-            .spawn(move || state.run(command_receiver, recycle, thread_queued, thread_failed))
+            .spawn({
+                let recycle = recycle.clone();
+                move || state.run(command_receiver, recycle, thread_queued, thread_failed)
+            })
             .map_err(|source| WriteError::CreateFile {
                 dir: PathBuf::from("<writer thread>"),
                 source,
@@ -205,6 +223,7 @@ impl WriterHandle {
         Ok(Self {
             commands,
             recycled,
+            recycle,
             free_small: Vec::new(),
             free_large: Vec::new(),
             queued_bytes,
@@ -221,8 +240,15 @@ impl WriterHandle {
         self.view = Some(view);
     }
 
-    /// Offers an encoded message of catalogue topic `index` to the mapped channels, if any.
-    pub fn offer_view(&mut self, index: usize, topic: &'static str, log_time_ns: u64, data: &[u8]) {
+    /// Offers an encoded message of catalogue topic `index` to the mapped channels, if any (they
+    /// share `data`, they do not copy it).
+    pub fn offer_view(
+        &mut self,
+        index: usize,
+        topic: &'static str,
+        log_time_ns: u64,
+        data: &MessageBytes,
+    ) {
         if let Some(view) = self.view.as_mut() {
             view.offer(index, topic, log_time_ns, data);
         }
@@ -285,12 +311,19 @@ impl WriterHandle {
         }
     }
 
+    /// Returns a shared buffer that was not sent, unless another thread still holds it.
+    fn give_back_shared(&mut self, bytes: MessageBytes) {
+        if let Some(buffer) = reclaim(bytes) {
+            self.give_back(buffer);
+        }
+    }
+
     /// Queues a message; `false` (and the buffer returned to the pool) when the queue is full or
     /// the writer has failed.
     pub fn try_enqueue(&mut self, message: QueuedMessage) -> bool {
         let bytes = message.data.len();
         if !self.has_room(bytes) || self.has_failed() {
-            self.give_back(message.data);
+            self.give_back_shared(message.data);
             return false;
         }
         self.queued_bytes.fetch_add(bytes, Ordering::Relaxed);
@@ -299,7 +332,7 @@ impl WriterHandle {
             Err(TrySendError::Full(Command::Message(message)))
             | Err(TrySendError::Disconnected(Command::Message(message))) => {
                 self.queued_bytes.fetch_sub(bytes, Ordering::Relaxed);
-                self.give_back(message.data);
+                self.give_back_shared(message.data);
                 false
             }
             Err(_) => false,
@@ -314,6 +347,7 @@ impl WriterHandle {
             queued_bytes: self.queued_bytes.clone(),
             max_queued_bytes: self.max_queued_bytes,
             failed: self.failed.clone(),
+            recycle: self.recycle.clone(),
         }
     }
 
@@ -339,9 +373,19 @@ pub struct Enqueuer {
     queued_bytes: Arc<AtomicUsize>,
     max_queued_bytes: usize,
     failed: Arc<AtomicBool>,
+    recycle: Sender<Vec<u8>>,
 }
 
 impl Enqueuer {
+    /// Lets go of a message's shared buffer: the last holder returns it to the receiving
+    /// thread's pool.
+    pub fn release(&self, bytes: MessageBytes) {
+        if let Some(buffer) = reclaim(bytes) {
+            // Only fails once the receiving side is gone; the buffer is then just freed.
+            let _ = self.recycle.send(buffer);
+        }
+    }
+
     pub fn try_enqueue(&self, message: QueuedMessage) -> bool {
         let bytes = message.data.len();
         if self.queued_bytes.load(Ordering::Relaxed) + bytes > self.max_queued_bytes
@@ -432,7 +476,9 @@ impl WriterState {
                     } else {
                         Ok(())
                     };
-                    let _ = recycle.send(message.data);
+                    if let Some(buffer) = reclaim(message.data) {
+                        let _ = recycle.send(buffer);
+                    }
                     result
                 }
                 Ok(Command::AddChannel(topic)) => {
