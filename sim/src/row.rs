@@ -526,7 +526,7 @@ center_m = 2.0
         let too_far = text.replace("[0.15, 0.4]", "[0.15, 1.5]");
         let problem = invalid(&too_far);
         assert_eq!(problem.key, "placement.canopy_setback_m");
-        assert_eq!(problem.location.line, Some(6));
+        assert_eq!(problem.location.line, Some(8));
     }
 
     #[test]
