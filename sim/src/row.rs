@@ -16,6 +16,10 @@
 //! speed_m_per_s = 0.3   # advance speed along the row
 //! start_m = 0.0         # trailer position at the start of the row
 //!
+//! [placement]           # optional; where each section stands from the tractor's path
+//! canopy_setback_m = [0.15, 0.40]    # canopy this much farther than its preset, per section
+//! fruiting_zone_lift_m = [0.1, 0.5]  # fruiting zone this much higher than its preset
+//!
 //! [[section]]
 //! canopy = "default"    # a scenario preset (`crate::scenario::preset_names`)
 //! center_m = 0.0        # where the section's y = 0 lies along the row, m
@@ -29,11 +33,22 @@
 //! travel is `max - min` (the platform device's `[0, max - min]`), and the robot's offset on
 //! that axis is `min + stage position`. The camera, background, lighting, vacuum and failure
 //! rates of the row are those of the first section's preset.
+//!
+//! Placement (paper 003, section 4.1: the tractor halts, then the platform moves the robot in
+//! and up "so that the dropping module makes contact with the canopy"). A preset puts its
+//! canopy where the arms reach best with the stages at their stops; in a row the tractor's
+//! path keeps a clearance from the canopy that varies along the row, and so does the height
+//! of the fruiting zone. Each section is therefore moved away from the robot (row-frame x)
+//! by a setback and up (z) by a lift, both drawn uniformly from the `[placement]` ranges with
+//! the section's seed ([`RowScenario::section_placement_m`]). Absent, both are 0 (every
+//! section exactly where its preset puts it).
 
 use crate::scenario::{
     InvalidValue, Scenario, ScenarioError, SourceLocation, line_column, parse_error,
 };
 use harvest_hw::platform::PlatformTravel;
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use toml::de::{DeTable, DeValue};
@@ -108,6 +123,23 @@ impl Default for RowTractor {
     }
 }
 
+/// How far each section stands from where its preset puts it (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RowPlacement {
+    /// Range `[min, max]` of the extra distance of a section's canopy from the robot at the
+    /// in-out stop (row-frame x), m.
+    #[serde(default)]
+    pub canopy_setback_m: [f64; 2],
+    /// Range `[min, max]` of the extra height of a section's fruiting zone (row-frame z), m.
+    #[serde(default)]
+    pub fruiting_zone_lift_m: [f64; 2],
+}
+
+/// Largest accepted magnitude of a placement value, m (beyond it a section leaves any
+/// platform's travel: a typing error, not an orchard).
+pub const MAX_PLACEMENT_M: f64 = 1.0;
+
 /// A whole row as written in its file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -119,6 +151,8 @@ pub struct RowFile {
     pub platform: RowPlatform,
     #[serde(default)]
     pub tractor: RowTractor,
+    #[serde(default)]
+    pub placement: RowPlacement,
     /// The sections, in any order (sorted along the row when loaded).
     #[serde(rename = "section")]
     pub sections: Vec<RowSection>,
@@ -213,6 +247,24 @@ impl RowScenario {
                 "must be finite".to_owned(),
             ));
         }
+        for (key, range) in [
+            ("canopy_setback_m", file.placement.canopy_setback_m),
+            ("fruiting_zone_lift_m", file.placement.fruiting_zone_lift_m),
+        ] {
+            let bounded = range
+                .iter()
+                .all(|value| value.is_finite() && value.abs() <= MAX_PLACEMENT_M);
+            if !(bounded && range[0] <= range[1]) {
+                return Err(invalid(
+                    &[Key("placement"), Key(key)],
+                    format!("{range:?}"),
+                    format!(
+                        "must be finite [min, max] with min <= max, each within \
+                         +-{MAX_PLACEMENT_M} m"
+                    ),
+                ));
+            }
+        }
         if file.sections.is_empty() {
             return Err(invalid(
                 &[Key("section")],
@@ -237,6 +289,22 @@ impl RowScenario {
                     error.to_string(),
                 )
             })?;
+            let canopy_back_m = scenario.canopy.front_x_m
+                + scenario.canopy.depth_m
+                + file.placement.canopy_setback_m[1];
+            if canopy_back_m >= scenario.background.next_row_x_m {
+                return Err(invalid(
+                    &[Key("placement"), Key("canopy_setback_m")],
+                    format!("{:?}", file.placement.canopy_setback_m),
+                    format!(
+                        "section {} ({}) would reach {canopy_back_m:.3} m, into the next row \
+                         at {:.3} m",
+                        index + 1,
+                        section.canopy,
+                        scenario.background.next_row_x_m
+                    ),
+                ));
+            }
             let y = scenario.canopy.y_range_m;
             placed.push((
                 index,
@@ -281,6 +349,23 @@ impl RowScenario {
         self.file.sections[index]
             .seed
             .unwrap_or_else(|| seed.wrapping_add(index as u64))
+    }
+
+    /// Setback and lift `[x, z]` of section `index` (sorted order) in a world seeded with
+    /// `seed`, m: drawn uniformly from the `[placement]` ranges with the section's seed.
+    pub fn section_placement_m(&self, index: usize, seed: u64) -> [f64; 2] {
+        // A stream of its own (not the section's generation stream), so that the apples of a
+        // section stay the same whatever its placement.
+        const PLACEMENT_STREAM: u64 = 0x706c_6163_656d_656e;
+        let mut rng = SmallRng::seed_from_u64(self.section_seed(index, seed) ^ PLACEMENT_STREAM);
+        let placement = &self.file.placement;
+        [placement.canopy_setback_m, placement.fruiting_zone_lift_m].map(|range| {
+            if range[1] > range[0] {
+                rng.random_range(range[0]..range[1])
+            } else {
+                range[0]
+            }
+        })
     }
 
     /// Along-row extent `[start, end]` of the whole row (first section's start to the last's
@@ -412,6 +497,36 @@ center_m = 2.0
         assert_eq!(problem.location.line, Some(13));
         let text = TWO_SECTIONS.replace("[0.0, 0.5]", "[0.0, nan]");
         assert_eq!(invalid(&text).key, "platform.in_out_range_m");
+    }
+
+    #[test]
+    fn placement_is_seeded_within_its_ranges_and_checked() {
+        let text = TWO_SECTIONS.replacen(
+            "[[section]]",
+            "[placement]\ncanopy_setback_m = [0.15, 0.4]\nfruiting_zone_lift_m = [0.1, 0.5]\n\n[[section]]",
+            1,
+        );
+        let row = RowScenario::from_toml_str("rows/test.toml", &text).expect("row");
+        for index in 0..2 {
+            let [setback, lift] = row.section_placement_m(index, 7);
+            assert!((0.15..=0.4).contains(&setback), "{setback}");
+            assert!((0.1..=0.5).contains(&lift), "{lift}");
+            assert_eq!(row.section_placement_m(index, 7), [setback, lift]);
+        }
+        assert_ne!(row.section_placement_m(0, 7), row.section_placement_m(1, 7));
+        let plain = RowScenario::from_toml_str("rows/test.toml", TWO_SECTIONS).expect("row");
+        assert_eq!(plain.section_placement_m(1, 7), [0.0, 0.0]);
+
+        let inverted = text.replace("[0.1, 0.5]", "[0.5, 0.1]");
+        let problem = invalid(&inverted);
+        assert_eq!(problem.key, "placement.fruiting_zone_lift_m");
+        assert!(problem.location.line.is_some());
+        let nan = text.replace("[0.15, 0.4]", "[nan, 0.4]");
+        assert_eq!(invalid(&nan).key, "placement.canopy_setback_m");
+        let too_far = text.replace("[0.15, 0.4]", "[0.15, 1.5]");
+        let problem = invalid(&too_far);
+        assert_eq!(problem.key, "placement.canopy_setback_m");
+        assert_eq!(problem.location.line, Some(8));
     }
 
     #[test]

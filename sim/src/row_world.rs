@@ -5,8 +5,9 @@ use crate::orchard::{AppleId, OrchardError, World};
 use crate::row::RowScenario;
 
 impl World {
-    /// Generates the row's world from `seed` (each section from [`RowScenario::section_seed`]),
-    /// in the row frame (robot offset zero). The shared settings (camera, background,
+    /// Generates the row's world from `seed` (each section from [`RowScenario::section_seed`],
+    /// set back and lifted by [`RowScenario::section_placement_m`]), in the row frame (robot
+    /// offset zero). The shared settings (camera, background,
     /// lighting, vacuum, failure rates) are the first section's; the canopy spans the row.
     pub fn generate_row(row: &RowScenario, seed: u64) -> Result<Self, OrchardError> {
         let mut merged: Option<World> = None;
@@ -14,7 +15,9 @@ impl World {
         for (index, (section, scenario)) in row.file.sections.iter().zip(&row.scenarios).enumerate()
         {
             let mut part = World::generate(scenario, row.section_seed(index, seed))?;
-            part.set_robot_offset_m([0.0, -section.center_m, 0.0]);
+            // Moving the robot by -d moves the section by +d: set back and lifted.
+            let [setback_m, lift_m] = row.section_placement_m(index, seed);
+            part.set_robot_offset_m([-setback_m, -section.center_m, -lift_m]);
             let world = merged.get_or_insert_with(|| {
                 let mut first = part.clone();
                 first.apples.clear();

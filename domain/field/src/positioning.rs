@@ -135,10 +135,21 @@ mod tests {
         up_down_max_m: 0.8,
     };
 
-    /// A row of `sections` sections of `preset`, each 2 m apart; the stops are at the
-    /// sections' centres (the robot's y = 0 on the section's middle).
+    /// A row of `sections` sections of `preset`, each 2 m apart, placed as the preset rows
+    /// place theirs (`sim/rows/three_sections.toml`'s `[placement]`: canopy set back and
+    /// fruiting zone lifted per section); the stops are at the sections' centres (the robot's
+    /// y = 0 on the section's middle).
     fn stops(preset: &str, seed: u64, sections: usize) -> Vec<Vec<[f64; 3]>> {
-        let mut text = String::from("name = \"measure\"\n");
+        let preset_row = RowScenario::from_toml_str(
+            "three_sections.toml",
+            include_str!("../../../sim/rows/three_sections.toml"),
+        )
+        .expect("preset row");
+        let placement = preset_row.file.placement;
+        let mut text = format!(
+            "name = \"measure\"\n[placement]\ncanopy_setback_m = {:?}\nfruiting_zone_lift_m = {:?}\n",
+            placement.canopy_setback_m, placement.fruiting_zone_lift_m
+        );
         for index in 0..sections {
             text.push_str(&format!(
                 "[[section]]\ncanopy = \"{preset}\"\ncenter_m = {}\n",
