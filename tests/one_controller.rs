@@ -196,7 +196,7 @@ fn a_second_harvest_up_in_the_same_domain_is_refused_naming_the_running_supervis
     assert!(!status.success(), "the second stack started:\n{stderr}");
     let expected = format!(
         "a stack is already running in domain {:?}: `harvest up` with pid {}",
-        stack.domain,
+        &*stack.domain,
         first.pid()
     );
     assert!(stderr.contains(&expected), "{expected:?} not in:\n{stderr}");

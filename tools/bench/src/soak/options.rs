@@ -165,8 +165,7 @@ mod tests {
         let cli = Cli::try_parse_from(["x", "--kill-every", "0s"]).expect("parses");
         let error = cli.args.validate().expect_err("zero period");
         assert!(error.to_string().contains("--kill-every"), "{error}");
-        let cli =
-            Cli::try_parse_from(["x", "--rss-slope-bound-kib-per-min", "-1"]).expect("parses");
+        let cli = Cli::try_parse_from(["x", "--rss-slope-bound-kib-per-min=-1"]).expect("parses");
         assert!(cli.args.validate().is_err());
     }
 }
