@@ -420,7 +420,7 @@ mod tests {
     use super::*;
     use crate::orchard::AppleState;
     use crate::physics::ReleaseOutcome;
-    use crate::robot_test_moves::{DT, move_to, nearest_apple, run};
+    use crate::robot_test_moves::{DT, move_to, nearest_apple, run, twist_and_pull_home};
     use harvest_robot_model::kinematics::inverse;
 
     fn ideal() -> SimRobot {
@@ -573,12 +573,7 @@ mod tests {
                 apple: apple.id
             }]
         );
-        let mut twisted = q;
-        twisted[3] = std::f64::consts::FRAC_PI_4;
-        move_to(&mut robot, ArmId::Arm1, twisted, 0.3);
-        let mut home = params.home.to_array();
-        home[3] = twisted[3];
-        let events = move_to(&mut robot, ArmId::Arm1, home, 2.0);
+        let events = twist_and_pull_home(&mut robot, ArmId::Arm1, q, params.home.to_array());
         assert_eq!(
             events,
             vec![WorldEvent::Detached {

@@ -58,3 +58,19 @@ pub fn nearest_apple(robot: &SimRobot, arm: ArmId) -> Apple {
         .cloned()
         .expect("an apple")
 }
+
+/// The detach motion from joint position `at`: twist the wrist 45 degrees, then move back to
+/// `home` with the twist kept; returns the world's events of the pull.
+pub fn twist_and_pull_home(
+    robot: &mut SimRobot,
+    arm: ArmId,
+    at: [f64; 4],
+    home: [f64; 4],
+) -> Vec<WorldEvent> {
+    let mut twisted = at;
+    twisted[3] = std::f64::consts::FRAC_PI_4;
+    move_to(robot, arm, twisted, 0.3);
+    let mut home = home;
+    home[3] = twisted[3];
+    move_to(robot, arm, home, 2.0)
+}

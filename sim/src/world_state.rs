@@ -593,7 +593,7 @@ mod restart_tests {
     //! dropped, a new one generated from the same scenario and seed and restored from the file.
     use super::*;
     use crate::physics::{ReleaseOutcome, StepInputs, WorldEvent};
-    use crate::robot_test_moves::{move_to, nearest_apple, run};
+    use crate::robot_test_moves::{move_to, nearest_apple, run, twist_and_pull_home};
     use crate::scenario::Scenario;
     use harvest_robot_model::kinematics::inverse;
 
@@ -645,12 +645,7 @@ mod restart_tests {
         // Restart while the cup holds the apple on its stem.
         let mut robot = restart(&robot, &path);
         assert_eq!(robot.world().held_apple(ArmId::Arm1), Some(apple.id));
-        let mut twisted = q;
-        twisted[3] = std::f64::consts::FRAC_PI_4;
-        move_to(&mut robot, ArmId::Arm1, twisted, 0.3);
-        let mut home = params.home.to_array();
-        home[3] = twisted[3];
-        let events = move_to(&mut robot, ArmId::Arm1, home, 2.0);
+        let events = twist_and_pull_home(&mut robot, ArmId::Arm1, q, params.home.to_array());
         assert_eq!(
             events,
             vec![WorldEvent::Detached {

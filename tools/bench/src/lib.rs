@@ -19,6 +19,7 @@
 pub mod affinity;
 pub mod bench_payload;
 pub mod case;
+pub mod child_stop;
 pub mod control;
 pub mod error;
 pub mod message;

@@ -234,26 +234,7 @@ impl SoakStack {
         if let Some(status) = self.reaped {
             return Some(status);
         }
-        if let Err(error) = kill(Pid::from_raw(self.child.id() as i32), Signal::SIGTERM) {
-            tracing::debug!(%error, "stack already gone");
-        }
-        let start = Instant::now();
-        while start.elapsed() < STOP_GRACE {
-            match self.child.try_wait() {
-                Ok(Some(status)) => {
-                    self.reaped = Some(status);
-                    return Some(status);
-                }
-                Ok(None) => std::thread::sleep(Duration::from_millis(50)),
-                Err(error) => {
-                    tracing::warn!(%error, "cannot wait for the stack");
-                    break;
-                }
-            }
-        }
-        tracing::warn!("stack did not stop in time: killing the supervisor");
-        let _ = self.child.kill();
-        self.reaped = self.child.wait().ok();
+        self.reaped = crate::child_stop::terminate(&mut self.child, STOP_GRACE);
         self.reaped
     }
 }
