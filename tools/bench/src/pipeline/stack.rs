@@ -4,12 +4,11 @@
 
 use crate::error::BenchError;
 use harvest_ipc::Domain;
-use nix::sys::signal::{Signal, kill};
-use nix::unistd::Pid;
+use nix::sys::signal::Signal;
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// The bench's own launch file (sim, camera, perception, vacuum, both arms; no recorder).
 pub const PIPELINE_LAUNCH: &str = include_str!("../../launch/pipeline.toml");
