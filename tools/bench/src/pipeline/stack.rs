@@ -2,12 +2,11 @@
 //! stopped cleanly (SIGTERM to the supervisor, which stops its processes in reverse order) at
 //! the end.
 
+use crate::child_stop::up_command;
 use crate::error::BenchError;
 use harvest_ipc::Domain;
-use nix::sys::signal::Signal;
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Child, ExitStatus, Stdio};
 use std::time::Duration;
 
 /// The bench's own launch file (sim, camera, perception, vacuum, both arms; no recorder).
@@ -63,31 +62,15 @@ impl Stack {
             path: log_path.clone(),
             source,
         })?;
-        let mut command = Command::new(executable);
-        command
-            .arg("--domain")
-            .arg(domain.name())
-            .arg("up")
-            .arg("--launch")
-            .arg(&launch_path)
-            .arg("--duration")
-            .arg(format!("{}ms", (run_for + SAFETY_MARGIN).as_millis()))
+        let child = up_command(executable, domain, &launch_path, run_for + SAFETY_MARGIN)
             .args(no_scheduling.then_some("--no-scheduling"))
-            .env_remove(harvest_ipc::domain::DOMAIN_ENV)
-            .stdin(Stdio::null())
             .stdout(Stdio::null())
-            .stderr(log);
-        // SAFETY: the closure runs in the forked child before exec and only calls prctl, which
-        // is async-signal-safe. The stack must not outlive the bench.
-        unsafe {
-            command.pre_exec(|| {
-                nix::sys::prctl::set_pdeathsig(Some(Signal::SIGTERM)).map_err(std::io::Error::from)
-            });
-        }
-        let child = command.spawn().map_err(|source| BenchError::Spawn {
-            exe: executable.to_owned(),
-            source,
-        })?;
+            .stderr(log)
+            .spawn()
+            .map_err(|source| BenchError::Spawn {
+                exe: executable.to_owned(),
+                source,
+            })?;
         tracing::info!(
             pid = child.id(),
             domain = domain.name(),

@@ -6,14 +6,13 @@
 //! with SIGTERM at the end; its final summaries (stdout, stderr) are parsed.
 
 use super::error::SoakError;
+use crate::child_stop::up_command;
 use harvest_ipc::Domain;
 use harvest_supervisor::Launch;
 use harvest_supervisor::launch::{DEFAULT_LAUNCH, EMBEDDED_LAUNCH_DIR, LAUNCH_DIR_VARIABLE};
-use nix::sys::signal::Signal;
 use serde::Serialize;
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Child, ExitStatus};
 use std::time::{Duration, Instant};
 
 /// How long `harvest up` gets to come up (its control token file written).
@@ -157,31 +156,15 @@ impl SoakStack {
         let stdout_path = scratch.join("stack.stdout");
         let log = create(&log_path)?;
         let stdout = create(&stdout_path)?;
-        let mut command = Command::new(executable);
-        command
-            .arg("--domain")
-            .arg(domain.name())
-            .arg("up")
-            .arg("--launch")
-            .arg(&launch_path)
-            .arg("--duration")
-            .arg(format!("{}ms", (run_for + SAFETY_MARGIN).as_millis()))
+        let child = up_command(executable, domain, &launch_path, run_for + SAFETY_MARGIN)
             .current_dir(scratch)
-            .env_remove(harvest_ipc::domain::DOMAIN_ENV)
-            .stdin(Stdio::null())
             .stdout(stdout)
-            .stderr(log);
-        // SAFETY: the closure runs in the forked child before exec and only calls prctl, which
-        // is async-signal-safe. The stack must not outlive the soak.
-        unsafe {
-            command.pre_exec(|| {
-                nix::sys::prctl::set_pdeathsig(Some(Signal::SIGTERM)).map_err(std::io::Error::from)
-            });
-        }
-        let child = command.spawn().map_err(|source| SoakError::Spawn {
-            exe: executable.to_owned(),
-            source,
-        })?;
+            .stderr(log)
+            .spawn()
+            .map_err(|source| SoakError::Spawn {
+                exe: executable.to_owned(),
+                source,
+            })?;
         let mut stack = Self {
             child,
             reaped: None,
