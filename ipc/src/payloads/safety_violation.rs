@@ -93,6 +93,15 @@ impl SafetyViolation {
     pub fn requests_stop(&self) -> bool {
         !matches!(self.action.get(), Ok(ViolationAction::Report))
     }
+
+    /// True when `other` reports the same finding: the same rule, arm and violation time. The
+    /// monitor sends an unanswered stop request again ([`crate::catalogue::SAFETY_VIOLATION`]
+    /// readers see the copies); readers that count violations count one.
+    pub fn same_finding(&self, other: &SafetyViolation) -> bool {
+        self.violated_ns == other.violated_ns
+            && self.rule == other.rule
+            && self.arm_id == other.arm_id
+    }
 }
 
 #[cfg(test)]
@@ -107,5 +116,24 @@ mod tests {
         assert!(violation.requests_stop());
         violation.action = WireCode::from_raw(77);
         assert!(violation.requests_stop());
+    }
+
+    #[test]
+    fn a_resent_request_is_the_same_finding_and_another_time_is_not() {
+        let first = SafetyViolation {
+            violated_ns: 5,
+            rule: ViolationRule::MovedDuringEmergencyStop.into(),
+            arm_id: 2,
+            ..SafetyViolation::default()
+        };
+        let mut resent = first;
+        resent.header.msg_seq = 9;
+        assert!(first.same_finding(&resent));
+        let mut later = first;
+        later.violated_ns = 6;
+        assert!(!first.same_finding(&later));
+        let mut other_arm = first;
+        other_arm.arm_id = 1;
+        assert!(!first.same_finding(&other_arm));
     }
 }

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use harvest_ipc::catalogue::{
     ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, SAFETY_VIOLATION, VACUUM_STATE,
 };
-use harvest_ipc::payloads::ProcessRunState;
+use harvest_ipc::payloads::{EmergencyStop, ProcessRunState};
 use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Payload, Subscriber,
     Waiter,
@@ -52,6 +52,26 @@ pub struct LiveOptions {
     pub engage_stop_after: Option<Duration>,
     /// What to do with each violation besides printing it.
     pub on_violation: OnViolation,
+}
+
+/// Judges every queued `safety/emergency_stop` message and tells the outlet the stop's state.
+fn judge_stop_messages(
+    stop: &Subscriber<EmergencyStop>,
+    monitor: &mut StackMonitor,
+    outlet: &mut Option<ViolationOutlet>,
+    judge: &mut impl FnMut(
+        &mut StackMonitor,
+        &mut Option<ViolationOutlet>,
+        StackMessage<'_>,
+    ) -> Result<(), MonitorError>,
+) -> Result<(), MonitorError> {
+    while let Some(sample) = stop.receive()? {
+        if let Some(outlet) = outlet.as_mut() {
+            outlet.stop_seen(sample.engaged != 0);
+        }
+        judge(monitor, outlet, StackMessage::Stop(&sample))?;
+    }
+    Ok(())
 }
 
 /// Monitors the stack of `domain` ([`LiveOptions`]); `print` sees each violation when it is
@@ -137,12 +157,18 @@ pub fn run_live(
             outlet.measurement_stop()?;
             measurement_requested = true;
         }
-        // Any wake-up: drain every queue (a wake-up may stand for several channels).
+        // Any wake-up: drain every queue (a wake-up may stand for several channels). The
+        // emergency stop's queue is read before each other message is judged: a message in
+        // another queue that was sent after a change of the stop (an arm moving again after a
+        // release) finds that change already queued, so it is judged in the right order.
+        judge_stop_messages(&stop, &mut monitor, &mut outlet, &mut judge)?;
         while let Some(sample) = vacuum.receive()? {
+            judge_stop_messages(&stop, &mut monitor, &mut outlet, &mut judge)?;
             judge(&mut monitor, &mut outlet, StackMessage::Vacuum(&sample))?;
         }
         for arm in ArmId::ALL {
             while let Some(sample) = commands[arm.index()].receive()? {
+                judge_stop_messages(&stop, &mut monitor, &mut outlet, &mut judge)?;
                 judge(
                     &mut monitor,
                     &mut outlet,
@@ -150,16 +176,9 @@ pub fn run_live(
                 )?;
             }
             while let Some(sample) = states[arm.index()].receive()? {
+                judge_stop_messages(&stop, &mut monitor, &mut outlet, &mut judge)?;
                 judge(&mut monitor, &mut outlet, StackMessage::State(arm, &sample))?;
             }
-        }
-        while let Some(sample) = stop.receive()? {
-            if sample.engaged != 0
-                && let Some(outlet) = outlet.as_mut()
-            {
-                outlet.stop_engaged();
-            }
-            judge(&mut monitor, &mut outlet, StackMessage::Stop(&sample))?;
         }
         if let Some(outlet) = outlet.as_mut() {
             outlet.retry()?;

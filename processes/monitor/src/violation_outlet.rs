@@ -4,7 +4,9 @@
 //! `safety/violation` keeps no history (a restarted executive must not stop the robot again for
 //! a violation already released), so a stop request sent before the executive subscribed, or
 //! while it restarts, would be lost. Until `safety/emergency_stop` is seen engaged, the outlet
-//! sends the last stop-requesting violation again every [`STOP_RETRY`].
+//! sends the last stop-requesting violation again every [`STOP_RETRY`]. A request made while
+//! the stop is seen engaged is not repeated: the stop it asks for is in effect (the executive
+//! ignores stop requests while engaged, so a repeat would never be answered).
 
 use std::time::{Duration, Instant};
 
@@ -24,6 +26,8 @@ pub struct ViolationOutlet {
     action: Option<ViolationAction>,
     published: u64,
     pending_stop: Option<(SafetyViolation, Instant)>,
+    /// The last `safety/emergency_stop` message seen was engaged.
+    stop_in_effect: bool,
 }
 
 impl ViolationOutlet {
@@ -34,6 +38,7 @@ impl ViolationOutlet {
             action,
             published: 0,
             pending_stop: None,
+            stop_in_effect: false,
         }
     }
 
@@ -68,9 +73,13 @@ impl ViolationOutlet {
         self.send(message)
     }
 
-    /// The executive has engaged the stop: nothing is pending any more.
-    pub fn stop_engaged(&mut self) {
-        self.pending_stop = None;
+    /// A `safety/emergency_stop` message: engaged answers the pending request; released
+    /// means the next request must be repeated until answered.
+    pub fn stop_seen(&mut self, engaged: bool) {
+        self.stop_in_effect = engaged;
+        if engaged {
+            self.pending_stop = None;
+        }
     }
 
     /// Sends the pending stop request again when [`STOP_RETRY`] has passed.
@@ -89,7 +98,7 @@ impl ViolationOutlet {
             .publish_with(MonotonicClock::read_ns(), |out| *out = message)
             .map_err(|error| MonitorError::Channels(error.to_string()))?;
         self.published += 1;
-        if message.requests_stop() {
+        if message.requests_stop() && !self.stop_in_effect {
             self.pending_stop = Some((message, Instant::now()));
         }
         Ok(())

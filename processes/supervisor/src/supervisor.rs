@@ -17,9 +17,9 @@ use crate::launch::{Launch, ProcessSpec};
 use crate::restart_tracker::{RestartDecision, RestartTracker};
 use crate::scheduling::SchedulingOutcome;
 use crate::status::{self, ProcessPhase, ProcessStatus};
+use crate::violation_log::ViolationLog;
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH, SAFETY_VIOLATION};
 use harvest_ipc::payloads::ProcessRunState;
-use harvest_ipc::payloads::SafetyViolation;
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, RunEnd, Waiter};
 use harvest_log::{HarvestLog, HarvestLogSummary};
 use nix::sys::signal::Signal;
@@ -64,20 +64,6 @@ pub struct Summary {
     pub harvest: Option<HarvestLogSummary>,
     /// The safety monitor's violations (`safety/violation`), in words, in the order received.
     pub safety_violations: Vec<String>,
-}
-
-/// One `safety/violation` message in words, as the summary names it.
-pub fn violation_line(violation: &SafetyViolation) -> String {
-    let rule = match violation.rule.get() {
-        Ok(rule) => format!("{rule:?}"),
-        Err(unknown) => unknown.to_string(),
-    };
-    let action = if violation.requests_stop() {
-        "protective stop requested"
-    } else {
-        "reported only"
-    };
-    format!("{rule}: {} ({action})", violation.description.as_str())
 }
 
 impl Summary {
@@ -258,7 +244,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     let events_guard = waiter.attach_listener(events.listener())?;
     let violations = context.subscriber_with_buffer(SAFETY_VIOLATION, 256)?;
     let violations_guard = waiter.attach_listener(violations.listener())?;
-    let mut safety_violations: Vec<String> = Vec::new();
+    let mut safety_violations = ViolationLog::default();
     let mut harvest_log = HarvestLog::new(MonotonicClock::read_ns());
     let mut harvest_events = 0u64;
 
@@ -315,9 +301,9 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         let now = Instant::now();
         if attachment.has_event_from(&violations_guard) {
             violations.drain(|violation| {
-                let line = violation_line(violation);
-                tracing::error!(violation = %line, "safety violation");
-                safety_violations.push(line);
+                if let Some(line) = safety_violations.record(violation) {
+                    tracing::error!(violation = %line, "safety violation");
+                }
             })?;
         }
         if attachment.has_event_from(&events_guard) {
@@ -475,7 +461,9 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     drop(tick_guard);
     drop(events_guard);
     drop(violations_guard);
-    let drained = violations.drain(|violation| safety_violations.push(violation_line(violation)));
+    let drained = violations.drain(|violation| {
+        safety_violations.record(violation);
+    });
     if let Err(error) = drained {
         tracing::debug!(%error, "safety violations sent while stopping not received");
     }
@@ -519,7 +507,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         ended_by,
         leftover_files: harvest_ipc::cleanup::leftover_files(domain),
         harvest: (harvest_events > 0).then(|| harvest_log.summary()),
-        safety_violations,
+        safety_violations: safety_violations.into_lines(),
     };
     // Every process of the stack is stopped: the domain is free for the next `harvest up`.
     drop(domain_lock);

@@ -46,8 +46,11 @@ pub struct SoakArgs {
     /// on (`0s`: never replant)
     #[arg(long, value_parser = parse_duration, default_value = "5s")]
     pub replant_after: Duration,
-    /// RSS growth bound: least-squares slope of a process's RSS over the second half of the
-    /// run, KiB per minute, beyond which the verdict fails
+    /// Memory growth bound: least-squares slope of a process's private resident memory
+    /// (`RssAnon`: heap, stacks) over the second half of the run, KiB per minute, beyond which
+    /// the verdict fails. Shared-memory pages a process touches (`RssShmem`) are reported, not
+    /// judged: they are bounded by the segments it maps
+    /// (the domain's files, judged on their own)
     #[arg(long, default_value_t = 128.0)]
     pub rss_slope_bound_kib_per_min: f64,
     /// Descriptor growth bound: slope of a process's open descriptors over the second half,

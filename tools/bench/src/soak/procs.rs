@@ -10,8 +10,14 @@ use std::path::Path;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct ProcessFigures {
     pub pid: u32,
-    /// `VmRSS` of `/proc/<pid>/status`, KiB.
+    /// `VmRSS` of `/proc/<pid>/status`, KiB: private + file-backed + shared pages.
     pub rss_kib: u64,
+    /// `RssAnon`, KiB: the process's private pages (heap, stacks). A leak grows this.
+    pub private_kib: u64,
+    /// `RssShmem`, KiB: pages of shared memory (iceoryx2's segments) this process has touched.
+    /// It grows as a subscriber first reads pool slots it had not read before, up to the size of
+    /// the segments it maps.
+    pub shared_kib: u64,
     /// Entries of `/proc/<pid>/fd`.
     pub fds: u64,
     /// `Threads` of `/proc/<pid>/status`.
@@ -73,6 +79,8 @@ pub fn figures(pid: u32) -> Option<ProcessFigures> {
     Some(ProcessFigures {
         pid,
         rss_kib: status_field(&status, "VmRSS:").unwrap_or(0),
+        private_kib: status_field(&status, "RssAnon:").unwrap_or(0),
+        shared_kib: status_field(&status, "RssShmem:").unwrap_or(0),
         fds,
         threads: status_field(&status, "Threads:").unwrap_or(0),
     })
@@ -107,6 +115,7 @@ mod tests {
     fn figures_of_this_process() {
         let me = figures(std::process::id()).expect("own /proc entry");
         assert!(me.rss_kib > 0 && me.fds > 0 && me.threads > 0, "{me:?}");
+        assert!(me.private_kib > 0 && me.private_kib <= me.rss_kib, "{me:?}");
         assert_eq!(
             parent_pid(std::process::id()),
             Some(std::os::unix::process::parent_id())

@@ -91,12 +91,19 @@ pub struct RestartCount {
     pub last_exit: String,
 }
 
-/// RSS and descriptors of one process over the run.
+/// RSS and descriptors of one process over the run. The memory verdict judges private memory
+/// (`RssAnon`), where a leak shows; the shared-memory pages a process has touched (`RssShmem`)
+/// are shown beside it: they grow while a subscriber reads pool slots for the first time, up to
+/// the size of the segments it maps (the domain's files, judged on their own).
 #[derive(Debug, Clone, Serialize)]
 pub struct Growth {
     pub process: String,
     pub rss_kib: [u64; 3],
     pub rss_max_kib: u64,
+    /// `RssAnon` at start, middle, end, KiB.
+    pub private_kib: [u64; 3],
+    /// `RssShmem` at start, middle, end, KiB.
+    pub shared_kib: [u64; 3],
     pub fds: [u64; 3],
     pub fds_max: u64,
     pub threads_end: u64,
@@ -104,7 +111,12 @@ pub struct Growth {
     pub judged_pid: Option<u32>,
     /// Minutes of that stretch (after its first 30 s).
     pub judged_minutes: f64,
+    /// Slope of `VmRSS` (all resident pages), KiB/min.
     pub rss_slope_kib_per_min: Option<f64>,
+    /// Slope of `RssAnon` (private pages), KiB/min: the judged one.
+    pub private_slope_kib_per_min: Option<f64>,
+    /// Slope of `RssShmem` (shared-memory pages touched), KiB/min.
+    pub shared_slope_kib_per_min: Option<f64>,
     pub fd_slope_per_min: Option<f64>,
 }
 
@@ -260,27 +272,27 @@ impl SoakReport {
             .growth
             .iter()
             .filter(|g| {
-                g.rss_slope_kib_per_min
+                g.private_slope_kib_per_min
                     .is_some_and(|s| s > bounds.rss_slope_kib_per_min)
             })
             .map(|g| {
                 format!(
                     "{} {:.0} KiB/min",
                     g.process,
-                    g.rss_slope_kib_per_min.unwrap_or(0.0)
+                    g.private_slope_kib_per_min.unwrap_or(0.0)
                 )
             })
             .collect();
         let judged = self
             .growth
             .iter()
-            .filter(|g| g.rss_slope_kib_per_min.is_some())
+            .filter(|g| g.private_slope_kib_per_min.is_some())
             .count();
         add(
-            "RSS growth within bound",
+            "private memory growth within bound",
             over_rss.is_empty(),
             format!(
-                "slope over the second half <= {} KiB/min; {judged} of {} processes judged{}",
+                "RssAnon slope over the second half <= {} KiB/min; {judged} of {} processes judged{}",
                 bounds.rss_slope_kib_per_min,
                 self.growth.len(),
                 if over_rss.is_empty() {
@@ -373,27 +385,35 @@ impl SoakReport {
         }
         let _ = writeln!(
             out,
-            "\nper process: RSS MiB start/middle/end (max), fds start/middle/end (max), threads, \
-slope over the second half (instance judged):"
+            "\nper process: RSS MiB start/middle/end (max), at the end private/shared MiB, fds \
+start/middle/end (max), threads, slopes over the second half (instance judged): private (RssAnon, judged), shared-memory pages \
+touched (RssShmem), descriptors:"
         );
         for g in &self.growth {
             let mib = |kib: u64| kib as f64 / 1024.0;
             let _ = writeln!(
                 out,
-                "  {:<11} {:>6.1} {:>6.1} {:>6.1} ({:>6.1})   {:>3} {:>3} {:>3} ({:>3})  thr {:>3}  {}",
+                "  {:<11} {:>6.1} {:>6.1} {:>6.1} ({:>6.1}) {:>6.1}/{:<6.1}  {:>3} {:>3} {:>3} ({:>3})  thr {:>3}  {}",
                 g.process,
                 mib(g.rss_kib[0]),
                 mib(g.rss_kib[1]),
                 mib(g.rss_kib[2]),
                 mib(g.rss_max_kib),
+                mib(g.private_kib[2]),
+                mib(g.shared_kib[2]),
                 g.fds[0],
                 g.fds[1],
                 g.fds[2],
                 g.fds_max,
                 g.threads_end,
-                match (g.rss_slope_kib_per_min, g.fd_slope_per_min) {
-                    (Some(rss), Some(fds)) => format!(
-                        "RSS {rss:+.1} KiB/min, fds {fds:+.3}/min (pid {}, {:.1} min)",
+                match (
+                    g.private_slope_kib_per_min,
+                    g.shared_slope_kib_per_min,
+                    g.fd_slope_per_min,
+                ) {
+                    (Some(private), Some(shared), Some(fds)) => format!(
+                        "private {private:+.1} KiB/min, shared {shared:+.1} KiB/min, fds \
+{fds:+.3}/min (pid {}, {:.1} min)",
                         g.judged_pid.unwrap_or(0),
                         g.judged_minutes
                     ),
@@ -560,32 +580,39 @@ pub fn growth_of(process: &str, samples: &[Sample], half_s: f64, min_minutes: f6
         })
         .max_by(|a, b| a.2.total_cmp(&b.2))
         .filter(|(_, _, minutes)| *minutes >= min_minutes);
-    let (judged_pid, judged_minutes, rss_slope, fd_slope) = match judged {
-        Some((pid, points, minutes)) => {
-            let rss: Vec<(f64, f64)> = points.iter().map(|(t, f)| (*t, f.rss_kib as f64)).collect();
-            let fds: Vec<(f64, f64)> = points.iter().map(|(t, f)| (*t, f.fds as f64)).collect();
-            (Some(pid), minutes, slope_per_min(&rss), slope_per_min(&fds))
-        }
-        None => (None, 0.0, None, None),
+    let slope_of = |points: &[(f64, ProcessFigures)], get: fn(&ProcessFigures) -> u64| {
+        let series: Vec<(f64, f64)> = points.iter().map(|(t, f)| (*t, get(f) as f64)).collect();
+        slope_per_min(&series)
     };
+    let (judged_pid, judged_minutes, slopes) = match judged {
+        Some((pid, points, minutes)) => (
+            Some(pid),
+            minutes,
+            [
+                slope_of(&points, |f| f.rss_kib),
+                slope_of(&points, |f| f.private_kib),
+                slope_of(&points, |f| f.shared_kib),
+                slope_of(&points, |f| f.fds),
+            ],
+        ),
+        None => (None, 0.0, [None; 4]),
+    };
+    let [rss_slope, private_slope, shared_slope, fd_slope] = slopes;
+    let at_three = |get: fn(&ProcessFigures) -> u64| [of(first, get), of(mid, get), of(last, get)];
     Growth {
         process: process.to_owned(),
-        rss_kib: [
-            of(first, |f| f.rss_kib),
-            of(mid, |f| f.rss_kib),
-            of(last, |f| f.rss_kib),
-        ],
+        rss_kib: at_three(|f| f.rss_kib),
         rss_max_kib: series.iter().map(|(_, f)| f.rss_kib).max().unwrap_or(0),
-        fds: [
-            of(first, |f| f.fds),
-            of(mid, |f| f.fds),
-            of(last, |f| f.fds),
-        ],
+        private_kib: at_three(|f| f.private_kib),
+        shared_kib: at_three(|f| f.shared_kib),
+        fds: at_three(|f| f.fds),
         fds_max: series.iter().map(|(_, f)| f.fds).max().unwrap_or(0),
         threads_end: of(last, |f| f.threads),
         judged_pid,
         judged_minutes,
         rss_slope_kib_per_min: rss_slope,
+        private_slope_kib_per_min: private_slope,
+        shared_slope_kib_per_min: shared_slope,
         fd_slope_per_min: fd_slope,
     }
 }
@@ -620,13 +647,16 @@ pub fn shm_of(samples: &[Sample], half_s: f64, left_after_stop: u64) -> ShmFigur
 mod tests {
     use super::*;
 
+    /// A sample of arm1 whose private memory is `rss_kib` and whose shared pages are flat.
     fn sample(t_s: f64, pid: u32, rss_kib: u64, fds: u64) -> Sample {
         let mut processes = BTreeMap::new();
         processes.insert(
             "arm1".to_owned(),
             ProcessFigures {
                 pid,
-                rss_kib,
+                rss_kib: rss_kib + 4_000,
+                private_kib: rss_kib,
+                shared_kib: 4_000,
                 fds,
                 threads: 3,
             },
@@ -663,11 +693,15 @@ mod tests {
         }));
         let growth = growth_of("arm1", &samples, 600.0, 2.0);
         assert_eq!(growth.judged_pid, Some(2));
-        let slope = growth.rss_slope_kib_per_min.expect("judged");
+        let slope = growth.private_slope_kib_per_min.expect("judged");
         assert!((slope - 100.0).abs() < 2.0, "{slope}");
+        let rss_slope = growth.rss_slope_kib_per_min.expect("judged");
+        assert!((rss_slope - 100.0).abs() < 2.0, "{rss_slope}");
+        assert_eq!(growth.shared_slope_kib_per_min, Some(0.0));
         assert_eq!(growth.fd_slope_per_min, Some(0.0));
-        assert_eq!(growth.rss_kib[0], 50_000);
-        assert_eq!(growth.rss_max_kib, 50_000);
+        assert_eq!(growth.private_kib[0], 50_000);
+        assert_eq!(growth.rss_kib[0], 54_000);
+        assert_eq!(growth.rss_max_kib, 54_000);
         assert_eq!(growth.fds_max, 22);
         let none = growth_of("arm1", &samples, 1190.0, 2.0);
         assert_eq!(none.judged_pid, None);

@@ -14,6 +14,7 @@ use super::stack::{SoakLaunch, SoakStack, StackSummary, free_port};
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH, SAFETY_VIOLATION, SIM_GROUND_TRUTH};
 use harvest_ipc::payloads::{HarvestEventKind, TrueAppleState};
 use harvest_ipc::{Context, Domain, MonotonicClock};
+use harvest_supervisor::ViolationLog;
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 use rand::SeedableRng;
@@ -109,7 +110,8 @@ struct Gathered {
     recorder_drops: BTreeMap<u32, u64>,
     /// Per world: max apples harvested, dropped.
     worlds: Vec<(u32, u32)>,
-    violations_seen: u64,
+    /// `safety/violation` findings, each once (re-sent stop requests left out).
+    violations: ViolationLog,
     /// `AttemptEnded` events on `harvest/events`: all, and those that harvested.
     attempts_ended: u32,
     harvested_events: u32,
@@ -171,7 +173,9 @@ fn soak(
             }
             _ => {}
         });
-        let _ = violations.drain(|_| g.violations_seen += 1);
+        let _ = violations.drain(|violation| {
+            g.violations.record(violation);
+        });
         let _ = truth.drain(|message| {
             let count = |state: TrueAppleState| {
                 message
@@ -306,7 +310,7 @@ fn soak(
             harvested: g.worlds.iter().map(|w| w.0).sum(),
             dropped: g.worlds.iter().map(|w| w.1).sum(),
         },
-        violations_seen: g.violations_seen,
+        violations_seen: g.violations.lines().len() as u64,
         attempts_ended: g.attempts_ended,
         harvested_events: g.harvested_events,
         stack: summary,
