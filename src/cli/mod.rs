@@ -1,14 +1,13 @@
 //! The `harvest` command line.
 
 pub mod logging;
+mod up;
 
 use anyhow::{Context as _, Result};
 use clap::{Parser, Subcommand};
 use harvest_ipc::Domain;
 use harvest_ipc::cleanup::RegistryRemoval;
-use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Duration;
 
 #[derive(Debug, Parser)]
 #[command(
@@ -31,25 +30,7 @@ enum Command {
     /// One stack per domain: refused while another `harvest up` (or a process of its stack)
     /// runs in the domain; the lock is <iceoryx2 root>/harvest-up/<domain>.lock
     /// (/tmp/iceoryx2/harvest-up/), holding the running supervisor's pid.
-    Up {
-        /// Launch file (TOML); the embedded default runs the whole stack in simulation.
-        #[arg(long)]
-        launch: Option<PathBuf>,
-        /// Stop by itself after this long (e.g. 10s, 2m).
-        #[arg(long, value_parser = harvest_ipc::duration::parse_duration)]
-        duration: Option<Duration>,
-        /// Stop once the vacuum supervisor reports that nothing is left to pick.
-        #[arg(long)]
-        until_harvested: bool,
-        /// Ignore the launch file's `[process.scheduling]` settings (real-time priority, CPU
-        /// affinity, nice, memory lock): every process runs with normal scheduling.
-        #[arg(long)]
-        no_scheduling: bool,
-        /// Stop once the executive's stop-and-go cycle finished the row's last stop (a launch
-        /// with a row, e.g. processes/supervisor/launch/row.toml).
-        #[arg(long)]
-        until_row_done: bool,
-    },
+    Up(up::UpArgs),
     /// Simulated robot: the orchard world serving the hardware channels.
     #[cfg(feature = "sim-tools")]
     Sim(harvest_sim::process::SimArgs),
@@ -172,7 +153,7 @@ impl Cli {
             return name;
         }
         match &self.command {
-            Command::Up { .. } => "supervisor",
+            Command::Up(_) => "supervisor",
             #[cfg(feature = "sim-tools")]
             Command::Sim(_) => "sim",
             Command::Camera(_) => "camera",
@@ -214,20 +195,7 @@ impl Cli {
     pub fn run(self, process_name: &str) -> Result<ExitCode> {
         let domain = Domain::from_flag_or_env(self.domain.as_deref())?;
         match self.command {
-            Command::Up {
-                launch,
-                duration,
-                until_harvested,
-                no_scheduling,
-                until_row_done,
-            } => up(
-                launch,
-                duration,
-                until_harvested,
-                no_scheduling,
-                until_row_done,
-                domain,
-            ),
+            Command::Up(args) => up::up(args, domain),
             Command::Arm(args) => {
                 harvest_arm_process::run(&args, &domain, process_name)
                     .with_context(|| stack_process_context("arm process", &domain))?;
@@ -404,44 +372,6 @@ publisher)",
         ),
         _ => role.to_owned(),
     }
-}
-
-fn up(
-    launch: Option<PathBuf>,
-    duration: Option<Duration>,
-    until_harvested: bool,
-    no_scheduling: bool,
-    until_row_done: bool,
-    domain: Domain,
-) -> Result<ExitCode> {
-    let launch = match &launch {
-        Some(path) => harvest_supervisor::Launch::from_path(path)?,
-        None => harvest_supervisor::Launch::default_stack()?,
-    };
-    let launch = if no_scheduling {
-        launch.without_scheduling()
-    } else {
-        launch
-    };
-    let executable = std::env::current_exe().context("locating the harvest executable")?;
-    let summary = harvest_supervisor::run(harvest_supervisor::UpOptions {
-        launch,
-        domain,
-        duration,
-        executable,
-        until_harvested,
-        until_row_done,
-    })?;
-    if let Some(harvest) = summary.render_harvest() {
-        print!("{harvest}");
-    }
-    print!("{}", summary.render_safety());
-    eprint!("{}", summary.render());
-    Ok(if summary.failure.is_some() {
-        ExitCode::FAILURE
-    } else {
-        ExitCode::SUCCESS
-    })
 }
 
 fn clean(domain: &Domain, check: bool) -> Result<ExitCode> {
