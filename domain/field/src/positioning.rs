@@ -216,6 +216,12 @@ mod tests {
     fn positioning_beats_the_fixed_position_on_generated_rows() {
         let [a1, a2] = arms();
         let mut total = [0usize; 3]; // apples, fixed, chosen
+        // Apples of the stop's own section (within 1 m along the row: half the spacing of the
+        // stops) out of reach at the chosen offsets: all, and those an arm would reach if the
+        // apple stood straight ahead of the robot (y = 0) at the same depth and height: beyond
+        // the arms' sideways (yaw) reach, which no stage moves; only stops closer together
+        // along the row can bring them in.
+        let mut out_of_reach = [0usize; 2];
         for preset in ["default", "gala_vertical_wall", "fuji_ufo"] {
             let mut per_preset = [0usize; 3];
             for seed in 1..=3 {
@@ -225,6 +231,15 @@ mod tests {
                     per_preset[0] += apples.len();
                     per_preset[1] += chosen.reachable_here;
                     per_preset[2] += chosen.reachable;
+                    let delta = chosen.offset_m;
+                    for apple in &apples {
+                        let moved = [apple[0] - delta[0], apple[1], apple[2] - delta[1]];
+                        let reach = |p: [f64; 3]| in_reach(&a1, &a2, p) || in_reach(&a2, &a1, p);
+                        if moved[1].abs() <= 1.0 && !reach(moved) {
+                            out_of_reach[0] += 1;
+                            out_of_reach[1] += usize::from(reach([moved[0], 0.0, moved[2]]));
+                        }
+                    }
                 }
             }
             println!(
@@ -258,6 +273,13 @@ mod tests {
             centred[0] as f64 / 27.0,
             centred[1] as f64 / 27.0,
             centred[1] as f64 / centred[0].max(1) as f64
+        );
+        println!(
+            "positioning out of reach at the chosen offsets, within 1 m of the stop: {} apples, {} \
+({:.0} %) only sideways (in reach at y = 0, same depth and height)",
+            out_of_reach[0],
+            out_of_reach[1],
+            100.0 * out_of_reach[1] as f64 / out_of_reach[0].max(1) as f64
         );
         let ratio = total[2] as f64 / total[1].max(1) as f64;
         println!(
