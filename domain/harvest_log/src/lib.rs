@@ -15,10 +15,13 @@
 //! Along a row (the executive's stop-and-go cycle) each `StopFinished` line gets the failed
 //! attempts by cause that ended during that stop (after the previous stop's event, by the
 //! events' stamps on the one monotonic clock), and the row summary those of the whole row: the
-//! same cause labels as the summary's "failed attempts".
+//! same cause labels as the summary's "failed attempts", and beside them the paper's Table 3
+//! categories the live stack can name ([`table3`]).
 //!
 //! "Harvested" is the arm's account (the apple was released at the drop-off with the seal
 //! held): the live stack has no ground truth. The evaluation scores against the simulator's.
+
+pub mod table3;
 
 use std::collections::BTreeMap;
 use std::fmt::{self, Write as _};
@@ -103,6 +106,9 @@ pub struct HarvestLogSummary {
     pub attempts: u32,
     /// Failed attempts by cause label.
     pub failure_causes: BTreeMap<&'static str, u32>,
+    /// Failed attempts by paper 003's Table 3 category, as far as the live stack can tell
+    /// ([`table3::table3_category`]).
+    pub failure_categories: BTreeMap<&'static str, u32>,
     /// Targets the arms refused for good, by cause label.
     pub rejected_targets: BTreeMap<&'static str, u32>,
     /// From the first assignment to the end of the last attempt, s.
@@ -162,7 +168,12 @@ impl fmt::Display for HarvestLogSummary {
             opt(self.mean_attempt_s, 2)
         )?;
         if !self.failure_causes.is_empty() {
-            writeln!(f, "  failed attempts: {}", cause_list(&self.failure_causes))?;
+            writeln!(
+                f,
+                "  failed attempts: {}; by Table 3 category: {}",
+                cause_list(&self.failure_causes),
+                cause_list(&self.failure_categories)
+            )?;
         }
         if !self.rejected_targets.is_empty() {
             writeln!(
@@ -174,9 +185,10 @@ impl fmt::Display for HarvestLogSummary {
         if let Some(row) = &self.row {
             writeln!(
                 f,
-                "row summary ({} stops): {row}, failed: {}",
+                "row summary ({} stops): {row}, failed: {}; by Table 3 category: {}",
                 self.stops.len(),
-                cause_list(&self.failure_causes)
+                cause_list(&self.failure_causes),
+                cause_list(&self.failure_categories)
             )?;
         }
         if self.feedback_stalls > 0 {
@@ -432,8 +444,12 @@ impl HarvestLog {
             .filter(|a| a.first_attempt_harvested)
             .count() as u32;
         let mut failure_causes = BTreeMap::new();
+        let mut failure_categories = BTreeMap::new();
         for a in self.attempts.iter().filter(|a| !a.harvested) {
             *failure_causes.entry(a.cause.label()).or_insert(0) += 1;
+            *failure_categories
+                .entry(table3::table3_category(a.cause))
+                .or_insert(0) += 1;
         }
         let last_end_ns = self.attempts.iter().map(|a| a.end_ns).max();
         let duration_s = match (self.first_assigned_ns, last_end_ns) {
@@ -453,6 +469,7 @@ impl HarvestLog {
             first_attempt_successes,
             attempts,
             failure_causes,
+            failure_categories,
             rejected_targets: self.rejected.clone(),
             duration_s,
             rates: CycleRates::new(apples_attempted, apples_harvested, attempts, duration_s),
@@ -598,6 +615,16 @@ mod tests {
         assert_eq!(s.mean_attempt_s, Some(3.0));
         assert_eq!(s.failure_causes.get("no_attachment"), Some(&1));
         assert_eq!(s.failure_causes.get("target_not_taken"), Some(&1));
+        assert_eq!(
+            s.failure_categories.get("sealing or perception (no seal)"),
+            Some(&1)
+        );
+        assert_eq!(s.failure_categories.get("other"), Some(&1));
+        assert!(
+            s.to_string()
+                .contains("by Table 3 category: other 1, sealing or perception (no seal) 1"),
+            "{s}"
+        );
         assert!(!s.complete);
         let text = s.to_string();
         assert!(text.contains("attempted 4, harvested 3"), "{text}");
