@@ -37,7 +37,7 @@ unsafe impl GlobalAlloc for LargestRequest {
 static ALLOCATOR: LargestRequest = LargestRequest;
 
 /// `recording_file` target, out-of-memory: after the magic, a Header record (opcode 0x01) of
-/// 5 bytes whose profile string claims 0xffff_fff7 bytes. The `mcap` crate reserved the claimed
+/// 5 bytes whose profile string claims 0xffff_f700 bytes. The `mcap` crate reserved the claimed
 /// 4 GiB before reading; the scanner now refuses the record, naming the field.
 #[test]
 fn header_whose_profile_claims_4_gib_is_refused_without_allocating_it() {
@@ -60,7 +60,7 @@ fn header_whose_profile_claims_4_gib_is_refused_without_allocating_it() {
         outcome
             .warnings
             .iter()
-            .any(|warning| warning.contains("profile claims 4294967287 bytes")),
+            .any(|warning| warning.contains("profile claims 4294964992 bytes")),
         "warnings: {:?}",
         outcome.warnings
     );
