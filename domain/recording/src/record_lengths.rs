@@ -80,6 +80,9 @@ fn layout(opcode: u8) -> &'static [Field] {
     }
 }
 
+/// A length-prefixed value and the bytes after it.
+type ValueAndRest<'a> = (&'a [u8], &'a [u8]);
+
 /// Reads a length prefix of `width` bytes at the start of `rest` and checks that it fits;
 /// `Ok(None)` when the prefix itself is cut (the `mcap` crate reports that).
 fn prefixed<'a>(
@@ -87,7 +90,7 @@ fn prefixed<'a>(
     field: &'static str,
     width: usize,
     rest: &'a [u8],
-) -> Result<Option<(&'a [u8], &'a [u8])>, RecordError> {
+) -> Result<Option<ValueAndRest<'a>>, RecordError> {
     let Some((prefix, after)) = rest.split_at_checked(width) else {
         return Ok(None);
     };
