@@ -20,6 +20,7 @@ pub mod payload_codec;
 pub mod png_export;
 pub mod rec_cat;
 pub mod rec_info;
+pub mod record_lengths;
 pub mod recording_file;
 pub mod recover;
 pub mod scan;

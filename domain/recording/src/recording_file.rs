@@ -123,7 +123,7 @@ pub fn read_indexed_metadata(
         buffer.resize(index.length as usize, 0);
         file.read_exact(&mut buffer)
             .map_err(|error| error.to_string())?;
-        match mcap::parse_record(buffer[0], &buffer[9..]) {
+        match crate::record_lengths::parse_record(buffer[0], &buffer[9..]) {
             Ok(Record::Metadata(metadata)) => records.push(metadata),
             Ok(_) => {
                 return Err(format!(
@@ -131,7 +131,7 @@ pub fn read_indexed_metadata(
                     index.offset
                 ));
             }
-            Err(error) => return Err(crate::mcap_error::mcap_error_text(&error)),
+            Err(error) => return Err(error.to_string()),
         }
     }
     Ok(records)

@@ -275,7 +275,7 @@ record and summary (the recorder did not finish it)"
     ) -> Step {
         if opcode == op::CHUNK {
             let record_bytes = RECORD_PREFIX_BYTES + data.len() as u64;
-            return match mcap::parse_record(opcode, data) {
+            return match crate::record_lengths::parse_record(opcode, data) {
                 Ok(Record::Chunk { header, data }) => {
                     self.on_chunk(header, &data, offset, record_bytes, on_item)
                 }
@@ -308,7 +308,7 @@ record and summary (the recorder did not finish it)"
         if !deliver && opcode != op::SCHEMA && opcode != op::CHANNEL {
             return Some(Step::Continue);
         }
-        let record = match mcap::parse_record(opcode, data) {
+        let record = match crate::record_lengths::parse_record(opcode, data) {
             Ok(record) => record,
             Err(error) => {
                 self.outcome.warnings.push(format!(
