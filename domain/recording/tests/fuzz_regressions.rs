@@ -92,3 +92,46 @@ fn length_prefixes_past_the_record_are_named() {
     body[len_at..len_at + 4].copy_from_slice(&3u32.to_le_bytes());
     check_length_prefixes(mcap::records::op::METADATA, &body).unwrap();
 }
+
+/// The summary reader (`rec info`, `read_summary`) gets the same check: a summary section whose
+/// Schema record claims a 4 GiB name is refused, naming the field (the `mcap` crate alone says
+/// "Record parse failed"), without a large allocation. Written after the scanner's case.
+#[test]
+fn summary_record_claiming_4_gib_is_refused_without_allocating_it() {
+    // Magic, Header (profile "", library ""), the summary section with one Schema record
+    // (id 1, name claiming 0xffff_f000 bytes), the footer pointing at it, magic.
+    let mut bytes = mcap::MAGIC.to_vec();
+    bytes.push(mcap::records::op::HEADER);
+    bytes.extend_from_slice(&8u64.to_le_bytes());
+    bytes.extend_from_slice(&[0u8; 8]);
+    let summary_start = bytes.len() as u64;
+    let schema_body: Vec<u8> = [1u8, 0]
+        .into_iter()
+        .chain(0xffff_f000u32.to_le_bytes())
+        .chain(*b"ab")
+        .collect();
+    bytes.push(mcap::records::op::SCHEMA);
+    bytes.extend_from_slice(&(schema_body.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(&schema_body);
+    bytes.push(mcap::records::op::FOOTER);
+    bytes.extend_from_slice(&20u64.to_le_bytes());
+    bytes.extend_from_slice(&summary_start.to_le_bytes());
+    bytes.extend_from_slice(&0u64.to_le_bytes());
+    bytes.extend_from_slice(&0u32.to_le_bytes());
+    bytes.extend_from_slice(mcap::MAGIC);
+    let path = std::env::temp_dir().join(format!(
+        "harvest-recording-summary-regression-{}.mcap",
+        std::process::id()
+    ));
+    std::fs::write(&path, &bytes).unwrap();
+
+    let outcome = harvest_recording::recording_file::read_summary(&path);
+    std::fs::remove_file(&path).unwrap();
+    let error = outcome.expect_err("the summary must be refused");
+    assert!(
+        error.contains("summary section") && error.contains("claims 4294963200 bytes"),
+        "{error}"
+    );
+    let largest = LARGEST_REQUEST_BYTES.load(Ordering::Relaxed);
+    assert!(largest < 64 << 20, "largest allocation {largest} bytes");
+}
