@@ -144,6 +144,13 @@ impl VacuumNode {
                 config.withdrawal_backoff_s,
             ));
         }
+        if !(config.slip_give_up_vacuum_mmh2o.is_finite()
+            && config.slip_give_up_vacuum_mmh2o >= 0.0)
+        {
+            return Err(VacuumNodeError::SlipGiveUpVacuum(
+                config.slip_give_up_vacuum_mmh2o,
+            ));
+        }
         let planner = AssignmentPlanner::new(config.planner)?;
         Ok(Self {
             policy: new_policy(config.policy),
@@ -271,7 +278,21 @@ impl VacuumNode {
         match self.inference.update(&sample, settled_open) {
             Ok(changes) => {
                 for change in changes.into_iter().flatten() {
+                    let track = &mut self.arms[change.arm.index()];
+                    if change.from == AttachmentState::Sealed
+                        && change.to == AttachmentState::Dropped
+                    {
+                        track.seal_lost_after_mmh2o = Some(track.sealed_peak_mmh2o);
+                    }
                     self.output.events.push(VacuumNodeEvent::Attachment(change));
+                }
+                for arm in ArmId::ALL {
+                    if self.inference.state(arm) == AttachmentState::Sealed {
+                        let track = &mut self.arms[arm.index()];
+                        track.sealed_peak_mmh2o = track
+                            .sealed_peak_mmh2o
+                            .max(sample.arm_vacuum_mmh2o[arm.index()]);
+                    }
                 }
             }
             Err(error) => {

@@ -135,6 +135,24 @@ impl VacuumNode {
         }
     }
 
+    /// Puts `position_m` on the give-up list at once (its spot counts `planner.max_attempts`
+    /// attempts): an apple no further attempt can harvest.
+    pub(super) fn give_up(&mut self, position_m: &[f64; 3]) {
+        self.remember(position_m);
+        let r2 = self.config.give_up_radius_m.powi(2);
+        let limit = self.config.planner.max_attempts;
+        if let Some(spot) = self
+            .attempt_spots
+            .iter_mut()
+            .filter(|(p, _)| squared_distance(p, position_m) <= r2)
+            .min_by(|a, b| {
+                squared_distance(&a.0, position_m).total_cmp(&squared_distance(&b.0, position_m))
+            })
+        {
+            spot.1 = spot.1.max(limit);
+        }
+    }
+
     /// Re-publishes the targets dispatched but not taken up yet when the new set still sees
     /// their apple (within the planner's match radius).
     fn refresh_dispatched(&mut self) {

@@ -203,3 +203,24 @@ pub fn render_line(f: &FailedAttempt) -> String {
         nearest
     )
 }
+
+/// Apples left on the tree after a slip: their last attempt failed with the fruit slipping off
+/// the cup (the vacuum supervisor gives such an apple up at once when the cup held full
+/// vacuum; counted here, never silently dropped).
+pub fn left_after_slip(world: &World, attempts: &[AttemptRecord]) -> u32 {
+    let mut last: BTreeMap<u32, &AttemptRecord> = BTreeMap::new();
+    for attempt in attempts {
+        if let Some(apple) = attempt.apple {
+            last.insert(apple, attempt);
+        }
+    }
+    last.iter()
+        .filter(|(apple, attempt)| {
+            attempt.cause == Some(FailureCause::Detachment)
+                && world
+                    .apples()
+                    .get(**apple as usize)
+                    .is_some_and(|a| a.state == harvest_sim::AppleState::OnTree)
+        })
+        .count() as u32
+}

@@ -22,7 +22,9 @@ use serde::Serialize;
 
 use super::args::{DetectionsArg, EvalRowArgs};
 use super::error::RowEvalError;
-use super::failures::{FailedAttempt, FailureOrigin, failed_attempts, origin_counts, render_line};
+use super::failures::{
+    FailedAttempt, FailureOrigin, failed_attempts, left_after_slip, origin_counts, render_line,
+};
 use super::perception_loop::FramePolicy;
 use super::runner::{RowOutcome, RowRunConfig, StopFigures, run_row};
 use super::truth::{Table3Cause, attempt_causes, missed_causes};
@@ -103,6 +105,8 @@ pub struct RowRunReport {
     /// sum and count, mm.
     pub target_error_sum_mm: f64,
     pub target_error_count: u32,
+    /// Apples left on the tree after their last attempt slipped (skipped, not dropped).
+    pub left_after_slip: u32,
 }
 
 impl RowRunReport {
@@ -159,6 +163,7 @@ impl RowRunReport {
             failed,
             target_error_sum_mm: errors.iter().sum::<f64>() * 1e3,
             target_error_count: errors.len() as u32,
+            left_after_slip: left_after_slip(&outcome.world, attempts),
             row: outcome.name.clone(),
             seed: outcome.seed,
             arms: outcome.arms,
@@ -211,6 +216,7 @@ pub struct ArmSummary {
     pub origins: BTreeMap<FailureOrigin, u32>,
     pub target_error_sum_mm: f64,
     pub target_error_count: u32,
+    pub left_after_slip: u32,
 }
 
 impl ArmSummary {
@@ -251,6 +257,7 @@ impl ArmSummary {
         }
         self.target_error_sum_mm += run.target_error_sum_mm;
         self.target_error_count += run.target_error_count;
+        self.left_after_slip += run.left_after_slip;
     }
 
     /// Failed attempts the simulator's stochastic models decided whatever the stack did.
@@ -529,8 +536,8 @@ impl RowEvalReport {
         }
         let _ = writeln!(
             out,
-            "{header} {:>8} {:>8} {:>14} {:>12}",
-            "failed", "sim", "ok/att if sim", "pick err"
+            "{header} {:>8} {:>8} {:>14} {:>12} {:>10}",
+            "failed", "sim", "ok/att if sim", "pick err", "left slip"
         );
         for sum in &self.by_arms {
             let mut line = format!("  {:<14}", format!("sim {} arm", sum.arms));
@@ -545,7 +552,7 @@ impl RowEvalReport {
             let sim = sum.simulator_decided();
             let _ = writeln!(
                 out,
-                "{line} {:>8} {:>8} {:>14} {:>12}",
+                "{line} {:>8} {:>8} {:>14} {:>12} {:>10}",
                 failed,
                 sim,
                 pct(ratio(
@@ -553,13 +560,15 @@ impl RowEvalReport {
                     f64::from(sum.attempts)
                 )),
                 ratio(sum.target_error_sum_mm, f64::from(sum.target_error_count))
-                    .map_or_else(|| "-".to_owned(), |e| format!("{e:.1} mm"))
+                    .map_or_else(|| "-".to_owned(), |e| format!("{e:.1} mm")),
+                sum.left_after_slip
             );
         }
         let _ = writeln!(
             out,
             "  (ok/att if sim: success per attempt had only the simulator's draws failed; pick err: \
-             mean target-to-true-centre distance of the attempts that matched an apple)"
+             mean target-to-true-centre distance of the attempts that matched an apple; left slip: \
+             apples left on the tree after their last attempt slipped)"
         );
         let _ = writeln!(
             out,
