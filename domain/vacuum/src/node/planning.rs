@@ -10,10 +10,23 @@ use harvest_robot_model::ArmId;
 
 /// Radius used when a detection carries none, m.
 const FALLBACK_RADIUS_M: f64 = 0.04;
+/// Cup positions recorded this long before a set's capture still count as "at capture" (the
+/// arm state seen by the node is up to a control period old), ns.
+const CAPTURE_SLACK_NS: u64 = 20_000_000;
 
 impl VacuumNode {
+    /// Records where each carrying arm's cup is now (its [`super::cup_trail::CupTrail`]).
+    pub(super) fn record_cups(&mut self, arm_states: &[Option<&ArmState>; 2], now_ns: u64) {
+        for (trail, state) in self.cup_trails.iter_mut().zip(arm_states) {
+            if let Some(cup) = state.and_then(holding_cup_m) {
+                trail.push(now_ns, cup);
+            }
+        }
+    }
+
     /// Step 2: a new detection set. Detections of an apple held in a cup (see
-    /// [`VacuumNodeConfig::held_margin_m`]) are left out before planning.
+    /// [`VacuumNodeConfig::held_margin_m`]), now or where the cup was since the set's capture
+    /// (perception's latency), are left out before planning.
     pub(super) fn replan(
         &mut self,
         set: &AppleDetections,
@@ -37,9 +50,15 @@ impl VacuumNode {
                     FALLBACK_RADIUS_M
                 };
                 let reach_m = radius + self.config.held_margin_m;
+                let captured_from_ns = set.source_capture_ns.saturating_sub(CAPTURE_SLACK_NS);
                 if cups
                     .iter()
                     .flatten()
+                    .chain(
+                        self.cup_trails
+                            .iter()
+                            .flat_map(|t| t.since(captured_from_ns)),
+                    )
                     .any(|cup| squared_distance(cup, &p) <= reach_m * reach_m)
                 {
                     trace!(position_m = ?p, "detection at a holding arm's cup: not a tree apple");
