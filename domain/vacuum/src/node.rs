@@ -55,6 +55,7 @@
 mod arm_track;
 mod attempts;
 mod config;
+mod cup_trail;
 mod dispatch;
 mod event;
 mod input;
@@ -79,6 +80,7 @@ use crate::policy::{VacuumPolicy, new_policy};
 use crate::pressure::{AttachmentInference, AttachmentState, PressureSample};
 use crate::replan::AssignmentPlanner;
 use arm_track::ArmTrack;
+use cup_trail::CupTrail;
 use harvest_ipc::Header;
 use harvest_ipc::payloads::VacuumState;
 use harvest_ipc::payloads::apple_detections::MAX_APPLES_PER_FRAME;
@@ -102,6 +104,9 @@ pub struct VacuumNode {
     scratch_positions: Vec<[f64; 3]>,
     /// Where attempts were made, and how many (the give-up list).
     attempt_spots: Vec<([f64; 3], u32)>,
+    /// Per arm, where its cup carried an apple lately (detections captured then are that
+    /// apple, not a tree apple).
+    cup_trails: [CupTrail; 2],
     stopped: bool,
     target_seq: u64,
     state_seq: u64,
@@ -144,6 +149,13 @@ impl VacuumNode {
                 config.withdrawal_backoff_s,
             ));
         }
+        if !(config.slip_give_up_vacuum_mmh2o.is_finite()
+            && config.slip_give_up_vacuum_mmh2o >= 0.0)
+        {
+            return Err(VacuumNodeError::SlipGiveUpVacuum(
+                config.slip_give_up_vacuum_mmh2o,
+            ));
+        }
         let planner = AssignmentPlanner::new(config.planner)?;
         Ok(Self {
             policy: new_policy(config.policy),
@@ -155,6 +167,7 @@ impl VacuumNode {
             last_set_capture_ns: 0,
             scratch_positions: Vec::with_capacity(MAX_APPLES_PER_FRAME),
             attempt_spots: Vec::with_capacity(ATTEMPT_SPOTS_CAPACITY),
+            cup_trails: [CupTrail::default(); 2],
             stopped: false,
             target_seq: 0,
             state_seq: 0,
@@ -222,6 +235,7 @@ impl VacuumNode {
             self.infer(&readings);
             self.last_readings = Some(readings);
         }
+        self.record_cups(&input.arm_states, now_ns);
         if let Some(set) = input.detections {
             self.replan(set, &input.arm_states, now_ns);
         }
@@ -271,7 +285,21 @@ impl VacuumNode {
         match self.inference.update(&sample, settled_open) {
             Ok(changes) => {
                 for change in changes.into_iter().flatten() {
+                    let track = &mut self.arms[change.arm.index()];
+                    if change.from == AttachmentState::Sealed
+                        && change.to == AttachmentState::Dropped
+                    {
+                        track.seal_lost_after_mmh2o = Some(track.sealed_peak_mmh2o);
+                    }
                     self.output.events.push(VacuumNodeEvent::Attachment(change));
+                }
+                for arm in ArmId::ALL {
+                    if self.inference.state(arm) == AttachmentState::Sealed {
+                        let track = &mut self.arms[arm.index()];
+                        track.sealed_peak_mmh2o = track
+                            .sealed_peak_mmh2o
+                            .max(sample.arm_vacuum_mmh2o[arm.index()]);
+                    }
                 }
             }
             Err(error) => {

@@ -51,4 +51,9 @@ pub(super) struct ArmTrack {
     /// The apple last withdrawn from this arm (adopted if the arm took it up regardless; not
     /// dispatched to it again within `withdrawal_backoff_s`).
     pub(super) withdrawn: Option<Withdrawal>,
+    /// Highest arm vacuum read while the cup was sealed during the running attempt, mmH2O.
+    pub(super) sealed_peak_mmh2o: f32,
+    /// The seal was lost with the valve open during the running attempt, after the cup held
+    /// this peak vacuum, mmH2O.
+    pub(super) seal_lost_after_mmh2o: Option<f32>,
 }

@@ -31,6 +31,8 @@ impl VacuumNode {
                 if taken {
                     self.arms[i].dispatched = None;
                     self.arms[i].withdrawn = None;
+                    self.arms[i].sealed_peak_mmh2o = 0.0;
+                    self.arms[i].seal_lost_after_mmh2o = None;
                     self.arms[i].active = Some(d);
                     debug!(%arm, apple = d.apple.id.0, "attempt started");
                     self.output.events.push(VacuumNodeEvent::AttemptStarted {
@@ -80,7 +82,20 @@ impl VacuumNode {
                     };
                     self.arms[i].active = None;
                     self.planner.finish(arm, result);
-                    self.remember(&d.apple.position_m);
+                    let threshold = self.config.slip_give_up_vacuum_mmh2o;
+                    match self.arms[i].seal_lost_after_mmh2o.take() {
+                        Some(peak)
+                            if result == AttemptResult::Failed
+                                && threshold > 0.0
+                                && peak >= threshold =>
+                        {
+                            // The stem held against (nearly) the full force of the cup:
+                            // another attempt would fail the same way.
+                            info!(%arm, apple = d.apple.id.0, peak_mmh2o = peak, "slipped at full vacuum: apple given up");
+                            self.give_up(&d.apple.position_m);
+                        }
+                        _ => self.remember(&d.apple.position_m),
+                    }
                     debug!(%arm, apple = d.apple.id.0, ?result, "attempt finished");
                     self.output.events.push(VacuumNodeEvent::AttemptFinished {
                         arm,

@@ -10,10 +10,23 @@ use harvest_robot_model::ArmId;
 
 /// Radius used when a detection carries none, m.
 const FALLBACK_RADIUS_M: f64 = 0.04;
+/// Cup positions recorded this long before a set's capture still count as "at capture" (the
+/// arm state seen by the node is up to a control period old), ns.
+const CAPTURE_SLACK_NS: u64 = 20_000_000;
 
 impl VacuumNode {
+    /// Records where each carrying arm's cup is now (its [`super::cup_trail::CupTrail`]).
+    pub(super) fn record_cups(&mut self, arm_states: &[Option<&ArmState>; 2], now_ns: u64) {
+        for (trail, state) in self.cup_trails.iter_mut().zip(arm_states) {
+            if let Some(cup) = state.and_then(holding_cup_m) {
+                trail.push(now_ns, cup);
+            }
+        }
+    }
+
     /// Step 2: a new detection set. Detections of an apple held in a cup (see
-    /// [`VacuumNodeConfig::held_margin_m`]) are left out before planning.
+    /// [`VacuumNodeConfig::held_margin_m`]), now or where the cup was since the set's capture
+    /// (perception's latency), are left out before planning.
     pub(super) fn replan(
         &mut self,
         set: &AppleDetections,
@@ -37,9 +50,15 @@ impl VacuumNode {
                     FALLBACK_RADIUS_M
                 };
                 let reach_m = radius + self.config.held_margin_m;
+                let captured_from_ns = set.source_capture_ns.saturating_sub(CAPTURE_SLACK_NS);
                 if cups
                     .iter()
                     .flatten()
+                    .chain(
+                        self.cup_trails
+                            .iter()
+                            .flat_map(|t| t.since(captured_from_ns)),
+                    )
                     .any(|cup| squared_distance(cup, &p) <= reach_m * reach_m)
                 {
                     trace!(position_m = ?p, "detection at a holding arm's cup: not a tree apple");
@@ -132,6 +151,24 @@ impl VacuumNode {
                 *attempts += 1;
             }
             None => self.attempt_spots.push((*position_m, 1)),
+        }
+    }
+
+    /// Puts `position_m` on the give-up list at once (its spot counts `planner.max_attempts`
+    /// attempts): an apple no further attempt can harvest.
+    pub(super) fn give_up(&mut self, position_m: &[f64; 3]) {
+        self.remember(position_m);
+        let r2 = self.config.give_up_radius_m.powi(2);
+        let limit = self.config.planner.max_attempts;
+        if let Some(spot) = self
+            .attempt_spots
+            .iter_mut()
+            .filter(|(p, _)| squared_distance(p, position_m) <= r2)
+            .min_by(|a, b| {
+                squared_distance(&a.0, position_m).total_cmp(&squared_distance(&b.0, position_m))
+            })
+        {
+            spot.1 = spot.1.max(limit);
         }
     }
 

@@ -712,3 +712,87 @@ fn a_held_arm_gets_no_target_until_released() {
     let out = b.tick();
     assert_eq!(out.targets[0].map(|t| t.position_in_robot_m), Some(LEFT));
 }
+
+/// One attempt of arm 1 on an apple at `LEFT`: dispatched, taken up, the valve granted, the cup
+/// sealed at `sealed_mmh2o` (source at `source_mmh2o`), then the seal lost with the valve
+/// still open (the fruit slipped off), the arm idle again.
+fn slip_once(b: &mut Bench, sealed_mmh2o: f32, source_mmh2o: f32) {
+    b.tick_with(Some(&detections(b.now_ns, &[])));
+    let out = b.tick_with(Some(&detections(b.now_ns, &[LEFT])));
+    let target = out.targets[0].expect("dispatched");
+    b.set_phase(0, PhaseCode::Approach, target.apple_id);
+    b.tick();
+    b.set_phase(0, PhaseCode::AttachDetach, target.apple_id);
+    b.request(0, ValveRequestKind::OpenForAttach);
+    b.ticks(12);
+    b.pressure = [sealed_mmh2o, 0.0, source_mmh2o];
+    b.ticks(10);
+    assert_eq!(b.node.attachment(ArmId::Arm1), AttachmentState::Sealed);
+    b.pressure = [100.0, 0.0, source_mmh2o];
+    b.ticks(10);
+    assert!(b.events.iter().any(|e| matches!(
+        e,
+        VacuumNodeEvent::Attachment(c) if c.arm == ArmId::Arm1
+            && c.from == AttachmentState::Sealed
+            && c.to == AttachmentState::Dropped
+    )));
+    b.request(0, ValveRequestKind::Close);
+    b.set_phase(0, PhaseCode::Idle, 0);
+    b.ticks(12);
+    b.pressure = [0.0, 0.0, 2400.0];
+}
+
+#[test]
+fn an_apple_that_slipped_at_full_vacuum_is_given_up_at_once() {
+    let mut b = Bench::new(PolicyKind::V2024);
+    slip_once(&mut b, 2350.0, 2400.0);
+    assert_eq!(
+        b.count(|e| matches!(
+            e,
+            VacuumNodeEvent::AttemptFinished {
+                result: AttemptResult::Failed,
+                ..
+            }
+        )),
+        1
+    );
+    let out = b.tick_with(Some(&detections(b.now_ns, &[LEFT])));
+    assert!(out.targets.iter().all(Option::is_none));
+    assert!(
+        out.events
+            .iter()
+            .any(|e| matches!(e, VacuumNodeEvent::Replanned { given_up: 1, .. }))
+    );
+}
+
+#[test]
+fn an_apple_that_slipped_with_the_vacuum_sagged_is_tried_again() {
+    let mut b = Bench::new(PolicyKind::V2024);
+    // The source sagged (the other cup open): the arm sealed at 1450 mmH2O, about 27 N.
+    slip_once(&mut b, 1450.0, 1500.0);
+    let out = b.tick_with(Some(&detections(b.now_ns, &[LEFT])));
+    assert!(out.targets[0].is_some(), "a second attempt is dispatched");
+    // Off: every slip is retried up to `max_attempts`.
+    let mut b = Bench::new(PolicyKind::V2024);
+    b.node = VacuumNode::new(
+        VacuumNodeConfig {
+            slip_give_up_vacuum_mmh2o: 0.0,
+            ..VacuumNodeConfig::default()
+        },
+        reach(),
+    )
+    .expect("node");
+    slip_once(&mut b, 2350.0, 2400.0);
+    let out = b.tick_with(Some(&detections(b.now_ns, &[LEFT])));
+    assert!(out.targets[0].is_some());
+    assert!(matches!(
+        VacuumNode::new(
+            VacuumNodeConfig {
+                slip_give_up_vacuum_mmh2o: f32::NAN,
+                ..VacuumNodeConfig::default()
+            },
+            reach()
+        ),
+        Err(VacuumNodeError::SlipGiveUpVacuum(_))
+    ));
+}

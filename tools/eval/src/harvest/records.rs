@@ -102,6 +102,29 @@ pub struct AttemptRecord {
     pub arm_failure: Option<AttemptFailure>,
     /// Ground-truth events during the attempt (this arm's cup).
     pub world: Vec<String>,
+    /// The true apple nearest the target at dispatch whatever its state (on the tree, in a
+    /// cup, on the module or the ground): what a target that matched no apple on the tree was
+    /// looking at.
+    pub nearest_any: Option<NearestApple>,
+    /// The forces when the fruit slipped off the cup (Table 3 "Detachment"), if it did.
+    pub slip: Option<SlipForces>,
+}
+
+/// The true apple nearest a target, in any state.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NearestApple {
+    pub apple: u32,
+    /// Target to true centre, m.
+    pub distance_m: f64,
+    /// Its state then (`OnTree`, `Attached`, `Harvested`, `Dropped`).
+    pub state: String,
+}
+
+/// Stem tension and the cup's holding force when a fruit slipped off, N.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SlipForces {
+    pub tension_n: f64,
+    pub holding_force_n: f64,
 }
 
 impl AttemptRecord {
@@ -197,6 +220,28 @@ impl Recorder {
             .filter(|(_, d)| *d < NEAR_APPLE_M)
             .map(|(id, _)| id.0);
         let nearest = nearest.filter(|(_, d)| *d < 0.05);
+        let nearest_any = world
+            .apples()
+            .iter()
+            .map(|a| {
+                let d = (0..3)
+                    .map(|i| (a.center_in_robot_m[i] - target.position_in_robot_m[i]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                (a, d)
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(a, d)| NearestApple {
+                apple: a.id.0,
+                distance_m: d,
+                state: match a.state {
+                    AppleState::OnTree => "OnTree",
+                    AppleState::Attached { .. } => "Attached",
+                    AppleState::Dropped => "Dropped",
+                    AppleState::Harvested => "Harvested",
+                }
+                .to_owned(),
+            });
         self.attempts.push(AttemptRecord {
             arm: arm as u8 + 1,
             planner_apple: target.apple_id,
@@ -211,6 +256,8 @@ impl Recorder {
             cause: None,
             arm_failure: None,
             world: Vec::new(),
+            nearest_any,
+            slip: None,
         });
         self.current[arm] = Some(self.attempts.len() - 1);
         self.last[arm] = self.current[arm];
@@ -355,6 +402,17 @@ impl Recorder {
             .and_then(|k| self.attempts.get_mut(k))
         {
             r.world.push(format!("{what} (apple {})", apple.0));
+            if let WorldEvent::Slipped {
+                tension_n,
+                holding_force_n,
+                ..
+            } = *event
+            {
+                r.slip = Some(SlipForces {
+                    tension_n,
+                    holding_force_n,
+                });
+            }
             if let WorldEvent::Released {
                 outcome: ReleaseOutcome::Harvested,
                 ..

@@ -58,6 +58,10 @@ pub struct EvalRowArgs {
     /// Also write the report as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Print every failed attempt with the ground truth behind it (origin, picking-point
+    /// error, stem against the cup's force, nearest apple and its state).
+    #[arg(long)]
+    pub failures: bool,
 }
 
 impl Default for EvalRowArgs {
@@ -75,6 +79,7 @@ impl Default for EvalRowArgs {
             stop_quiet_ms: 4000,
             max_row_s: 1800.0,
             json: None,
+            failures: false,
         }
     }
 }

@@ -15,9 +15,11 @@
 //! - [`runner`]: one row, tick by tick.
 //! - [`perception_loop`]: when frames are rendered, and the detection sets.
 //! - [`truth`]: reach from the ground truth, Table 3 attribution.
+//! - [`failures`]: the ground truth behind each failed attempt (`--failures`).
 
 pub mod args;
 pub mod error;
+pub mod failures;
 pub mod perception_loop;
 pub mod report;
 pub mod runner;

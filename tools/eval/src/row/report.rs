@@ -22,6 +22,9 @@ use serde::Serialize;
 
 use super::args::{DetectionsArg, EvalRowArgs};
 use super::error::RowEvalError;
+use super::failures::{
+    FailedAttempt, FailureOrigin, failed_attempts, left_after_slip, origin_counts, render_line,
+};
 use super::perception_loop::FramePolicy;
 use super::runner::{RowOutcome, RowRunConfig, StopFigures, run_row};
 use super::truth::{Table3Cause, attempt_causes, missed_causes};
@@ -94,6 +97,16 @@ pub struct RowRunReport {
     pub truncated: bool,
     pub safety_violations: u32,
     pub stops: Vec<StopFigures>,
+    /// Failed attempts by what decided them ([`FailureOrigin`]).
+    pub origins: BTreeMap<FailureOrigin, u32>,
+    /// Every failed attempt with the ground truth behind it.
+    pub failed: Vec<FailedAttempt>,
+    /// Picking-point error (target to true centre) of the attempts that matched an apple:
+    /// sum and count, mm.
+    pub target_error_sum_mm: f64,
+    pub target_error_count: u32,
+    /// Apples left on the tree after their last attempt slipped (skipped, not dropped).
+    pub left_after_slip: u32,
 }
 
 impl RowRunReport {
@@ -143,7 +156,14 @@ impl RowRunReport {
                         .is_some_and(|a| a.state == harvest_sim::AppleState::OnTree)
             })
             .collect();
+        let failed = failed_attempts(&outcome.world, attempts);
+        let errors: Vec<f64> = attempts.iter().filter_map(|a| a.target_error_m).collect();
         Self {
+            origins: origin_counts(&failed),
+            failed,
+            target_error_sum_mm: errors.iter().sum::<f64>() * 1e3,
+            target_error_count: errors.len() as u32,
+            left_after_slip: left_after_slip(&outcome.world, attempts),
             row: outcome.name.clone(),
             seed: outcome.seed,
             arms: outcome.arms,
@@ -193,6 +213,10 @@ pub struct ArmSummary {
     pub reach_fixed: usize,
     pub truncated: u32,
     pub safety_violations: u32,
+    pub origins: BTreeMap<FailureOrigin, u32>,
+    pub target_error_sum_mm: f64,
+    pub target_error_count: u32,
+    pub left_after_slip: u32,
 }
 
 impl ArmSummary {
@@ -228,6 +252,21 @@ impl ArmSummary {
             .sum::<usize>();
         self.truncated += u32::from(run.truncated);
         self.safety_violations += run.safety_violations;
+        for (origin, n) in &run.origins {
+            *self.origins.entry(*origin).or_insert(0) += n;
+        }
+        self.target_error_sum_mm += run.target_error_sum_mm;
+        self.target_error_count += run.target_error_count;
+        self.left_after_slip += run.left_after_slip;
+    }
+
+    /// Failed attempts the simulator's stochastic models decided whatever the stack did.
+    pub fn simulator_decided(&self) -> u32 {
+        self.origins
+            .iter()
+            .filter(|(o, _)| o.simulator_decided())
+            .map(|(_, n)| n)
+            .sum()
     }
 
     /// Harvested / attempts.
@@ -273,6 +312,8 @@ pub struct RowEvalReport {
     pub seeds: u32,
     pub detections: DetectionsArg,
     pub frame_interval_s: f64,
+    /// Print every failed attempt (`--failures`).
+    pub list_failures: bool,
     pub runs: Vec<RowRunReport>,
     pub by_arms: Vec<ArmSummary>,
 }
@@ -352,6 +393,11 @@ impl RowEvalReport {
                     stop.harvested,
                     stop.stop_s
                 );
+            }
+            if self.list_failures {
+                for failed in &run.failed {
+                    let _ = writeln!(out, "      failed: {}", render_line(failed));
+                }
             }
         }
         let _ = writeln!(
@@ -477,6 +523,52 @@ impl RowEvalReport {
         let _ = writeln!(
             out,
             "  (missed: in reach, never attempted, left on the tree; by the apple's flags)"
+        );
+        let _ = writeln!(
+            out,
+            "\nfailed attempts by what decided them (ground truth; `--failures` lists them): \
+             simulator draws (leaf, unripe stem beyond the cup at full vacuum with full twist \
+             relief, branch) and stack decisions"
+        );
+        let mut header = format!("  {:<14}", "");
+        for origin in FailureOrigin::ALL {
+            let _ = write!(header, " {:>12}", origin.label());
+        }
+        let _ = writeln!(
+            out,
+            "{header} {:>8} {:>8} {:>14} {:>12} {:>10}",
+            "failed", "sim", "ok/att if sim", "pick err", "left slip"
+        );
+        for sum in &self.by_arms {
+            let mut line = format!("  {:<14}", format!("sim {} arm", sum.arms));
+            for origin in FailureOrigin::ALL {
+                let _ = write!(
+                    line,
+                    " {:>12}",
+                    sum.origins.get(&origin).copied().unwrap_or(0)
+                );
+            }
+            let failed: u32 = sum.origins.values().sum();
+            let sim = sum.simulator_decided();
+            let _ = writeln!(
+                out,
+                "{line} {:>8} {:>8} {:>14} {:>12} {:>10}",
+                failed,
+                sim,
+                pct(ratio(
+                    f64::from(sum.attempts - sim),
+                    f64::from(sum.attempts)
+                )),
+                ratio(sum.target_error_sum_mm, f64::from(sum.target_error_count))
+                    .map_or_else(|| "-".to_owned(), |e| format!("{e:.1} mm")),
+                sum.left_after_slip
+            );
+        }
+        let _ = writeln!(
+            out,
+            "  (ok/att if sim: success per attempt had only the simulator's draws failed; pick err: \
+             mean target-to-true-centre distance of the attempts that matched an apple; left slip: \
+             apples left on the tree after their last attempt slipped)"
         );
         let _ = writeln!(
             out,
@@ -610,6 +702,7 @@ pub fn run_eval_row(args: &EvalRowArgs) -> Result<RowEvalReport, RowEvalError> {
         seeds: args.seeds,
         detections: args.detections,
         frame_interval_s: args.frame_interval_s,
+        list_failures: args.failures,
         runs,
         by_arms,
     };

@@ -85,6 +85,9 @@ fn check_truth(outcome: &RowOutcome, report: &RowRunReport) {
     assert_eq!(harvested_attempts, report.harvested);
     assert_eq!(failed, report.failure_detail.values().sum::<u32>());
     assert!(report.failures.values().sum::<u32>() >= failed);
+    // Every failed attempt has one origin, and the list holds each once.
+    assert_eq!(failed, report.origins.values().sum::<u32>());
+    assert_eq!(failed as usize, report.failed.len());
     assert!(
         report.attempts > 0,
         "perception found apples to pick: {report:?}"
