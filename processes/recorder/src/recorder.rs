@@ -698,6 +698,30 @@ impl Heartbeat {
         }
         self.last = Some(Instant::now());
         let drops = total_drops(taps);
+        if drops > self.drops_at_last {
+            // Which topic lost messages, and where: the subscriber's buffer (the tap fell
+            // behind) or the writer's queue (the disk fell behind).
+            let per_topic: Vec<String> = taps
+                .iter()
+                .filter_map(|tap| {
+                    let counts = tap.counts();
+                    (counts.dropped_by_transport + counts.dropped_by_queue > 0).then(|| {
+                        format!(
+                            "{} buffer {} queue {}",
+                            tap.topic(),
+                            counts.dropped_by_transport,
+                            counts.dropped_by_queue
+                        )
+                    })
+                })
+                .collect();
+            tracing::warn!(
+                dropped = drops,
+                new = drops - self.drops_at_last,
+                topics = %per_topic.join(", "),
+                "messages lost"
+            );
+        }
         let disk_full = writer.is_disk_full();
         let state = if writer.has_failed() || disk_full || drops > self.drops_at_last {
             ProcessRunState::Degraded

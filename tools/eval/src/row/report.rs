@@ -300,6 +300,17 @@ impl ArmSummary {
     }
 }
 
+/// Appends `counts[key]` (0 when absent) for each of `keys`, one 12-wide cell each.
+fn count_cells<K: Ord>(
+    line: &mut String,
+    keys: impl IntoIterator<Item = K>,
+    counts: &BTreeMap<K, u32>,
+) {
+    for key in keys {
+        let _ = write!(line, " {:>12}", counts.get(&key).copied().unwrap_or(0));
+    }
+}
+
 fn ratio(a: f64, b: f64) -> Option<f64> {
     (b > 0.0).then(|| a / b)
 }
@@ -502,22 +513,10 @@ impl RowEvalReport {
         let _ = writeln!(out, "{paper} {:>12}", "-");
         for sum in &self.by_arms {
             let mut line = format!("  {:<14}", format!("sim {} arm", sum.arms));
-            for cause in Table3Cause::ALL {
-                let _ = write!(
-                    line,
-                    " {:>12}",
-                    sum.failures.get(&cause).copied().unwrap_or(0)
-                );
-            }
+            count_cells(&mut line, Table3Cause::ALL, &sum.failures);
             let _ = writeln!(out, "{line} {:>12}", sum.perception_failures);
             let mut missed = format!("  {:<14}", format!("  missed {}", sum.missed));
-            for cause in Table3Cause::ALL {
-                let _ = write!(
-                    missed,
-                    " {:>12}",
-                    sum.missed_causes.get(&cause).copied().unwrap_or(0)
-                );
-            }
+            count_cells(&mut missed, Table3Cause::ALL, &sum.missed_causes);
             let _ = writeln!(out, "{missed}");
         }
         let _ = writeln!(
@@ -541,13 +540,7 @@ impl RowEvalReport {
         );
         for sum in &self.by_arms {
             let mut line = format!("  {:<14}", format!("sim {} arm", sum.arms));
-            for origin in FailureOrigin::ALL {
-                let _ = write!(
-                    line,
-                    " {:>12}",
-                    sum.origins.get(&origin).copied().unwrap_or(0)
-                );
-            }
+            count_cells(&mut line, FailureOrigin::ALL, &sum.origins);
             let failed: u32 = sum.origins.values().sum();
             let sim = sum.simulator_decided();
             let _ = writeln!(
