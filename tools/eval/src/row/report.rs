@@ -63,19 +63,14 @@ pub fn load_row(name: &str) -> Result<RowScenario, RowEvalError> {
     }
 }
 
-/// One row run, summarized.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct RowRunReport {
-    pub row: String,
-    pub seed: u64,
-    pub arms: u8,
+/// The figures a row run and a sum of runs share; a sum of runs adds them ([`RowCounts::add`]).
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct RowCounts {
     pub apples_on_row: usize,
     /// In reach (ground truth) at some stop with the chosen offsets.
     pub reachable: usize,
     /// On the row but never in reach: counted, not dropped.
     pub out_of_reach: usize,
-    /// Detected at the stops (stop cycle, before positioning).
-    pub detected: usize,
     pub attempts: u32,
     pub apples_attempted: u32,
     pub harvested: u32,
@@ -87,26 +82,67 @@ pub struct RowRunReport {
     pub failures: BTreeMap<Table3Cause, u32>,
     /// Failed attempts caused by perception (each once).
     pub perception_failures: u32,
-    /// Failed attempts by the harvest evaluation's cause.
-    pub failure_detail: BTreeMap<String, u32>,
     /// Missed apples by their perception flags.
     pub missed_causes: BTreeMap<Table3Cause, u32>,
     pub harvest_s: f64,
     pub row_s: f64,
-    pub frames: u64,
-    pub truncated: bool,
     pub safety_violations: u32,
-    pub stops: Vec<StopFigures>,
     /// Failed attempts by what decided them ([`FailureOrigin`]).
     pub origins: BTreeMap<FailureOrigin, u32>,
-    /// Every failed attempt with the ground truth behind it.
-    pub failed: Vec<FailedAttempt>,
     /// Picking-point error (target to true centre) of the attempts that matched an apple:
     /// sum and count, mm.
     pub target_error_sum_mm: f64,
     pub target_error_count: u32,
     /// Apples left on the tree after their last attempt slipped (skipped, not dropped).
     pub left_after_slip: u32,
+}
+
+impl RowCounts {
+    /// Adds `other`'s figures to these.
+    fn add(&mut self, other: &RowCounts) {
+        fn add_map<K: Ord + Copy>(into: &mut BTreeMap<K, u32>, from: &BTreeMap<K, u32>) {
+            for (key, n) in from {
+                *into.entry(*key).or_insert(0) += n;
+            }
+        }
+        self.apples_on_row += other.apples_on_row;
+        self.reachable += other.reachable;
+        self.out_of_reach += other.out_of_reach;
+        self.attempts += other.attempts;
+        self.apples_attempted += other.apples_attempted;
+        self.harvested += other.harvested;
+        self.first_attempt_successes += other.first_attempt_successes;
+        self.missed += other.missed;
+        add_map(&mut self.failures, &other.failures);
+        self.perception_failures += other.perception_failures;
+        add_map(&mut self.missed_causes, &other.missed_causes);
+        self.harvest_s += other.harvest_s;
+        self.row_s += other.row_s;
+        self.safety_violations += other.safety_violations;
+        add_map(&mut self.origins, &other.origins);
+        self.target_error_sum_mm += other.target_error_sum_mm;
+        self.target_error_count += other.target_error_count;
+        self.left_after_slip += other.left_after_slip;
+    }
+}
+
+/// One row run, summarized.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RowRunReport {
+    pub row: String,
+    pub seed: u64,
+    pub arms: u8,
+    #[serde(flatten)]
+    pub counts: RowCounts,
+    /// Detected at the stops (stop cycle, before positioning).
+    pub detected: usize,
+    /// Failed attempts by the harvest evaluation's cause.
+    pub failure_detail: BTreeMap<String, u32>,
+    pub frames: u64,
+    pub truncated: bool,
+    pub stops: Vec<StopFigures>,
+    /// Every failed attempt with the ground truth behind it.
+    pub failed: Vec<FailedAttempt>,
 }
 
 impl RowRunReport {
@@ -159,33 +195,35 @@ impl RowRunReport {
         let failed = failed_attempts(&outcome.world, attempts);
         let errors: Vec<f64> = attempts.iter().filter_map(|a| a.target_error_m).collect();
         Self {
-            origins: origin_counts(&failed),
+            counts: RowCounts {
+                apples_on_row: outcome.apples_on_row,
+                reachable: outcome.reachable.len(),
+                out_of_reach: outcome.apples_on_row - outcome.reachable.len(),
+                attempts: attempts.len() as u32,
+                apples_attempted: apples.len() as u32,
+                harvested: outcome.harvested() as u32,
+                first_attempt_successes: apples.iter().filter(|a| a.first_attempt_success).count()
+                    as u32,
+                missed: missed.len() as u32,
+                failures,
+                perception_failures,
+                missed_causes: missed_causes(&outcome.world, &missed),
+                harvest_s: outcome.stops.iter().map(|s| s.harvest_s).sum(),
+                row_s: outcome.row_s,
+                safety_violations: outcome.episode.violations.len() as u32,
+                origins: origin_counts(&failed),
+                target_error_sum_mm: errors.iter().sum::<f64>() * 1e3,
+                target_error_count: errors.len() as u32,
+                left_after_slip: left_after_slip(&outcome.world, attempts),
+            },
             failed,
-            target_error_sum_mm: errors.iter().sum::<f64>() * 1e3,
-            target_error_count: errors.len() as u32,
-            left_after_slip: left_after_slip(&outcome.world, attempts),
             row: outcome.name.clone(),
             seed: outcome.seed,
             arms: outcome.arms,
-            apples_on_row: outcome.apples_on_row,
-            reachable: outcome.reachable.len(),
-            out_of_reach: outcome.apples_on_row - outcome.reachable.len(),
             detected: outcome.stops.iter().map(|s| s.cycle.detected).sum(),
-            attempts: attempts.len() as u32,
-            apples_attempted: apples.len() as u32,
-            harvested: outcome.harvested() as u32,
-            first_attempt_successes: apples.iter().filter(|a| a.first_attempt_success).count()
-                as u32,
-            missed: missed.len() as u32,
-            failures,
-            perception_failures,
             failure_detail,
-            missed_causes: missed_causes(&outcome.world, &missed),
-            harvest_s: outcome.stops.iter().map(|s| s.harvest_s).sum(),
-            row_s: outcome.row_s,
             frames: outcome.frames,
             truncated: outcome.row_report.is_none(),
-            safety_violations: outcome.episode.violations.len() as u32,
             stops: outcome.stops.clone(),
         }
     }
@@ -196,50 +234,18 @@ impl RowRunReport {
 pub struct ArmSummary {
     pub arms: u8,
     pub runs: u32,
-    pub apples_on_row: usize,
-    pub reachable: usize,
-    pub out_of_reach: usize,
-    pub attempts: u32,
-    pub apples_attempted: u32,
-    pub harvested: u32,
-    pub first_attempt_successes: u32,
-    pub missed: u32,
-    pub failures: BTreeMap<Table3Cause, u32>,
-    pub perception_failures: u32,
-    pub missed_causes: BTreeMap<Table3Cause, u32>,
-    pub harvest_s: f64,
-    pub row_s: f64,
+    #[serde(flatten)]
+    pub counts: RowCounts,
     pub reach_chosen: usize,
     pub reach_fixed: usize,
     pub truncated: u32,
-    pub safety_violations: u32,
-    pub origins: BTreeMap<FailureOrigin, u32>,
-    pub target_error_sum_mm: f64,
-    pub target_error_count: u32,
-    pub left_after_slip: u32,
 }
 
 impl ArmSummary {
     fn add(&mut self, run: &RowRunReport) {
         self.arms = run.arms;
         self.runs += 1;
-        self.apples_on_row += run.apples_on_row;
-        self.reachable += run.reachable;
-        self.out_of_reach += run.out_of_reach;
-        self.attempts += run.attempts;
-        self.apples_attempted += run.apples_attempted;
-        self.harvested += run.harvested;
-        self.first_attempt_successes += run.first_attempt_successes;
-        self.missed += run.missed;
-        for (cause, n) in &run.failures {
-            *self.failures.entry(*cause).or_insert(0) += n;
-        }
-        self.perception_failures += run.perception_failures;
-        for (cause, n) in &run.missed_causes {
-            *self.missed_causes.entry(*cause).or_insert(0) += n;
-        }
-        self.harvest_s += run.harvest_s;
-        self.row_s += run.row_s;
+        self.counts.add(&run.counts);
         self.reach_chosen += run
             .stops
             .iter()
@@ -251,18 +257,12 @@ impl ArmSummary {
             .map(|s| s.truth_reachable_fixed)
             .sum::<usize>();
         self.truncated += u32::from(run.truncated);
-        self.safety_violations += run.safety_violations;
-        for (origin, n) in &run.origins {
-            *self.origins.entry(*origin).or_insert(0) += n;
-        }
-        self.target_error_sum_mm += run.target_error_sum_mm;
-        self.target_error_count += run.target_error_count;
-        self.left_after_slip += run.left_after_slip;
     }
 
     /// Failed attempts the simulator's stochastic models decided whatever the stack did.
     pub fn simulator_decided(&self) -> u32 {
-        self.origins
+        self.counts
+            .origins
             .iter()
             .filter(|(o, _)| o.simulator_decided())
             .map(|(_, n)| n)
@@ -271,27 +271,30 @@ impl ArmSummary {
 
     /// Harvested / attempts.
     pub fn success_per_attempt(&self) -> Option<f64> {
-        ratio(self.harvested as f64, self.attempts as f64)
+        ratio(self.counts.harvested as f64, self.counts.attempts as f64)
     }
 
     /// Harvested / attempted apples (Table 2's).
     pub fn success_per_apple(&self) -> Option<f64> {
-        ratio(self.harvested as f64, self.apples_attempted as f64)
+        ratio(
+            self.counts.harvested as f64,
+            self.counts.apples_attempted as f64,
+        )
     }
 
     /// Harvesting time over attempts, s.
     pub fn seconds_per_attempt(&self) -> Option<f64> {
-        ratio(self.harvest_s, self.attempts as f64)
+        ratio(self.counts.harvest_s, self.counts.attempts as f64)
     }
 
     /// Whole-row time over attempts, s.
     pub fn row_seconds_per_attempt(&self) -> Option<f64> {
-        ratio(self.row_s, self.attempts as f64)
+        ratio(self.counts.row_s, self.counts.attempts as f64)
     }
 
     /// Whole-row time over harvested apples, s.
     pub fn row_seconds_per_apple(&self) -> Option<f64> {
-        ratio(self.row_s, self.harvested as f64)
+        ratio(self.counts.row_s, self.counts.harvested as f64)
     }
 
     /// Truth reach with the chosen offsets over the fixed position.
@@ -368,19 +371,19 @@ impl RowEvalReport {
                 run.row,
                 run.seed,
                 run.arms,
-                run.apples_on_row,
-                run.reachable,
-                run.out_of_reach,
+                run.counts.apples_on_row,
+                run.counts.reachable,
+                run.counts.out_of_reach,
                 run.detected,
-                run.attempts,
-                run.harvested,
-                run.missed,
-                run.harvest_s,
-                run.row_s,
+                run.counts.attempts,
+                run.counts.harvested,
+                run.counts.missed,
+                run.counts.harvest_s,
+                run.counts.row_s,
                 run.frames,
                 if run.truncated { ", TRUNCATED" } else { "" },
-                if run.safety_violations > 0 {
-                    format!(", {} SAFETY VIOLATIONS", run.safety_violations)
+                if run.counts.safety_violations > 0 {
+                    format!(", {} SAFETY VIOLATIONS", run.counts.safety_violations)
                 } else {
                     String::new()
                 }
@@ -472,11 +475,17 @@ impl RowEvalReport {
                 out,
                 "  {:<14} {:>9} {:>14} {:>6} {:>6} {:>8} {:>10} {:>10} {:>10} {:>10}",
                 format!("sim {} arm", sum.arms),
-                sum.apples_attempted,
-                format!("{} ({})", sum.harvested, pct(sum.success_per_apple())),
-                sum.first_attempt_successes,
-                sum.harvested.saturating_sub(sum.first_attempt_successes),
-                sum.attempts,
+                sum.counts.apples_attempted,
+                format!(
+                    "{} ({})",
+                    sum.counts.harvested,
+                    pct(sum.success_per_apple())
+                ),
+                sum.counts.first_attempt_successes,
+                sum.counts
+                    .harvested
+                    .saturating_sub(sum.counts.first_attempt_successes),
+                sum.counts.attempts,
                 pct(sum.success_per_attempt()),
                 s(sum.seconds_per_attempt()),
                 s(sum.row_seconds_per_attempt()),
@@ -513,10 +522,10 @@ impl RowEvalReport {
         let _ = writeln!(out, "{paper} {:>12}", "-");
         for sum in &self.by_arms {
             let mut line = format!("  {:<14}", format!("sim {} arm", sum.arms));
-            count_cells(&mut line, Table3Cause::ALL, &sum.failures);
-            let _ = writeln!(out, "{line} {:>12}", sum.perception_failures);
-            let mut missed = format!("  {:<14}", format!("  missed {}", sum.missed));
-            count_cells(&mut missed, Table3Cause::ALL, &sum.missed_causes);
+            count_cells(&mut line, Table3Cause::ALL, &sum.counts.failures);
+            let _ = writeln!(out, "{line} {:>12}", sum.counts.perception_failures);
+            let mut missed = format!("  {:<14}", format!("  missed {}", sum.counts.missed));
+            count_cells(&mut missed, Table3Cause::ALL, &sum.counts.missed_causes);
             let _ = writeln!(out, "{missed}");
         }
         let _ = writeln!(
@@ -540,8 +549,8 @@ impl RowEvalReport {
         );
         for sum in &self.by_arms {
             let mut line = format!("  {:<14}", format!("sim {} arm", sum.arms));
-            count_cells(&mut line, FailureOrigin::ALL, &sum.origins);
-            let failed: u32 = sum.origins.values().sum();
+            count_cells(&mut line, FailureOrigin::ALL, &sum.counts.origins);
+            let failed: u32 = sum.counts.origins.values().sum();
             let sim = sum.simulator_decided();
             let _ = writeln!(
                 out,
@@ -549,12 +558,15 @@ impl RowEvalReport {
                 failed,
                 sim,
                 pct(ratio(
-                    f64::from(sum.attempts - sim),
-                    f64::from(sum.attempts)
+                    f64::from(sum.counts.attempts - sim),
+                    f64::from(sum.counts.attempts)
                 )),
-                ratio(sum.target_error_sum_mm, f64::from(sum.target_error_count))
-                    .map_or_else(|| "-".to_owned(), |e| format!("{e:.1} mm")),
-                sum.left_after_slip
+                ratio(
+                    sum.counts.target_error_sum_mm,
+                    f64::from(sum.counts.target_error_count)
+                )
+                .map_or_else(|| "-".to_owned(), |e| format!("{e:.1} mm")),
+                sum.counts.left_after_slip
             );
         }
         let _ = writeln!(
@@ -577,16 +589,16 @@ impl RowEvalReport {
                 sum.reach_chosen,
                 sum.positioning_ratio()
                     .map_or_else(|| "-".to_owned(), |r| format!("{r:.2}")),
-                sum.apples_on_row,
-                sum.reachable,
-                sum.out_of_reach,
+                sum.counts.apples_on_row,
+                sum.counts.reachable,
+                sum.counts.out_of_reach,
                 if sum.truncated > 0 {
                     format!(", {} runs TRUNCATED", sum.truncated)
                 } else {
                     String::new()
                 },
-                if sum.safety_violations > 0 {
-                    format!(", {} SAFETY VIOLATIONS", sum.safety_violations)
+                if sum.counts.safety_violations > 0 {
+                    format!(", {} SAFETY VIOLATIONS", sum.counts.safety_violations)
                 } else {
                     String::new()
                 }
@@ -669,8 +681,8 @@ pub fn run_eval_row(args: &EvalRowArgs) -> Result<RowEvalReport, RowEvalError> {
                     row = %report.row,
                     seed = report.seed,
                     arms,
-                    attempts = report.attempts,
-                    harvested = report.harvested,
+                    attempts = report.counts.attempts,
+                    harvested = report.counts.harvested,
                     frames = report.frames,
                     "row done"
                 );

@@ -55,9 +55,18 @@ fn config(arms: u8, seed: u64) -> RowRunConfig {
 fn check_truth(outcome: &RowOutcome, report: &RowRunReport) {
     assert!(outcome.row_report.is_some(), "the row completed");
     assert_eq!(outcome.stops.len(), 1);
-    assert!(report.harvested as usize <= report.reachable, "{report:?}");
-    assert!(report.reachable <= report.apples_on_row, "{report:?}");
-    assert_eq!(report.reachable + report.out_of_reach, report.apples_on_row);
+    assert!(
+        report.counts.harvested as usize <= report.counts.reachable,
+        "{report:?}"
+    );
+    assert!(
+        report.counts.reachable <= report.counts.apples_on_row,
+        "{report:?}"
+    );
+    assert_eq!(
+        report.counts.reachable + report.counts.out_of_reach,
+        report.counts.apples_on_row
+    );
     // Every apple of the row is accounted for: harvested, or still somewhere with a state.
     let on_module = outcome
         .world
@@ -65,8 +74,8 @@ fn check_truth(outcome: &RowOutcome, report: &RowRunReport) {
         .iter()
         .filter(|a| a.state == harvest_sim::AppleState::Harvested)
         .count();
-    assert_eq!(on_module, report.harvested as usize);
-    assert_eq!(outcome.world.apples().len(), report.apples_on_row);
+    assert_eq!(on_module, report.counts.harvested as usize);
+    assert_eq!(outcome.world.apples().len(), report.counts.apples_on_row);
     // Every failed, ended attempt has a Table 3 cause; harvested ones have none.
     let failed = outcome
         .episode
@@ -82,19 +91,19 @@ fn check_truth(outcome: &RowOutcome, report: &RowRunReport) {
         .iter()
         .filter(|a| a.harvested)
         .count() as u32;
-    assert_eq!(harvested_attempts, report.harvested);
+    assert_eq!(harvested_attempts, report.counts.harvested);
     assert_eq!(failed, report.failure_detail.values().sum::<u32>());
-    assert!(report.failures.values().sum::<u32>() >= failed);
+    assert!(report.counts.failures.values().sum::<u32>() >= failed);
     // Every failed attempt has one origin, and the list holds each once.
-    assert_eq!(failed, report.origins.values().sum::<u32>());
+    assert_eq!(failed, report.counts.origins.values().sum::<u32>());
     assert_eq!(failed as usize, report.failed.len());
     assert!(
-        report.attempts > 0,
+        report.counts.attempts > 0,
         "perception found apples to pick: {report:?}"
     );
     assert!(report.frames > 0);
     assert_eq!(
-        report.safety_violations, 0,
+        report.counts.safety_violations, 0,
         "{:?}",
         outcome.episode.violations
     );
