@@ -25,6 +25,45 @@ pub enum RecordError {
     Mcap(String),
 }
 
+/// Bytes of a record's frame before its body: the opcode and the u64 length prefix.
+pub const RECORD_PREFIX_BYTES: usize = 9;
+
+/// The record at the start of a run of records (chunk content, the summary section).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RecordSplit<'a> {
+    /// A whole record: its opcode, its body and the bytes after it.
+    Whole {
+        opcode: u8,
+        body: &'a [u8],
+        rest: &'a [u8],
+    },
+    /// Fewer bytes than an opcode and a length prefix.
+    PrefixCut,
+    /// The length prefix claims more bytes than follow it.
+    PastEnd { claimed_bytes: u64 },
+}
+
+/// Splits the first record off `bytes` (not empty) by its opcode and length prefix.
+pub fn split_record(bytes: &[u8]) -> RecordSplit<'_> {
+    let Some((prefix, after_prefix)) = bytes.split_at_checked(RECORD_PREFIX_BYTES) else {
+        return RecordSplit::PrefixCut;
+    };
+    let mut length_bytes = [0u8; 8];
+    length_bytes.copy_from_slice(&prefix[1..]);
+    let claimed_bytes = u64::from_le_bytes(length_bytes);
+    match usize::try_from(claimed_bytes)
+        .ok()
+        .and_then(|length| after_prefix.split_at_checked(length))
+    {
+        Some((body, rest)) => RecordSplit::Whole {
+            opcode: prefix[0],
+            body,
+            rest,
+        },
+        None => RecordSplit::PastEnd { claimed_bytes },
+    }
+}
+
 /// One field of a record's layout.
 enum Field {
     /// A fixed number of bytes.

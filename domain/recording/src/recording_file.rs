@@ -1,6 +1,7 @@
 //! Opening a recording: the magic check that tells an MCAP file from anything else, and the
 //! summary section (indexes and statistics) when the file has one.
 
+use crate::record_lengths::{RecordSplit, split_record};
 use mcap::Summary;
 use mcap::records::{Metadata, MetadataIndex, Record};
 use mcap::sans_io::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
@@ -146,22 +147,19 @@ fn check_summary_lengths(file: &mut File, file_bytes: u64) -> Result<(), String>
     file.read_exact(&mut section)
         .map_err(|error| error.to_string())?;
     let mut rest = section.as_slice();
-    while let Some((&opcode, after_opcode)) = rest.split_first() {
-        let Some((length, after_length)) = after_opcode.split_at_checked(8) else {
-            break;
-        };
-        let mut length_bytes = [0u8; 8];
-        length_bytes.copy_from_slice(length);
-        let Some((body, after_body)) = usize::try_from(u64::from_le_bytes(length_bytes))
-            .ok()
-            .and_then(|length| after_length.split_at_checked(length))
+    while !rest.is_empty() {
+        // A record cut by the section's end: the summary reader reports it.
+        let RecordSplit::Whole {
+            opcode,
+            body,
+            rest: after,
+        } = split_record(rest)
         else {
-            // A record cut by the section's end: the summary reader reports it.
             break;
         };
         crate::record_lengths::check_length_prefixes(opcode, body)
             .map_err(|error| format!("summary section: {error}"))?;
-        rest = after_body;
+        rest = after;
     }
     Ok(())
 }

@@ -9,6 +9,7 @@
 //! the scan at the last complete record, with the cut described. Nothing here panics on bad
 //! input.
 
+use crate::record_lengths::{RECORD_PREFIX_BYTES, RecordSplit, split_record};
 use crate::recording_file::{ReadError, open_recording};
 use mcap::read::ChannelAccumulator;
 use mcap::records::{ChunkHeader, Metadata, Record, op};
@@ -21,8 +22,6 @@ use std::sync::Arc;
 
 /// A chunk declaring more uncompressed bytes than this is treated as damaged.
 const MAX_CHUNK_UNCOMPRESSED_BYTES: u64 = 4 << 30;
-/// Opcode + length prefix of every record.
-const RECORD_PREFIX_BYTES: u64 = 9;
 
 /// What to read.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -237,7 +236,7 @@ record and summary (the recorder did not finish it)"
                 }
                 LinearReadEvent::Record { opcode, data } => {
                     let record_offset = offset;
-                    offset += RECORD_PREFIX_BYTES + data.len() as u64;
+                    offset += (RECORD_PREFIX_BYTES + data.len()) as u64;
                     if opcode == op::DATA_END {
                         self.outcome.valid_bytes = offset;
                         self.outcome.end = ScanEnd::Complete;
@@ -274,7 +273,7 @@ record and summary (the recorder did not finish it)"
         on_item: &mut impl FnMut(ScanItem<'_>) -> ControlFlow<()>,
     ) -> Step {
         if opcode == op::CHUNK {
-            let record_bytes = RECORD_PREFIX_BYTES + data.len() as u64;
+            let record_bytes = (RECORD_PREFIX_BYTES + data.len()) as u64;
             return match crate::record_lengths::parse_record(opcode, data) {
                 Ok(Record::Chunk { header, data }) => {
                     self.on_chunk(header, &data, offset, record_bytes, on_item)
@@ -282,7 +281,7 @@ record and summary (the recorder did not finish it)"
                 Ok(_) | Err(_) => {
                     let damaged = DamagedChunk {
                         offset,
-                        record_bytes: RECORD_PREFIX_BYTES + data.len() as u64,
+                        record_bytes: (RECORD_PREFIX_BYTES + data.len()) as u64,
                         message_start_time: 0,
                         message_end_time: 0,
                         messages_read: 0,
@@ -408,25 +407,21 @@ record and summary (the recorder did not finish it)"
         let mut step = Step::Continue;
         let messages_before = self.outcome.messages;
         while position < content.len() {
-            let Some(prefix) = content.get(position..position + RECORD_PREFIX_BYTES as usize)
-            else {
-                damaged.reason =
-                    format!("record header cut at byte {position} of the chunk content");
-                break;
-            };
-            let opcode = prefix[0];
-            let mut length_bytes = [0u8; 8];
-            length_bytes.copy_from_slice(&prefix[1..]);
-            let length = u64::from_le_bytes(length_bytes);
-            let body_start = position + RECORD_PREFIX_BYTES as usize;
-            let body_end = usize::try_from(length)
-                .ok()
-                .and_then(|length| body_start.checked_add(length));
-            let Some(body) = body_end.and_then(|end| content.get(body_start..end)) else {
-                damaged.reason = format!(
-                    "record at byte {position} of the chunk content claims {length} bytes, past the chunk's end"
-                );
-                break;
+            let (opcode, body, rest) = match split_record(&content[position..]) {
+                RecordSplit::Whole { opcode, body, rest } => (opcode, body, rest),
+                RecordSplit::PrefixCut => {
+                    damaged.reason =
+                        format!("record header cut at byte {position} of the chunk content");
+                    break;
+                }
+                RecordSplit::PastEnd {
+                    claimed_bytes: length,
+                } => {
+                    damaged.reason = format!(
+                        "record at byte {position} of the chunk content claims {length} bytes, past the chunk's end"
+                    );
+                    break;
+                }
             };
             match self.on_plain_record(opcode, body, !skipped, on_item) {
                 Some(Step::Continue) => {}
@@ -441,7 +436,7 @@ record and summary (the recorder did not finish it)"
                     break;
                 }
             }
-            position = body_start + body.len();
+            position = content.len() - rest.len();
         }
         self.chunk_buffer = content;
         if !damaged.reason.is_empty() {
