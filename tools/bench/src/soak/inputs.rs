@@ -46,14 +46,14 @@ impl BadInputWriters {
 
     /// Random bytes in every field of an operator command.
     pub fn garbage_operator_command(&mut self, rng: &mut SmallRng) -> Result<String, String> {
-        let publisher = self
-            .operator
-            .as_mut()
-            .ok_or("operator/command refused the soak")?;
-        publisher
-            .publish_with(rng.random(), |command| fill_random(command, rng))
-            .map(|_| "random bytes on operator/command".to_owned())
-            .map_err(|error| error.to_string())
+        let stamp_ns = rng.random();
+        send(
+            &mut self.operator,
+            "operator/command",
+            stamp_ns,
+            |command| fill_random(command, rng),
+            "random bytes on operator/command".to_owned(),
+        )
     }
 
     /// The real token, an unknown command code, a NaN value.
@@ -62,59 +62,57 @@ impl BadInputWriters {
         rng: &mut SmallRng,
         token: &str,
     ) -> Result<String, String> {
-        let publisher = self
-            .operator
-            .as_mut()
-            .ok_or("operator/command refused the soak")?;
-        publisher
-            .publish_with(MonotonicClock::read_ns(), |command| {
+        send(
+            &mut self.operator,
+            "operator/command",
+            MonotonicClock::read_ns(),
+            |command| {
                 fill_random(command, rng);
                 command.code = UNKNOWN_COMMAND_CODE;
                 command.value = f64::NAN;
                 command.platform_target_m = [f64::INFINITY, f64::NAN];
                 command.token = FixedString::new(token);
                 command.client = FixedString::new("soak bad input");
-            })
-            .map(|_| format!("code {UNKNOWN_COMMAND_CODE:#x} with the real token, NaN value"))
-            .map_err(|error| error.to_string())
+            },
+            format!("code {UNKNOWN_COMMAND_CODE:#x} with the real token, NaN value"),
+        )
     }
 
     /// Random bytes in a harvest event whose kind is an unknown code (a known kind with random
     /// fields would be counted by the harvest summary as a real event).
     pub fn garbage_harvest_event(&mut self, rng: &mut SmallRng) -> Result<String, String> {
-        let publisher = self
-            .events
-            .as_mut()
-            .ok_or("harvest/events refused the soak")?;
-        publisher
-            .publish_with(rng.random(), |event| {
+        let stamp_ns = rng.random();
+        send(
+            &mut self.events,
+            "harvest/events",
+            stamp_ns,
+            |event| {
                 fill_random(event, rng);
                 event.kind = WireCode::from_raw(UNKNOWN_EVENT_KIND);
-            })
-            .map(|_| format!("random bytes on harvest/events, kind {UNKNOWN_EVENT_KIND:#x}"))
-            .map_err(|error| error.to_string())
+            },
+            format!("random bytes on harvest/events, kind {UNKNOWN_EVENT_KIND:#x}"),
+        )
     }
 
     /// Random bytes in a heartbeat.
     pub fn garbage_heartbeat(&mut self, rng: &mut SmallRng) -> Result<String, String> {
-        let publisher = self
-            .health
-            .as_mut()
-            .ok_or("system/health refused the soak")?;
-        publisher
-            .publish_with(rng.random(), |beat| fill_random(beat, rng))
-            .map(|_| "random bytes on system/health".to_owned())
-            .map_err(|error| error.to_string())
+        let stamp_ns = rng.random();
+        send(
+            &mut self.health,
+            "system/health",
+            stamp_ns,
+            |beat| fill_random(beat, rng),
+            "random bytes on system/health".to_owned(),
+        )
     }
 
     /// A heartbeat named `process` with a pid that is not its own, state degraded.
     pub fn spoofed_heartbeat(&mut self, process: &str, wrong_pid: u32) -> Result<String, String> {
-        let publisher = self
-            .health
-            .as_mut()
-            .ok_or("system/health refused the soak")?;
-        publisher
-            .publish_with(MonotonicClock::read_ns(), |beat| {
+        send(
+            &mut self.health,
+            "system/health",
+            MonotonicClock::read_ns(),
+            |beat| {
                 beat.process_name = FixedString::new(process);
                 beat.pid = wrong_pid;
                 beat.run_state = WireCode::new(ProcessRunState::Degraded);
@@ -123,10 +121,27 @@ impl BadInputWriters {
                 beat.detail_value = u64::MAX;
                 beat.detail = FixedString::new("spoofed by the soak");
                 beat.deadline_misses = u64::MAX;
-            })
-            .map(|_| format!("heartbeat as {process:?} with pid {wrong_pid}, degraded"))
-            .map_err(|error| error.to_string())
+            },
+            format!("heartbeat as {process:?} with pid {wrong_pid}, degraded"),
+        )
     }
+}
+
+/// Publishes one message filled by `fill`, stamped `stamp_ns`, on `publisher` (`topic` names it
+/// when the channel refused the soak); returns `said`, what was sent in words.
+fn send<T: Payload>(
+    publisher: &mut Option<Publisher<T>>,
+    topic: &str,
+    stamp_ns: u64,
+    fill: impl FnOnce(&mut T),
+    said: String,
+) -> Result<String, String> {
+    publisher
+        .as_mut()
+        .ok_or_else(|| format!("{topic} refused the soak"))?
+        .publish_with(stamp_ns, fill)
+        .map(|_| said)
+        .map_err(|error| error.to_string())
 }
 
 /// Random bytes over the whole payload (the header is stamped by the send).
