@@ -28,7 +28,11 @@
 //! allocated once. [`measure_fusion_time`] reports the time per cloud.
 
 use harvest_ipc::camera_model::{CameraIntrinsics, RigidTransform};
+use harvest_ipc::payloads::rgbd_frame::{RGB_HEIGHT_PX, RGB_WIDTH_PX};
 use harvest_ipc::payloads::{LidarPoint, RgbdFrameMeta};
+
+/// The largest image a fusion fills: a colour frame's, px.
+const MAX_IMAGE_PIXELS: usize = RGB_WIDTH_PX * RGB_HEIGHT_PX;
 use std::time::Instant;
 
 /// Points closer to the camera plane than this (camera z, metres) are treated as behind it.
@@ -210,6 +214,14 @@ impl Fusion {
             )));
         }
         let (width, height) = (k.width_px as usize, k.height_px as usize);
+        // The image size comes with the frames (shared memory): bound it by the largest camera
+        // image a frame carries before allocating per pixel.
+        if width == 0 || height == 0 || width.saturating_mul(height) > MAX_IMAGE_PIXELS {
+            return Err(FusionError::Setup(format!(
+                "image {width}x{height} px is empty or larger than a camera frame's \
+                 {RGB_WIDTH_PX}x{RGB_HEIGHT_PX} px"
+            )));
+        }
         let cell = config.occlusion_cell_px as usize;
         let (occlusion_width, occlusion_height) = (width.div_ceil(cell), height.div_ceil(cell));
         Ok(Self {
@@ -730,5 +742,16 @@ mod tests {
         let mut bad = config([0.0; 5]);
         bad.intrinsics.fx_px = 0.0;
         assert!(Fusion::new(bad).is_err());
+        // An image size from a frame's payload is bounded before any per-pixel allocation (a
+        // perception property test's random geometry asked for 8.5e18 bytes).
+        for (width_px, height_px) in [(u32::MAX, u32::MAX), (0, 480), (1921, 1080)] {
+            let mut bad = config([0.0; 5]);
+            bad.intrinsics.width_px = width_px;
+            bad.intrinsics.height_px = height_px;
+            assert!(
+                matches!(Fusion::new(bad), Err(FusionError::Setup(_))),
+                "{width_px}x{height_px}"
+            );
+        }
     }
 }
