@@ -29,7 +29,16 @@ struct World {
 
 impl World {
     fn new(params: ArmParams, other: ArmParams, apple_m: [f64; 3]) -> Self {
-        let cycle = PickingCycle::new(params, other, CycleConfig::default()).unwrap();
+        Self::with_config(params, other, apple_m, CycleConfig::default())
+    }
+
+    fn with_config(
+        params: ArmParams,
+        other: ArmParams,
+        apple_m: [f64; 3],
+        config: CycleConfig,
+    ) -> Self {
+        let cycle = PickingCycle::new(params, other, config).unwrap();
         Self {
             cycle,
             servo: FirstOrderServo::new(params.position_limits, 0.02, params.home),
@@ -142,7 +151,19 @@ const TYPICAL_APPLE_M: [f64; 3] = [1.45, -0.05, 0.50];
 
 #[test]
 fn cycle_timing_matches_the_fig_12_analysis() {
-    let mut w = World::new(ArmParams::arm1(), ArmParams::arm2(), TYPICAL_APPLE_M);
+    // Fig. 12's attach phase is short: an eighth of a turn of twist here. The default quarter
+    // turn (more stem relief, see `CycleConfig::detach_twist_rad`) adds about 0.2 s; the next
+    // test measures it.
+    let config = CycleConfig {
+        detach_twist_rad: std::f64::consts::FRAC_PI_4,
+        ..CycleConfig::default()
+    };
+    let mut w = World::with_config(
+        ArmParams::arm1(),
+        ArmParams::arm2(),
+        TYPICAL_APPLE_M,
+        config,
+    );
     let decision = w.run_cycle(20.0);
     assert_eq!(decision, TargetDecision::Accepted { id: 1 });
     assert_eq!(
@@ -203,6 +224,52 @@ fn cycle_timing_matches_the_fig_12_analysis() {
     let home = forward(&ArmParams::arm1().links, &ArmParams::arm1().home);
     let ee = forward(&ArmParams::arm1().links, &w.servo.position);
     assert!(distance_m(home, ee) < 0.005);
+}
+
+/// Attach duration and the largest twist reached, with `config`.
+fn attach_and_peak_twist(config: CycleConfig) -> (f64, f64) {
+    let mut w = World::with_config(
+        ArmParams::arm1(),
+        ArmParams::arm2(),
+        TYPICAL_APPLE_M,
+        config,
+    );
+    let target = w.target(1);
+    w.tick(Some(target), None);
+    let mut peak_twist_rad = 0.0_f64;
+    let start = w.t_s();
+    while w.cycle.phase() != CyclePhase::Idle && w.t_s() - start < 20.0 {
+        w.tick(None, None);
+        peak_twist_rad = peak_twist_rad.max(w.servo.position.twist_rad.abs());
+    }
+    let attach_s = w
+        .phase_durations()
+        .iter()
+        .find(|d| d.0 == CyclePhase::Attach)
+        .map(|d| d.1)
+        .unwrap();
+    (attach_s, peak_twist_rad)
+}
+
+#[test]
+fn the_default_detach_twist_is_a_quarter_turn() {
+    let quarter = CycleConfig::default();
+    let eighth = CycleConfig {
+        detach_twist_rad: std::f64::consts::FRAC_PI_4,
+        ..quarter
+    };
+    let (quarter_attach_s, quarter_peak_rad) = attach_and_peak_twist(quarter);
+    let (eighth_attach_s, eighth_peak_rad) = attach_and_peak_twist(eighth);
+    println!(
+        "attach: quarter turn {quarter_attach_s:.3} s (peak {quarter_peak_rad:.3} rad), \
+         eighth {eighth_attach_s:.3} s (peak {eighth_peak_rad:.3} rad)"
+    );
+    let tolerance = CycleConfig::default().twist_tolerance_rad;
+    assert!((quarter_peak_rad - std::f64::consts::FRAC_PI_2).abs() <= tolerance + 0.02);
+    assert!((eighth_peak_rad - std::f64::consts::FRAC_PI_4).abs() <= tolerance + 0.02);
+    // Simulated time: the extra eighth of a turn at the twist joint's speed limit (0.6 of
+    // 1 rev/s) takes at least 0.2 s.
+    assert!(quarter_attach_s - eighth_attach_s >= 0.2);
 }
 
 #[test]
