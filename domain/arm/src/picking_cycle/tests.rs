@@ -25,6 +25,8 @@ struct World {
     events: Vec<(CycleEvent, f64)>,
     outputs: Vec<CycleOutput>,
     max_tracking_error_m: f64,
+    /// Largest twist magnitude the servo reached, rad.
+    peak_twist_rad: f64,
 }
 
 impl World {
@@ -54,6 +56,7 @@ impl World {
             events: Vec::new(),
             outputs: Vec::new(),
             max_tracking_error_m: 0.0,
+            peak_twist_rad: 0.0,
         }
     }
 
@@ -108,6 +111,7 @@ impl World {
             self.servo
                 .step(&out.command.velocity, &JointVelocity::ZERO, 1e-3);
         }
+        self.peak_twist_rad = self.peak_twist_rad.max(self.servo.position.twist_rad.abs());
         self.now_ns += PERIOD_NS;
         self.outputs.push(out.clone());
         out
@@ -234,21 +238,14 @@ fn attach_and_peak_twist(config: CycleConfig) -> (f64, f64) {
         TYPICAL_APPLE_M,
         config,
     );
-    let target = w.target(1);
-    w.tick(Some(target), None);
-    let mut peak_twist_rad = 0.0_f64;
-    let start = w.t_s();
-    while w.cycle.phase() != CyclePhase::Idle && w.t_s() - start < 20.0 {
-        w.tick(None, None);
-        peak_twist_rad = peak_twist_rad.max(w.servo.position.twist_rad.abs());
-    }
+    assert_eq!(w.run_cycle(20.0), TargetDecision::Accepted { id: 1 });
     let attach_s = w
         .phase_durations()
         .iter()
         .find(|d| d.0 == CyclePhase::Attach)
         .map(|d| d.1)
         .unwrap();
-    (attach_s, peak_twist_rad)
+    (attach_s, w.peak_twist_rad)
 }
 
 #[test]
