@@ -8,8 +8,8 @@
 //! and renders the image with [`AlacsRenderer`] straight into the loaned answer.
 //!
 //! Where the unit is: the ALACS camera is rigidly mounted relative to the ToF camera's colour
-//! sensor by [`ALACS_FROM_TOF_CAMERA`] (see that constant for the design pose: level, 0.30 m
-//! ahead of and 0.45 m below the ToF camera in the default scenario, about 1 m from the canopy).
+//! sensor by [`ALACS_FROM_TOF_CAMERA`] (see that constant for the design pose: tilted 5 deg down,
+//! 0.30 m ahead of, 0.5 m below and 0.225 m left of the ToF camera, 0.85-1.2 m from the canopy).
 //! A scenario that moves the ToF camera moves the ALACS with it, so the laser process's
 //! transform stays right.
 //!
@@ -537,19 +537,22 @@ mod tests {
     }
 
     #[test]
-    fn alacs_is_level_and_about_a_metre_from_the_canopy() {
+    fn alacs_sits_at_its_design_pose_about_a_metre_from_the_canopy() {
         let world = default_world(1);
         let robot_from_alacs = robot_from_alacs_camera(&world);
         for (got, want) in robot_from_alacs
             .translation_m
             .iter()
-            .zip([0.30, 0.05, 0.45])
+            .zip([0.30, 0.20, 0.40])
         {
             assert!((got - want).abs() < 1e-9, "{:?}", robot_from_alacs);
         }
         let forward = robot_from_alacs.rotate([0.0, 0.0, 1.0]);
         let right = robot_from_alacs.rotate([1.0, 0.0, 0.0]);
-        assert!((forward[0] - 1.0).abs() < 1e-9, "{forward:?}");
+        let (sin, cos) = 5.0_f64.to_radians().sin_cos();
+        for (got, want) in forward.iter().zip([cos, 0.0, -sin]) {
+            assert!((got - want).abs() < 1e-9, "{forward:?}");
+        }
         assert!((right[1] + 1.0).abs() < 1e-9, "{right:?}");
         let front_x_m = world.scenario().canopy.front_x_m;
         assert!((front_x_m - robot_from_alacs.translation_m[0] - 0.85).abs() < 1e-9);
@@ -580,7 +583,7 @@ mod tests {
         assert!(
             scene
                 .background_depth_m
-                .is_some_and(|d| (d - 2.9).abs() < 1e-9)
+                .is_some_and(|d| (d - 2.9 / 5.0_f64.to_radians().cos()).abs() < 1e-9)
         );
     }
 

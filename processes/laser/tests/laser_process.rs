@@ -15,11 +15,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use common::{Device, ideal_world, unique_domain};
-use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsExtrinsics};
+use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsExtrinsics, alacs_camera_intrinsics};
 use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT, PROCESS_HEALTH};
 use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
 use harvest_ipc::{Context, Payload, Subscriber};
-use harvest_laser::{ScanConfig, ScanPlanner};
+use harvest_laser::{LaserReach, ScanConfig};
 use harvest_laser_process::process::{LaserArgs, run_until};
 use harvest_sim::alacs_device::robot_from_tof_color;
 
@@ -49,22 +49,37 @@ fn wait_for<T: Payload + Copy>(subscriber: &Subscriber<T>, accept: impl Fn(&T) -
 fn laser_process_answers_scan_requests() {
     let world = ideal_world();
     let tof_from_robot = robot_from_tof_color(&world).inverse();
-    let planner = ScanPlanner {
-        extrinsics: AlacsExtrinsics::paper_table1(),
-        config: ScanConfig::default(),
+    // The laser's own reach check (in the ALACS image and a scan within the stroke), the one
+    // the process applies before it scans.
+    let reach = LaserReach::new(
+        AlacsExtrinsics::paper_table1(),
+        alacs_camera_intrinsics(),
+        ALACS_FROM_TOF_CAMERA,
+        ScanConfig::default(),
+    );
+    // A ToF-like rough estimate of an apple: a few mm off sideways, 12 mm too deep.
+    let rough = |apple: &harvest_sim::Apple| {
+        let truth_in_tof = tof_from_robot.apply(apple.center_in_robot_m);
+        [
+            truth_in_tof[0] - 0.003,
+            truth_in_tof[1] + 0.002,
+            truth_in_tof[2] + 0.012,
+        ]
     };
-    let in_alacs = |apple: &harvest_sim::Apple| {
-        ALACS_FROM_TOF_CAMERA.apply(tof_from_robot.apply(apple.center_in_robot_m))
+    let in_reach = |apple: &harvest_sim::Apple| {
+        let truth_in_tof = tof_from_robot.apply(apple.center_in_robot_m);
+        reach.check(truth_in_tof, apple.radius_m).is_ok()
+            && reach.check(rough(apple), apple.radius_m + 0.003).is_ok()
     };
     let reachable = world
         .apples()
         .iter()
-        .find(|apple| planner.plan(in_alacs(apple)).is_ok())
+        .find(|apple| in_reach(apple))
         .expect("an apple in reach");
     let unreachable = world
         .apples()
         .iter()
-        .find(|apple| planner.plan(in_alacs(apple)).is_err())
+        .find(|apple| reach.check(rough(apple), apple.radius_m + 0.003).is_err())
         .expect("an apple out of reach");
 
     let domain = unique_domain("proc");
@@ -99,11 +114,7 @@ fn laser_process_answers_scan_requests() {
         let request = LaserScanRequest {
             request_seq,
             apple_id: apple.id.0,
-            rough_position_in_camera_m: [
-                truth_in_tof[0] - 0.003,
-                truth_in_tof[1] + 0.002,
-                truth_in_tof[2] + 0.012,
-            ],
+            rough_position_in_camera_m: rough(apple),
             rough_radius_m: apple.radius_m + 0.003,
             ..LaserScanRequest::default()
         };

@@ -13,11 +13,12 @@ use std::time::Duration;
 
 use common::{Device, ideal_world, unique_domain};
 use harvest_hw::alacs::{
-    ALACS_FROM_TOF_CAMERA, AlacsExtrinsics, SimAlacsUnit, alacs_camera_intrinsics, conformance,
+    ALACS_FROM_TOF_CAMERA, AlacsExtrinsics, SLIDE_STROKE_M, SimAlacsUnit, alacs_camera_intrinsics,
+    conformance,
 };
 use harvest_ipc::Context;
 use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
-use harvest_laser::{ScanConfig, ScanPlanner, ScanService};
+use harvest_laser::{LaserReach, ScanConfig, ScanService};
 use harvest_sim::alacs_device::robot_from_tof_color;
 
 /// Longest wait for one device answer: generous, a debug-build render of 1440x1080 takes a while.
@@ -40,18 +41,31 @@ fn sim_driver_conforms_over_ipc() {
 fn scan_of_a_known_apple_over_ipc_lands_within_a_few_millimetres() {
     let world = ideal_world();
     let tof_from_robot = robot_from_tof_color(&world).inverse();
-    let planner = ScanPlanner {
-        extrinsics: AlacsExtrinsics::paper_table1(),
-        config: ScanConfig::default(),
-    };
-    // The first apple the slide can sweep.
+    // The first apple the unit can scan (the laser's own reach check: in the ALACS image and a
+    // scan within the stroke) without shifting the scan to fit the stroke (a shifted scan puts
+    // its last lines beside the apple).
+    let reach = LaserReach::new(
+        AlacsExtrinsics::paper_table1(),
+        alacs_camera_intrinsics(),
+        ALACS_FROM_TOF_CAMERA,
+        ScanConfig::default(),
+    );
     let apple = world
         .apples()
         .iter()
         .find(|apple| {
-            let in_alacs =
-                ALACS_FROM_TOF_CAMERA.apply(tof_from_robot.apply(apple.center_in_robot_m));
-            planner.plan(in_alacs).is_ok()
+            reach
+                .check(
+                    tof_from_robot.apply(apple.center_in_robot_m),
+                    apple.radius_m,
+                )
+                .is_ok_and(|in_reach| {
+                    let slide_m = &in_reach.plan.slide_positions_m;
+                    slide_m.first().is_some_and(|&first| first > 0.01)
+                        && slide_m
+                            .last()
+                            .is_some_and(|&last| last < SLIDE_STROKE_M - 0.01)
+                })
         })
         .expect("an apple in the ALACS's reach");
     let truth_in_tof = tof_from_robot.apply(apple.center_in_robot_m);
