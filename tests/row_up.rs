@@ -33,11 +33,31 @@ fn count_after(line: &str, key: &str) -> Option<u32> {
 }
 
 #[test]
-fn a_two_stop_row_completes_with_counts_matching_ground_truth() {
+fn a_two_stop_row_completes_with_counts_matching_ground_truth_and_a_second_run_ends_it() {
     let _stack = one_stack_at_a_time();
     let domain = unique_domain("row");
     let (stdout, truth) = run_row(&domain, None);
     check_row(&stdout, truth);
+
+    // The same command again: the world kept its state (trailer at the last stop, harvested
+    // apples off the tree), so the run works the one stop left and ends the row there instead
+    // of waiting for a tractor that cannot drive past the row's end.
+    let first_harvested = truth.expect("ground truth of the first run");
+    let (again, truth_again) = run_row(&domain, None);
+    let stop_lines: Vec<&str> = again
+        .lines()
+        .filter(|l| l.contains(" @") && l.contains("platform ("))
+        .collect();
+    assert_eq!(stop_lines.len(), 1, "{again}");
+    assert!(stop_lines[0].contains("stop 1 @2.00 m"), "{again}");
+    assert!(again.contains("row summary (1 stops)"), "{again}");
+    // Nothing harvested twice, nothing lost: the simulator's count grew by this run's.
+    let harvested_again = summary_count(&again, "harvested").expect("summary line") as usize;
+    assert_eq!(
+        truth_again,
+        Some(first_harvested + harvested_again),
+        "ground truth disagrees with the two runs:\n{again}"
+    );
 }
 
 /// The sim is killed while a cup holds an apple (the hard case: the apple must stay on the cup

@@ -460,6 +460,28 @@ impl StopCycle {
         }
     }
 
+    /// The tractor cannot drive to the next stop: the row ends before it (a row resumed part
+    /// way has fewer stops left than `StopCycleConfig::stops`). Ends the row with the stops
+    /// done; nothing if it is already done.
+    pub fn row_ends_here(&mut self, now_ns: u64) -> Vec<FieldAction> {
+        if self.phase == StopPhase::RowDone {
+            return Vec::new();
+        }
+        tracing::info!(
+            stops = self.done.len(),
+            "the row ends before the next stop: row done"
+        );
+        vec![self.finish_row(now_ns)]
+    }
+
+    fn finish_row(&mut self, now_ns: u64) -> FieldAction {
+        self.phase = StopPhase::RowDone;
+        FieldAction::RowFinished(RowReport {
+            stops: self.done.clone(),
+            duration_ns: now_ns.saturating_sub(self.row_started_ns.unwrap_or(now_ns)),
+        })
+    }
+
     fn finish_stop(&mut self, now_ns: u64, view: &FieldView) -> Vec<FieldAction> {
         let _ = view;
         self.stop.duration_ns = now_ns.saturating_sub(self.stop_started_ns);
@@ -471,11 +493,7 @@ impl StopCycle {
         self.complete_ns = None;
         self.laser_refined_ids.clear();
         if number >= self.config.stops {
-            self.phase = StopPhase::RowDone;
-            actions.push(FieldAction::RowFinished(RowReport {
-                stops: self.done.clone(),
-                duration_ns: now_ns.saturating_sub(self.row_started_ns.unwrap_or(now_ns)),
-            }));
+            actions.push(self.finish_row(now_ns));
             return actions;
         }
         self.stop = StopReport {
@@ -606,6 +624,35 @@ mod tests {
             "the far apple is counted at each stop"
         );
         assert_eq!(cycle.phase(), StopPhase::RowDone);
+    }
+
+    #[test]
+    fn a_row_that_ends_before_the_next_stop_is_done_with_the_stops_worked() {
+        // A row resumed at its last section: the cycle counts two stops from here, the tractor
+        // refuses the advance past the row's end.
+        let mut cycle = cycle(true);
+        let mut t = 0;
+        let actions = harvest_stop(&mut cycle, &mut t, 2.0);
+        assert_eq!(
+            actions.last(),
+            Some(&FieldAction::AdvanceTractor { distance_m: 2.0 })
+        );
+        let actions = cycle.row_ends_here(t);
+        let [FieldAction::RowFinished(row)] = actions.as_slice() else {
+            panic!("{actions:?}")
+        };
+        assert_eq!(row.stops.len(), 1);
+        assert_eq!(row.stops[0].trailer_m, 2.0);
+        assert_eq!(row.harvested(), 1);
+        assert_eq!(cycle.phase(), StopPhase::RowDone);
+        // Nothing more: not a second row report, no advance sent again.
+        assert!(cycle.row_ends_here(t).is_empty());
+        t += 10_000_000_000;
+        assert!(cycle.tick(t, &view(2.0, [0.0; 2], t)).is_empty());
+        assert_eq!(
+            cycle.next_stop(t, &view(2.0, [0.0; 2], t)),
+            Err(NextStopRefusal::RowDone)
+        );
     }
 
     #[test]

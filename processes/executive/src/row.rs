@@ -20,6 +20,7 @@ use harvest_field::{
 };
 use harvest_hw::tractor::Tractor;
 use harvest_hw::tractor::sim::SimTractor;
+use harvest_hw::{DeviceError, ErrorKind};
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PERCEPTION_APPLES};
 use harvest_ipc::payloads::{
     AppleDetections, ArmPhase, ArmState, HarvestCause, HarvestEvent, HarvestEventKind,
@@ -27,6 +28,7 @@ use harvest_ipc::payloads::{
 };
 use harvest_ipc::{Context, FixedString, Publisher, Subscriber};
 use harvest_robot_model::params::ArmParams;
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use crate::process::ExecutiveProcessError;
@@ -212,13 +214,24 @@ impl RowLink {
         actions: Vec<FieldAction>,
     ) -> Result<Option<[f64; 2]>, ExecutiveProcessError> {
         let mut platform_target = None;
-        for action in actions {
+        let mut actions = VecDeque::from(actions);
+        while let Some(action) = actions.pop_front() {
             match action {
                 FieldAction::MovePlatform { target_m } => platform_target = Some(target_m),
                 FieldAction::AdvanceTractor { distance_m } => {
-                    if let Err(error) = self.tractor.advance(distance_m) {
-                        tracing::error!(%error, distance_m, "tractor advance refused: row ends here");
-                        self.done = true;
+                    match self.tractor.advance(distance_m) {
+                        Ok(()) => {}
+                        // Past the end of the row (the trait's `InvalidRequest`): a row resumed
+                        // part way (the simulated world keeps its state) has fewer stops left.
+                        Err(error) if error.kind() == ErrorKind::InvalidRequest => {
+                            tracing::info!(%error, distance_m, "tractor advance refused: the row ends here");
+                            actions.extend(self.cycle.row_ends_here(now_ns));
+                        }
+                        // Not reached (link down, no feedback): the cycle sends it again while the
+                        // trailer is not at the stop.
+                        Err(error) => {
+                            tracing::warn!(%error, distance_m, "tractor advance not sent: retried");
+                        }
                     }
                 }
                 FieldAction::StopFinished(report) => {
