@@ -45,23 +45,57 @@ pub enum RecordSplit<'a> {
 
 /// Splits the first record off `bytes` (not empty) by its opcode and length prefix.
 pub fn split_record(bytes: &[u8]) -> RecordSplit<'_> {
-    let Some((prefix, after_prefix)) = bytes.split_at_checked(RECORD_PREFIX_BYTES) else {
+    let Some((&opcode, after_opcode)) = bytes.split_first() else {
         return RecordSplit::PrefixCut;
     };
-    let mut length_bytes = [0u8; 8];
-    length_bytes.copy_from_slice(&prefix[1..]);
-    let claimed_bytes = u64::from_le_bytes(length_bytes);
-    match usize::try_from(claimed_bytes)
-        .ok()
-        .and_then(|length| after_prefix.split_at_checked(length))
-    {
-        Some((body, rest)) => RecordSplit::Whole {
-            opcode: prefix[0],
-            body,
+    match split_length_prefixed(after_opcode, RECORD_PREFIX_BYTES - 1) {
+        LengthPrefixed::Cut => RecordSplit::PrefixCut,
+        LengthPrefixed::PastEnd { claimed_bytes, .. } => RecordSplit::PastEnd { claimed_bytes },
+        LengthPrefixed::Whole { value, rest } => RecordSplit::Whole {
+            opcode,
+            body: value,
             rest,
         },
-        None => RecordSplit::PastEnd { claimed_bytes },
     }
+}
+
+/// A value behind a little-endian length prefix.
+enum LengthPrefixed<'a> {
+    /// Fewer bytes than the prefix.
+    Cut,
+    /// The prefix claims more bytes than the `remaining_bytes` after it.
+    PastEnd {
+        claimed_bytes: u64,
+        remaining_bytes: u64,
+    },
+    /// The value and the bytes after it.
+    Whole { value: &'a [u8], rest: &'a [u8] },
+}
+
+/// Splits the value behind a little-endian length prefix of `width` bytes (1..=8) off `bytes`.
+fn split_length_prefixed(bytes: &[u8], width: usize) -> LengthPrefixed<'_> {
+    let Some((prefix, after)) = bytes.split_at_checked(width) else {
+        return LengthPrefixed::Cut;
+    };
+    let claimed_bytes = le_u64(prefix);
+    match usize::try_from(claimed_bytes)
+        .ok()
+        .and_then(|claimed| after.split_at_checked(claimed))
+    {
+        Some((value, rest)) => LengthPrefixed::Whole { value, rest },
+        None => LengthPrefixed::PastEnd {
+            claimed_bytes,
+            remaining_bytes: after.len() as u64,
+        },
+    }
+}
+
+/// The little-endian unsigned integer in `bytes` (at most 8; fewer are zero-extended).
+pub(crate) fn le_u64(bytes: &[u8]) -> u64 {
+    let mut wide = [0u8; 8];
+    let width = bytes.len().min(8);
+    wide[..width].copy_from_slice(&bytes[..width]);
+    u64::from_le_bytes(wide)
 }
 
 /// One field of a record's layout.
@@ -130,22 +164,17 @@ fn prefixed<'a>(
     width: usize,
     rest: &'a [u8],
 ) -> Result<Option<ValueAndRest<'a>>, RecordError> {
-    let Some((prefix, after)) = rest.split_at_checked(width) else {
-        return Ok(None);
-    };
-    let mut bytes = [0u8; 8];
-    bytes[..width].copy_from_slice(prefix);
-    let claimed_bytes = u64::from_le_bytes(bytes);
-    match usize::try_from(claimed_bytes)
-        .ok()
-        .and_then(|claimed| after.split_at_checked(claimed))
-    {
-        Some((value, after_value)) => Ok(Some((value, after_value))),
-        None => Err(RecordError::LengthPastEnd {
+    match split_length_prefixed(rest, width) {
+        LengthPrefixed::Cut => Ok(None),
+        LengthPrefixed::Whole { value, rest } => Ok(Some((value, rest))),
+        LengthPrefixed::PastEnd {
+            claimed_bytes,
+            remaining_bytes,
+        } => Err(RecordError::LengthPastEnd {
             opcode,
             field,
             claimed_bytes,
-            remaining_bytes: after.len() as u64,
+            remaining_bytes,
         }),
     }
 }

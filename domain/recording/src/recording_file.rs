@@ -1,7 +1,7 @@
 //! Opening a recording: the magic check that tells an MCAP file from anything else, and the
 //! summary section (indexes and statistics) when the file has one.
 
-use crate::record_lengths::{RecordSplit, split_record};
+use crate::record_lengths::{RecordSplit, le_u64, split_record};
 use mcap::Summary;
 use mcap::records::{Metadata, MetadataIndex, Record};
 use mcap::sans_io::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
@@ -127,12 +127,7 @@ fn check_summary_lengths(file: &mut File, file_bytes: u64) -> Result<(), String>
     if footer[0] != mcap::records::op::FOOTER {
         return Ok(());
     }
-    let field = |at: usize| {
-        let mut bytes = [0u8; 8];
-        bytes.copy_from_slice(&footer[at..at + 8]);
-        u64::from_le_bytes(bytes)
-    };
-    let (summary_start, offsets_start) = (field(9), field(17));
+    let (summary_start, offsets_start) = (le_u64(&footer[9..17]), le_u64(&footer[17..25]));
     let summary_end = if offsets_start == 0 {
         footer_start
     } else {
