@@ -94,7 +94,9 @@ impl VacuumNode {
                             info!(%arm, apple = d.apple.id.0, peak_mmh2o = peak, "slipped at full vacuum: apple given up");
                             self.give_up(&d.apple.position_m);
                         }
-                        _ => self.remember(&d.apple.position_m),
+                        _ => {
+                            self.remember(&d.apple.position_m);
+                        }
                     }
                     debug!(%arm, apple = d.apple.id.0, ?result, "attempt finished");
                     self.output.events.push(VacuumNodeEvent::AttemptFinished {

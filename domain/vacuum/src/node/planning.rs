@@ -133,43 +133,41 @@ impl VacuumNode {
     /// harvested apple is gone from later detection sets, so its spot never masks anything;
     /// an apple the robot only believes harvested (it slipped off unnoticed and sprang back
     /// to its stem) is seen again at the same spot and stops being tried after
-    /// `max_attempts`.
-    pub(super) fn remember(&mut self, position_m: &[f64; 3]) {
+    /// `max_attempts`. Returns the spot that counted it.
+    pub(super) fn remember(&mut self, position_m: &[f64; 3]) -> &mut ([f64; 3], u32) {
         let r2 = self.config.give_up_radius_m.powi(2);
         let nearest = self
             .attempt_spots
-            .iter_mut()
-            .map(|spot| (squared_distance(&spot.0, position_m), spot))
+            .iter()
+            .enumerate()
+            .map(|(index, spot)| (squared_distance(&spot.0, position_m), index))
             .filter(|(d2, _)| *d2 <= r2)
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        match nearest {
-            Some((_, (p, attempts))) => {
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, index)| index);
+        let index = match nearest {
+            Some(index) => {
+                let (p, attempts) = &mut self.attempt_spots[index];
                 let n = f64::from(*attempts);
                 for (c, new) in p.iter_mut().zip(position_m) {
                     *c = (*c * n + new) / (n + 1.0);
                 }
                 *attempts += 1;
+                index
             }
-            None => self.attempt_spots.push((*position_m, 1)),
-        }
+            None => {
+                self.attempt_spots.push((*position_m, 1));
+                self.attempt_spots.len() - 1
+            }
+        };
+        &mut self.attempt_spots[index]
     }
 
     /// Puts `position_m` on the give-up list at once (its spot counts `planner.max_attempts`
     /// attempts): an apple no further attempt can harvest.
     pub(super) fn give_up(&mut self, position_m: &[f64; 3]) {
-        self.remember(position_m);
-        let r2 = self.config.give_up_radius_m.powi(2);
         let limit = self.config.planner.max_attempts;
-        if let Some(spot) = self
-            .attempt_spots
-            .iter_mut()
-            .filter(|(p, _)| squared_distance(p, position_m) <= r2)
-            .min_by(|a, b| {
-                squared_distance(&a.0, position_m).total_cmp(&squared_distance(&b.0, position_m))
-            })
-        {
-            spot.1 = spot.1.max(limit);
-        }
+        let spot = self.remember(position_m);
+        spot.1 = spot.1.max(limit);
     }
 
     /// Re-publishes the targets dispatched but not taken up yet when the new set still sees
