@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use harvest_arm::node::{ArmNodeEvent, AttemptFailure};
 use harvest_ipc::payloads::{ArmPhase as PhaseCode, ArmTarget};
-use harvest_sim::orchard::{AppleState, World};
+use harvest_sim::orchard::{Apple, AppleState, World};
 use harvest_sim::physics::{DropCause, ReleaseOutcome, WorldEvent};
 use harvest_vacuum::node::{VacuumNodeEvent, ValveCloseCause};
 use serde::Serialize;
@@ -116,8 +116,28 @@ pub struct NearestApple {
     pub apple: u32,
     /// Target to true centre, m.
     pub distance_m: f64,
-    /// Its state then (`OnTree`, `Attached`, `Harvested`, `Dropped`).
-    pub state: String,
+    /// Its state then.
+    pub state: AppleStateKind,
+}
+
+/// An apple's state without its details (serialized as its name).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum AppleStateKind {
+    OnTree,
+    Attached,
+    Dropped,
+    Harvested,
+}
+
+impl From<&AppleState> for AppleStateKind {
+    fn from(state: &AppleState) -> Self {
+        match state {
+            AppleState::OnTree => Self::OnTree,
+            AppleState::Attached { .. } => Self::Attached,
+            AppleState::Dropped => Self::Dropped,
+            AppleState::Harvested => Self::Harvested,
+        }
+    }
 }
 
 /// Stem tension and the cup's holding force when a fruit slipped off, N.
@@ -204,17 +224,17 @@ impl Recorder {
 
     /// A target was dispatched to `arm` (0-based index).
     pub fn on_dispatch(&mut self, t_s: f64, arm: usize, target: &ArmTarget, world: &World) {
+        let distance_m = |apple: &Apple| {
+            (0..3)
+                .map(|i| (apple.center_in_robot_m[i] - target.position_in_robot_m[i]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
         let nearest = world
             .apples()
             .iter()
             .filter(|a| a.state == AppleState::OnTree)
-            .map(|a| {
-                let d = (0..3)
-                    .map(|i| (a.center_in_robot_m[i] - target.position_in_robot_m[i]).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
-                (a.id, d)
-            })
+            .map(|a| (a.id, distance_m(a)))
             .min_by(|a, b| a.1.total_cmp(&b.1));
         let near = nearest
             .filter(|(_, d)| *d < NEAR_APPLE_M)
@@ -223,24 +243,12 @@ impl Recorder {
         let nearest_any = world
             .apples()
             .iter()
-            .map(|a| {
-                let d = (0..3)
-                    .map(|i| (a.center_in_robot_m[i] - target.position_in_robot_m[i]).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
-                (a, d)
-            })
+            .map(|a| (a, distance_m(a)))
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .map(|(a, d)| NearestApple {
                 apple: a.id.0,
                 distance_m: d,
-                state: match a.state {
-                    AppleState::OnTree => "OnTree",
-                    AppleState::Attached { .. } => "Attached",
-                    AppleState::Dropped => "Dropped",
-                    AppleState::Harvested => "Harvested",
-                }
-                .to_owned(),
+                state: AppleStateKind::from(&a.state),
             });
         self.attempts.push(AttemptRecord {
             arm: arm as u8 + 1,

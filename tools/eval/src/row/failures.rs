@@ -15,7 +15,9 @@ use harvest_sim::World;
 use serde::Serialize;
 
 use super::truth::{Table3Cause, attempt_causes};
-use crate::harvest::records::{AttemptRecord, FailureCause, NearestApple, SlipForces};
+use crate::harvest::records::{
+    AppleStateKind, AttemptRecord, FailureCause, NearestApple, SlipForces,
+};
 
 /// A target within this distance of a true centre aimed at that apple (the records' match), m.
 const MATCH_M: f64 = 0.05;
@@ -141,7 +143,7 @@ pub fn failed_attempts(world: &World, attempts: &[AttemptRecord]) -> Vec<FailedA
                 }
             }
             _ if attempt.apple.is_none() => match &attempt.nearest_any {
-                Some(n) if n.distance_m < MATCH_M && n.state != "OnTree" => {
+                Some(n) if n.distance_m < MATCH_M && n.state != AppleStateKind::OnTree => {
                     FailureOrigin::StaleTarget
                 }
                 _ => FailureOrigin::NoAppleAtTarget,
@@ -182,7 +184,7 @@ pub fn render_line(f: &FailedAttempt) -> String {
         |v: Option<f64>, unit: &str| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.1}{unit}"));
     let nearest = f.nearest.as_ref().map_or_else(
         || "-".to_owned(),
-        |n| format!("{} {} @{:.0} mm", n.apple, n.state, n.distance_m * 1e3),
+        |n| format!("{} {:?} @{:.0} mm", n.apple, n.state, n.distance_m * 1e3),
     );
     let slip = f.slip.map_or_else(
         || "-".to_owned(),
