@@ -7,6 +7,8 @@ use std::collections::BTreeMap;
 use harvest_arm::node::{ArmNodeEvent, AttemptFailure};
 use harvest_ipc::payloads::{ArmPhase as PhaseCode, ArmTarget};
 use harvest_sim::orchard::{Apple, AppleState, World};
+
+use crate::laser::refinement::distance;
 use harvest_sim::physics::{DropCause, ReleaseOutcome, WorldEvent};
 use harvest_vacuum::node::{VacuumNodeEvent, ValveCloseCause};
 use serde::Serialize;
@@ -224,12 +226,8 @@ impl Recorder {
 
     /// A target was dispatched to `arm` (0-based index).
     pub fn on_dispatch(&mut self, t_s: f64, arm: usize, target: &ArmTarget, world: &World) {
-        let distance_m = |apple: &Apple| {
-            (0..3)
-                .map(|i| (apple.center_in_robot_m[i] - target.position_in_robot_m[i]).powi(2))
-                .sum::<f64>()
-                .sqrt()
-        };
+        let distance_m =
+            |apple: &Apple| distance(apple.center_in_robot_m, target.position_in_robot_m);
         let nearest = world
             .apples()
             .iter()
