@@ -35,9 +35,11 @@ use super::args::{EvalHarvestArgs, PolicyArg, TimingArg};
 use super::calibration::pressure_for;
 use super::detections::DetectionModel;
 use super::error::HarvestEvalError;
+use super::records::FailureCause;
 use super::records::{AppleRecord, AttemptRecord, EpisodeLogEntry};
 use super::runner::{EmergencyStopReaction, EpisodeConfig, EpisodeOutcome, run_episode};
 use super::timing::apply_timing;
+use crate::laser::refinement::Summary;
 
 /// Mean phase durations over the attempts that reached each phase, s.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
@@ -115,6 +117,10 @@ pub struct HarvestSummary {
     pub attempts: u32,
     /// Attempts that did not harvest, by cause.
     pub failure_causes: BTreeMap<String, u32>,
+    /// `missed_apple` attempts (the cup never sealed on any apple): their target's distance to
+    /// the apple it was near, mm, and how many were near none.
+    pub missed_target_error_mm: Summary,
+    pub missed_near_no_apple: u32,
     /// Sum of the episodes' durations, s.
     pub duration_s: f64,
     /// `duration_s / apples_harvested`, s.
@@ -149,6 +155,7 @@ impl HarvestSummary {
         let mut phase_sum = [0.0; 4];
         let mut phase_n = [0u32; 4];
         let mut balanced_s = 0.0;
+        let mut missed_errors_mm = Vec::new();
         for o in outcomes {
             s.episodes += 1;
             s.apples_in_world += o.apples_in_world;
@@ -164,6 +171,12 @@ impl HarvestSummary {
                         .and_then(|v| v.as_str().map(str::to_owned))
                         .unwrap_or_else(|| format!("{cause:?}"));
                     *s.failure_causes.entry(key).or_insert(0) += 1;
+                }
+                if a.cause == Some(FailureCause::MissedApple) {
+                    match a.target_error_m {
+                        Some(error_m) => missed_errors_mm.push(error_m * 1e3),
+                        None => s.missed_near_no_apple += 1,
+                    }
                 }
                 for (k, d) in a.phase_durations_s().iter().enumerate() {
                     if let Some(d) = d {
@@ -207,6 +220,7 @@ impl HarvestSummary {
             s.attempts,
             s.duration_s,
         );
+        s.missed_target_error_mm = Summary::of(missed_errors_mm);
         s.success_rate = rates.success_rate;
         s.seconds_per_apple = rates.seconds_per_apple;
         s.seconds_per_attempt = rates.seconds_per_attempt;
@@ -433,6 +447,14 @@ impl HarvestReport {
                 .map(|(k, v)| format!("{k} {v}"))
                 .collect();
             let _ = writeln!(out, "  failed attempts: {}", causes.join(", "));
+        }
+        let m = &s.missed_target_error_mm;
+        if m.count > 0 || s.missed_near_no_apple > 0 {
+            let _ = writeln!(
+                out,
+                "  missed_apple targets from their apple: median {:.1} / p95 {:.1} / max {:.1} mm over {}; near no apple {}",
+                m.median, m.p95, m.max, m.count, s.missed_near_no_apple
+            );
         }
         let _ = writeln!(
             out,
