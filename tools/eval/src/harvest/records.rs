@@ -15,6 +15,8 @@ use serde::Serialize;
 
 /// Radius around a target within which the nearest true apple is recorded, m.
 pub const NEAR_APPLE_M: f64 = 0.15;
+/// A target within this distance of an apple on the tree aimed at it (the attempt's `apple`), m.
+pub const TARGET_MATCH_M: f64 = 0.05;
 
 /// Why an attempt did not harvest its apple, judged from the simulator's ground truth first
 /// and the arm's own report second.
@@ -237,7 +239,7 @@ impl Recorder {
         let near = nearest
             .filter(|(_, d)| *d < NEAR_APPLE_M)
             .map(|(id, _)| id.0);
-        let nearest = nearest.filter(|(_, d)| *d < 0.05);
+        let nearest = nearest.filter(|(_, d)| *d < TARGET_MATCH_M);
         let nearest_any = world
             .apples()
             .iter()

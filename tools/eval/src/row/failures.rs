@@ -16,11 +16,8 @@ use serde::Serialize;
 
 use super::truth::{Table3Cause, attempt_causes};
 use crate::harvest::records::{
-    AppleStateKind, AttemptRecord, FailureCause, NearestApple, SlipForces,
+    AppleStateKind, AttemptRecord, FailureCause, NearestApple, SlipForces, TARGET_MATCH_M,
 };
-
-/// A target within this distance of a true centre aimed at that apple (the records' match), m.
-const MATCH_M: f64 = 0.05;
 
 /// What decided a failed attempt.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
@@ -143,7 +140,7 @@ pub fn failed_attempts(world: &World, attempts: &[AttemptRecord]) -> Vec<FailedA
                 }
             }
             _ if attempt.apple.is_none() => match &attempt.nearest_any {
-                Some(n) if n.distance_m < MATCH_M && n.state != AppleStateKind::OnTree => {
+                Some(n) if n.distance_m < TARGET_MATCH_M && n.state != AppleStateKind::OnTree => {
                     FailureOrigin::StaleTarget
                 }
                 _ => FailureOrigin::NoAppleAtTarget,
