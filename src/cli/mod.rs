@@ -123,6 +123,9 @@ enum BenchCommand {
     /// End-to-end latency in a running stack (simulated robot): capture -> camera ->
     /// perception -> arm target -> arm command per hop, and the arm control loop's jitter.
     Pipeline(harvest_bench::BenchPipelineArgs),
+    /// The Livox Mid-70 driver (`harvest lidar --device livox`) against the fake device on
+    /// loopback: rate, lost packets, CPU, latency, silence report and reconnection.
+    LidarLivox(harvest_bench::BenchLidarLivoxArgs),
 }
 
 #[cfg(feature = "sim-tools")]
@@ -234,6 +237,10 @@ impl Cli {
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::LidarLivox(args)) => {
+                harvest_bench::run_bench_lidar_livox(&args).context("lidar-livox benchmark")?;
+                Ok(ExitCode::SUCCESS)
+            }
             Command::Bench(BenchCommand::Pipeline(args)) => {
                 let report = harvest_bench::run_bench_pipeline(&args, &domain)
                     .context("pipeline benchmark")?;

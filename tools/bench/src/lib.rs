@@ -12,6 +12,8 @@
 //! - [`run_bench_peer`] / [`BenchPeerArgs`]: the hidden peer subcommand.
 //! - [`run_bench_pipeline`] / [`BenchPipelineArgs`]: `harvest bench pipeline`, per-hop latency
 //!   in a running stack and the arm control loop's jitter ([`pipeline`]).
+//! - [`run_bench_lidar_livox`] / [`BenchLidarLivoxArgs`]: `harvest bench lidar-livox`, the
+//!   Livox Mid-70 driver against the fake device on loopback ([`lidar_livox`]).
 //! - [`run_soak`] / [`SoakArgs`]: `harvest soak`, the stack for a long time under kills,
 //!   operator commands and bad inputs, with memory, descriptors and shared memory sampled
 //!   ([`soak`]).
@@ -22,6 +24,7 @@ pub mod case;
 pub mod child_stop;
 pub mod control;
 pub mod error;
+pub mod lidar_livox;
 pub mod message;
 pub mod options;
 pub mod payload_case;
@@ -39,6 +42,7 @@ pub mod watchdog;
 
 pub use bench_payload::BenchPayload;
 pub use error::BenchError;
+pub use lidar_livox::{BenchLidarLivoxArgs, LidarLivoxReport, run_bench_lidar_livox};
 pub use options::{BenchIpcArgs, BenchPeerArgs, PEER_SUBCOMMAND, Transport, WakeMode};
 pub use payload_case::PayloadCase;
 pub use peer::run_bench_peer;
