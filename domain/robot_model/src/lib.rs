@@ -1,5 +1,5 @@
 //! harvest-robot-model: what the arm, the vacuum supervisor, the safety monitor and the
-//! simulator share about the robot (paper 003, section 2.2): which arm, the picking phases the
+//! simulator share about the robot ([dual-arm sec. 2.2]): which arm, the picking phases the
 //! coordination reasons about, the failure kinds, the Table 1 parameters with the joint limits,
 //! eq. 1-2 kinematics (forward, inverse, Jacobian) and the swept-tube clearance between the arms.
 //!

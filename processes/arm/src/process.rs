@@ -111,7 +111,7 @@ pub struct ArmArgs {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ArmProcessConfig {
-    /// Control period, us (default 5000: 200 Hz, paper 003 section 2.2).
+    /// Control period, us (default 5000: 200 Hz, [dual-arm sec. 2.2]).
     pub control_period_us: u64,
     /// The standing valve request is re-sent this often, ms (default 500).
     pub valve_request_resend_ms: u64,

@@ -124,7 +124,7 @@ pub struct VacuumArgs {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct VacuumProcessConfig {
-    /// Control period, us (default 5000: 200 Hz, paper 003 section 2.2).
+    /// Control period, us (default 5000: 200 Hz, [dual-arm sec. 2.2]).
     pub control_period_us: u64,
     /// Nothing left to do for this long: the harvest is complete, ms (default 2000).
     pub complete_after_ms: u64,
