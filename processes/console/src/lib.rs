@@ -6,6 +6,7 @@
 //! `operator/command` with the token the operator typed ([`process`]).
 
 pub mod camera_view;
+pub mod command_lane;
 pub mod error;
 pub mod http;
 pub mod page;
