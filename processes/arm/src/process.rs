@@ -21,8 +21,9 @@
 //! or this arm is disabled, new targets are held back (an attempt under way runs to its end).
 //! Manual orders on `armN/manual` are carried out only in manual mode; a manual move stops as
 //! soon as the mode leaves manual or is not heard for [`MODE_STALE_NS`] (the executive is
-//! gone). With no mode ever published (a stack without the executive) the arm harvests as
-//! before.
+//! gone). The rule is the stack's one rule ([`harvest_robot_model::obedience`], `field_hold`
+//! included): no mode heard means hold, unless the launch file says the stack runs without an
+//! executive (`--without-operator`).
 //!
 //! Until the servos report encoder feedback for the first time the arm is not ready: nothing
 //! is stepped or published.
@@ -60,6 +61,7 @@ use harvest_ipc::control_loop::{Wake, run_control_loop};
 use harvest_ipc::failure_streak::FailureStreak;
 use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
 use harvest_robot_model::params::{ArmId, ArmParams};
+use harvest_robot_model::{ModeSource, Obedience, obedience};
 
 /// Which servo device drives the arm (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -103,6 +105,10 @@ pub struct ArmArgs {
     /// Process settings (TOML file, every key optional; see `ArmProcessConfig`).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// No executive runs in this stack (a bench profile, a test): until an `operator/mode` is
+    /// heard, take up targets. Without it, no mode heard means hold.
+    #[arg(long)]
+    pub without_operator: bool,
 }
 
 /// Settings of the arm process (`--config FILE`). Every key is optional.
@@ -190,9 +196,7 @@ pub enum ArmProcessError {
 
 harvest_ipc::from_ipc_errors!(ArmProcessError);
 
-/// A manual move stops when `operator/mode` was not heard for this long (the executive
-/// re-sends it at 10 Hz), ns.
-pub const MODE_STALE_NS: u64 = 500_000_000;
+pub use harvest_robot_model::obedience::MODE_STALE_NS;
 
 /// Device errors in a row after which the process stops (and the supervisor restarts it).
 const MAX_CONSECUTIVE_DEVICE_ERRORS: u32 = 200;
@@ -225,7 +229,12 @@ pub fn run(
         ArmDevice::Sim => {
             let servos = SimArmServos::connect(&context, arm, limits)
                 .map_err(|error| device_error(error.to_string()))?;
-            control_loop(&context, servos, arm, &config, node_config)
+            let mode_source = if args.without_operator {
+                ModeSource::WithoutOperator
+            } else {
+                ModeSource::Executive
+            };
+            control_loop(&context, servos, arm, &config, node_config, mode_source)
         }
     }
 }
@@ -248,6 +257,7 @@ pub fn control_loop<S: ArmServos>(
     arm: ArmId,
     config: &ArmProcessConfig,
     node_config: ArmNodeConfig,
+    mode_source: ModeSource,
 ) -> Result<PeriodSummary, ArmProcessError> {
     let i = arm.index();
     let other = 1 - i;
@@ -342,13 +352,8 @@ pub fn control_loop<S: ArmServos>(
                 if let Some(sample) = mode_in.receive_latest()? {
                     operator_mode = Some(*sample);
                 }
-                obey_operator(
-                    &mut node,
-                    number,
-                    now_ns,
-                    operator_mode.as_ref(),
-                    &manual_in,
-                )?;
+                let rule = obedience(operator_mode.as_ref(), mode_source, now_ns);
+                obey_operator(&mut node, number, now_ns, rule, &manual_in)?;
 
                 // 3. The node.
                 let input = ArmNodeInput {
@@ -475,16 +480,12 @@ fn obey_operator(
     node: &mut ArmNode,
     number: u8,
     now_ns: u64,
-    mode: Option<&harvest_ipc::payloads::OperatorModeState>,
+    rule: Obedience,
     manual_in: &harvest_ipc::Subscriber<harvest_ipc::payloads::ArmManualCommand>,
 ) -> Result<(), ArmProcessError> {
-    use harvest_ipc::payloads::{ArmManualKind, OperatorModeCode};
-    let code = mode.and_then(|m| m.mode_code());
-    let enabled = mode.is_none_or(|m| m.arms_enabled[usize::from(number - 1)] != 0);
-    let harvesting = mode.is_none() || code == Some(OperatorModeCode::Harvesting);
-    node.hold_targets(!(harvesting && enabled));
-    let manual_fresh = code == Some(OperatorModeCode::Manual)
-        && mode.is_some_and(|m| now_ns.saturating_sub(m.header.capture_ns) <= MODE_STALE_NS);
+    use harvest_ipc::payloads::ArmManualKind;
+    node.hold_targets(rule.targets_held[usize::from(number - 1)]);
+    let manual_fresh = rule.manual;
     while let Some(order) = manual_in.receive()? {
         if order.arm_id != number {
             continue;
@@ -506,15 +507,17 @@ fn obey_operator(
                 }
             }
             Some(ArmManualKind::MoveTo) => {
-                tracing::warn!(request_id = order.request_id, mode = ?code,
-                    "manual move refused: not in manual mode");
+                tracing::warn!(
+                    request_id = order.request_id,
+                    "manual move refused: not in manual mode"
+                );
             }
             Some(ArmManualKind::Stop) => node.stop_manual(),
             None => tracing::warn!(kind = order.kind, "unknown manual order ignored"),
         }
     }
     if node.manual_active() && !manual_fresh {
-        tracing::warn!(mode = ?code, "manual move stopped: mode left manual or went silent");
+        tracing::warn!("manual move stopped: mode left manual or went silent");
         node.stop_manual();
     }
     Ok(())

@@ -12,6 +12,7 @@ use harvest_hw::arm_servos::double::{ServoCall, ServoCallKind, ServoDouble, Serv
 use harvest_ipc::catalogue::{ARM_COMMAND, ARM_STATE, EMERGENCY_STOP};
 use harvest_ipc::payloads::{ArmPhase, EmergencyStop};
 use harvest_ipc::{Context, MonotonicClock, ScratchDomain};
+use harvest_robot_model::ModeSource;
 use harvest_robot_model::params::ArmId;
 
 /// Longest wait for anything the loop should do within a few ticks (a watchdog, not a bound
@@ -61,7 +62,14 @@ fn an_emergency_stop_during_encoder_errors_brakes_within_one_period() {
         let context = Context::new(&arm_domain, "arm1").expect("arm context");
         let config = ArmProcessConfig::default();
         let node_config = harvest_arm::node::ArmNodeConfig::default();
-        control_loop(&context, servos, ArmId::Arm1, &config, node_config)
+        control_loop(
+            &context,
+            servos,
+            ArmId::Arm1,
+            &config,
+            node_config,
+            ModeSource::Executive,
+        )
     });
 
     let context = Context::new(&domain, "test").expect("test context");

@@ -49,7 +49,7 @@ use harvest_ipc::{Context, Domain, FixedString, Flow, HealthReporter};
 use serde::Deserialize;
 
 use crate::policy_arg::PolicyArg;
-use harvest_robot_model::ArmId;
+use harvest_robot_model::{ArmId, ModeSource, obedience};
 use harvest_vacuum::harvest_events::{ArmContext, vacuum_event};
 use harvest_vacuum::node::{
     BoardReadings, VacuumNode, VacuumNodeConfig, VacuumNodeError, VacuumNodeEvent,
@@ -112,6 +112,10 @@ pub struct VacuumArgs {
     /// Process settings (TOML file, every key optional; see `VacuumProcessConfig`).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// No executive runs in this stack (a bench profile, a test): until an `operator/mode` is
+    /// heard, dispatch targets. Without it, no mode heard means hold.
+    #[arg(long)]
+    pub without_operator: bool,
 }
 
 /// Settings of the vacuum process (`--config FILE`). Every key is optional.
@@ -326,9 +330,16 @@ fn control_loop<B: ValveBoard>(
     ];
     let request_in = context.subscriber(VALVE_REQUEST)?;
     let estop_in = context.subscriber(EMERGENCY_STOP)?;
-    // The operator's mode: targets go out only while harvesting, to enabled arms (no mode
-    // ever published: a stack without the executive harvests as before).
+    // The operator's mode, by the stack's one rule: targets go out only while harvesting,
+    // outside the row's field hold, to enabled arms; no mode heard means hold unless the
+    // launch file says the stack runs without an executive.
     let mode_in = context.subscriber(OPERATOR_MODE)?;
+    let mode_source = if args.without_operator {
+        ModeSource::WithoutOperator
+    } else {
+        ModeSource::Executive
+    };
+    let mut operator_mode = None;
     let mut target_out = [
         context.publisher(ARM_TARGET[0])?,
         context.publisher(ARM_TARGET[1])?,
@@ -400,12 +411,10 @@ fn control_loop<B: ValveBoard>(
                     }
                 }
                 if let Some(mode) = mode_in.receive_latest()? {
-                    let harvesting = mode.mode_code()
-                        == Some(harvest_ipc::payloads::OperatorModeCode::Harvesting);
-                    // The row's stop cycle holds new approaches while it repositions.
-                    let held = !harvesting || mode.field_hold != 0;
-                    node.hold_dispatch(mode.arms_enabled.map(|on| held || on == 0));
+                    operator_mode = Some(*mode);
                 }
+                let rule = obedience(operator_mode.as_ref(), mode_source, now_ns);
+                node.hold_dispatch(rule.targets_held);
 
                 // 3. The node.
                 let input = harvest_vacuum::node::VacuumNodeInput {
