@@ -508,7 +508,8 @@ impl ColorSegmentation {
             let area = region.area_cells as f32;
             let saturated_fraction = region.overexposed_cells as f32 / area;
             let confidence = match source {
-                DetectionSource::Colour => region_confidence(
+                // (This detector reports no `Model` detections.)
+                DetectionSource::Colour | DetectionSource::Model => region_confidence(
                     region.margin_sum / area,
                     area,
                     seed.radius_cells,
