@@ -44,13 +44,13 @@ restart = "never"
 [[process]]
 name = "arm1"
 command = "arm"
-args = ["--id", "1"]
+args = ["--id", "1", "--without-operator"]
 restart = "never"
 
 [[process]]
 name = "arm2"
 command = "arm"
-args = ["--id", "2"]
+args = ["--id", "2", "--without-operator"]
 restart = "never"
 "#
     );
@@ -71,7 +71,7 @@ restart = "never"
 [[process]]
 name = "vacuum"
 command = "vacuum"
-args = ["--policy", "2024", "--arms", "2"]
+args = ["--policy", "2024", "--arms", "2", "--without-operator"]
 restart = "never"
 "#
             .replace("SIM_CAMERA_CALIBRATION", SIM_CAMERA_CALIBRATION)

@@ -61,7 +61,7 @@ pub const KNOWN_COMMANDS: &[&str] = &[
     "lidar",
     "recorder",
     "monitor",
-    // Operator (issue 15).
+    // The operator's mode machine and the viewers (console, Foxglove bridge).
     "executive",
     "console",
     "foxglove",

@@ -156,7 +156,7 @@ pub enum SupervisorError {
     ControlToken(#[from] harvest_operator::token::TokenError),
 }
 
-/// The control token of this run (issue 15): made at start, printed, written to the domain's
+/// The control token of this run: made at start, printed, written to the domain's
 /// token file (mode 0600, `harvest_operator::token::token_path`) and handed to the children;
 /// the file (and the executive's mode file beside it) is removed when the stack stops.
 struct ControlTokenFile {
