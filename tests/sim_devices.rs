@@ -98,7 +98,7 @@ fn simulated_valve_board_passes_the_conformance_suite() {
     assert_all_passed(&report, 7);
 }
 
-/// The joint limits the simulated arms enforce (paper 003 Table 1, from the arm parameters).
+/// The joint limits the simulated arms enforce ([dual-arm Table 1], from the arm parameters).
 fn declared_limits(arm: ArmId) -> [[f64; 2]; 4] {
     let scenario = Scenario::preset(SCENARIO).expect("scenario");
     let robot = SimRobot::new(&scenario, 1).expect("robot");

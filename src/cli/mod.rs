@@ -137,7 +137,7 @@ enum EvalCommand {
     /// clock): cycle times per apple and per attempt, success, per-apple events.
     Harvest(harvest_eval::harvest::EvalHarvestArgs),
     /// Rows stop by stop under a simulated clock with perception in the loop (the executive's
-    /// stop-and-go cycle, platform positioning): Table 2 and Table 3 of paper 003, single vs
+    /// stop-and-go cycle, platform positioning): [dual-arm Tables 2-3], single vs
     /// dual arm.
     Row(harvest_eval::row::EvalRowArgs),
     /// Laser refinement of ToF apple positions: error before/after and the time a scan costs.

@@ -1,4 +1,4 @@
-//! Property tests of every reader of recording files (issue 18, item 3): a small valid
+//! Property tests of every reader of recording files: a small valid
 //! recording written with the segment writer, then truncated, mutated, given CRC-valid but
 //! malformed chunks or garbage, goes through the scanner, the summary readers, `rec info`,
 //! `rec cat`, `rec export` and `rec recover`. None may panic; whatever they report must be

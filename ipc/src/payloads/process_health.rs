@@ -14,6 +14,9 @@ pub enum ProcessRunState {
     Running = 1,
     Degraded = 2,
     Stopping = 3,
+    /// Failed for good and not restarted any more: published by the supervisor on behalf of a
+    /// non-critical process whose failure did not stop the stack.
+    Failed = 4,
 }
 
 #[repr(C)]
@@ -54,5 +57,5 @@ crate::serde_payload!(
     2,
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
 process_name: u64 length + UTF-8; pid:u32; run_state:u8 (0 starting,1 running,2 degraded,3 \
-stopping); _reserved:[u8;3]; main_channel_count:u64; detail_value:u64; detail: u64 length + UTF-8; deadline_misses:u64"
+stopping,4 failed); _reserved:[u8;3]; main_channel_count:u64; detail_value:u64; detail: u64 length + UTF-8; deadline_misses:u64"
 );

@@ -2,12 +2,16 @@
 //!
 //! Per tick (a wait-set interval of [`ArmProcessConfig::control_period_us`], never a sleep), in
 //! the order of the in-process evaluation (`harvest_eval::harvest::runner`, steps 2, 3 and 5):
-//! 1. the encoders are read through the [`ArmServos`] trait;
+//! 0. `safety/emergency_stop` is read first, before any device exchange;
+//! 1. the encoders are read through the [`ArmServos`] trait; when the stop is engaged or the
+//!    read failed the servos are braked at once (the stop always wins: no device error can
+//!    delay it, and a device error alone means hold);
 //! 2. the newest samples of this arm's target, `vacuum/state`, this arm's `vacuum/valve_grant`
-//!    answers, the other arm's state and target, and `safety/emergency_stop` are taken;
-//! 3. [`ArmNode::step`] runs;
+//!    answers and the other arm's state and target are taken;
+//! 3. [`ArmNode::step`] runs (also on a failed read, without fresh feedback, so that a stop
+//!    reaches the picking cycle and the published state and command say the arm holds);
 //! 4. its servo order goes to the servos through the trait (`command` or `hold`; a set-point
-//!    the driver refuses brakes the arm instead);
+//!    the driver refuses brakes the arm instead; nothing but the brake when step 1 braked);
 //! 5. `armN/command` (the set-points, the current apple and the capture time of the detection
 //!    behind its target), `armN/state`, `vacuum/valve_request` (on change, and re-sent every
 //!    [`ArmProcessConfig::valve_request_resend_ms`] so a restarted vacuum supervisor learns the
@@ -17,15 +21,17 @@
 //! or this arm is disabled, new targets are held back (an attempt under way runs to its end).
 //! Manual orders on `armN/manual` are carried out only in manual mode; a manual move stops as
 //! soon as the mode leaves manual or is not heard for [`MODE_STALE_NS`] (the executive is
-//! gone). With no mode ever published (a stack without the executive) the arm harvests as
-//! before.
+//! gone). The rule is the stack's one rule ([`harvest_robot_model::obedience`], `field_hold`
+//! included): no mode heard means hold, unless the launch file says the stack runs without an
+//! executive (`--without-operator`).
 //!
 //! Until the servos report encoder feedback for the first time the arm is not ready: nothing
 //! is stepped or published.
 //!
 //! The loop measures its own tick-to-tick intervals ([`run_control_loop`]): the p99 goes out
 //! with every heartbeat (`period_p99_us`), the full distribution is logged at shutdown. On
-//! SIGTERM the arm brakes and asks for its valve to be closed before exiting.
+//! SIGTERM, and when it ends on an error, the arm brakes and asks for its valve to be closed
+//! before exiting.
 //!
 //! The device implementation is chosen in one place, [`run`] (`--device sim`: the simulated
 //! servos behind `hw/armN/servo|encoders`), together with its timing profile
@@ -41,8 +47,8 @@ use harvest_ipc::catalogue::{
 };
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
 use harvest_ipc::payloads::{
-    ArmPhase as PhaseCode, ArmState, ArmTarget, HarvestEventKind, VacuumState, ValveGrant,
-    ValveRequest,
+    ArmPhase as PhaseCode, ArmState, ArmTarget, HarvestEventKind, ProcessRunState, VacuumState,
+    ValveGrant, ValveRequest,
 };
 use harvest_ipc::{Context, Domain, Flow, HealthReporter, MonotonicClock};
 use serde::Deserialize;
@@ -55,6 +61,7 @@ use harvest_ipc::control_loop::{Wake, run_control_loop};
 use harvest_ipc::failure_streak::FailureStreak;
 use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
 use harvest_robot_model::params::{ArmId, ArmParams};
+use harvest_robot_model::{ModeSource, Obedience, obedience};
 
 /// Which servo device drives the arm (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -98,6 +105,10 @@ pub struct ArmArgs {
     /// Process settings (TOML file, every key optional; see `ArmProcessConfig`).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// No executive runs in this stack (a bench profile, a test): until an `operator/mode` is
+    /// heard, take up targets. Without it, no mode heard means hold.
+    #[arg(long)]
+    pub without_operator: bool,
 }
 
 /// Settings of the arm process (`--config FILE`). Every key is optional.
@@ -111,7 +122,7 @@ pub struct ArmArgs {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ArmProcessConfig {
-    /// Control period, us (default 5000: 200 Hz, paper 003 section 2.2).
+    /// Control period, us (default 5000: 200 Hz, [dual-arm sec. 2.2]).
     pub control_period_us: u64,
     /// The standing valve request is re-sent this often, ms (default 500).
     pub valve_request_resend_ms: u64,
@@ -185,9 +196,7 @@ pub enum ArmProcessError {
 
 harvest_ipc::from_ipc_errors!(ArmProcessError);
 
-/// A manual move stops when `operator/mode` was not heard for this long (the executive
-/// re-sends it at 10 Hz), ns.
-pub const MODE_STALE_NS: u64 = 500_000_000;
+pub use harvest_robot_model::obedience::MODE_STALE_NS;
 
 /// Device errors in a row after which the process stops (and the supervisor restarts it).
 const MAX_CONSECUTIVE_DEVICE_ERRORS: u32 = 200;
@@ -220,7 +229,12 @@ pub fn run(
         ArmDevice::Sim => {
             let servos = SimArmServos::connect(&context, arm, limits)
                 .map_err(|error| device_error(error.to_string()))?;
-            control_loop(&context, servos, arm, &config, node_config)
+            let mode_source = if args.without_operator {
+                ModeSource::WithoutOperator
+            } else {
+                ModeSource::Executive
+            };
+            control_loop(&context, servos, arm, &config, node_config, mode_source)
         }
     }
 }
@@ -236,12 +250,14 @@ struct Inputs {
     emergency_stop: bool,
 }
 
-fn control_loop<S: ArmServos>(
+/// The control loop of [`run`] on the given servos (a test drives it with a servo double).
+pub fn control_loop<S: ArmServos>(
     context: &Context,
     mut servos: S,
     arm: ArmId,
     config: &ArmProcessConfig,
     node_config: ArmNodeConfig,
+    mode_source: ModeSource,
 ) -> Result<PeriodSummary, ArmProcessError> {
     let i = arm.index();
     let other = 1 - i;
@@ -271,21 +287,32 @@ fn control_loop<S: ArmServos>(
     let mut last_request: Option<(ValveRequest, u64)> = None;
     let mut device_errors = FailureStreak::new(MAX_CONSECUTIVE_DEVICE_ERRORS);
     let mut ticks = 0u64;
+    // Refused brake commands: reported (degraded), never a reason to stop braking.
+    let mut write_errors = FailureStreak::new(u32::MAX);
+    let mut ready = false;
     tracing::info!(arm = %arm, period_us = config.control_period_us, "arm control loop running");
-    let summary = run_control_loop(period_ns, |wake| -> Result<Flow, ArmProcessError> {
+    let result = run_control_loop(period_ns, |wake| -> Result<Flow, ArmProcessError> {
         match wake {
             Wake::Tick { now_ns } => {
                 ticks += 1;
 
-                // 1. Encoders.
-                let feedback = match servos.feedback() {
+                // 0. The stop first: read before any device exchange and applied whatever the
+                // devices do.
+                if let Some(sample) = estop_in.receive_latest()? {
+                    inputs.emergency_stop = sample.engaged != 0;
+                }
+
+                // 1. Encoders. A failed read means hold: the node still runs (without fresh
+                // feedback) so that a stop reaches it, and the servos are braked this tick.
+                let (feedback, device_fault) = match servos.feedback() {
                     Ok(sample) => {
                         device_errors.succeeded();
-                        sample.map(|f| EncoderSample {
+                        let feedback = sample.map(|f| EncoderSample {
                             capture_ns: f.capture_ns,
                             position: f.position,
                             velocity: f.velocity,
-                        })
+                        });
+                        (feedback, false)
                     }
                     Err(error) => {
                         if let Some(failures) = device_errors.failed("encoder read", &error) {
@@ -294,14 +321,19 @@ fn control_loop<S: ArmServos>(
                                 message: format!("{failures} encoder reads failed: {error}"),
                             });
                         }
-                        None
+                        (None, true)
                     }
                 };
+                let hold_first = inputs.emergency_stop || device_fault;
+                if hold_first {
+                    brake(&mut servos, &mut write_errors);
+                }
+                ready |= feedback.is_some();
 
                 // Until the servos report for the first time the arm is not ready: nothing is
                 // stepped or published (no state: the vacuum supervisor assigns it nothing and
                 // the other arm defers its motions).
-                if feedback.is_none() {
+                if !ready {
                     return Ok(Flow::Continue);
                 }
 
@@ -314,20 +346,14 @@ fn control_loop<S: ArmServos>(
                     &grant_in,
                     &other_state_in,
                     &other_target_in,
-                    &estop_in,
                 )?;
 
                 // The operator's mode and manual orders.
                 if let Some(sample) = mode_in.receive_latest()? {
                     operator_mode = Some(*sample);
                 }
-                obey_operator(
-                    &mut node,
-                    number,
-                    now_ns,
-                    operator_mode.as_ref(),
-                    &manual_in,
-                )?;
+                let rule = obedience(operator_mode.as_ref(), mode_source, now_ns);
+                obey_operator(&mut node, number, now_ns, rule, &manual_in)?;
 
                 // 3. The node.
                 let input = ArmNodeInput {
@@ -344,24 +370,21 @@ fn control_loop<S: ArmServos>(
                 };
                 let out = node.step(&input);
 
-                // 4. Servos.
+                // 4. Servos (already braked when stopped or faulted).
                 let hold = match out.servo {
+                    _ if hold_first => true,
                     ServoOrder::Track { position, velocity } => {
                         match servos.command(position, velocity) {
                             Ok(()) => false,
                             Err(error) => {
                                 tracing::warn!(%error, ?position, "set-point refused: braking");
-                                if let Err(error) = servos.hold() {
-                                    tracing::warn!(%error, "brake command failed");
-                                }
+                                brake(&mut servos, &mut write_errors);
                                 true
                             }
                         }
                     }
                     ServoOrder::Hold => {
-                        if let Err(error) = servos.hold() {
-                            tracing::warn!(%error, "brake command failed");
-                        }
+                        brake(&mut servos, &mut write_errors);
                         true
                     }
                 };
@@ -415,17 +438,18 @@ fn control_loop<S: ArmServos>(
                 }
             }
             Wake::Heartbeat { period } => {
-                let state = device_errors.run_state();
+                let state = match write_errors.run_state() {
+                    ProcessRunState::Running => device_errors.run_state(),
+                    degraded => degraded,
+                };
                 health.report_control_loop(state, ticks, &period)?;
             }
         }
         Ok(Flow::Continue)
-    })?;
+    });
 
-    // Leave the arm braked with its valve closed.
-    if let Err(error) = servos.hold() {
-        tracing::warn!(%error, "final brake command failed");
-    }
+    // Leave the arm braked with its valve closed, whatever ended the loop.
+    brake(&mut servos, &mut write_errors);
     let close = ValveRequest {
         header: harvest_ipc::Header {
             capture_ns: MonotonicClock::read_ns(),
@@ -437,6 +461,7 @@ fn control_loop<S: ArmServos>(
         request_seq: last_request.map_or(0, |(r, _)| r.request_seq.wrapping_add(1)),
     };
     request_out.publish(&close)?;
+    let summary = result?;
     tracing::info!(
         arm = %arm,
         harvested = node.harvested_count(),
@@ -455,16 +480,12 @@ fn obey_operator(
     node: &mut ArmNode,
     number: u8,
     now_ns: u64,
-    mode: Option<&harvest_ipc::payloads::OperatorModeState>,
+    rule: Obedience,
     manual_in: &harvest_ipc::Subscriber<harvest_ipc::payloads::ArmManualCommand>,
 ) -> Result<(), ArmProcessError> {
-    use harvest_ipc::payloads::{ArmManualKind, OperatorModeCode};
-    let code = mode.and_then(|m| m.mode_code());
-    let enabled = mode.is_none_or(|m| m.arms_enabled[usize::from(number - 1)] != 0);
-    let harvesting = mode.is_none() || code == Some(OperatorModeCode::Harvesting);
-    node.hold_targets(!(harvesting && enabled));
-    let manual_fresh = code == Some(OperatorModeCode::Manual)
-        && mode.is_some_and(|m| now_ns.saturating_sub(m.header.capture_ns) <= MODE_STALE_NS);
+    use harvest_ipc::payloads::ArmManualKind;
+    node.hold_targets(rule.targets_held[usize::from(number - 1)]);
+    let manual_fresh = rule.manual;
     while let Some(order) = manual_in.receive()? {
         if order.arm_id != number {
             continue;
@@ -486,15 +507,17 @@ fn obey_operator(
                 }
             }
             Some(ArmManualKind::MoveTo) => {
-                tracing::warn!(request_id = order.request_id, mode = ?code,
-                    "manual move refused: not in manual mode");
+                tracing::warn!(
+                    request_id = order.request_id,
+                    "manual move refused: not in manual mode"
+                );
             }
             Some(ArmManualKind::Stop) => node.stop_manual(),
             None => tracing::warn!(kind = order.kind, "unknown manual order ignored"),
         }
     }
     if node.manual_active() && !manual_fresh {
-        tracing::warn!(mode = ?code, "manual move stopped: mode left manual or went silent");
+        tracing::warn!("manual move stopped: mode left manual or went silent");
         node.stop_manual();
     }
     Ok(())
@@ -511,7 +534,6 @@ fn read_inputs(
     grant_in: &harvest_ipc::Subscriber<ValveGrant>,
     other_state_in: &harvest_ipc::Subscriber<ArmState>,
     other_target_in: &harvest_ipc::Subscriber<ArmTarget>,
-    estop_in: &harvest_ipc::Subscriber<harvest_ipc::payloads::EmergencyStop>,
 ) -> Result<(), ArmProcessError> {
     if let Some(sample) = target_in.receive_latest()? {
         inputs.target = Some(*sample);
@@ -530,10 +552,18 @@ fn read_inputs(
     if let Some(sample) = other_target_in.receive_latest()? {
         inputs.other_target = Some(*sample);
     }
-    if let Some(sample) = estop_in.receive_latest()? {
-        inputs.emergency_stop = sample.engaged != 0;
-    }
     Ok(())
+}
+
+/// Commands the servos to hold; a refused brake is counted (the first of a streak logged) and
+/// tried again on the next tick.
+fn brake<S: ArmServos>(servos: &mut S, write_errors: &mut FailureStreak) {
+    match servos.hold() {
+        Ok(()) => write_errors.succeeded(),
+        Err(error) => {
+            write_errors.failed("brake command", &error);
+        }
+    }
 }
 
 #[cfg(test)]

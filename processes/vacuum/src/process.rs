@@ -3,10 +3,13 @@
 //!
 //! Per tick (a wait-set interval of [`VacuumProcessConfig::control_period_us`], never a sleep),
 //! in the order of the in-process evaluation (`harvest_eval::harvest::runner`, steps 2, 4, 5):
+//! 0. `safety/emergency_stop` is read first; while it is engaged every valve is commanded
+//!    closed (`close_all`, repeated each tick until the board accepts it) before the board is
+//!    read, so no device error can delay the stop;
 //! 1. the valve board is read through the [`ValveBoard`] trait (valve states and the three
 //!    pressures);
 //! 2. the newest detection set on `perception/apples`, both arms' states, their standing valve
-//!    requests (`vacuum/valve_request`, newest per arm) and `safety/emergency_stop` are taken;
+//!    requests (`vacuum/valve_request`, newest per arm) are taken;
 //! 3. [`VacuumNode::step`] runs, with the reachability of each apple by each arm from the arm
 //!    kinematics ([`harvest_arm::node::pick_reachable`], the same test the evaluation uses);
 //! 4. the valve commands go to the board (`close_all` on an emergency stop, `set_valve` for each
@@ -46,7 +49,7 @@ use harvest_ipc::{Context, Domain, FixedString, Flow, HealthReporter};
 use serde::Deserialize;
 
 use crate::policy_arg::PolicyArg;
-use harvest_robot_model::ArmId;
+use harvest_robot_model::{ArmId, ModeSource, obedience};
 use harvest_vacuum::harvest_events::{ArmContext, vacuum_event};
 use harvest_vacuum::node::{
     BoardReadings, VacuumNode, VacuumNodeConfig, VacuumNodeError, VacuumNodeEvent,
@@ -109,6 +112,10 @@ pub struct VacuumArgs {
     /// Process settings (TOML file, every key optional; see `VacuumProcessConfig`).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// No executive runs in this stack (a bench profile, a test): until an `operator/mode` is
+    /// heard, dispatch targets. Without it, no mode heard means hold.
+    #[arg(long)]
+    pub without_operator: bool,
 }
 
 /// Settings of the vacuum process (`--config FILE`). Every key is optional.
@@ -124,7 +131,7 @@ pub struct VacuumArgs {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct VacuumProcessConfig {
-    /// Control period, us (default 5000: 200 Hz, paper 003 section 2.2).
+    /// Control period, us (default 5000: 200 Hz, [dual-arm sec. 2.2]).
     pub control_period_us: u64,
     /// Nothing left to do for this long: the harvest is complete, ms (default 2000).
     pub complete_after_ms: u64,
@@ -323,9 +330,16 @@ fn control_loop<B: ValveBoard>(
     ];
     let request_in = context.subscriber(VALVE_REQUEST)?;
     let estop_in = context.subscriber(EMERGENCY_STOP)?;
-    // The operator's mode: targets go out only while harvesting, to enabled arms (no mode
-    // ever published: a stack without the executive harvests as before).
+    // The operator's mode, by the stack's one rule: targets go out only while harvesting,
+    // outside the row's field hold, to enabled arms; no mode heard means hold unless the
+    // launch file says the stack runs without an executive.
     let mode_in = context.subscriber(OPERATOR_MODE)?;
+    let mode_source = if args.without_operator {
+        ModeSource::WithoutOperator
+    } else {
+        ModeSource::Executive
+    };
+    let mut operator_mode = None;
     let mut target_out = [
         context.publisher(ARM_TARGET[0])?,
         context.publisher(ARM_TARGET[1])?,
@@ -349,10 +363,21 @@ fn control_loop<B: ValveBoard>(
     let enabled = [true, args.arms >= 2];
     tracing::info!(policy = ?args.policy, arms = args.arms, period_us = config.control_period_us,
         "vacuum supervisor running");
-    let summary = run_control_loop(period_ns, |wake| -> Result<Flow, VacuumProcessError> {
+    let result = run_control_loop(period_ns, |wake| -> Result<Flow, VacuumProcessError> {
         match wake {
             Wake::Tick { now_ns } => {
-                // 1. The board.
+                // 0. The stop first: read before any device exchange; while engaged every
+                // valve is commanded closed until the board took the order, whatever the
+                // readings do.
+                if let Some(sample) = estop_in.receive_latest()? {
+                    estop = sample.engaged != 0;
+                }
+                if estop && applied != [Some(false); 4] {
+                    close_all(&mut board, &mut applied);
+                }
+
+                // 1. The board. A failed read leaves the node without fresh readings (it
+                // closes nothing on its own); the stop above does not depend on it.
                 let readings = match read_board(&mut board, now_ns) {
                     Ok(readings) => {
                         device_errors.succeeded();
@@ -385,16 +410,11 @@ fn control_loop<B: ValveBoard>(
                         requests[slot] = Some(*request);
                     }
                 }
-                if let Some(sample) = estop_in.receive_latest()? {
-                    estop = sample.engaged != 0;
-                }
                 if let Some(mode) = mode_in.receive_latest()? {
-                    let harvesting = mode.mode_code()
-                        == Some(harvest_ipc::payloads::OperatorModeCode::Harvesting);
-                    // The row's stop cycle holds new approaches while it repositions.
-                    let held = !harvesting || mode.field_hold != 0;
-                    node.hold_dispatch(mode.arms_enabled.map(|on| held || on == 0));
+                    operator_mode = Some(*mode);
                 }
+                let rule = obedience(operator_mode.as_ref(), mode_source, now_ns);
+                node.hold_dispatch(rule.targets_held);
 
                 // 3. The node.
                 let input = harvest_vacuum::node::VacuumNodeInput {
@@ -409,11 +429,8 @@ fn control_loop<B: ValveBoard>(
                 drop(detections);
 
                 // 4. The valves.
-                if out.close_all {
-                    match board.close_all() {
-                        Ok(()) => applied = [Some(false); 4],
-                        Err(error) => tracing::error!(%error, "close_all refused by the board"),
-                    }
+                if out.close_all && applied != [Some(false); 4] {
+                    close_all(&mut board, &mut applied);
                 }
                 for (k, &open) in out.valve_commands.iter().enumerate() {
                     if applied[k] == Some(open) {
@@ -476,12 +493,13 @@ fn control_loop<B: ValveBoard>(
             }
         }
         Ok(Flow::Continue)
-    })?;
+    });
 
-    // Leave every tube vented and cut off from the source.
+    // Leave every tube vented and cut off from the source, whatever ended the loop.
     if let Err(error) = board.close_all() {
         tracing::warn!(%error, "final close_all failed");
     }
+    let summary = result?;
     tracing::info!(
         detection_sets = sets,
         device_errors = device_errors.total(),
@@ -491,6 +509,18 @@ fn control_loop<B: ValveBoard>(
         "vacuum supervisor stopped; control period: {summary}"
     );
     Ok(summary)
+}
+
+/// Commands every valve closed; on success every position is known closed, on a refusal
+/// every position is unknown (so the next tick orders the closing again).
+fn close_all<B: ValveBoard>(board: &mut B, applied: &mut [Option<bool>; 4]) {
+    match board.close_all() {
+        Ok(()) => *applied = [Some(false); 4],
+        Err(error) => {
+            *applied = [None; 4];
+            tracing::error!(%error, "close_all refused by the board");
+        }
+    }
 }
 
 /// One board report as the node takes it.

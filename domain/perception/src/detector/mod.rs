@@ -1,8 +1,8 @@
 //! 2D apple detection in the colour image.
 //!
 //! A [`Detector`] turns one colour frame into a list of [`Detection`]s: a pixel box, a pixel mask,
-//! the number of visible apple pixels and a confidence in [0, 1]. The paper (Zhu et al., section
-//! 3.1.1-3.1.2) uses a fine-tuned Grounding-DINO detector with a prompt-guided instance segmenter
+//! the number of visible apple pixels and a confidence in [0, 1]. The paper ([dual-arm sec.
+//! 3.1.1-3.1.2]) uses a fine-tuned Grounding-DINO detector with a prompt-guided instance segmenter
 //! and a 0.3 confidence threshold. Two implementations, chosen in one place ([`choice`], the
 //! `[detector]` table of perception's config):
 //! - [`color_segmentation::ColorSegmentation`] (default): classical, needs no model;

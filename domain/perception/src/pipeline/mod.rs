@@ -1,6 +1,6 @@
 //! The perception pipeline of one ToF camera: detections -> mask points -> apple positions.
 //!
-//! Implements Zhu et al. 3.1 with a pluggable detector and estimator. Per frame:
+//! Implements [dual-arm sec. 3.1] with a pluggable detector and estimator. Per frame:
 //! 1. Both frames are checked against the calibrated sizes; a malformed frame yields no apples and
 //!    is counted ([`FrameStats::rejection`]).
 //! 2. The detector finds apples in the colour image; detections below `min_detection_confidence`
@@ -27,7 +27,7 @@
 //!    are apples whose confidence (mask confidence times position confidence) is below
 //!    `min_output_confidence` (mostly fallback estimates from few points).
 //! 7. Each apple is reported in the colour camera frame and, via `robot_from_camera`, in the robot
-//!    frame (the LiDAR-camera paper's eq. 20).
+//!    frame ([fusion eq. 20]).
 //!
 //! Layout: `config` and `error` (building the pipeline), `apple_estimate` (its output), one file
 //! per stage that needs more than a few lines: `mask_points` (step 3), `estimation` (step 4),

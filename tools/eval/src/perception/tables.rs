@@ -1,4 +1,5 @@
-//! The report as Markdown tables (what `harvest eval perception` prints; pasted into the README).
+//! The report as Markdown tables (what `harvest eval perception` prints; pasted into
+//! docs/evaluation.md).
 
 use std::fmt::Write;
 
