@@ -123,6 +123,9 @@ enum BenchCommand {
     /// End-to-end latency in a running stack (simulated robot): capture -> camera ->
     /// perception -> arm target -> arm command per hop, and the arm control loop's jitter.
     Pipeline(harvest_bench::BenchPipelineArgs),
+    /// Perception's detectors' latency per 1920x1080 frame: ONNX models (CPU provider) beside the
+    /// colour segmentation, on one simulated frame.
+    Detector(harvest_bench::BenchDetectorArgs),
 }
 
 #[cfg(feature = "sim-tools")]
@@ -231,6 +234,11 @@ impl Cli {
             Command::Bench(BenchCommand::Ipc(args)) => {
                 let report = harvest_bench::run_bench_ipc(&args).context("ipc benchmark")?;
                 print!("{}", report.table());
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Detector(args)) => {
+                harvest_bench::run_bench_detector(&args).context("detector benchmark")?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]

@@ -99,9 +99,9 @@ impl OnnxDetector {
         let outputs: Vec<TensorInfo> = session.outputs().iter().map(tensor_info).collect();
         let layout = identify(&inputs, &outputs, config.input_size)
             .and_then(|layout| layout.check_classes(&config.classes).map(|()| layout))
-            .map_err(|source| OnnxDetectorError::Layout {
+            .map_err(|layout| OnnxDetectorError::Layout {
                 path: config.model.clone(),
-                source,
+                layout,
             })?;
         let protos_name = match layout.head {
             YoloHead::Detect => None,

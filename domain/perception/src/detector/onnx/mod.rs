@@ -48,10 +48,6 @@ pub enum OnnxDetectorError {
     #[error("model {path}: {reason}")]
     Model { path: PathBuf, reason: String },
     /// The model fits no known layout.
-    #[error("model {path}: {source}")]
-    Layout {
-        path: PathBuf,
-        #[source]
-        source: LayoutError,
-    },
+    #[error("model {path}: {layout}")]
+    Layout { path: PathBuf, layout: LayoutError },
 }
