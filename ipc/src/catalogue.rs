@@ -13,7 +13,7 @@
 //! on the servos or valves. Channels with several writers say so with
 //! [`Qos::with_max_publishers`] and name their writers: `vacuum/valve_request` (the two arms),
 //! `harvest/events` (arms and vacuum supervisor), `system/health` (every process),
-//! `operator/command` (`harvest ctl`, the console). A crashed
+//! `operator/command` and `operator/mark` (`harvest ctl`, the console). A crashed
 //! writer's port is removed by the supervisor's stale-resource cleanup before its restart
 //! ([`crate::cleanup::remove_dead_nodes`]), so restarts still find the slot free. Replaying a
 //! recording into a domain where the stack runs is refused per channel for the channels the
@@ -470,6 +470,19 @@ pub const ARM_MANUAL: [Channel<ArmManualCommand>; 2] = [
     ),
 ];
 
+/// Operator marks: any operator client may publish one (`harvest ctl mark`, the console); a
+/// mark is a note, not a command, so it needs no token. Readers: the recorder (a flight-recorder
+/// clip around each mark, the events channel of the recording).
+pub const OPERATOR_MARK: Channel<OperatorMark> = Channel::new(
+    "operator/mark",
+    Qos {
+        max_publishers: 8,
+        max_nodes: 24,
+        ..Qos::SMALL
+    },
+    "an operator's note that something worth keeping happened now (the recorder files a clip)",
+);
+
 /// Called once per catalogue channel with its payload type.
 pub trait ChannelVisitor {
     fn visit<T: Payload>(&mut self, channel: Channel<T>);
@@ -512,6 +525,7 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(OPERATOR_COMMAND);
     visitor.visit(OPERATOR_ACK);
     visitor.visit(OPERATOR_MODE);
+    visitor.visit(OPERATOR_MARK);
     for arm in ArmId::ALL {
         visitor.visit(ARM_MANUAL[arm.index()]);
     }
@@ -589,7 +603,9 @@ mod tests {
                 ("system/health", 24),
                 // Operator clients (console, ctl sessions): the executive decides which one
                 // controls.
-                ("operator/command", 8)
+                ("operator/command", 8),
+                // Marks are notes from any operator client.
+                ("operator/mark", 8)
             ]
         );
     }

@@ -145,10 +145,13 @@ fn recording(
         ))
         .expect("metadata");
     writer
-        .write_metadata(&metadata::clock_record(ClockPair {
-            monotonic_ns: 1_000_000_000,
-            realtime_ns: 1_700_000_000_000_000_000,
-        }))
+        .write_metadata(&metadata::clock_record(
+            ClockPair {
+                monotonic_ns: 1_000_000_000,
+                realtime_ns: 1_700_000_000_000_000_000,
+            },
+            None,
+        ))
         .expect("metadata");
     for n in 0..count {
         for (index, topic) in topics.iter().enumerate() {
