@@ -4,6 +4,7 @@ use std::sync::Mutex;
 
 use ort::environment::Environment;
 use ort::ep::{self, ExecutionProvider as _};
+use ort::logging::LogLevel;
 use ort::session::Session;
 use ort::session::builder::SessionBuilder;
 use ort::value::{Outlet, TensorElementType, TensorRef, ValueType};
@@ -43,6 +44,9 @@ fn environment() -> Result<Environment, OnnxDetectorError> {
         .with_name("harvest")
         .build()
         .map_err(|error| load_error(error.to_string()))?;
+    // ONNX Runtime's own messages (through `tracing`): warnings and errors only; its session
+    // set-up chatter is not for an operator.
+    environment.set_log_level(LogLevel::Warning);
     let found_by = match &source {
         LibrarySource::Environment => "ORT_DYLIB_PATH".to_string(),
         LibrarySource::PythonWheel { package_dir } => {
@@ -84,8 +88,13 @@ impl OnnxDetector {
             path: config.model.clone(),
             reason,
         };
-        let mut builder =
-            Session::builder(&environment).map_err(|error| model_error(error.to_string()))?;
+        let mut builder = Session::builder(&environment)
+            .and_then(|builder| {
+                builder
+                    .with_log_level(LogLevel::Warning)
+                    .map_err(Into::into)
+            })
+            .map_err(|error| model_error(error.to_string()))?;
         let provider = register_providers(&mut builder, config)?;
         if let Some(threads) = config.intra_threads {
             builder = builder
