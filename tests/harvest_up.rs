@@ -2,7 +2,6 @@
 //! the simulated robot, camera, perception, both arms and the vacuum supervisor picks a small
 //! orchard, prints per-apple events and the summary, and exits clean; bad targets published on
 //! an arm's target channel are refused with a reason on `harvest/events` and the arm holds.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -11,6 +11,9 @@
 //! [`rec_cat`], [`export`] (JSON, PNG, Foxglove). Users: the recorder process, `harvest rec`,
 //! `harvest replay` and `harvest monitor --recording`.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod export;
 pub mod foxglove_export;
 pub mod json_schema;

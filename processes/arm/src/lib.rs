@@ -2,6 +2,9 @@
 //! `harvest_hw::arm_servos::ArmServos`, steps `harvest_arm::node::ArmNode`, commands the servos
 //! and publishes the arm's state, events and heartbeat.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod process;
 
 pub use process::{ArmArgs, ArmDevice, ArmProcessError, run};

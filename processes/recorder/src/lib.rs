@@ -4,6 +4,9 @@
 //! mapped for Foxglove at the viewing rates ([`view_thread`]). The format is `harvest-recording`; the tools
 //! that read it (`harvest rec`, `harvest replay`) are `harvest-rec`.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod disk_space;
 pub mod output_dir;
 pub mod recorder;

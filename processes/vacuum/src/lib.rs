@@ -2,5 +2,8 @@
 //! `harvest_hw::valve_board::ValveBoard`, steps `harvest_vacuum::node::VacuumNode` and publishes
 //! the vacuum state, grants, arm targets, events and heartbeat.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod policy_arg;
 pub mod process;
