@@ -28,7 +28,7 @@ enum Command {
     /// Run the whole stack under the process supervisor (default: simulated robot).
     ///
     /// One stack per domain: refused while another `harvest up` (or a process of its stack)
-    /// runs in the domain; the lock is <iceoryx2 root>/harvest-up/<domain>.lock
+    /// runs in the domain; the lock is `<iceoryx2 root>/harvest-up/<domain>.lock`
     /// (/tmp/iceoryx2/harvest-up/), holding the running supervisor's pid.
     Up(up::UpArgs),
     /// Simulated robot: the orchard world serving the hardware channels.
