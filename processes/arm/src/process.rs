@@ -35,6 +35,7 @@ use std::path::{Path, PathBuf};
 
 use harvest_hw::arm_servos::ArmServos;
 use harvest_hw::arm_servos::sim::SimArmServos;
+use harvest_hw::{AnyDeviceError, DeviceError};
 use harvest_ipc::catalogue::{
     ARM_COMMAND, ARM_MANUAL, ARM_STATE, ARM_TARGET, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MODE,
     VACUUM_STATE, VALVE_GRANT, VALVE_REQUEST,
@@ -175,9 +176,14 @@ pub enum ArmProcessError {
     /// The period statistics could not be set up.
     #[error(transparent)]
     Period(#[from] PeriodStatsError),
-    /// The servo device could not be reached.
-    #[error("arm {arm} servo device: {message}")]
-    Device { arm: u8, message: String },
+    /// The servo device could not be reached, or failed too many times in a row.
+    #[error("arm {arm} servo device: {source}")]
+    Device {
+        /// The arm, 1 or 2.
+        arm: u8,
+        /// The driver's error, with its kind.
+        source: AnyDeviceError,
+    },
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
@@ -212,14 +218,14 @@ pub fn run(
     let lo = params.position_limits.min.to_array();
     let hi = params.position_limits.max.to_array();
     let limits = std::array::from_fn(|j| [lo[j], hi[j]]);
-    let device_error = |message: String| ArmProcessError::Device {
+    let device_error = |source: AnyDeviceError| ArmProcessError::Device {
         arm: arm.number(),
-        message,
+        source,
     };
     match args.device {
         ArmDevice::Sim => {
             let servos = SimArmServos::connect(&context, arm, limits)
-                .map_err(|error| device_error(error.to_string()))?;
+                .map_err(|error| device_error(AnyDeviceError::new(error)))?;
             control_loop(&context, servos, arm, &config, node_config)
         }
     }
@@ -288,10 +294,11 @@ fn control_loop<S: ArmServos>(
                         })
                     }
                     Err(error) => {
-                        if let Some(failures) = device_errors.failed("encoder read", &error) {
+                        health.note_device_error(error.kind().into());
+                        if device_errors.failed("encoder read", &error).is_some() {
                             return Err(ArmProcessError::Device {
                                 arm: number,
-                                message: format!("{failures} encoder reads failed: {error}"),
+                                source: AnyDeviceError::new(error),
                             });
                         }
                         None
@@ -351,6 +358,7 @@ fn control_loop<S: ArmServos>(
                             Ok(()) => false,
                             Err(error) => {
                                 tracing::warn!(%error, ?position, "set-point refused: braking");
+                                health.note_device_error(error.kind().into());
                                 if let Err(error) = servos.hold() {
                                     tracing::warn!(%error, "brake command failed");
                                 }

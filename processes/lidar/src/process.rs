@@ -7,6 +7,7 @@
 use harvest_hw::lidar::Lidar;
 use harvest_hw::lidar::LidarSpec;
 use harvest_hw::lidar::sim::SimLidar;
+use harvest_hw::{AnyDeviceError, DeviceError};
 use harvest_ipc::catalogue::LIDAR_POINTS;
 use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::payloads::point_cloud::POINT_CLOUD_CAPACITY;
@@ -39,7 +40,7 @@ pub enum LidarProcessError {
     Ipc(#[from] harvest_ipc::error::IpcError),
     /// The device failed (repeatedly) or could not be opened.
     #[error("lidar device: {0}")]
-    Device(String),
+    Device(#[source] AnyDeviceError),
     /// `--integration-s` is outside what one cloud can hold.
     #[error(
         "--integration-s {integration_s} outside 0.1..={max_s} s (one cloud holds {capacity} points)"
@@ -70,7 +71,7 @@ pub fn run(args: &LidarArgs, domain: &Domain, process_name: &str) -> Result<(), 
     let integration = Duration::from_secs_f64(args.integration_s);
     let lidar = match args.device {
         LidarDevice::Sim => SimLidar::connect(&context, integration)
-            .map_err(|error| LidarProcessError::Device(error.to_string()))?,
+            .map_err(|error| LidarProcessError::Device(AnyDeviceError::new(error)))?,
     };
     stream(&context, lidar, args)
 }
@@ -106,16 +107,20 @@ fn stream<L: Lidar>(
             Ok(false) => loan = Some(cloud),
             Err(error) => {
                 consecutive_errors += 1;
-                tracing::warn!(%error, kind = ?harvest_hw::DeviceError::kind(&error), "capture failed");
+                let kind = error.kind();
+                tracing::warn!(%error, %kind, "capture failed");
+                health.note_device_error(kind.into());
                 if consecutive_errors > 10 {
-                    return Err(LidarProcessError::Device(error.to_string()));
+                    return Err(LidarProcessError::Device(AnyDeviceError::new(error)));
                 }
                 loan = Some(cloud);
             }
         }
         if Instant::now() >= next_heartbeat {
             next_heartbeat += HEARTBEAT_PERIOD;
-            let state = if clouds.last_seq() == 0 {
+            let state = if consecutive_errors > 0 {
+                ProcessRunState::Degraded
+            } else if clouds.last_seq() == 0 {
                 ProcessRunState::Starting
             } else {
                 ProcessRunState::Running

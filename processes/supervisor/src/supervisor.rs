@@ -19,7 +19,7 @@ use crate::scheduling::SchedulingOutcome;
 use crate::status::{self, ProcessPhase, ProcessStatus};
 use crate::violation_log::ViolationLog;
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH, SAFETY_VIOLATION};
-use harvest_ipc::payloads::ProcessRunState;
+use harvest_ipc::payloads::{DeviceErrorCode, ProcessRunState};
 use harvest_ipc::{Context, Domain, Flow, MonotonicClock, RunEnd, Waiter};
 use harvest_log::{HarvestLog, HarvestLogSummary};
 use nix::sys::signal::Signal;
@@ -87,7 +87,7 @@ impl Summary {
         let mut out = format!("harvest up ended: {}\n", self.ended_by);
         for process in &self.processes {
             out.push_str(&format!(
-                "  {:<12} {:<10} restarts {:<2} messages {:<8} last exit: {}{}{}\n",
+                "  {:<12} {:<10} restarts {:<2} messages {:<8} last exit: {}{}{}{}\n",
                 process.name,
                 match &process.phase {
                     ProcessPhase::FailedForGood { .. } => "FAILED",
@@ -102,6 +102,9 @@ impl Summary {
                 } else {
                     String::new()
                 },
+                process
+                    .device_error_label()
+                    .map_or(String::new(), |label| format!("  {label}")),
                 if process.scheduling.is_empty() {
                     String::new()
                 } else {
@@ -272,6 +275,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                 deadline_misses: 0,
                 scheduling: String::new(),
                 run_state: None,
+                last_device_error: DeviceErrorCode::None,
             },
             count_at_last_status: 0,
             scheduling: SchedulingOutcome::none(),
@@ -349,6 +353,15 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                     process.status.detail = beat.detail.as_str().to_owned();
                     process.status.detail_value = beat.detail_value;
                     process.status.deadline_misses = beat.deadline_misses;
+                    let device_error = beat.last_device_error.get().unwrap_or(DeviceErrorCode::Other);
+                    if device_error != DeviceErrorCode::None
+                        && device_error != process.status.last_device_error
+                    {
+                        tracing::warn!(process = %process.spec.name, kind = %device_error, "process reports a device error");
+                    }
+                    if device_error != DeviceErrorCode::None {
+                        process.status.last_device_error = device_error;
+                    }
                     let run_state = beat.run_state.get().ok();
                     if run_state != process.status.run_state {
                         if run_state == Some(ProcessRunState::Degraded) {

@@ -30,6 +30,7 @@ use harvest_arm::node::{ArmNodeConfig, pick_reachable};
 use harvest_hw::valve_board::serial::{SerialBoardConfig, SerialValveBoard};
 use harvest_hw::valve_board::sim::SimValveBoard;
 use harvest_hw::valve_board::{ValveBoard, ValveId, ValveState};
+use harvest_hw::{AnyDeviceError, DeviceError};
 use harvest_ipc::catalogue::{
     ARM_STATE, ARM_TARGET, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MODE, PERCEPTION_APPLES,
     VACUUM_STATE, VALVE_GRANT, VALVE_REQUEST,
@@ -211,7 +212,10 @@ pub enum VacuumProcessError {
     Period(#[from] PeriodStatsError),
     /// The valve board could not be reached or refused commands for too long.
     #[error("valve board: {0}")]
-    Device(String),
+    Device(#[source] AnyDeviceError),
+    /// `--device serial` without `--port`.
+    #[error("--device serial needs --port PATH")]
+    SerialWithoutPort,
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
@@ -252,15 +256,16 @@ pub fn run(
     match args.device {
         VacuumDevice::Sim => {
             let board = SimValveBoard::connect(&context, timeout)
-                .map_err(|error| VacuumProcessError::Device(error.to_string()))?;
+                .map_err(|error| VacuumProcessError::Device(AnyDeviceError::new(error)))?;
             control_loop(&context, board, node, &config, args)
         }
         VacuumDevice::Serial => {
-            let port = args.port.as_deref().ok_or_else(|| {
-                VacuumProcessError::Device("--device serial needs --port PATH".to_owned())
-            })?;
+            let port = args
+                .port
+                .as_deref()
+                .ok_or(VacuumProcessError::SerialWithoutPort)?;
             let board = SerialValveBoard::open(&SerialBoardConfig::new(port))
-                .map_err(|error| VacuumProcessError::Device(format!("{port}: {error}")))?;
+                .map_err(|error| VacuumProcessError::Device(AnyDeviceError::new(error)))?;
             control_loop(&context, board, node, &config, args)
         }
     }
@@ -358,11 +363,10 @@ fn control_loop<B: ValveBoard>(
                         device_errors.succeeded();
                         Some(readings)
                     }
-                    Err(message) => {
-                        if let Some(failures) = device_errors.failed("valve board read", &message) {
-                            return Err(VacuumProcessError::Device(format!(
-                                "{failures} reads failed in a row: {message}"
-                            )));
+                    Err(error) => {
+                        health.note_device_error(error.kind().into());
+                        if device_errors.failed("valve board read", &error).is_some() {
+                            return Err(VacuumProcessError::Device(error));
                         }
                         None
                     }
@@ -412,7 +416,10 @@ fn control_loop<B: ValveBoard>(
                 if out.close_all {
                     match board.close_all() {
                         Ok(()) => applied = [Some(false); 4],
-                        Err(error) => tracing::error!(%error, "close_all refused by the board"),
+                        Err(error) => {
+                            tracing::error!(%error, "close_all refused by the board");
+                            health.note_device_error(error.kind().into());
+                        }
                     }
                 }
                 for (k, &open) in out.valve_commands.iter().enumerate() {
@@ -425,6 +432,7 @@ fn control_loop<B: ValveBoard>(
                         Err(error) => {
                             applied[k] = None;
                             tracing::warn!(%error, valve = k + 1, open, "valve command failed");
+                            health.note_device_error(error.kind().into());
                         }
                     }
                 }
@@ -494,9 +502,9 @@ fn control_loop<B: ValveBoard>(
 }
 
 /// One board report as the node takes it.
-fn read_board<B: ValveBoard>(board: &mut B, now_ns: u64) -> Result<BoardReadings, String> {
-    let states = board.valve_states().map_err(|error| error.to_string())?;
-    let pressures = board.pressures().map_err(|error| error.to_string())?;
+fn read_board<B: ValveBoard>(board: &mut B, now_ns: u64) -> Result<BoardReadings, AnyDeviceError> {
+    let states = board.valve_states().map_err(AnyDeviceError::new)?;
+    let pressures = board.pressures().map_err(AnyDeviceError::new)?;
     Ok(BoardReadings {
         stamp_ns: now_ns,
         valve_open: states
