@@ -1,4 +1,4 @@
-//! The field workflow end to end with the real processes over real shared memory (issue 17):
+//! The field workflow end to end with the real processes over real shared memory:
 //! `harvest up --launch processes/supervisor/launch/row.toml --until-row-done` works a two-stop
 //! row in a private domain (the executive's stop cycle positions the platform, waits for fresh
 //! detections, harvests, advances the tractor), prints one line per stop and a row summary,

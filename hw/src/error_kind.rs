@@ -57,6 +57,13 @@ pub trait DeviceError: std::error::Error + Send + Sync + 'static {
     fn kind(&self) -> ErrorKind;
 }
 
+/// Devices that cannot fail (a node without devices).
+impl DeviceError for std::convert::Infallible {
+    fn kind(&self) -> ErrorKind {
+        match *self {}
+    }
+}
+
 /// The error of any driver, boxed, with its kind: what a process (or a type-erased driver such as
 /// [`crate::valve_board::DynValveBoard`]) keeps when it passes a device error on without naming
 /// the driver's type.

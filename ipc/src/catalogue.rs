@@ -13,7 +13,7 @@
 //! on the servos or valves. Channels with several writers say so with
 //! [`Qos::with_max_publishers`] and name their writers: `vacuum/valve_request` (the two arms),
 //! `harvest/events` (arms and vacuum supervisor), `system/health` (every process),
-//! `operator/command` (`harvest ctl`, the console). A crashed
+//! `operator/command` and `operator/mark` (`harvest ctl`, the console). A crashed
 //! writer's port is removed by the supervisor's stale-resource cleanup before its restart
 //! ([`crate::cleanup::remove_dead_nodes`]), so restarts still find the slot free. Replaying a
 //! recording into a domain where the stack runs is refused per channel for the channels the
@@ -64,16 +64,27 @@ impl Qos {
         ..Self::SMALL
     };
     /// Multi-megabyte frames. iceoryx2 pre-allocates each publisher's data segment for the
-    /// worst case, (subscribers x buffer + history + loans) x payload size, so every buffer slot
-    /// costs a whole frame of shared memory: buffers here are small on purpose. One writer.
+    /// worst case, [`Self::data_segment_samples`] x payload size, so every buffer slot costs a
+    /// whole frame of shared memory in every subscriber slot. Most readers want only the
+    /// newest frame (perception, the viewers, the benchmarks: buffer 1-2), and the recorder,
+    /// which wants every frame, copies each one out at once into its own writer queue, so a
+    /// short buffer covers its receive loop: many subscribers with short buffers, not a few
+    /// with long ones. 8 subscribers x (3 + 2 borrowed) + 2 loans = 42 frames, as many as the
+    /// earlier 4 x (8 + 2) + 2: the stack's four readers (perception, recorder, Foxglove
+    /// bridge, console) plus four tools at once (a benchmark, a second viewer, a monitor, a
+    /// replay check) in the same shared memory. A ninth subscriber is refused at port creation
+    /// ([`crate::error::OpenChannelError::PortLimit`], naming the channel and the limit) and
+    /// changes nothing for the others. One writer.
     pub const FRAMES: Self = Self {
         history_size: 0,
-        subscriber_max_buffer_size: 8,
+        subscriber_max_buffer_size: 3,
         default_buffer_size: 2,
         safe_overflow: true,
         max_publishers: 1,
-        max_subscribers: 4,
-        max_nodes: 8,
+        max_subscribers: 8,
+        // The subscribers' nodes, the publisher's, and room for a restarted process's node
+        // before its stale one is cleaned.
+        max_nodes: 12,
         max_loans: 2,
     };
 
@@ -90,7 +101,21 @@ impl Qos {
     pub const fn single_writer(&self) -> bool {
         self.max_publishers == 1
     }
+
+    /// Samples in each publisher's data segment, as iceoryx2 0.10 sizes it
+    /// (`required_amount_of_samples_per_data_segment`): subscribers x (buffer + borrowed) +
+    /// history + loans. Times the payload size, that is the shared memory one publisher holds.
+    pub const fn data_segment_samples(&self) -> usize {
+        self.max_subscribers * (self.subscriber_max_buffer_size + SUBSCRIBER_MAX_BORROWED_SAMPLES)
+            + self.history_size
+            + self.max_loans
+    }
 }
+
+/// Samples one subscriber may hold at once (set on every service; iceoryx2's default). Two,
+/// because [`crate::Subscriber::receive_latest`] takes the next sample before it lets go of the
+/// one before.
+pub const SUBSCRIBER_MAX_BORROWED_SAMPLES: usize = 2;
 
 /// Which layer a channel belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -312,6 +337,8 @@ pub const HW_CAMERA_RGBD: Channel<RgbdFrame> = Channel::in_layer(
     "hw/camera/rgbd",
     Qos {
         max_subscribers: 2,
+        subscriber_max_buffer_size: 8,
+        max_nodes: 8,
         ..Qos::FRAMES
     },
     "frames as the ToF camera device delivers them to its driver",
@@ -374,6 +401,8 @@ pub const HW_ALACS_IMAGE: Channel<AlacsImage> = Channel::in_layer(
     "hw/alacs/image",
     Qos {
         max_subscribers: 2,
+        subscriber_max_buffer_size: 8,
+        max_nodes: 8,
         ..Qos::FRAMES
     },
     "ALACS device answers with the 1440x1080 RGB image",
@@ -429,6 +458,8 @@ pub const HW_LIDAR_POINTS: Channel<PointCloud> = Channel::in_layer(
     "hw/lidar/points",
     Qos {
         max_subscribers: 2,
+        subscriber_max_buffer_size: 8,
+        max_nodes: 8,
         ..Qos::FRAMES
     },
     "point frames as the LiDAR device delivers them to its driver, 10 Hz",
@@ -481,6 +512,19 @@ pub const ARM_MANUAL: [Channel<ArmManualCommand>; 2] = [
     ),
 ];
 
+/// Operator marks: any operator client may publish one (`harvest ctl mark`, the console); a
+/// mark is a note, not a command, so it needs no token. Readers: the recorder (a flight-recorder
+/// clip around each mark, the events channel of the recording).
+pub const OPERATOR_MARK: Channel<OperatorMark> = Channel::new(
+    "operator/mark",
+    Qos {
+        max_publishers: 8,
+        max_nodes: 24,
+        ..Qos::SMALL
+    },
+    "an operator's note that something worth keeping happened now (the recorder files a clip)",
+);
+
 /// Called once per catalogue channel with its payload type.
 pub trait ChannelVisitor {
     /// Called with one channel of the catalogue.
@@ -524,6 +568,7 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(OPERATOR_COMMAND);
     visitor.visit(OPERATOR_ACK);
     visitor.visit(OPERATOR_MODE);
+    visitor.visit(OPERATOR_MARK);
     for arm in ArmId::ALL {
         visitor.visit(ARM_MANUAL[arm.index()]);
     }
@@ -545,6 +590,28 @@ pub fn all_specs() -> Vec<ChannelSpec> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_frame_channel_serves_eight_readers_in_the_memory_four_had() {
+        let frames = CAMERA_RGBD.spec.qos;
+        assert!(
+            frames.max_subscribers >= 8,
+            "the stack's 4 readers + 4 tools"
+        );
+        // Before: 4 subscribers x (buffer 8 + 2 borrowed) + 0 history + 2 loans.
+        let before = 4 * (8 + SUBSCRIBER_MAX_BORROWED_SAMPLES) + 2;
+        assert_eq!(before, 42);
+        assert!(frames.data_segment_samples() <= before);
+        assert!(frames.max_nodes > frames.max_subscribers);
+        // The hardware-layer frame channels keep their sizing (driver + one observer).
+        for qos in [
+            HW_CAMERA_RGBD.spec.qos,
+            HW_ALACS_IMAGE.spec.qos,
+            HW_LIDAR_POINTS.spec.qos,
+        ] {
+            assert_eq!(qos.data_segment_samples(), 2 * (8 + 2) + 2);
+        }
+    }
 
     #[test]
     fn topics_are_unique_and_well_formed() {
@@ -579,7 +646,9 @@ mod tests {
                 ("system/health", 24),
                 // Operator clients (console, ctl sessions): the executive decides which one
                 // controls.
-                ("operator/command", 8)
+                ("operator/command", 8),
+                // Marks are notes from any operator client.
+                ("operator/mark", 8)
             ]
         );
     }

@@ -195,6 +195,7 @@ impl Context {
             .publish_subscribe::<T>()
             .history_size(qos.history_size)
             .subscriber_max_buffer_size(qos.subscriber_max_buffer_size)
+            .subscriber_max_borrowed_samples(crate::catalogue::SUBSCRIBER_MAX_BORROWED_SAMPLES)
             .enable_safe_overflow(qos.safe_overflow)
             .max_publishers(qos.max_publishers)
             .max_subscribers(qos.max_subscribers)

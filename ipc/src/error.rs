@@ -65,7 +65,7 @@ the other stack, or run `harvest clean --domain {domain}`"
     /// Shared memory for the port could not be allocated.
     #[error(
         "channel {topic:?}: no shared memory for the {port}'s data segment (`df -h /dev/shm`; \
-its size is the payload size times subscribers x buffer + history + loans)"
+its size is the payload size times subscribers x (buffer + borrowed) + history + loans)"
     )]
     OutOfMemory {
         /// The channel's topic in the catalogue.

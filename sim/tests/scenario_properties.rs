@@ -1,4 +1,4 @@
-//! Property test of the scenario reader (issue 18, item 3): every preset scenario with values
+//! Property test of the scenario reader: every preset scenario with values
 //! replaced by anything (NaN, negative, huge, wrongly typed), lines dropped or doubled and bytes
 //! changed: the scenario is accepted (and its camera accessors work) or refused with an error
 //! naming the file; never a panic.

@@ -1,4 +1,4 @@
-//! harvest-field: the field workflow's pure logic (paper 003, sections 2.2 and 4.1: stop and
+//! harvest-field: the field workflow's pure logic ([dual-arm sec. 2.2 and 4.1]: stop and
 //! go along a row; at each stop the platform movement mechanism moves the robot so that the
 //! arms' workspace overlaps the fruiting area as much as possible).
 //!

@@ -1,4 +1,4 @@
-//! Property tests of the laser calibration readers (issue 18, item 3): sample CSVs of any
+//! Property tests of the laser calibration readers: sample CSVs of any
 //! numbers (and with fields replaced by anything), through the reader and all four calibration
 //! methods, and the calibration file with values replaced by anything, lines dropped or doubled
 //! and bytes changed. Every failure is an error naming the file (and the line); a calibration

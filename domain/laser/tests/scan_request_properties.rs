@@ -1,4 +1,4 @@
-//! Property test of what the laser process reads from shared memory (issue 18, item 3): scan
+//! Property test of what the laser process reads from shared memory: scan
 //! requests of any content (NaN or infinite rough positions, absurd radii, garbage sequence
 //! numbers) answered by the transport-free `ScanService` on the in-process rendered ALACS unit.
 //! The service answers every request: a result, or an error with its status code, never a

@@ -1,5 +1,5 @@
 //! harvest-operator: what the operator may ask of the stack, and the one place that decides
-//! (paper 003, section 3.4: the GUI's control panel; issue 15).
+//! ([dual-arm sec. 3.4]: the GUI's control panel).
 //!
 //! - [`command`]: the typed operator commands, decoded from `operator/command` (an unknown
 //!   code is refused, never acted on) and encoded by the clients (`harvest ctl`, the console).

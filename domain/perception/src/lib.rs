@@ -34,6 +34,7 @@ pub mod downscale;
 pub mod estimate_checks;
 pub mod estimator;
 pub mod frame;
+pub mod frame_freshness;
 pub mod laser_refiner;
 pub mod node;
 pub mod noise_model;

@@ -1,4 +1,4 @@
-//! Property tests of what perception reads from outside (issue 18, item 3). From shared memory:
+//! Property tests of what perception reads from outside. From shared memory:
 //! camera frames
 //! whose metadata holds any bit pattern (NaN or zero focal lengths, sizes that do not match the
 //! buffers, rotations that are not rotations), LiDAR clouds of any content and point count, and

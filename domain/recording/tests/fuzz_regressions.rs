@@ -1,4 +1,4 @@
-//! Inputs the cargo-fuzz targets in `fuzz/` found (README, "Fuzzing and property tests"), kept
+//! Inputs the cargo-fuzz targets in `fuzz/` found (docs/testing.md, "Fuzzing"), kept
 //! as regression tests. This file has its own process, so its allocator counts only its tests.
 
 use harvest_recording::record_lengths::{RecordError, check_length_prefixes};

@@ -1,5 +1,5 @@
-//! harvest-safety: the independent safety monitor (paper 003's safety requirements of the
-//! coordination, eq. 7-12). It judges a stream of time-stamped observations ([`trace`]) and
+//! harvest-safety: the independent safety monitor (the safety requirements of the coordination,
+//! [dual-arm eq. 7-12]). It judges a stream of time-stamped observations ([`trace`]) and
 //! shares no logic with the coordination policies it judges: this crate does not depend on
 //! `harvest-vacuum`, so the monitor is never compiled with what it checks.
 

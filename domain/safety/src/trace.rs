@@ -11,7 +11,7 @@ pub use harvest_robot_model::FailureKind;
 use harvest_robot_model::coordination_phase::CoordinationPhase;
 use serde::{Deserialize, Serialize};
 
-/// Joints of one 4-DOF tube arm (paper 003, section 2.2 and eq. 1).
+/// Joints of one 4-DOF tube arm ([dual-arm sec. 2.2, eq. 1]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum JointId {
     /// Prismatic extension `D`, metres.

@@ -1,4 +1,4 @@
-//! harvest-vacuum: the centralized vacuum of the dual-arm harvester (paper 003, sections 2.3,
+//! harvest-vacuum: the centralized vacuum of the dual-arm harvester ([dual-arm sec. 2.3],
 //! 3.3 and 4.2), as pure logic: no I/O, no clock reads (times are passed in).
 //!
 //! - [`pressure`]: attachment inference from the three pressure sensors.

@@ -9,6 +9,8 @@
 
 #[cfg(any(test, feature = "testing"))]
 pub mod conformance;
+#[cfg(any(test, feature = "testing"))]
+pub mod double;
 pub mod sim;
 
 use crate::error_kind::DeviceError;

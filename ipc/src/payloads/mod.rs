@@ -17,6 +17,7 @@ pub mod vacuum;
 // Operator channels: commands, acknowledgements, the mode, manual arm orders.
 pub mod arm_manual;
 pub mod operator;
+pub mod operator_mark;
 
 pub use alacs::{AlacsCommand, AlacsImage, AlacsStatus};
 pub use apple_detections::{AppleDetection, AppleDetections, DepthSourceCode, LocalizationMethod};
@@ -35,6 +36,7 @@ pub use operator::{
     OperatorAck, OperatorCommand, OperatorCommandCode, OperatorModeCode, OperatorModeState,
     OperatorRefusalCode,
 };
+pub use operator_mark::{MARK_SOURCE_BYTES, MARK_TEXT_BYTES, OperatorMark};
 pub use platform::{PlatformCommand, PlatformFeedback, PlatformStatus};
 pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
 pub use process_health::{DeviceErrorCode, ProcessHealth, ProcessRunState};

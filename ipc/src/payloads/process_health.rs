@@ -19,6 +19,9 @@ pub enum ProcessRunState {
     Degraded = 2,
     /// Shutting down after a stop request.
     Stopping = 3,
+    /// Failed for good and not restarted any more: published by the supervisor on behalf of a
+    /// non-critical process whose failure did not stop the stack.
+    Failed = 4,
 }
 
 /// The kind of a device error, as a heartbeat carries it (code in
@@ -114,6 +117,6 @@ crate::serde_payload!(
     3,
     "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
 process_name: u64 length + UTF-8; pid:u32; run_state:u8 (0 starting,1 running,2 degraded,3 \
-stopping); last_device_error:u8 (0 none,1 disconnected,2 timeout,3 fault,4 protocol,5 refused,6 \
-other); _reserved:[u8;2]; main_channel_count:u64; detail_value:u64; detail: u64 length + UTF-8; deadline_misses:u64"
+stopping,4 failed); last_device_error:u8 (0 none,1 disconnected,2 timeout,3 fault,4 protocol,5 \
+refused,6 other); _reserved:[u8;2]; main_channel_count:u64; detail_value:u64; detail: u64 length + UTF-8; deadline_misses:u64"
 );

@@ -85,7 +85,7 @@ pub struct ExecutiveArgs {
     /// `harvest_operator::token::token_path`).
     #[arg(long)]
     pub token_file: Option<PathBuf>,
-    /// Work a row stop by stop (issue 17): this many stops (0: no row, the robot stays where
+    /// Work a row stop by stop: this many stops (0: no row, the robot stays where
     /// it is). Needs the simulated tractor (`harvest sim --row`).
     #[arg(long, default_value_t = 0)]
     pub row_stops: u32,

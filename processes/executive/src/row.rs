@@ -1,5 +1,5 @@
 //! The executive's part of the field workflow: it drives [`harvest_field::StopCycle`] along a
-//! row (issue 17).
+//! row.
 //!
 //! Why here and not in a process of its own: the executive is already the one writer of the
 //! platform commands and the holder of the operator's mode; a separate `harvest field` process

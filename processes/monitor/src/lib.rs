@@ -1,5 +1,5 @@
-//! harvest-monitor: `harvest monitor`, the independent safety monitor of issue 5 run on the
-//! stack's channels, live or from a recording.
+//! harvest-monitor: `harvest monitor`, the independent safety monitor ([`harvest_safety`]) run
+//! on the stack's channels, live or from a recording.
 //!
 //! The checker itself is [`harvest_safety::safety_monitor::SafetyMonitor`], which judges a
 //! stream of [`harvest_safety::trace::TraceEvent`]s and shares no logic with the policies. This

@@ -1,4 +1,4 @@
-//! Property tests of the monitor's readers (issue 18, item 3): the stack channels it judges,
+//! Property tests of the monitor's readers: the stack channels it judges,
 //! fed payloads of any bit pattern in any order and at any time stamps, and recordings of such
 //! payloads, cut or with bytes overwritten, through `harvest monitor --recording`. The monitor
 //! judges or reports an error naming what was wrong; it never panics.

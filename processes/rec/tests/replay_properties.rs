@@ -1,4 +1,4 @@
-//! Property test of `harvest replay`'s reading side (issue 18, item 3): recordings holding
+//! Property test of `harvest replay`'s reading side: recordings holding
 //! payloads of any bit pattern, cut anywhere or with bytes overwritten, replayed (as fast as
 //! possible) into real iceoryx2 channels: every message is decoded into loaned shared memory and
 //! published, or skipped and counted; an unreadable file is refused with an error naming it.

@@ -14,6 +14,7 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
+#[allow(clippy::large_enum_variant)] // parsed once per test
 enum Command {
     Recorder(RecorderArgs),
     Replay(ReplayArgs),

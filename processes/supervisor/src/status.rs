@@ -32,6 +32,8 @@ pub struct ProcessStatus {
     pub scheduling: String,
     /// The run state of the process's last heartbeat (None before the first one).
     pub run_state: Option<ProcessRunState>,
+    /// Failing for good stops the stack (the launch file's `critical`).
+    pub critical: bool,
     /// The kind of the last device error the process reported in its heartbeat
     /// ([`DeviceErrorCode::None`]: none; kept across a restart, like the restart count).
     pub last_device_error: DeviceErrorCode,
@@ -49,7 +51,8 @@ impl ProcessStatus {
                 format!("restart in {:.1}s", wait.as_secs_f64())
             }
             ProcessPhase::Finished => "finished".to_owned(),
-            ProcessPhase::FailedForGood { .. } => "FAILED".to_owned(),
+            ProcessPhase::FailedForGood { .. } if self.critical => "FAILED".to_owned(),
+            ProcessPhase::FailedForGood { .. } => "FAILED:noncritical".to_owned(),
             ProcessPhase::Stopped => "stopped".to_owned(),
         }
     }
@@ -117,6 +120,7 @@ mod tests {
             deadline_misses: 0,
             scheduling: String::new(),
             run_state: Some(ProcessRunState::Degraded),
+            critical: true,
             last_device_error: DeviceErrorCode::None,
         }
     }

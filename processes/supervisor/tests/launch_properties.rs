@@ -1,4 +1,4 @@
-//! Property test of the launch-file reader (issue 18, item 3): the default launch file with
+//! Property test of the launch-file reader: the default launch file with
 //! values replaced by anything (NaN, negative, huge, wrongly typed), lines dropped or doubled
 //! and bytes changed, and text of any characters: `harvest up` accepts it or refuses it with
 //! an error naming the file; never a panic.

@@ -23,6 +23,7 @@ fn sleeper(scheduling: Scheduling) -> ProcessSpec {
         backoff_initial: Duration::from_millis(1),
         backoff_max: Duration::from_millis(1),
         scheduling,
+        critical: true,
     }
 }
 

@@ -1,4 +1,4 @@
-//! Table 1 over many generated sample sets: how often the four methods of paper 000 section 5.1
+//! Table 1 over many generated sample sets: how often the four methods of [alacs sec. 5.1]
 //! rank as the paper's Table 1 does (4 < 3 < 2 < 1 in mean |z - z_hat| over the clean samples),
 //! and the mean of each column.
 //!

@@ -1,4 +1,4 @@
-//! Property test of the LiDAR-camera calibration data-set reader (issue 18, item 3): a data set
+//! Property test of the LiDAR-camera calibration data-set reader: a data set
 //! written by `write_data_set`, then its `camera.toml` mutated (values replaced by anything,
 //! lines dropped or doubled, bytes changed), its cloud CSVs edited (fields replaced by anything,
 //! lines cut) and its PNGs damaged (bytes changed, cut, or image sizes rewritten with a valid

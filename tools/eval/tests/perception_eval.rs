@@ -26,6 +26,8 @@ fn args(frames: u32, empty_frames: u32) -> EvalPerceptionArgs {
         depth_sources: vec![DepthSource::Tof],
         lidar_integration_s: 1.0,
         table_iii_trials: 0,
+        detector: None,
+        model: None,
     }
 }
 

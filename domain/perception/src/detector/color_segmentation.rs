@@ -1,7 +1,7 @@
 //! Classical apple detector: chromaticity segmentation on a downscaled image, morphological
 //! clean-up, connected components and splitting of touching apples.
 //!
-//! The paper's detector is learned (Zhu et al., section 3.1.1); this is the fallback that needs no
+//! The paper's detector is learned ([dual-arm sec. 3.1.1]); this is the fallback that needs no
 //! model. Pipeline, on cells of `downscale x downscale` colour pixels:
 //! 1. Mean colour of each cell, and whether most of its pixels are clipped (over-exposed).
 //! 2. Classification in normalized chromaticity `r = R/(R+G+B)`, `g = G/(R+G+B)`, which does not
@@ -508,7 +508,8 @@ impl ColorSegmentation {
             let area = region.area_cells as f32;
             let saturated_fraction = region.overexposed_cells as f32 / area;
             let confidence = match source {
-                DetectionSource::Colour => region_confidence(
+                // (This detector reports no `Model` detections.)
+                DetectionSource::Colour | DetectionSource::Model => region_confidence(
                     region.margin_sum / area,
                     area,
                     seed.radius_cells,

@@ -1,4 +1,4 @@
-//! The paper's clustering-based depth estimate (Zhu et al. 3.1.3).
+//! The paper's clustering-based depth estimate ([dual-arm sec. 3.1.3]).
 //!
 //! DBSCAN over the mask points; the cluster with the most points is the apple; its centroid
 //! depth is `z_d`. With `(x_c, y_c, z_c)` the 3D point at the bounding-box centre, the apple is
