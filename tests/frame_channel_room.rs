@@ -7,7 +7,6 @@
 //!   readers of this test): nothing is refused, no reader restarts, and `harvest up` ends
 //!   only when asked, with no process failed (a benchmark beside the stack could end it when
 //!   the channel had room for four readers).
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -3,7 +3,6 @@
 //! trait. The other implementations run the same suites elsewhere: the serial valve board
 //! against the fake board (`hw/tests/valve_board_serial.rs`), the in-process platform stages
 //! (sim crate), and here the evaluation's in-process servos.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

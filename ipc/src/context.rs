@@ -58,14 +58,17 @@ impl Context {
         })
     }
 
+    /// The process's iceoryx2 node.
     pub fn node(&self) -> &Node<Ipc> {
         &self.node
     }
 
+    /// The domain the node lives in.
     pub fn domain(&self) -> &Domain {
         &self.domain
     }
 
+    /// The name the process was launched under (its node name).
     pub fn process_name(&self) -> &str {
         &self.process_name
     }

@@ -2,7 +2,6 @@
 //! `camera/rgbd`'s payload with today's QoS ([`Qos::FRAMES`]: 8 subscribers, buffer 3) holds no
 //! more of `/dev/shm` than with the earlier one (4 subscribers, buffer 8), and both agree with
 //! [`Qos::data_segment_samples`] x the payload size. Prints both sizes.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::catalogue::{CAMERA_RGBD, Channel, Qos};
 use harvest_ipc::payloads::RgbdFrame;

@@ -28,7 +28,7 @@ enum Command {
     /// Run the whole stack under the process supervisor (default: simulated robot).
     ///
     /// One stack per domain: refused while another `harvest up` (or a process of its stack)
-    /// runs in the domain; the lock is <iceoryx2 root>/harvest-up/<domain>.lock
+    /// runs in the domain; the lock is `<iceoryx2 root>/harvest-up/<domain>.lock`
     /// (/tmp/iceoryx2/harvest-up/), holding the running supervisor's pid.
     Up(up::UpArgs),
     /// Simulated robot: the orchard world serving the hardware channels.
@@ -69,7 +69,7 @@ enum Command {
     /// LiDAR process: integrated point clouds of the solid-state LiDAR -> lidar/points.
     Lidar(harvest_lidar_process::LidarArgs),
     /// Recorder process: every channel of the domain -> MCAP files.
-    Recorder(harvest_recorder::RecorderArgs),
+    Recorder(Box<harvest_recorder::RecorderArgs>),
     /// Foxglove bridge: the stack's channels, mapped to Foxglove's schemas, on a WebSocket
     /// server (ws://127.0.0.1:8765) for Foxglove or Lichtblick.
     Foxglove(harvest_foxglove::FoxgloveArgs),
