@@ -75,7 +75,7 @@ enum Command {
     Foxglove(harvest_foxglove::FoxgloveArgs),
     /// Republish a recording into the channels at recorded timing.
     Replay(harvest_rec::ReplayArgs),
-    /// Recording tools: info, cat, export, recover.
+    /// Recording tools: info, cat, export, clips, recover.
     Rec {
         #[command(subcommand)]
         command: harvest_rec::RecCommand,
@@ -96,7 +96,7 @@ enum Command {
     /// the platform.
     Executive(harvest_executive::ExecutiveArgs),
     /// Operator commands from the terminal: status, start, pause, resume, stop, estop,
-    /// release, home, arm N enable|disable, jog, drop-off, platform.
+    /// release, home, arm N enable|disable, jog, drop-off, platform, mark.
     Ctl(harvest_executive::ctl::CtlArgs),
     /// Operator console: the robot's camera view, status and control panels in a browser
     /// (http://127.0.0.1:8080 by default).
