@@ -8,7 +8,6 @@
 //! - a domain library depends on the transport's ports (`iceoryx2`) or a command line (`clap`);
 //! - the CLI package links the simulator or a tool other than through an optional dependency
 //!   (the `sim-tools` feature; `--no-default-features` builds the onboard binary).
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use serde_json::Value;
 use std::collections::BTreeMap;

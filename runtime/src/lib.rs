@@ -9,10 +9,14 @@
 //! fails, the period's p99 and the deadline misses); and the end of the run on SIGINT/SIGTERM or
 //! an error, always with the devices in their safe state first.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 mod transport;
 
 pub use transport::IpcTransport;
 
+use harvest_hw::AnyDeviceError;
 use harvest_ipc::control_loop::{Wake, run_control_loop};
 use harvest_ipc::error::IpcError;
 use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
@@ -40,11 +44,13 @@ pub enum RunError {
     #[error("{node}: {message}")]
     Node { node: String, message: String },
     /// The devices failed to answer too many times in a row.
-    #[error("{node}: {failures} device reads failed in a row: {message}")]
+    #[error("{node}: {failures} device reads failed in a row: {error}")]
     Device {
         node: String,
         failures: u32,
-        message: String,
+        /// The last read's error, with its kind.
+        #[source]
+        error: AnyDeviceError,
     },
 }
 
@@ -61,11 +67,11 @@ impl<N: std::error::Error> From<TickError<IpcError, N>> for RunError {
             TickError::Device {
                 node,
                 failures,
-                message,
+                error,
             } => Self::Device {
                 node,
                 failures,
-                message,
+                error,
             },
         }
     }
@@ -101,6 +107,9 @@ pub fn run_node<N: Node>(
             Wake::Tick { now_ns } => runner.tick(&mut transport, now_ns)?,
             Wake::Heartbeat { period } => {
                 let progress = runner.node().progress().unwrap_or(runner.ticks());
+                if let Some(kind) = runner.last_device_error() {
+                    health.note_device_error(kind.into());
+                }
                 health.report_control_loop(runner.run_state(), progress, &period)?;
             }
         }

@@ -28,6 +28,9 @@
 //!
 //! No transport here: a node implements the contract without iceoryx2.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod in_process;
 pub mod node;
 pub mod ports;

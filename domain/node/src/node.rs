@@ -42,7 +42,8 @@ pub trait Devices {
     type Readings;
     /// One tick's commands.
     type Commands: Default;
-    type Error: std::fmt::Display;
+    /// The devices' error; its kind ([`harvest_hw::ErrorKind`]) reaches the heartbeat.
+    type Error: harvest_hw::DeviceError;
 
     /// The emergency stop's state (brake, close every valve). Called before anything else on
     /// every tick the stop is engaged, and at the end of the run; must not depend on a

@@ -1,6 +1,7 @@
 //! The one tick every node runs ([`Runner::tick`]); the order and the rules are in the crate
 //! documentation.
 
+use harvest_hw::{AnyDeviceError, DeviceError, ErrorKind};
 use harvest_ipc::failure_streak::FailureStreak;
 use harvest_ipc::payloads::{OperatorModeState, ProcessRunState};
 use harvest_robot_model::{ModeSource, obedience};
@@ -29,11 +30,13 @@ pub enum TickError<T: std::error::Error, N: std::error::Error> {
     #[error("{node}: {error}")]
     Node { node: String, error: N },
     /// The device failed to answer too many times in a row.
-    #[error("{node}: {failures} device reads failed in a row: {message}")]
+    #[error("{node}: {failures} device reads failed in a row: {error}")]
     Device {
         node: String,
         failures: u32,
-        message: String,
+        /// The last read's error, with its kind.
+        #[source]
+        error: AnyDeviceError,
     },
 }
 
@@ -50,6 +53,7 @@ pub struct Runner<N: Node> {
     mode: Option<OperatorModeState>,
     read_failures: FailureStreak,
     write_failures: FailureStreak,
+    last_device_error: Option<ErrorKind>,
     ticks: u64,
 }
 
@@ -67,6 +71,7 @@ impl<N: Node> Runner<N> {
             read_failures: FailureStreak::new(config.max_read_failures),
             // A refused safe state or command is reported, never a reason to stop trying.
             write_failures: FailureStreak::new(u32::MAX),
+            last_device_error: None,
             ticks: 0,
         }
     }
@@ -106,6 +111,11 @@ impl<N: Node> Runner<N> {
         }
     }
 
+    /// The kind of the last failed device exchange (`None`: none since start), for the heartbeat.
+    pub fn last_device_error(&self) -> Option<ErrorKind> {
+        self.last_device_error
+    }
+
     /// Failed device exchanges since start: reads, writes (the safe state included).
     pub fn device_failures(&self) -> (u64, u64) {
         (self.read_failures.total(), self.write_failures.total())
@@ -121,6 +131,7 @@ impl<N: Node> Runner<N> {
         match result {
             Ok(()) => self.write_failures.succeeded(),
             Err(error) => {
+                self.last_device_error = Some(error.kind());
                 self.write_failures.failed(what, &error);
             }
         }
@@ -151,6 +162,7 @@ impl<N: Node> Runner<N> {
                 (readings, false)
             }
             Err(error) => {
+                self.last_device_error = Some(error.kind());
                 let limit = self.read_failures.failed("device read", &error);
                 if !safe {
                     self.make_safe(false);
@@ -160,7 +172,7 @@ impl<N: Node> Runner<N> {
                     return Err(TickError::Device {
                         node: self.node.name().to_owned(),
                         failures,
-                        message: error.to_string(),
+                        error: AnyDeviceError::new(error),
                     });
                 }
                 (None, true)
@@ -204,6 +216,7 @@ impl<N: Node> Runner<N> {
                     Applied::Written
                 }
                 Err(error) => {
+                    self.last_device_error = Some(error.kind());
                     self.write_failures.failed("device command", &error);
                     self.make_safe(false);
                     Applied::Refused

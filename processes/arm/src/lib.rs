@@ -3,6 +3,9 @@
 //! and publishes the arm's state, events and heartbeat, under the node runtime
 //! (`harvest_runtime::run_node`; the arm's node and channels in `task`).
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod process;
 pub mod task;
 

@@ -27,6 +27,7 @@
 use std::path::{Path, PathBuf};
 
 use harvest_arm::node::{ArmNode, ArmNodeConfig, ArmNodeError};
+use harvest_hw::AnyDeviceError;
 use harvest_hw::arm_servos::ArmServos;
 use harvest_hw::arm_servos::sim::SimArmServos;
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
@@ -99,7 +100,7 @@ pub struct ArmArgs {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ArmProcessConfig {
-    /// Control period, us (default 5000: 200 Hz, paper 003 section 2.2).
+    /// Control period, us (default 5000: 200 Hz, [dual-arm sec. 2.2]).
     pub control_period_us: u64,
     /// The standing valve request is re-sent this often, ms (default 500).
     pub valve_request_resend_ms: u64,
@@ -164,8 +165,13 @@ pub enum ArmProcessError {
     #[error(transparent)]
     Period(#[from] PeriodStatsError),
     /// The servo device could not be reached.
-    #[error("arm {arm} servo device: {message}")]
-    Device { arm: u8, message: String },
+    #[error("arm {arm} servo device: {source}")]
+    Device {
+        /// The arm, 1 or 2.
+        arm: u8,
+        /// The driver's error, with its kind.
+        source: AnyDeviceError,
+    },
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
@@ -201,14 +207,14 @@ pub fn run(
     let lo = params.position_limits.min.to_array();
     let hi = params.position_limits.max.to_array();
     let limits = std::array::from_fn(|j| [lo[j], hi[j]]);
-    let device_error = |message: String| ArmProcessError::Device {
+    let device_error = |source: AnyDeviceError| ArmProcessError::Device {
         arm: arm.number(),
-        message,
+        source,
     };
     match args.device {
         ArmDevice::Sim => {
             let servos = SimArmServos::connect(&context, arm, limits)
-                .map_err(|error| device_error(error.to_string()))?;
+                .map_err(|error| device_error(AnyDeviceError::new(error)))?;
             let mode_source = if args.without_operator {
                 ModeSource::WithoutOperator
             } else {

@@ -3,7 +3,6 @@
 //! encoder errors brakes the arm from the next tick on, and the published command and state
 //! say so; a device error alone brakes too; a loop that ends on device errors leaves the arm
 //! braked.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use std::time::{Duration, Instant};
 

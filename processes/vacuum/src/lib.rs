@@ -3,6 +3,9 @@
 //! the vacuum state, grants, arm targets, events and heartbeat, under the node runtime
 //! (`harvest_runtime::run_node`; the node and its channels in `task`).
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod completion;
 pub mod policy_arg;
 pub mod process;

@@ -26,6 +26,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use harvest_arm::node::{ArmNodeConfig, pick_reachable};
+use harvest_hw::AnyDeviceError;
 use harvest_hw::valve_board::ValveBoard;
 use harvest_hw::valve_board::serial::{SerialBoardConfig, SerialValveBoard};
 use harvest_hw::valve_board::sim::SimValveBoard;
@@ -117,7 +118,7 @@ pub struct VacuumArgs {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct VacuumProcessConfig {
-    /// Control period, us (default 5000: 200 Hz, paper 003 section 2.2).
+    /// Control period, us (default 5000: 200 Hz, [dual-arm sec. 2.2]).
     pub control_period_us: u64,
     /// Nothing left to do for this long: the harvest is complete, ms (default 2000).
     pub complete_after_ms: u64,
@@ -204,7 +205,10 @@ pub enum VacuumProcessError {
     Period(#[from] PeriodStatsError),
     /// The valve board could not be reached or refused commands for too long.
     #[error("valve board: {0}")]
-    Device(String),
+    Device(#[source] AnyDeviceError),
+    /// `--device serial` without `--port`.
+    #[error("--device serial needs --port PATH")]
+    SerialWithoutPort,
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
@@ -248,15 +252,16 @@ pub fn run(
     match args.device {
         VacuumDevice::Sim => {
             let board = SimValveBoard::connect(&context, timeout)
-                .map_err(|error| VacuumProcessError::Device(error.to_string()))?;
+                .map_err(|error| VacuumProcessError::Device(AnyDeviceError::new(error)))?;
             control_loop(&context, board, node, &config, args)
         }
         VacuumDevice::Serial => {
-            let port = args.port.as_deref().ok_or_else(|| {
-                VacuumProcessError::Device("--device serial needs --port PATH".to_owned())
-            })?;
+            let port = args
+                .port
+                .as_deref()
+                .ok_or(VacuumProcessError::SerialWithoutPort)?;
             let board = SerialValveBoard::open(&SerialBoardConfig::new(port))
-                .map_err(|error| VacuumProcessError::Device(format!("{port}: {error}")))?;
+                .map_err(|error| VacuumProcessError::Device(AnyDeviceError::new(error)))?;
             control_loop(&context, board, node, &config, args)
         }
     }

@@ -34,6 +34,12 @@ struct Device {
 #[error("injected")]
 struct Injected;
 
+impl harvest_hw::DeviceError for Injected {
+    fn kind(&self) -> harvest_hw::ErrorKind {
+        harvest_hw::ErrorKind::Timeout
+    }
+}
+
 impl Device {
     fn written(&self) -> Result<(), Injected> {
         if self.fail_writes {
@@ -215,6 +221,7 @@ fn the_stop_wins_during_a_burst_of_device_errors() {
         config(ModeSource::Executive),
     );
     tick(&mut runner, &mut bus, &mut cursors, 1);
+    assert_eq!(runner.last_device_error(), None);
     // Reads and writes fail: the failed read alone means hold (tried, refused).
     {
         let device = &mut runner.devices;
@@ -226,6 +233,11 @@ fn the_stop_wins_during_a_burst_of_device_errors() {
     assert_eq!(runner.node().ticks[1], (runner.node().ticks[1].0, None));
     assert!(runner.node().ticks[1].0.device_fault);
     assert_eq!(runner.run_state(), ProcessRunState::Degraded);
+    // The heartbeat's device error kind: the injected failure's.
+    assert_eq!(
+        runner.last_device_error(),
+        Some(harvest_hw::ErrorKind::Timeout)
+    );
 
     // The stop during the burst: the devices stopped first, on the very next tick.
     bus.publish(EMERGENCY_STOP, stop(true), 3);

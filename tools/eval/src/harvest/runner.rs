@@ -1,6 +1,6 @@
 //! One harvesting episode, in process, on a simulated clock.
 //!
-//! Per 5 ms control period (200 Hz, section 2.2 of paper 003), in this order:
+//! Per 5 ms control period (200 Hz, [dual-arm sec. 2.2]), in this order:
 //! 1. a detection set is captured from the world when due and delivered after the perception
 //!    latency ([`crate::harvest::detections`]);
 //! 2. the devices are read through their traits: both arms' encoders (`ArmServos::feedback`),
