@@ -1,41 +1,28 @@
-//! `harvest arm --id 1|2`: one arm's 200 Hz control loop over the channels.
+//! `harvest arm --id 1|2`: one arm's 200 Hz control loop over the channels: [`ArmTask`]
+//! (`crate::task`: `ArmNode` between its channels and its servos) under the node runtime
+//! ([`run_node`]), every [`ArmProcessConfig::control_period_us`] on a kernel periodic timer.
 //!
-//! Per tick (a wait-set interval of [`ArmProcessConfig::control_period_us`], never a sleep), in
-//! the order of the in-process evaluation (`harvest_eval::harvest::runner`, steps 2, 3 and 5):
-//! 0. `safety/emergency_stop` is read first, before any device exchange;
-//! 1. the encoders are read through the [`ArmServos`] trait; when the stop is engaged or the
-//!    read failed the servos are braked at once (the stop always wins: no device error can
-//!    delay it, and a device error alone means hold);
-//! 2. the newest samples of this arm's target, `vacuum/state`, this arm's `vacuum/valve_grant`
-//!    answers and the other arm's state and target are taken;
-//! 3. [`ArmNode::step`] runs (also on a failed read, without fresh feedback, so that a stop
-//!    reaches the picking cycle and the published state and command say the arm holds);
-//! 4. its servo order goes to the servos through the trait (`command` or `hold`; a set-point
-//!    the driver refuses brakes the arm instead; nothing but the brake when step 1 braked);
-//! 5. `armN/command` (the set-points, the current apple and the capture time of the detection
-//!    behind its target), `armN/state`, `vacuum/valve_request` (on change, and re-sent every
-//!    [`ArmProcessConfig::valve_request_resend_ms`] so a restarted vacuum supervisor learns the
-//!    standing request) and the node's events on `harvest/events` are published.
+//! The tick is the runtime's (`harvest_node::Runner::tick`), in the order of the in-process
+//! evaluation (`harvest_eval::harvest::runner`, steps 2, 3 and 5): `safety/emergency_stop` first
+//! (engaged: the servos brake before anything else); the encoders through [`ArmServos`] (a
+//! failed read brakes too; the node still steps, without fresh feedback, so that a stop reaches
+//! the picking cycle); `operator/mode` by the stack's one rule
+//! ([`harvest_robot_model::obedience`], `field_hold` included; no mode heard means hold unless
+//! `--without-operator`); this arm's target, `vacuum/state`, its `vacuum/valve_grant` answers,
+//! the other arm's state and target and its `armN/manual` orders; `ArmNode::step`; the servo
+//! order written unless the arm was braked (a refused set-point brakes instead); then
+//! `harvest/events`, `armN/command` (saying whether the arm holds), `armN/state` and the
+//! standing `vacuum/valve_request` (on change, and re-sent every
+//! [`ArmProcessConfig::valve_request_resend_ms`] so a restarted vacuum supervisor learns it).
+//! Manual orders run in manual mode only; a manual move stops when the mode leaves manual or
+//! is not heard for [`MODE_STALE_NS`]. Until the servos report for the first time the arm is
+//! not ready: nothing is stepped or published.
 //!
-//! The operator (`operator/mode`, from `harvest executive`): while the mode is not harvesting,
-//! or this arm is disabled, new targets are held back (an attempt under way runs to its end).
-//! Manual orders on `armN/manual` are carried out only in manual mode; a manual move stops as
-//! soon as the mode leaves manual or is not heard for [`MODE_STALE_NS`] (the executive is
-//! gone). The rule is the stack's one rule ([`harvest_robot_model::obedience`], `field_hold`
-//! included): no mode heard means hold, unless the launch file says the stack runs without an
-//! executive (`--without-operator`).
-//!
-//! Until the servos report encoder feedback for the first time the arm is not ready: nothing
-//! is stepped or published.
-//!
-//! The loop measures its own tick-to-tick intervals ([`run_control_loop`]): the p99 goes out
-//! with every heartbeat (`period_p99_us`), the full distribution is logged at shutdown. On
-//! SIGTERM, and when it ends on an error, the arm brakes and asks for its valve to be closed
-//! before exiting.
-//!
-//! The device implementation is chosen in one place, [`run`] (`--device sim`: the simulated
-//! servos behind `hw/armN/servo|encoders`), together with its timing profile
-//! ([`ArmDevice::node_config`]).
+//! The heartbeat carries the period's p99 and deadline misses, degraded while the servos fail;
+//! the full distribution is logged at the end. However the loop ends (SIGTERM, an error) the arm
+//! brakes and asks for its valve to be closed. The device is chosen in one place, [`run`]
+//! (`--device sim`: the simulated servos behind `hw/armN/servo|encoders`), with its timing
+//! profile ([`ArmDevice::node_config`]).
 
 use std::path::{Path, PathBuf};
 

@@ -1,30 +1,26 @@
-//! `harvest vacuum`: the vacuum supervisor's 200 Hz loop over the channels: valves, pressure
-//! inference, coordination policy and apple assignment ([`VacuumNode`]).
+//! `harvest vacuum`: the vacuum supervisor's 200 Hz loop over the channels (valves, pressure
+//! inference, coordination policy, apple assignment): [`VacuumTask`] (`crate::task`:
+//! `VacuumNode` between its channels and the valve board) under the node runtime
+//! ([`run_node`]), every [`VacuumProcessConfig::control_period_us`] on a kernel periodic timer.
 //!
-//! Per tick (a wait-set interval of [`VacuumProcessConfig::control_period_us`], never a sleep),
-//! in the order of the in-process evaluation (`harvest_eval::harvest::runner`, steps 2, 4, 5):
-//! 0. `safety/emergency_stop` is read first; while it is engaged every valve is commanded
-//!    closed (`close_all`, repeated each tick until the board accepts it) before the board is
-//!    read, so no device error can delay the stop;
-//! 1. the valve board is read through the [`ValveBoard`] trait (valve states and the three
-//!    pressures);
-//! 2. the newest detection set on `perception/apples`, both arms' states, their standing valve
-//!    requests (`vacuum/valve_request`, newest per arm) are taken;
-//! 3. [`VacuumNode::step`] runs, with the reachability of each apple by each arm from the arm
-//!    kinematics ([`harvest_arm::node::pick_reachable`], the same test the evaluation uses);
-//! 4. the valve commands go to the board (`close_all` on an emergency stop, `set_valve` for each
-//!    valve whose commanded position changed);
-//! 5. targets (`armN/target`), answers (`vacuum/valve_grant`), `vacuum/state` and the node's
-//!    events (`harvest/events`) are published.
+//! The tick is the runtime's (`harvest_node::Runner::tick`), in the order of the in-process
+//! evaluation (`harvest_eval::harvest::runner`, steps 2, 4, 5): `safety/emergency_stop` first
+//! (engaged: `close_all` before anything else, repeated each tick until the board takes it);
+//! the board through [`ValveBoard`] (valve states, the three pressures; a failed read leaves
+//! the valves as they are, so a carried apple is not dropped); `operator/mode` by the stack's
+//! one rule ([`harvest_robot_model::obedience`]: targets only while harvesting, outside the
+//! row's field hold, to enabled arms; no mode heard means hold unless `--without-operator`);
+//! the newest detection set, both arms' states and their standing valve requests;
+//! `VacuumNode::step` with the reachability from the arm kinematics
+//! ([`harvest_arm::node::pick_reachable`], the evaluation's test); the valves whose position
+//! changed; then `armN/target`, `vacuum/valve_grant`, `vacuum/state` and `harvest/events`.
 //!
-//! When nothing is left to do for [`VacuumProcessConfig::complete_after_ms`] (nothing assigned,
-//! dispatched or running, every taking-part arm idle, and the detection sets since the last
-//! attempt brought nothing new to pick), a `HarvestComplete` event is published once; `harvest
-//! up --until-harvested` stops the stack on it.
-//!
-//! The device is chosen in one place, [`run`] (`--device sim`: the simulated valve board behind
-//! `hw/valves/command|readings`), together with the pressure thresholds calibrated for it
-//! ([`VacuumDevice::pressure_config`]).
+//! When nothing is left to do for [`VacuumProcessConfig::complete_after_ms`]
+//! (`crate::completion::CompletionWatch`), a `HarvestComplete` event is published once;
+//! `harvest up --until-harvested` stops the stack on it. However the loop ends every valve is
+//! closed. The device is chosen in one place, [`run`] (`--device sim`: the simulated valve board
+//! behind `hw/valves/command|readings`; `--device serial`), with the pressure thresholds
+//! calibrated for it ([`VacuumDevice::pressure_config`]).
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
