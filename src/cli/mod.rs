@@ -126,6 +126,9 @@ enum BenchCommand {
     /// Perception's detectors' latency per 1920x1080 frame: ONNX models (CPU provider) beside the
     /// colour segmentation, on one simulated frame.
     Detector(harvest_bench::BenchDetectorArgs),
+    /// The Livox Mid-70 driver (`harvest lidar --device livox`) against the fake device on
+    /// loopback: rate, lost packets, CPU, latency, silence report and reconnection.
+    LidarLivox(harvest_bench::BenchLidarLivoxArgs),
 }
 
 #[cfg(feature = "sim-tools")]
@@ -239,6 +242,11 @@ impl Cli {
             #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::Detector(args)) => {
                 harvest_bench::run_bench_detector(&args).context("detector benchmark")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::LidarLivox(args)) => {
+                harvest_bench::run_bench_lidar_livox(&args).context("lidar-livox benchmark")?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]

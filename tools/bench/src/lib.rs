@@ -14,6 +14,8 @@
 //!   in a running stack and the arm control loop's jitter ([`pipeline`]).
 //! - [`run_bench_detector`] / [`BenchDetectorArgs`]: `harvest bench detector`, perception's
 //!   detectors' latency per frame (ONNX models beside the colour segmentation) ([`detector`]).
+//! - [`run_bench_lidar_livox`] / [`BenchLidarLivoxArgs`]: `harvest bench lidar-livox`, the
+//!   Livox Mid-70 driver against the fake device on loopback ([`lidar_livox`]).
 //! - [`run_soak`] / [`SoakArgs`]: `harvest soak`, the stack for a long time under kills,
 //!   operator commands and bad inputs, with memory, descriptors and shared memory sampled
 //!   ([`soak`]).
@@ -27,6 +29,7 @@ pub mod child_stop;
 pub mod control;
 pub mod detector;
 pub mod error;
+pub mod lidar_livox;
 pub mod message;
 pub mod options;
 pub mod payload_case;
@@ -45,6 +48,7 @@ pub mod watchdog;
 pub use bench_payload::BenchPayload;
 pub use detector::{BenchDetectorArgs, run_bench_detector};
 pub use error::BenchError;
+pub use lidar_livox::{BenchLidarLivoxArgs, LidarLivoxReport, run_bench_lidar_livox};
 pub use options::{BenchIpcArgs, BenchPeerArgs, PEER_SUBCOMMAND, Transport, WakeMode};
 pub use payload_case::PayloadCase;
 pub use peer::run_bench_peer;
