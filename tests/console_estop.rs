@@ -7,7 +7,6 @@
 //! - when the console cannot open the operator channels (every `operator/command` publisher
 //!   slot taken), its status says it cannot reach the executive and a command is answered at
 //!   once with the reason; once the slots are free the console reaches the executive again.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

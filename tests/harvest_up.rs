@@ -3,7 +3,6 @@
 //! orchard, prints per-apple events and the summary, and exits clean; bad targets published on
 //! an arm's target channel are refused with a reason on `harvest/events` and the arm holds; a
 //! non-critical process that fails for good is reported and does not end the harvest.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

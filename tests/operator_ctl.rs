@@ -1,7 +1,6 @@
 //! `harvest ctl` against a real `harvest executive` in a private domain (no robot: the commands
 //! that need no arm, and the refusals of those that do). The token comes from the domain's
 //! token file, as `harvest up` writes it; the e-stop is checked on `safety/emergency_stop`.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

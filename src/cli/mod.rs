@@ -28,7 +28,7 @@ enum Command {
     /// Run the whole stack under the process supervisor (default: simulated robot).
     ///
     /// One stack per domain: refused while another `harvest up` (or a process of its stack)
-    /// runs in the domain; the lock is <iceoryx2 root>/harvest-up/<domain>.lock
+    /// runs in the domain; the lock is `<iceoryx2 root>/harvest-up/<domain>.lock`
     /// (/tmp/iceoryx2/harvest-up/), holding the running supervisor's pid.
     Up(up::UpArgs),
     /// Simulated robot: the orchard world serving the hardware channels.
@@ -69,13 +69,13 @@ enum Command {
     /// LiDAR process: integrated point clouds of the solid-state LiDAR -> lidar/points.
     Lidar(harvest_lidar_process::LidarArgs),
     /// Recorder process: every channel of the domain -> MCAP files.
-    Recorder(harvest_recorder::RecorderArgs),
+    Recorder(Box<harvest_recorder::RecorderArgs>),
     /// Foxglove bridge: the stack's channels, mapped to Foxglove's schemas, on a WebSocket
     /// server (ws://127.0.0.1:8765) for Foxglove or Lichtblick.
     Foxglove(harvest_foxglove::FoxgloveArgs),
     /// Republish a recording into the channels at recorded timing.
     Replay(harvest_rec::ReplayArgs),
-    /// Recording tools: info, cat, export, recover.
+    /// Recording tools: info, cat, export, clips, recover.
     Rec {
         #[command(subcommand)]
         command: harvest_rec::RecCommand,
@@ -96,7 +96,7 @@ enum Command {
     /// the platform.
     Executive(harvest_executive::ExecutiveArgs),
     /// Operator commands from the terminal: status, start, pause, resume, stop, estop,
-    /// release, home, arm N enable|disable, jog, drop-off, platform.
+    /// release, home, arm N enable|disable, jog, drop-off, platform, mark.
     Ctl(harvest_executive::ctl::CtlArgs),
     /// Operator console: the robot's camera view, status and control panels in a browser
     /// (http://127.0.0.1:8080 by default).

@@ -7,7 +7,6 @@
 //! input size other than the configured one, and a class the model lacks are refused at start
 //! with the shapes named; a missing GPU provider falls back to the CPU, or with `require_gpu`
 //! refuses to start.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -6,6 +6,9 @@
 //!
 //! Pure: no transport, no clock, no simulator.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod clearance;
 pub mod coordination_phase;
 pub mod failure_kind;

@@ -36,7 +36,10 @@ pub enum ServoCallKind {
     /// `feedback()`.
     Read,
     /// `command(position, _)`.
-    Command { position: [f64; JOINT_COUNT] },
+    Command {
+        /// The set-points: D in m, theta/phi/twist in rad.
+        position: [f64; JOINT_COUNT],
+    },
     /// `hold()`.
     Hold,
 }
@@ -46,6 +49,7 @@ pub enum ServoCallKind {
 pub struct ServoCall {
     /// When it was made (monotonic clock).
     pub at_ns: u64,
+    /// What was called.
     pub kind: ServoCallKind,
     /// Whether the double let it succeed.
     pub succeeded: bool,

@@ -39,29 +39,20 @@
 
 use std::path::{Path, PathBuf};
 
+use harvest_arm::node::{ArmNode, ArmNodeConfig, ArmNodeError};
+use harvest_hw::AnyDeviceError;
 use harvest_hw::arm_servos::ArmServos;
 use harvest_hw::arm_servos::sim::SimArmServos;
-use harvest_ipc::catalogue::{
-    ARM_COMMAND, ARM_MANUAL, ARM_STATE, ARM_TARGET, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MODE,
-    VACUUM_STATE, VALVE_GRANT, VALVE_REQUEST,
-};
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
-use harvest_ipc::payloads::{
-    ArmPhase as PhaseCode, ArmState, ArmTarget, HarvestEventKind, ProcessRunState, VacuumState,
-    ValveGrant, ValveRequest,
-};
-use harvest_ipc::{Context, Domain, Flow, HealthReporter, MonotonicClock};
+use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
+use harvest_ipc::{Context, Domain};
+use harvest_node::RunnerConfig;
+use harvest_robot_model::ModeSource;
+use harvest_robot_model::params::{ArmId, ArmParams};
+use harvest_runtime::{RunError, RunOptions, run_node};
 use serde::Deserialize;
 
-use harvest_arm::harvest_events::ArmEventReporter;
-use harvest_arm::node::{
-    ArmNode, ArmNodeConfig, ArmNodeError, ArmNodeInput, EncoderSample, OtherArmInput, ServoOrder,
-};
-use harvest_ipc::control_loop::{Wake, run_control_loop};
-use harvest_ipc::failure_streak::FailureStreak;
-use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
-use harvest_robot_model::params::{ArmId, ArmParams};
-use harvest_robot_model::{ModeSource, Obedience, obedience};
+use crate::task::{ArmDevices, ArmTask};
 
 /// Which servo device drives the arm (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -187,11 +178,19 @@ pub enum ArmProcessError {
     #[error(transparent)]
     Period(#[from] PeriodStatsError),
     /// The servo device could not be reached.
-    #[error("arm {arm} servo device: {message}")]
-    Device { arm: u8, message: String },
+    #[error("arm {arm} servo device: {source}")]
+    Device {
+        /// The arm, 1 or 2.
+        arm: u8,
+        /// The driver's error, with its kind.
+        source: AnyDeviceError,
+    },
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
+    /// The run ended on an error (transport, too many failed encoder reads in a row).
+    #[error(transparent)]
+    Run(#[from] RunError),
 }
 
 harvest_ipc::from_ipc_errors!(ArmProcessError);
@@ -221,14 +220,14 @@ pub fn run(
     let lo = params.position_limits.min.to_array();
     let hi = params.position_limits.max.to_array();
     let limits = std::array::from_fn(|j| [lo[j], hi[j]]);
-    let device_error = |message: String| ArmProcessError::Device {
+    let device_error = |source: AnyDeviceError| ArmProcessError::Device {
         arm: arm.number(),
-        message,
+        source,
     };
     match args.device {
         ArmDevice::Sim => {
             let servos = SimArmServos::connect(&context, arm, limits)
-                .map_err(|error| device_error(error.to_string()))?;
+                .map_err(|error| device_error(AnyDeviceError::new(error)))?;
             let mode_source = if args.without_operator {
                 ModeSource::WithoutOperator
             } else {
@@ -239,331 +238,39 @@ pub fn run(
     }
 }
 
-/// The newest sample of every input channel the node reads.
-#[derive(Debug, Default)]
-struct Inputs {
-    target: Option<ArmTarget>,
-    vacuum: Option<VacuumState>,
-    grant: Option<ValveGrant>,
-    other_state: Option<ArmState>,
-    other_target: Option<ArmTarget>,
-    emergency_stop: bool,
-}
-
-/// The control loop of [`run`] on the given servos (a test drives it with a servo double).
+/// The control loop of [`run`] on the given servos (a test drives it with a servo double):
+/// [`ArmTask`] under the node runtime ([`run_node`]) until SIGINT/SIGTERM or an error.
 pub fn control_loop<S: ArmServos>(
     context: &Context,
-    mut servos: S,
+    servos: S,
     arm: ArmId,
     config: &ArmProcessConfig,
     node_config: ArmNodeConfig,
     mode_source: ModeSource,
 ) -> Result<PeriodSummary, ArmProcessError> {
-    let i = arm.index();
-    let other = 1 - i;
-    let number = arm.number();
-    let mut node = ArmNode::new(arm, node_config)?;
-    let mut reporter = ArmEventReporter::new(arm);
-
-    let target_in = context.subscriber(ARM_TARGET[i])?;
-    let vacuum_in = context.subscriber(VACUUM_STATE)?;
-    let grant_in = context.subscriber(VALVE_GRANT)?;
-    let other_state_in = context.subscriber(ARM_STATE[other])?;
-    let other_target_in = context.subscriber(ARM_TARGET[other])?;
-    let estop_in = context.subscriber(EMERGENCY_STOP)?;
-    let mode_in = context.subscriber(OPERATOR_MODE)?;
-    let manual_in = context.subscriber(ARM_MANUAL[i])?;
-    let mut operator_mode: Option<harvest_ipc::payloads::OperatorModeState> = None;
-    let mut command_out = context.publisher(ARM_COMMAND[i])?;
-    let mut state_out = context.publisher(ARM_STATE[i])?;
-    let mut request_out = context.publisher(VALVE_REQUEST)?;
-    let mut events_out = context.publisher(HARVEST_EVENTS)?;
-    let mut health = HealthReporter::new(context)?;
-
-    let period_ns = config.control_period_us * 1000;
-    let resend_ns = config.valve_request_resend_ms * 1_000_000;
-
-    let mut inputs = Inputs::default();
-    let mut last_request: Option<(ValveRequest, u64)> = None;
-    let mut device_errors = FailureStreak::new(MAX_CONSECUTIVE_DEVICE_ERRORS);
-    let mut ticks = 0u64;
-    // Refused brake commands: reported (degraded), never a reason to stop braking.
-    let mut write_errors = FailureStreak::new(u32::MAX);
-    let mut ready = false;
-    tracing::info!(arm = %arm, period_us = config.control_period_us, "arm control loop running");
-    let result = run_control_loop(period_ns, |wake| -> Result<Flow, ArmProcessError> {
-        match wake {
-            Wake::Tick { now_ns } => {
-                ticks += 1;
-
-                // 0. The stop first: read before any device exchange and applied whatever the
-                // devices do.
-                if let Some(sample) = estop_in.receive_latest()? {
-                    inputs.emergency_stop = sample.engaged != 0;
-                }
-
-                // 1. Encoders. A failed read means hold: the node still runs (without fresh
-                // feedback) so that a stop reaches it, and the servos are braked this tick.
-                let (feedback, device_fault) = match servos.feedback() {
-                    Ok(sample) => {
-                        device_errors.succeeded();
-                        let feedback = sample.map(|f| EncoderSample {
-                            capture_ns: f.capture_ns,
-                            position: f.position,
-                            velocity: f.velocity,
-                        });
-                        (feedback, false)
-                    }
-                    Err(error) => {
-                        if let Some(failures) = device_errors.failed("encoder read", &error) {
-                            return Err(ArmProcessError::Device {
-                                arm: number,
-                                message: format!("{failures} encoder reads failed: {error}"),
-                            });
-                        }
-                        (None, true)
-                    }
-                };
-                let hold_first = inputs.emergency_stop || device_fault;
-                if hold_first {
-                    brake(&mut servos, &mut write_errors);
-                }
-                ready |= feedback.is_some();
-
-                // Until the servos report for the first time the arm is not ready: nothing is
-                // stepped or published (no state: the vacuum supervisor assigns it nothing and
-                // the other arm defers its motions).
-                if !ready {
-                    return Ok(Flow::Continue);
-                }
-
-                // 2. Channels.
-                read_inputs(
-                    number,
-                    &mut inputs,
-                    &target_in,
-                    &vacuum_in,
-                    &grant_in,
-                    &other_state_in,
-                    &other_target_in,
-                )?;
-
-                // The operator's mode and manual orders.
-                if let Some(sample) = mode_in.receive_latest()? {
-                    operator_mode = Some(*sample);
-                }
-                let rule = obedience(operator_mode.as_ref(), mode_source, now_ns);
-                obey_operator(&mut node, number, now_ns, rule, &manual_in)?;
-
-                // 3. The node.
-                let input = ArmNodeInput {
-                    now_ns,
-                    feedback,
-                    target: inputs.target.as_ref(),
-                    vacuum: inputs.vacuum.as_ref(),
-                    grant: inputs.grant.as_ref(),
-                    other_arm: inputs.other_state.as_ref().map(|state| OtherArmInput {
-                        state,
-                        target: inputs.other_target.as_ref(),
-                    }),
-                    emergency_stop: inputs.emergency_stop,
-                };
-                let out = node.step(&input);
-
-                // 4. Servos (already braked when stopped or faulted).
-                let hold = match out.servo {
-                    _ if hold_first => true,
-                    ServoOrder::Track { position, velocity } => {
-                        match servos.command(position, velocity) {
-                            Ok(()) => false,
-                            Err(error) => {
-                                tracing::warn!(%error, ?position, "set-point refused: braking");
-                                brake(&mut servos, &mut write_errors);
-                                true
-                            }
-                        }
-                    }
-                    ServoOrder::Hold => {
-                        brake(&mut servos, &mut write_errors);
-                        true
-                    }
-                };
-
-                // 5. Outputs.
-                // The node's own state: its phase code is always known.
-                let phase = out.state.phase.get().unwrap_or(PhaseCode::Idle);
-                for event in &out.events {
-                    if let Some(harvest_event) =
-                        reporter.convert(now_ns, phase, event, inputs.target.as_ref())
-                    {
-                        if harvest_event.kind == HarvestEventKind::TargetRejected {
-                            tracing::info!(apple_id = harvest_event.apple_id,
-                                reason = %harvest_event.reason, "target rejected");
-                        }
-                        events_out.publish(&harvest_event)?;
-                    }
-                }
-                reporter.end_tick();
-                let (apple_id, source_capture_ns) = reporter
-                    .current_target()
-                    .map_or((0, 0), |t| (t.apple_id, t.source_capture_ns));
-                let (position, velocity) = match out.servo {
-                    ServoOrder::Track { position, velocity } if !hold => (position, velocity),
-                    _ => (out.state.joint_position, [0.0; 4]),
-                };
-                command_out.publish_with(now_ns, |command| {
-                    command.arm_id = number;
-                    command.hold = u8::from(hold);
-                    command._reserved = [0; 2];
-                    command.apple_id = apple_id;
-                    command.source_capture_ns = source_capture_ns;
-                    command.joint_position = position;
-                    command.joint_velocity = velocity;
-                })?;
-                state_out.publish(&out.state)?;
-                let request = out.valve_request;
-                let due = match last_request {
-                    None => true,
-                    Some((last, at_ns)) => {
-                        last.request_seq != request.request_seq
-                            || last.kind != request.kind
-                            || now_ns.saturating_sub(at_ns) >= resend_ns
-                    }
-                };
-                if due {
-                    let mut message = request;
-                    message.header.capture_ns = now_ns;
-                    request_out.publish(&message)?;
-                    last_request = Some((request, now_ns));
-                }
-            }
-            Wake::Heartbeat { period } => {
-                let state = match write_errors.run_state() {
-                    ProcessRunState::Running => device_errors.run_state(),
-                    degraded => degraded,
-                };
-                health.report_control_loop(state, ticks, &period)?;
-            }
-        }
-        Ok(Flow::Continue)
-    });
-
-    // Leave the arm braked with its valve closed, whatever ended the loop.
-    brake(&mut servos, &mut write_errors);
-    let close = ValveRequest {
-        header: harvest_ipc::Header {
-            capture_ns: MonotonicClock::read_ns(),
-            ..harvest_ipc::Header::default()
+    let node = ArmNode::new(arm, node_config)?;
+    let task = ArmTask::<S>::new(node, config.valve_request_resend_ms);
+    let options = RunOptions {
+        period_ns: config.control_period_us * 1000,
+        runner: RunnerConfig {
+            max_read_failures: MAX_CONSECUTIVE_DEVICE_ERRORS,
+            mode_source,
         },
-        arm_id: number,
-        kind: harvest_ipc::payloads::ValveRequestKind::Close.into(),
-        _reserved: [0; 2],
-        request_seq: last_request.map_or(0, |(r, _)| r.request_seq.wrapping_add(1)),
     };
-    request_out.publish(&close)?;
-    let summary = result?;
+    let finished = run_node(context, task, ArmDevices(servos), options)?;
+    let summary = finished.result?;
+    let (read_failures, write_failures) = finished.runner.device_failures();
     tracing::info!(
         arm = %arm,
-        harvested = node.harvested_count(),
-        device_errors = device_errors.total(),
+        harvested = finished.runner.node().node().harvested_count(),
+        read_failures,
+        write_failures,
         p50_us = summary.p50_ns / 1000,
         p99_us = summary.p99_ns / 1000,
         max_us = summary.max_ns / 1000,
         "arm stopped; control period: {summary}"
     );
     Ok(summary)
-}
-
-/// Holds new targets unless harvesting with this arm enabled, and carries out manual orders
-/// in manual mode only (module docs).
-fn obey_operator(
-    node: &mut ArmNode,
-    number: u8,
-    now_ns: u64,
-    rule: Obedience,
-    manual_in: &harvest_ipc::Subscriber<harvest_ipc::payloads::ArmManualCommand>,
-) -> Result<(), ArmProcessError> {
-    use harvest_ipc::payloads::ArmManualKind;
-    node.hold_targets(rule.targets_held[usize::from(number - 1)]);
-    let manual_fresh = rule.manual;
-    while let Some(order) = manual_in.receive()? {
-        if order.arm_id != number {
-            continue;
-        }
-        match order.manual_kind() {
-            Some(ArmManualKind::MoveTo) if manual_fresh => {
-                match node.start_manual(
-                    now_ns,
-                    order.goal_joint_position,
-                    order.speed_fraction,
-                    order.request_id,
-                ) {
-                    Ok(duration_s) => {
-                        tracing::info!(request_id = order.request_id, duration_s, "manual move")
-                    }
-                    Err(refusal) => {
-                        tracing::warn!(request_id = order.request_id, %refusal, "manual move refused")
-                    }
-                }
-            }
-            Some(ArmManualKind::MoveTo) => {
-                tracing::warn!(
-                    request_id = order.request_id,
-                    "manual move refused: not in manual mode"
-                );
-            }
-            Some(ArmManualKind::Stop) => node.stop_manual(),
-            None => tracing::warn!(kind = order.kind, "unknown manual order ignored"),
-        }
-    }
-    if node.manual_active() && !manual_fresh {
-        tracing::warn!("manual move stopped: mode left manual or went silent");
-        node.stop_manual();
-    }
-    Ok(())
-}
-
-/// Takes the newest sample of each input channel (this arm's answers only on the shared grant
-/// channel).
-#[allow(clippy::too_many_arguments)]
-fn read_inputs(
-    number: u8,
-    inputs: &mut Inputs,
-    target_in: &harvest_ipc::Subscriber<ArmTarget>,
-    vacuum_in: &harvest_ipc::Subscriber<VacuumState>,
-    grant_in: &harvest_ipc::Subscriber<ValveGrant>,
-    other_state_in: &harvest_ipc::Subscriber<ArmState>,
-    other_target_in: &harvest_ipc::Subscriber<ArmTarget>,
-) -> Result<(), ArmProcessError> {
-    if let Some(sample) = target_in.receive_latest()? {
-        inputs.target = Some(*sample);
-    }
-    if let Some(sample) = vacuum_in.receive_latest()? {
-        inputs.vacuum = Some(*sample);
-    }
-    while let Some(sample) = grant_in.receive()? {
-        if sample.arm_id == number {
-            inputs.grant = Some(*sample);
-        }
-    }
-    if let Some(sample) = other_state_in.receive_latest()? {
-        inputs.other_state = Some(*sample);
-    }
-    if let Some(sample) = other_target_in.receive_latest()? {
-        inputs.other_target = Some(*sample);
-    }
-    Ok(())
-}
-
-/// Commands the servos to hold; a refused brake is counted (the first of a streak logged) and
-/// tried again on the next tick.
-fn brake<S: ArmServos>(servos: &mut S, write_errors: &mut FailureStreak) {
-    match servos.hold() {
-        Ok(()) => write_errors.succeeded(),
-        Err(error) => {
-            write_errors.failed("brake command", &error);
-        }
-    }
 }
 
 #[cfg(test)]

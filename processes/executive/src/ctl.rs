@@ -18,7 +18,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use harvest_ipc::catalogue::{ARM_STATE, OPERATOR_MODE, VACUUM_STATE};
+use harvest_ipc::catalogue::{ARM_STATE, OPERATOR_MARK, OPERATOR_MODE, VACUUM_STATE};
+use harvest_ipc::fixed_string::FixedString;
 use harvest_ipc::operator_client::{OperatorClient, OperatorClientError};
 use harvest_ipc::payloads::{
     OperatorAck, OperatorModeCode, OperatorModeState, OperatorRefusalCode,
@@ -109,6 +110,13 @@ pub enum CtlCommand {
     /// an arm holds an apple, the platform or the trailer moves, the row is done, or the
     /// executive works no row).
     NextStop,
+    /// Mark this moment (`operator/mark`, no token needed: a mark commands nothing): the
+    /// recorder keeps a clip of its flight recorder around it and lists the mark in the
+    /// recording's events.
+    Mark {
+        /// What happened, in a few words (cut at 120 bytes).
+        text: String,
+    },
 }
 
 /// `enable` or `disable`.
@@ -147,7 +155,7 @@ const PLATFORM_MAX_WAIT: Duration = Duration::from_secs(60);
 impl CtlCommand {
     fn to_command(&self) -> Option<Command> {
         Some(match *self {
-            Self::Status { .. } => return None,
+            Self::Status { .. } | Self::Mark { .. } => return None,
             Self::Start => Command::Start,
             Self::Pause => Command::Pause,
             Self::Resume => Command::Resume,
@@ -208,10 +216,11 @@ pub fn run(args: &CtlArgs, domain: &Domain) -> Result<ExitCode, CtlError> {
     let context = Context::new(domain, &format!("ctl-{}", std::process::id()))?;
     let timeout = Duration::from_millis(args.timeout_ms);
     let Some(command) = args.command.to_command() else {
-        let CtlCommand::Status { json } = args.command else {
-            return Ok(ExitCode::SUCCESS);
+        return match &args.command {
+            CtlCommand::Status { json } => status(&context, *json, timeout),
+            CtlCommand::Mark { text } => mark(&context, text),
+            _ => Ok(ExitCode::SUCCESS),
         };
-        return status(&context, json, timeout);
     };
     let token = match (control_token(args, domain), command) {
         (Ok(token), _) => token.as_str().to_owned(),
@@ -267,6 +276,24 @@ pub fn run(args: &CtlArgs, domain: &Domain) -> Result<ExitCode, CtlError> {
         }
         println!("{}: motion done", command.name());
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// How long `ctl mark` keeps its publisher after sending: the sample lives in the publisher's
+/// shared memory, so the recorder must have taken it before this process ends (it wakes on the
+/// mark's event within a millisecond; the margin covers a loaded machine).
+const MARK_LINGER: Duration = Duration::from_millis(300);
+
+/// Publishes one mark on `operator/mark`.
+fn mark(context: &Context, text: &str) -> Result<ExitCode, CtlError> {
+    let mut publisher = context.publisher(OPERATOR_MARK)?;
+    let marked_ns = MonotonicClock::read_ns();
+    publisher.publish_with(marked_ns, |mark| {
+        mark.text = FixedString::new(text);
+        mark.source = FixedString::new(&client_label());
+    })?;
+    println!("mark: sent {text:?}");
+    std::thread::sleep(MARK_LINGER);
     Ok(ExitCode::SUCCESS)
 }
 

@@ -7,7 +7,6 @@
 //! frame is processed, only a few frames are processed in all, the rest are skipped: gaps in the
 //! detections' `source_frame_seq`), the detections carry their frame's capture stamp, and the
 //! heartbeat reports the processed frame's age (`frame_age_ns`).
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};

@@ -25,7 +25,7 @@ use crate::scheduling::SchedulingOutcome;
 use crate::status::{self, ProcessPhase, ProcessStatus};
 use crate::violation_log::ViolationLog;
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH, SAFETY_VIOLATION};
-use harvest_ipc::payloads::{ProcessHealth, ProcessRunState};
+use harvest_ipc::payloads::{DeviceErrorCode, ProcessHealth, ProcessRunState};
 use harvest_ipc::{
     Context, Domain, FixedString, Flow, HEARTBEAT_PERIOD, MonotonicClock, Publisher, RunEnd, Waiter,
 };
@@ -97,7 +97,7 @@ impl Summary {
         let mut out = format!("harvest up ended: {}\n", self.ended_by);
         for process in &self.processes {
             out.push_str(&format!(
-                "  {:<12} {:<10} restarts {:<2} messages {:<8} last exit: {}{}{}\n",
+                "  {:<12} {:<10} restarts {:<2} messages {:<8} last exit: {}{}{}{}\n",
                 process.name,
                 match &process.phase {
                     ProcessPhase::FailedForGood { .. } if process.critical => "FAILED",
@@ -113,6 +113,9 @@ impl Summary {
                 } else {
                     String::new()
                 },
+                process
+                    .device_error_label()
+                    .map_or(String::new(), |label| format!("  {label}")),
                 if process.scheduling.is_empty() {
                     String::new()
                 } else {
@@ -291,6 +294,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                 scheduling: String::new(),
                 run_state: None,
                 critical: spec.critical,
+                last_device_error: DeviceErrorCode::None,
             },
             count_at_last_status: 0,
             scheduling: SchedulingOutcome::none(),
@@ -372,6 +376,15 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                     process.status.detail = beat.detail.as_str().to_owned();
                     process.status.detail_value = beat.detail_value;
                     process.status.deadline_misses = beat.deadline_misses;
+                    let device_error = beat.last_device_error.get().unwrap_or(DeviceErrorCode::Other);
+                    if device_error != DeviceErrorCode::None
+                        && device_error != process.status.last_device_error
+                    {
+                        tracing::warn!(process = %process.spec.name, kind = %device_error, "process reports a device error");
+                    }
+                    if device_error != DeviceErrorCode::None {
+                        process.status.last_device_error = device_error;
+                    }
                     let run_state = beat.run_state.get().ok();
                     if run_state != process.status.run_state {
                         if run_state == Some(ProcessRunState::Degraded) {
@@ -640,7 +653,11 @@ fn publish_failed(publisher: &mut Publisher<ProcessHealth>, processes: &[Managed
             health.process_name = FixedString::new(&process.spec.name);
             health.pid = process.last_pid;
             health.run_state.set(ProcessRunState::Failed);
-            health._reserved = [0; 3];
+            // The kind of the last device error the process reported before it failed.
+            health
+                .last_device_error
+                .set(process.status.last_device_error);
+            health._reserved = [0; 2];
             health.main_channel_count = process.status.main_channel_count;
             health.detail_value = u64::from(process.status.restarts);
             health.detail = FixedString::new("failed for good, restarts");

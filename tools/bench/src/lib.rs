@@ -18,6 +18,8 @@
 //!   operator commands and bad inputs, with memory, descriptors and shared memory sampled
 //!   ([`soak`]).
 
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod affinity;
 pub mod bench_payload;
 pub mod case;

@@ -1,5 +1,4 @@
 //! End-to-end checks of `harvest eval perception` on small runs.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_eval::perception::frame::{FrameRenderer, zeroed_frame};
 use harvest_eval::perception::truth::{Condition, TruthMeter};

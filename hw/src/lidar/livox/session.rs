@@ -9,9 +9,9 @@
 //!    command with packet type 1; so does this driver, for the same firmware.)
 //! 3. Heartbeat every [`HEARTBEAT_PERIOD`] (the device drops a host silent for 3 s) and start
 //!    sampling (retried until acknowledged).
-//! 4. Silence: nothing heard (no point packet, no acknowledgement) for the silence timeout
-//!    makes the device lost; the session reports it once and goes back to step 1, so a device
-//!    that comes back (or rebooted and forgot the host) is handshaken again.
+//! 4. Silence: once handshaken, nothing heard (no point packet, no acknowledgement) for the
+//!    silence timeout makes the device lost; the session reports it once and goes back to step
+//!    1, so a device that comes back (or rebooted and forgot the host) is handshaken again.
 //!
 //! Everything here runs inside the driver's `capture_into` (no thread of its own): the caller
 //! calls it continuously, as the `lidar` process does, and the session serves its timers
@@ -55,9 +55,15 @@ pub enum SessionState {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SessionEvent {
     /// The device was lost after this long without a word; reconnecting.
-    Lost { silent_for: Duration },
+    Lost {
+        /// How long nothing came from the device.
+        silent_for: Duration,
+    },
     /// Sampling acknowledged (first time or again after a loss).
-    Streaming { reconnect: bool },
+    Streaming {
+        /// True after a loss (a reconnection), false the first time.
+        reconnect: bool,
+    },
 }
 
 /// Counters of the control link.
@@ -103,6 +109,7 @@ fn bind(ip: Ipv4Addr, port: u16, what: &'static str) -> Result<UdpSocket, LivoxE
 }
 
 impl Session {
+    /// Opens the sockets and starts looking for the device (broadcast, handshake, sampling).
     pub fn open(config: LivoxConfig) -> Result<Self, LivoxError> {
         let bind_ip = config.host_ip.unwrap_or(Ipv4Addr::UNSPECIFIED);
         let cmd = bind(bind_ip, config.host_cmd_port, "command port")?;
@@ -159,10 +166,12 @@ impl Session {
         })
     }
 
+    /// Where the session stands.
     pub fn state(&self) -> SessionState {
         self.state
     }
 
+    /// Counters since the session opened.
     pub fn counters(&self) -> SessionCounters {
         self.counters
     }
@@ -205,7 +214,9 @@ impl Session {
     /// Reads every waiting control datagram, sends what is due, and checks for silence.
     pub fn service(&mut self, now: Instant) -> Result<Option<SessionEvent>, LivoxError> {
         let event = self.read_control(now)?;
-        if self.state != SessionState::Searching {
+        // Silence counts once connected; a lost device is reported once, then searched for
+        // (or handshaken) without further reports until it answers again.
+        if matches!(self.state, SessionState::Starting | SessionState::Streaming) {
             let silent_for = now.saturating_duration_since(self.last_heard);
             if silent_for >= self.config.silence_timeout {
                 self.counters.losses += 1;

@@ -234,7 +234,7 @@ function renderStatus(status) {
   $('fruit-s-attempt').textContent = fmt(fruit.rates.seconds_per_attempt, 2);
   $('processes').innerHTML = status.processes.map((p) =>
     `<tr class="${p.state === 'failed' ? 'failed' : p.age_ms > 2000 ? 'stale' : ''}"><td>${p.name}</td><td>${p.state === 'failed' ? 'FAILED (not critical: the stack goes on)' : p.state}</td><td>${p.pid}</td>` +
-    `<td>${p.restarts}</td><td>${p.rate_hz.toFixed(1)}</td><td>${p.detail} ${p.value}</td><td>${(p.age_ms / 1000).toFixed(1)} s</td></tr>`).join('');
+    `<td>${p.restarts}</td><td>${p.rate_hz.toFixed(1)}</td><td>${p.detail} ${p.value}</td><td>${p.device_error ?? '-'}</td><td>${(p.age_ms / 1000).toFixed(1)} s</td></tr>`).join('');
   const recorder = status.recorder;
   $('recorder').textContent = recorder
     ? `${recorder.state}, ${recorder.messages} messages, ${recorder.detail} ${recorder.value} (file and size: see \`harvest rec info\`)`

@@ -4,7 +4,9 @@
 //! bytes in every field are a message a buggy or hostile writer could send.
 
 use harvest_ipc::catalogue::{HARVEST_EVENTS, OPERATOR_COMMAND, PROCESS_HEALTH};
-use harvest_ipc::payloads::{HarvestEvent, OperatorCommand, ProcessHealth, ProcessRunState};
+use harvest_ipc::payloads::{
+    DeviceErrorCode, HarvestEvent, OperatorCommand, ProcessHealth, ProcessRunState,
+};
 use harvest_ipc::wire_code::WireCode;
 use harvest_ipc::{Context, FixedString, MonotonicClock, Payload, Publisher};
 use rand::rngs::SmallRng;
@@ -116,7 +118,8 @@ impl BadInputWriters {
                 beat.process_name = FixedString::new(process);
                 beat.pid = wrong_pid;
                 beat.run_state = WireCode::new(ProcessRunState::Degraded);
-                beat._reserved = [0; 3];
+                beat.last_device_error = WireCode::new(DeviceErrorCode::Fault);
+                beat._reserved = [0; 2];
                 beat.main_channel_count = u64::MAX;
                 beat.detail_value = u64::MAX;
                 beat.detail = FixedString::new("spoofed by the soak");
