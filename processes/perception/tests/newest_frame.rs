@@ -134,11 +134,10 @@ fn a_slow_detector_works_on_the_newest_frame_and_skips_the_rest() {
         processed.windows(2).all(|pair| pair[0] < pair[1]),
         "frames processed out of order: {processed:?}"
     );
-    // Only a few frames were worked on (the first, perhaps one that arrived while it started,
-    // and the newest); a queue would have worked on all 30, one after the other.
+    // Only a few frames were worked on (the first if perception woke before the burst ended,
+    // perhaps one that arrived while it started, and the newest); a queue would have worked on
+    // all 30, one after the other. The others were skipped (gaps in `source_frame_seq`).
     assert!(processed.len() <= 5, "processed {processed:?}");
-    let skipped: u64 = processed.windows(2).map(|pair| pair[1] - pair[0] - 1).sum();
-    assert!(skipped >= BURST - 5, "skipped {skipped}: {processed:?}");
     assert_eq!(calls.load(Ordering::SeqCst), processed.len() as u64);
     for out in &outputs {
         assert_eq!(

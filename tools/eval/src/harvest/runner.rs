@@ -335,9 +335,10 @@ impl Episode {
         self.pending_sets.push_back((deliver_ns, set));
     }
 
-    /// Applies what the operator's mode allows ([`harvest_robot_model::obedience`]) as the
-    /// processes do: the vacuum supervisor dispatches no new target to a held arm, and a held
-    /// arm takes up none.
+    /// Applies what the operator's mode allows
+    /// ([`harvest_robot_model::obedience`](mod@harvest_robot_model::obedience)) as the processes
+    /// do: the vacuum supervisor dispatches no new target to a held arm, and a held arm takes up
+    /// none.
     pub fn obey(&mut self, rule: harvest_robot_model::Obedience) {
         self.vacuum.hold_dispatch(rule.targets_held);
         for (arm, held) in self.arms.iter_mut().zip(rule.targets_held) {
