@@ -4,7 +4,6 @@
 //! the channels. Also prints the console's figures for docs/benchmarks.md (CPU share of one core
 //! at the default view rate, capture-to-browser latency of the camera view, e-stop click to arms
 //! braked); nothing is asserted about them.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

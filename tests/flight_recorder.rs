@@ -173,7 +173,7 @@ fn a_mark_files_a_clip_of_the_window_around_it() {
     while started.elapsed() < Duration::from_secs(9) {
         let now_ns = MonotonicClock::read_ns();
         arms.publish(&ArmState::default()).expect("arm state");
-        if tick % 5 == 0 {
+        if tick.is_multiple_of(5) {
             frames
                 .publish_with(now_ns, |frame| {
                     frame.rgb[..64].fill((tick / 5) as u8);
@@ -192,7 +192,7 @@ fn a_mark_files_a_clip_of_the_window_around_it() {
             assert!(status.success(), "ctl mark failed:\n{stdout}\n{stderr}");
             mark_sent = true;
         }
-        if tick % 50 == 0 {
+        if tick.is_multiple_of(50) {
             max_rss = max_rss.max(rss_anon_bytes(recorder.pid()));
         }
         std::thread::sleep(Duration::from_millis(20));

@@ -5,7 +5,6 @@
 //! and its counts match the simulator's ground truth; a `kill -9` of the sim process mid-row
 //! (restarted by `harvest up`, its world restored from its state file) harvests no apple twice,
 //! loses none, and the row completes.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -3,7 +3,6 @@
 //! trait. The other implementations run the same suites elsewhere: the serial valve board
 //! against the fake board (`hw/tests/valve_board_serial.rs`), the in-process platform stages
 //! (sim crate), and here the evaluation's in-process servos.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -15,6 +14,8 @@ use harvest_hw::arm_servos::conformance::{
 use harvest_hw::arm_servos::sim::SimArmServos;
 use harvest_hw::arm_servos::{ArmServos, JOINT_COUNT, JointFeedback};
 use harvest_hw::conformance::{ConformanceReport, TestWatchdog};
+use harvest_hw::lidar::conformance::{LidarConformanceConfig, conformance_suite as lidar_suite};
+use harvest_hw::lidar::sim::SimLidar;
 use harvest_hw::platform::conformance::{
     PlatformConformanceConfig, conformance_suite as platform_suite,
 };
@@ -50,6 +51,20 @@ impl SimProcess {
             &["sim", "--scenario", SCENARIO, "--camera-rate-hz", "2"],
         ))
     }
+
+    fn start_with_lidar(domain: &str) -> Self {
+        Self(spawn_harvest(
+            domain,
+            &[
+                "sim",
+                "--scenario",
+                SCENARIO,
+                "--camera-rate-hz",
+                "2",
+                "--lidar",
+            ],
+        ))
+    }
 }
 
 impl Drop for SimProcess {
@@ -71,8 +86,12 @@ struct SimDevices {
 
 impl SimDevices {
     fn start(tag: &str) -> Self {
+        Self::start_with(tag, SimProcess::start)
+    }
+
+    fn start_with(tag: &str, start: fn(&str) -> SimProcess) -> Self {
         let domain_name = unique_domain(tag);
-        let sim = SimProcess::start(&domain_name);
+        let sim = start(&domain_name);
         let context = Context::new(domain_name.domain(), &format!("{tag}-test")).expect("node");
         Self {
             context,
@@ -142,6 +161,23 @@ fn simulated_camera_passes_the_conformance_suite() {
     )
     .expect("conformance suite");
     assert_all_passed(&report, 3);
+}
+
+#[test]
+fn simulated_lidar_passes_the_conformance_suite() {
+    let _watchdog = TestWatchdog::arm("lidar", WATCHDOG);
+    let sim = SimDevices::start_with("lidar", SimProcess::start_with_lidar);
+    // The silent LiDAR: the same driver in a domain where no device runs.
+    let silent_domain = unique_domain("nolidar");
+    let silent_context = Context::new(silent_domain.domain(), "silent-lidar-test").expect("node");
+    let integration = Duration::from_millis(500);
+    let report = lidar_suite(
+        &LidarConformanceConfig::mid70(integration),
+        || SimLidar::connect(&sim.context, integration).expect("connect sim lidar"),
+        || SimLidar::connect(&silent_context, integration).expect("connect silent lidar"),
+    )
+    .expect("conformance suite");
+    assert_all_passed(&report, 4);
 }
 
 #[test]

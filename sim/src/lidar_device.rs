@@ -309,6 +309,24 @@ impl LidarDeviceServer {
     /// Scans the next `count` returns of the pattern against the world in its current state and
     /// appends the reported points (LiDAR frame) to `cloud`; returns how many were reported.
     pub fn scan_into(&mut self, world: &World, count: usize, cloud: &mut PointCloud) -> usize {
+        let before = cloud.meta.point_count;
+        self.scan_firings(world, count, |point| match point {
+            Some(point) => cloud.push(point),
+            None => true,
+        });
+        (cloud.meta.point_count - before) as usize
+    }
+
+    /// Scans the next `count` firings of the pattern against the world in its current state and
+    /// hands each to `each` in firing order: the point (LiDAR frame), or None when the firing
+    /// reports nothing (no surface, or outside the working range). Stops early when `each`
+    /// returns false (the scan then resumes at the next firing).
+    pub fn scan_firings(
+        &mut self,
+        world: &World,
+        count: usize,
+        mut each: impl FnMut(Option<LidarPoint>) -> bool,
+    ) {
         let spec = self.config.spec;
         let robot_from_lidar = self.robot_from_lidar(world);
         self.caster
@@ -317,32 +335,29 @@ impl LidarDeviceServer {
         let rng = self
             .rng
             .get_or_insert_with(|| SmallRng::seed_from_u64(seed));
-        let before = cloud.meta.point_count;
         for _ in 0..count {
             let [dy, dz] = self.scan.next_deflection_rad();
             let direction = direction_from_deflection([
                 dy + self.angle_noise.sample(rng),
                 dz + self.angle_noise.sample(rng),
             ]);
-            let Some(hit) = self.caster.cast(direction) else {
-                continue;
-            };
-            if hit.range_m < spec.range_m[0] || hit.range_m > spec.range_m[1] {
-                continue;
-            }
-            let range_m = hit.range_m + self.range_noise.sample(rng);
-            let intensity = 150.0 * hit.reflectance * (0.3 + 0.7 * hit.cos_incidence.min(1.0));
-            let point = LidarPoint {
-                x_m: (direction[0] * range_m) as f32,
-                y_m: (direction[1] * range_m) as f32,
-                z_m: (direction[2] * range_m) as f32,
-                intensity: intensity as f32,
-            };
-            if !cloud.push(point) {
+            let point = self.caster.cast(direction).and_then(|hit| {
+                if hit.range_m < spec.range_m[0] || hit.range_m > spec.range_m[1] {
+                    return None;
+                }
+                let range_m = hit.range_m + self.range_noise.sample(rng);
+                let intensity = 150.0 * hit.reflectance * (0.3 + 0.7 * hit.cos_incidence.min(1.0));
+                Some(LidarPoint {
+                    x_m: (direction[0] * range_m) as f32,
+                    y_m: (direction[1] * range_m) as f32,
+                    z_m: (direction[2] * range_m) as f32,
+                    intensity: intensity as f32,
+                })
+            });
+            if !each(point) {
                 break;
             }
         }
-        (cloud.meta.point_count - before) as usize
     }
 
     /// One device frame (`1 / frame_rate` of returns) into `cloud`, replacing its points and

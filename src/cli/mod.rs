@@ -28,7 +28,7 @@ enum Command {
     /// Run the whole stack under the process supervisor (default: simulated robot).
     ///
     /// One stack per domain: refused while another `harvest up` (or a process of its stack)
-    /// runs in the domain; the lock is <iceoryx2 root>/harvest-up/<domain>.lock
+    /// runs in the domain; the lock is `<iceoryx2 root>/harvest-up/<domain>.lock`
     /// (/tmp/iceoryx2/harvest-up/), holding the running supervisor's pid.
     Up(up::UpArgs),
     /// Simulated robot: the orchard world serving the hardware channels.
@@ -69,7 +69,7 @@ enum Command {
     /// LiDAR process: integrated point clouds of the solid-state LiDAR -> lidar/points.
     Lidar(harvest_lidar_process::LidarArgs),
     /// Recorder process: every channel of the domain -> MCAP files.
-    Recorder(harvest_recorder::RecorderArgs),
+    Recorder(Box<harvest_recorder::RecorderArgs>),
     /// Foxglove bridge: the stack's channels, mapped to Foxglove's schemas, on a WebSocket
     /// server (ws://127.0.0.1:8765) for Foxglove or Lichtblick.
     Foxglove(harvest_foxglove::FoxgloveArgs),
@@ -123,6 +123,9 @@ enum BenchCommand {
     /// End-to-end latency in a running stack (simulated robot): capture -> camera ->
     /// perception -> arm target -> arm command per hop, and the arm control loop's jitter.
     Pipeline(harvest_bench::BenchPipelineArgs),
+    /// Perception's detectors' latency per 1920x1080 frame: ONNX models (CPU provider) beside the
+    /// colour segmentation, on one simulated frame.
+    Detector(harvest_bench::BenchDetectorArgs),
 }
 
 #[cfg(feature = "sim-tools")]
@@ -231,6 +234,11 @@ impl Cli {
             Command::Bench(BenchCommand::Ipc(args)) => {
                 let report = harvest_bench::run_bench_ipc(&args).context("ipc benchmark")?;
                 print!("{}", report.table());
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Detector(args)) => {
+                harvest_bench::run_bench_detector(&args).context("detector benchmark")?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]

@@ -4,6 +4,9 @@
 //! reads (time is passed in by the caller). The arm's kinematic model (Table 1, eq. 1-2) is in
 //! `harvest-robot-model`, shared with the vacuum supervisor, the monitor and the simulator.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod controller;
 pub mod harvest_events;
 pub mod manual_motion;

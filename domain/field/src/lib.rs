@@ -7,6 +7,9 @@
 //! - [`stop_cycle`]: the stop-and-go sequencer (arrive, park, position, settle, harvest,
 //!   advance), transport-free; the executive drives it.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod positioning;
 pub mod stop_cycle;
 

@@ -21,6 +21,9 @@
 //! "Harvested" is the arm's account (the apple was released at the drop-off with the seal
 //! held): the live stack has no ground truth. The evaluation scores against the simulator's.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod table3;
 
 use std::collections::BTreeMap;

@@ -7,6 +7,9 @@
 //! process (crate `harvest-laser-process`) runs it over the channels. The calibration command
 //! is in `harvest-calibrate`, the evaluations (`harvest eval laser`) in `harvest-eval`.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod calibration;
 pub mod candidate;
 pub mod extraction;

@@ -3,7 +3,6 @@
 //! methods, and the calibration file with values replaced by anything, lines dropped or doubled
 //! and bytes changed. Every failure is an error naming the file (and the line); a calibration
 //! that succeeds has finite extrinsics; never a panic.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_laser::calibration::{
     CalibrationMethod, CalibrationOptions, CalibrationSample, calibrate, parse_samples_csv,

@@ -6,7 +6,6 @@
 //!
 //! Requests are filled through their raw bytes (`Payload` makes every bit pattern a valid
 //! value), so the property holds whatever the field types of the payload become.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsUnit, alacs_camera_intrinsics};
 use harvest_ipc::Payload;

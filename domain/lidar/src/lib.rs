@@ -12,6 +12,9 @@
 //! The `harvest lidar` process is `harvest-lidar-process`; `harvest eval lidar` is in
 //! `harvest-eval`.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod extrinsic_file;
 pub mod fusion;
 pub mod integration_window;

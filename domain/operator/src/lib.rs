@@ -15,6 +15,9 @@
 //! Transport-free: the process feeds commands and the arms' states in and publishes what comes
 //! out.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod action;
 pub mod command;
 pub mod executive;

@@ -10,7 +10,6 @@
 //!
 //! Payloads are filled through their raw bytes (`Payload` makes every bit pattern a valid
 //! value), so the properties hold whatever the field types of the payloads become.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::Payload;
 use harvest_ipc::payloads::{

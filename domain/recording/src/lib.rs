@@ -12,6 +12,9 @@
 //! [`rec_cat`], [`export`] (JSON, PNG, Foxglove). Users: the recorder process, `harvest rec`,
 //! `harvest replay` and `harvest monitor --recording`.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod clip_list;
 pub mod export;
 pub mod flight_ring;

@@ -6,7 +6,6 @@
 //! recovered file is always complete and holds what the scan of its input delivered).
 //!
 //! Case counts are bounded (see `CASES`) so the whole file runs in a few seconds on CI.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::Payload;
 use harvest_ipc::catalogue::{

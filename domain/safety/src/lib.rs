@@ -3,6 +3,9 @@
 //! shares no logic with the coordination policies it judges: this crate does not depend on
 //! `harvest-vacuum`, so the monitor is never compiled with what it checks.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod safety_monitor;
 pub mod trace;
 

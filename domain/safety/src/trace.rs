@@ -1,6 +1,6 @@
 //! Plain, time-stamped facts about a harvesting episode, as the safety monitor consumes them.
 //!
-//! Producers: the cycle model ([`crate::cycle_model`]), and later the full simulator and the
+//! Producers: the cycle model (`harvest_eval::cycle_model`), and later the full simulator and the
 //! recorder replaying a field log. Consumer: [`crate::safety_monitor`]. The events carry only
 //! observations (valve commands, what the pressure inference concluded, joint commands,
 //! end-effector positions), never a policy's reasoning, so the monitor can judge a trace without

@@ -15,6 +15,9 @@
 //! `harvest-eval`. The mapping from the paper's formulas to the policy state machine is in
 //! `POLICY.md`.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod assignment;
 pub mod harvest_events;
 pub mod node;

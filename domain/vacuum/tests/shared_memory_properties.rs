@@ -15,7 +15,6 @@
 //!
 //! Payloads are corrupted through their raw bytes (`Payload` makes every bit pattern a valid
 //! value), so the properties hold whatever the field types of the payloads become.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_arm::node::{
     ArmNode, ArmNodeConfig, ArmNodeInput, EncoderSample, OtherArmInput, ServoOrder, pick_reachable,

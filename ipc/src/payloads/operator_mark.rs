@@ -28,7 +28,7 @@ pub const MARK_SOURCE_BYTES: usize = 32;
 )]
 #[type_name("harvest.OperatorMark.v1")]
 pub struct OperatorMark {
-    /// `capture_ns`: when the operator made the mark.
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
     /// What the operator wrote (cut at [`MARK_TEXT_BYTES`]).
     pub text: FixedString<MARK_TEXT_BYTES>,

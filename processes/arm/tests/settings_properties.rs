@@ -3,7 +3,6 @@
 //! lines dropped or doubled and bytes changed. The file is refused with an error naming it, or
 //! the node it configures is refused, or that node drives its arm to a target with set-points
 //! that are finite and inside the Table 1 joint limits; never a panic.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_arm::node::{ArmNode, ArmNodeConfig, ArmNodeInput, EncoderSample, ServoOrder};
 use harvest_arm_process::ArmDevice;

@@ -5,7 +5,11 @@
 //! ([`camera_view`]) and takes operator commands, which go to the executive on
 //! `operator/command` with the token the operator typed ([`process`]).
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod camera_view;
+pub mod command_lane;
 pub mod error;
 pub mod http;
 pub mod page;

@@ -2,7 +2,9 @@
 //! stack). Each command is sent on `operator/command` with the control token and the answer
 //! on `operator/ack` is printed; the exit code is 0 when accepted, 1 when refused, 2 when no
 //! answer came (is the executive running?). `status` reads `operator/mode`, the arms' and the
-//! vacuum's state; it needs no token.
+//! vacuum's state; it needs no token. Neither does `estop`: without a token (no file, none
+//! given, or a malformed one) it is sent without one, and the executive stops the robot all the
+//! same (a stop needs no authority).
 //!
 //! A manual move (jog, drop-off, home, platform) keeps this session's heartbeat going until the
 //! move's planned time is over (or the platform stops), since the executive stops manual
@@ -60,7 +62,8 @@ pub enum CtlCommand {
     Resume,
     /// Stop harvesting (or manual motion): idle.
     Stop,
-    /// Engage the emergency stop (a protective stop; the hardware e-stop stays the certified one).
+    /// Engage the emergency stop (a protective stop; the hardware e-stop stays the certified
+    /// one). Needs no token: accepted from anyone, even while another session controls.
     Estop,
     /// Release the emergency stop.
     Release,
@@ -194,6 +197,20 @@ fn client_label() -> String {
     format!("ctl {user}")
 }
 
+/// The control token: `--token`, else the token file.
+fn control_token(args: &CtlArgs, domain: &Domain) -> Result<ControlToken, TokenError> {
+    match &args.token {
+        Some(text) => ControlToken::parse(text, "--token"),
+        None => {
+            let path = args
+                .token_file
+                .clone()
+                .unwrap_or_else(|| token_path(domain.name()));
+            read_token_file(&path)
+        }
+    }
+}
+
 /// Runs `harvest ctl`.
 pub fn run(args: &CtlArgs, domain: &Domain) -> Result<ExitCode, CtlError> {
     let context = Context::new(domain, &format!("ctl-{}", std::process::id()))?;
@@ -205,20 +222,19 @@ pub fn run(args: &CtlArgs, domain: &Domain) -> Result<ExitCode, CtlError> {
             _ => Ok(ExitCode::SUCCESS),
         };
     };
-    let token = match &args.token {
-        Some(text) => ControlToken::parse(text, "--token")?,
-        None => {
-            let path = args
-                .token_file
-                .clone()
-                .unwrap_or_else(|| token_path(domain.name()));
-            read_token_file(&path)?
+    let token = match (control_token(args, domain), command) {
+        (Ok(token), _) => token.as_str().to_owned(),
+        // A stop needs no authority: without a (valid) token it is sent without one.
+        (Err(error), Command::EmergencyStop) => {
+            eprintln!("estop: no control token ({error}); sent without it (a stop needs none)");
+            String::new()
         }
+        (Err(error), _) => return Err(error.into()),
     };
     let session = session_id(domain);
     let client = client_label();
     let mut operator = OperatorClient::new(&context)?;
-    let request = operator.send(command.to_message(0, session, token.as_str(), &client))?;
+    let request = operator.send(command.to_message(0, session, &token, &client))?;
     let Some(ack) = operator.wait_ack(session, request, timeout)? else {
         eprintln!(
             "{}: no answer within {} ms (is `harvest executive` running in domain {domain}?)",
@@ -244,12 +260,7 @@ pub fn run(args: &CtlArgs, domain: &Domain) -> Result<ExitCode, CtlError> {
         let mut moving_seen = false;
         while Instant::now() < until {
             std::thread::sleep(HEARTBEAT_PERIOD);
-            let beat = operator.send(Command::Heartbeat.to_message(
-                0,
-                session,
-                token.as_str(),
-                &client,
-            ))?;
+            let beat = operator.send(Command::Heartbeat.to_message(0, session, &token, &client))?;
             if let Some(ack) = operator.wait_ack(session, beat, timeout)?
                 && ack.accepted == 0
             {

@@ -14,6 +14,9 @@
 //!   violation on `safety/violation` in the stack ([`violation_message`]);
 //! - [`args`]: the command line and [`args::run_monitor`].
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod args;
 pub mod error;
 pub mod live;

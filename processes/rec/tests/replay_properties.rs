@@ -3,7 +3,6 @@
 //! possible) into real iceoryx2 channels: every message is decoded into loaned shared memory and
 //! published, or skipped and counted; an unreadable file is refused with an error naming it.
 //! Never a panic.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::catalogue::{
     ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, PERCEPTION_APPLES, VACUUM_STATE,

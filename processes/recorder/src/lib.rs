@@ -6,6 +6,9 @@
 //! [`clip_writer`]). The format is `harvest-recording`; the tools
 //! that read it (`harvest rec`, `harvest replay`) are `harvest-rec`.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod clip_writer;
 pub mod disk_space;
 pub mod flight_thread;

@@ -1,7 +1,6 @@
 //! The recorder taps real channels (publishers in the test thread, the recorder on its own
 //! thread and node) and the Python `mcap` reader, an independent implementation, reads the
 //! result back.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

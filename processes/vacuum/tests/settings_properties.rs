@@ -3,7 +3,6 @@
 //! huge, wrongly typed), lines dropped or doubled and bytes changed. The file is refused with
 //! an error naming it, or the node it configures is refused, or that node runs a detection set
 //! and answers valve requests without panicking.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_arm::node::{ArmNodeConfig, pick_reachable};
 use harvest_ipc::payloads::{AppleDetection, AppleDetections, ArmState, ValveRequest};

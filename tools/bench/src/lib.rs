@@ -12,15 +12,20 @@
 //! - [`run_bench_peer`] / [`BenchPeerArgs`]: the hidden peer subcommand.
 //! - [`run_bench_pipeline`] / [`BenchPipelineArgs`]: `harvest bench pipeline`, per-hop latency
 //!   in a running stack and the arm control loop's jitter ([`pipeline`]).
+//! - [`run_bench_detector`] / [`BenchDetectorArgs`]: `harvest bench detector`, perception's
+//!   detectors' latency per frame (ONNX models beside the colour segmentation) ([`detector`]).
 //! - [`run_soak`] / [`SoakArgs`]: `harvest soak`, the stack for a long time under kills,
 //!   operator commands and bad inputs, with memory, descriptors and shared memory sampled
 //!   ([`soak`]).
+
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod affinity;
 pub mod bench_payload;
 pub mod case;
 pub mod child_stop;
 pub mod control;
+pub mod detector;
 pub mod error;
 pub mod message;
 pub mod options;
@@ -38,6 +43,7 @@ pub mod transport;
 pub mod watchdog;
 
 pub use bench_payload::BenchPayload;
+pub use detector::{BenchDetectorArgs, run_bench_detector};
 pub use error::BenchError;
 pub use options::{BenchIpcArgs, BenchPeerArgs, PEER_SUBCOMMAND, Transport, WakeMode};
 pub use payload_case::PayloadCase;

@@ -4,6 +4,9 @@
 //!
 //! `cargo run -p harvest-laser --release --example alacs_accuracy -- [SEED]`
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 use std::time::Instant;
 
 use harvest_calibrate::laser_samples::{SampleGeneratorConfig, generate_samples};

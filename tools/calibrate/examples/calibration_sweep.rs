@@ -4,6 +4,9 @@
 //!
 //! `cargo run -p harvest-laser --release --example calibration_sweep -- [SETS] [SCALE_SIGMAS]`
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 use harvest_calibrate::laser_samples::{SampleGeneratorConfig, generate_samples};
 use harvest_hw::alacs::alacs_camera_intrinsics;
 use harvest_laser::calibration::{CalibrationOptions, compare_methods};

@@ -5,6 +5,9 @@
 //! (LiDAR-camera, eq. 3); the files they write are read onboard through `harvest-laser` and
 //! `harvest-lidar`.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod laser;
 pub mod laser_samples;
 pub mod lidar;

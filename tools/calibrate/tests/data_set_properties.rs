@@ -4,7 +4,6 @@
 //! lines cut) and its PNGs damaged (bytes changed, cut, or image sizes rewritten with a valid
 //! checksum), through `DataSet::open`, the per-view readers and the whole calibration. Every
 //! failure is an error naming a file; never a panic.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_calibrate::lidar::board_image::GreyImage;
 use harvest_calibrate::lidar::calibration::calibrate_data_set;

@@ -1,4 +1,3 @@
-#![allow(clippy::unwrap_used, clippy::expect_used)]
 //! Where the ALACS unit can sit on the robot: for candidate mountings, the share of the apples
 //! the arms can pick (ground truth, the simulator's rows and default scenario) that the laser
 //! can scan ([`LaserReach`]: in the ALACS image and a scan within the slide's 20 cm stroke),

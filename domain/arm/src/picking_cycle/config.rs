@@ -78,7 +78,7 @@ impl Default for CycleConfig {
     }
 }
 
-/// Why a [`PickingCycle`] could not be built.
+/// Why a [`PickingCycle`](super::PickingCycle) could not be built.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum CycleConfigError {
     /// A configuration value is out of range.

@@ -7,7 +7,7 @@
 //! radius for a fully visible fruit); the paper accepts this bias.
 //!
 //! The paper reports no radius; here it is estimated from the cluster's lateral spread
-//! ([`super::radius_from_lateral_spread`]). Confidence is the cluster's share of the points
+//! (`radius_from_lateral_spread`). Confidence is the cluster's share of the points
 //! times a support factor.
 
 use super::point_clustering::{ClusteringConfig, PointClustering};

@@ -63,7 +63,7 @@ pub fn load_row(name: &str) -> Result<RowScenario, RowEvalError> {
     }
 }
 
-/// The figures a row run and a sum of runs share; a sum of runs adds them ([`RowCounts::add`]).
+/// The figures a row run and a sum of runs share; a sum of runs adds them (`RowCounts::add`).
 #[derive(Debug, Clone, PartialEq, Default, Serialize)]
 pub struct RowCounts {
     pub apples_on_row: usize,
