@@ -1,5 +1,8 @@
 //! `harvest`: the command-line tool and the entry point of every process of the stack.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 mod cli;
 
 use clap::Parser;

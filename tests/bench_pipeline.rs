@@ -2,7 +2,6 @@
 //! file in a domain of its own): the JSON report and the plot are well formed, every hop is
 //! present (measured or "no data"), and the stack's resources are gone afterwards. No timing is
 //! asserted.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

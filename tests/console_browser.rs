@@ -1,10 +1,9 @@
 //! The operator console in a real browser against a real stack: Debian's chromium, driven by
 //! chromedriver over WebDriver (both installed by `.ci/run`; nothing downloads a browser). The
 //! stack runs in a private domain; what the page shows and what the clicks do are checked on
-//! the channels. Also prints the console's figures for the README (CPU share of one core at the
-//! default view rate, capture-to-browser latency of the camera view, e-stop click to arms
+//! the channels. Also prints the console's figures for docs/benchmarks.md (CPU share of one core
+//! at the default view rate, capture-to-browser latency of the camera view, e-stop click to arms
 //! braked); nothing is asserted about them.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -349,7 +348,7 @@ restart = "on-failure"
         page_text(&browser, "mode-name") == "harvesting"
     });
 
-    // The screenshot of the README, while harvesting with overlays.
+    // The screenshot in the README (docs/console.png), while harvesting with overlays.
     std::thread::sleep(Duration::from_millis(600));
     let png = browser.screenshot();
     let target = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/console.png");

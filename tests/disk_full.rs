@@ -10,7 +10,6 @@
 //! or a container's root without the capability) the test runs itself again inside a user and
 //! mount namespace (`unshare --user --map-root-user --mount`), where mounting a tmpfs is
 //! allowed; either way the mount is removed at the end.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -7,7 +7,6 @@
 //! (`harvest rec cat`). The official Python `mcap` reader then decodes the same recording's
 //! mapped channels with the schemas stored in it (tests/foxglove/read_recording.py), the raw
 //! channels are still there, and `harvest replay` still drives them.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -1,15 +1,18 @@
 //! The harvest end to end with the real processes over real shared memory: `harvest up` with
 //! the simulated robot, camera, perception, both arms and the vacuum supervisor picks a small
 //! orchard, prints per-apple events and the summary, and exits clean; bad targets published on
-//! an arm's target channel are refused with a reason on `harvest/events` and the arm holds.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
+//! an arm's target channel are refused with a reason on `harvest/events` and the arm holds; a
+//! non-critical process that fails for good is reported and does not end the harvest.
 
 mod common;
 
 use common::*;
-use harvest_ipc::catalogue::{ARM_STATE, ARM_TARGET, HARVEST_EVENTS, SIM_GROUND_TRUTH};
+use harvest_ipc::catalogue::{
+    ARM_STATE, ARM_TARGET, HARVEST_EVENTS, PROCESS_HEALTH, SIM_GROUND_TRUTH,
+};
 use harvest_ipc::payloads::{
-    ArmPhase, ArmTarget, HarvestCause, HarvestEvent, HarvestEventKind, TrueAppleState,
+    ArmPhase, ArmTarget, HarvestCause, HarvestEvent, HarvestEventKind, ProcessRunState,
+    TrueAppleState,
 };
 use harvest_ipc::{Context, Domain, MonotonicClock};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -40,13 +43,13 @@ restart = "never"
 [[process]]
 name = "arm1"
 command = "arm"
-args = ["--id", "1"]
+args = ["--id", "1", "--without-operator"]
 restart = "never"
 
 [[process]]
 name = "arm2"
 command = "arm"
-args = ["--id", "2"]
+args = ["--id", "2", "--without-operator"]
 restart = "never"
 "#
     );
@@ -67,7 +70,7 @@ restart = "never"
 [[process]]
 name = "vacuum"
 command = "vacuum"
-args = ["--policy", "2024", "--arms", "2"]
+args = ["--policy", "2024", "--arms", "2", "--without-operator"]
 restart = "never"
 "#
             .replace("SIM_CAMERA_CALIBRATION", SIM_CAMERA_CALIBRATION)
@@ -161,6 +164,100 @@ fn harvest_up_picks_a_small_orchard_and_summarizes_it() {
         "",
         "iceoryx2 resources left behind"
     );
+}
+
+/// A launch file with a non-critical process that always fails (the fault-injection fixture,
+/// `critical = false`): it fails for good early, the supervisor reports it (the summary, its
+/// state on `system/health`) and the harvest goes on to completion; `harvest up` exits 0.
+#[test]
+fn a_non_critical_process_failing_for_good_does_not_end_the_harvest() {
+    let _stack = one_stack_at_a_time();
+    let domain = unique_domain("noncrit");
+    let dir = TempDir::new("noncrit");
+    let scenario = dir.write("few.toml", &small_orchard(2));
+    let mut text = launch(&scenario.display().to_string(), true);
+    text.push_str(&format!(
+        r#"
+[[process]]
+name = "crasher"
+executable = "{fixture}"
+args = ["always-crash"]
+restart = "on-failure"
+max_restarts = 2
+backoff_initial_ms = 50
+backoff_max_ms = 100
+critical = false
+"#,
+        fixture = fixture_executable()
+    ));
+    let launch_file = dir.write("launch.toml", &text);
+
+    // The supervisor's word on the failed process, on system/health, while the stack runs.
+    let stop = Arc::new(AtomicBool::new(false));
+    let failed_beat = Arc::new(Mutex::new(None::<String>));
+    let health_thread = {
+        let (stop, failed_beat, domain) = (stop.clone(), failed_beat.clone(), domain.to_string());
+        std::thread::spawn(move || {
+            let domain = Domain::new(&domain).expect("domain");
+            let context = Context::new(&domain, "test-health").expect("context");
+            let health = context
+                .subscriber_with_buffer(PROCESS_HEALTH, 256)
+                .expect("subscriber");
+            while !stop.load(Ordering::SeqCst) {
+                while let Ok(Some(beat)) = health.receive() {
+                    if beat.process_name.as_str() == "crasher"
+                        && beat.run_state.get() == Ok(ProcessRunState::Failed)
+                    {
+                        *failed_beat.lock().expect("lock") = Some(beat.detail.as_str().to_owned());
+                    }
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        })
+    };
+    let (status, stdout, stderr) = run_harvest(
+        &domain,
+        &[
+            "up",
+            "--launch",
+            &launch_file.display().to_string(),
+            "--until-harvested",
+            "--duration",
+            "75s",
+        ],
+        Duration::from_secs(110),
+    );
+    stop.store(true, Ordering::SeqCst);
+    health_thread.join().expect("health thread");
+
+    assert!(status.success(), "harvest up failed:\n{stdout}\n{stderr}");
+    assert!(
+        stderr.contains("harvest up ended: harvest complete"),
+        "the harvest did not complete:\n{stdout}\n{stderr}"
+    );
+    assert!(
+        summary_count(&stdout, "harvested").is_some_and(|n| n > 0),
+        "nothing harvested:\n{stdout}"
+    );
+    assert!(
+        stderr.contains(
+            "not critical, the stack went on: process \"crasher\" failed for good: exit code 3"
+        ),
+        "{stderr}"
+    );
+    let line = stderr[stderr.find("harvest up ended").expect("summary")..]
+        .lines()
+        .find(|l| l.trim_start().starts_with("crasher"))
+        .expect("crasher's summary line");
+    assert!(line.contains("FAILED:noncritical"), "{line}");
+    assert_eq!(summary_restarts(&stderr, "crasher"), Some(2), "{stderr}");
+    assert!(!stderr.contains("\nfailure:"), "{stderr}");
+    assert_eq!(
+        failed_beat.lock().expect("lock").as_deref(),
+        Some("failed for good, restarts"),
+        "no failed state on system/health"
+    );
+    assert_eq!(leftover_files(&domain), "");
 }
 
 /// Waits until `arm1/state` shows an idle arm with finite joints and `arm2/state` is flowing;

@@ -1,21 +1,20 @@
 //! The crate graph points one way (ARCHITECTURE.md, "Layers"): read from `cargo metadata`, every
 //! workspace crate declares its layer (`[package.metadata.harvest] layer = ...`) and this test
 //! fails, naming the offending edge, when
-//! - an onboard crate (foundation, device, domain, process) has a non-dev dependency path to the
+//! - an onboard crate (foundation, device, domain, runtime, process) has a non-dev dependency path to the
 //!   simulator or a tool (layer `sim` or `tool`, or a package name with `sim`, `eval` or
 //!   `bench`);
 //! - a crate depends on a layer above its own, or a process crate on another process crate;
 //! - a domain library depends on the transport's ports (`iceoryx2`) or a command line (`clap`);
 //! - the CLI package links the simulator or a tool other than through an optional dependency
 //!   (the `sim-tools` feature; `--no-default-features` builds the onboard binary).
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use serde_json::Value;
 use std::collections::BTreeMap;
 
 /// Layers from the bottom up; a crate may depend on its own layer or those below (but see the
 /// process and domain rules).
-const ONBOARD_LAYERS: [&str; 4] = ["foundation", "device", "domain", "process"];
+const ONBOARD_LAYERS: [&str; 5] = ["foundation", "device", "domain", "runtime", "process"];
 const BESIDE_LAYERS: [&str; 2] = ["sim", "tool"];
 const CLI_LAYER: &str = "cli";
 /// Package-name markers of the simulator, evaluation and benchmark crates.

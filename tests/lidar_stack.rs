@@ -4,7 +4,6 @@
 //! vacuum supervisor; perception's detections on `perception/apples` carry the LiDAR-fused depth
 //! source code and lie on the simulator's true apples (`sim/ground_truth`), and the arms harvest
 //! from them.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -5,7 +5,6 @@
 //! it speaks again, a reboot of the device survived, and a clean stop on SIGINT. How fast the
 //! silence is reported and the device reconnected is measured by `harvest bench lidar-livox`,
 //! not asserted here.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -6,7 +6,6 @@
 //! arms brake. The stop stays engaged (only an operator releases it), the recorder keeps the
 //! violation, and the summary of `harvest up` names it. The delays from the violation to the
 //! engaged stop and to both arms holding are printed (measured, not asserted).
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

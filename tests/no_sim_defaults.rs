@@ -1,6 +1,5 @@
 //! No production default comes from the simulator: a process that needs a calibration refuses to
 //! start without it and names the flag (the simulated robot's launch profiles pass `sim/` files).
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -3,7 +3,6 @@
 //! `harvest arm --id 1` cannot become a second writer of arm 1's channels, a supervisor killed
 //! with SIGKILL leaves no lock behind, and an arm killed with SIGKILL is restarted and publishes
 //! again (its stale ports are cleaned, so the single-writer channels take the new process).
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -1,7 +1,6 @@
 //! `harvest ctl` against a real `harvest executive` in a private domain (no robot: the commands
 //! that need no arm, and the refusals of those that do). The token comes from the domain's
 //! token file, as `harvest up` writes it; the e-stop is checked on `safety/emergency_stop`.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -182,3 +181,106 @@ fn ctl_commands_the_executive_and_prints_its_answers() {
     assert_eq!(leftover_files(&domain), "");
     let _ = leftover_files(&elsewhere);
 }
+
+/// `harvest ctl estop` needs no authority: without any token (no file, none given) or with a
+/// wrong one, the executive engages the stop; the release still needs the token.
+#[test]
+fn ctl_estop_needs_no_token_and_the_release_does() {
+    let domain = unique_domain("ctlstop");
+    let runtime = TempDir::new("ctlstop-runtime");
+    // The executive's token file; `ctl` runs with another runtime directory, without any.
+    let token = ControlToken::generate().expect("token");
+    write_token_file(&token_path_in(&runtime.0, &domain), &token).expect("token file");
+    let no_token = TempDir::new("ctlstop-none");
+
+    let executive = Command::new(HARVEST)
+        .args([
+            "executive",
+            "--platform",
+            "none",
+            "--initial-mode",
+            "harvesting",
+        ])
+        .current_dir(run_dir(&domain))
+        .env("HARVEST_DOMAIN", &domain)
+        .env("XDG_RUNTIME_DIR", &runtime.0)
+        .env("RUST_LOG", "info")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start the executive");
+    let context = Context::new(&Domain::new(&domain).expect("domain"), "ctl-test").expect("node");
+    let estop_in = context.subscriber(EMERGENCY_STOP).expect("estop");
+    let engaged = |want: u8| {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            if let Some(sample) = estop_in.receive_latest().expect("receive")
+                && sample.engaged == want
+            {
+                return;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "watchdog: e-stop engaged {want} not seen"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let output = ctl(&domain, &no_token.0, &["status", "--json"]);
+        if output.status.success() {
+            break;
+        }
+        assert!(Instant::now() < deadline, "no status: {}", text(&output));
+    }
+
+    // Without any token: the token file is missing, ctl says so and sends the stop anyway.
+    let start = ctl(&domain, &no_token.0, &["start"]);
+    assert!(!start.status.success(), "{}", text(&start));
+    let estop = ctl(&domain, &no_token.0, &["estop"]);
+    assert!(estop.status.success(), "{}", text(&estop));
+    assert!(
+        text(&estop).contains("sent without it") && text(&estop).contains("estop: accepted"),
+        "{}",
+        text(&estop)
+    );
+    engaged(1);
+    // The release with a wrong token is refused; the stop stays engaged.
+    let release = ctl(&domain, &no_token.0, &["release", "--token", WRONG]);
+    assert_eq!(release.status.code(), Some(1), "{}", text(&release));
+    assert!(
+        text(&release).contains("wrong control token"),
+        "{}",
+        text(&release)
+    );
+    let status = ctl(&domain, &no_token.0, &["status"]);
+    assert!(
+        text(&status).contains("e-stop ENGAGED")
+            && text(&status).contains("without the control token"),
+        "{}",
+        text(&status)
+    );
+    // Released with the token: idle.
+    let release = ctl(&domain, &runtime.0, &["release"]);
+    assert!(release.status.success(), "{}", text(&release));
+    engaged(0);
+    // A wrong token stops it too.
+    let estop = ctl(&domain, &no_token.0, &["estop", "--token", WRONG]);
+    assert!(estop.status.success(), "{}", text(&estop));
+    engaged(1);
+
+    drop(estop_in);
+    drop(context);
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(executive.id() as i32),
+        nix::sys::signal::Signal::SIGTERM,
+    )
+    .expect("stop the executive");
+    let (exit, _, stderr) = wait_with_watchdog(executive, Duration::from_secs(20));
+    assert!(exit.success(), "{stderr}");
+    assert_eq!(leftover_files(&domain), "");
+}
+
+const WRONG: &str = "0123456789abcdef0123456789abcdef";

@@ -1,7 +1,6 @@
 //! Record-and-replay debugging: camera frames recorded from a running stack are replayed into a
 //! stack without camera or simulator; perception re-runs on them, and two replays of the same
 //! recording give the same detections for every frame both processed.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

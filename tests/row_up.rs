@@ -1,11 +1,10 @@
-//! The field workflow end to end with the real processes over real shared memory (issue 17):
+//! The field workflow end to end with the real processes over real shared memory:
 //! `harvest up --launch processes/supervisor/launch/row.toml --until-row-done` works a two-stop
 //! row in a private domain (the executive's stop cycle positions the platform, waits for fresh
 //! detections, harvests, advances the tractor), prints one line per stop and a row summary,
 //! and its counts match the simulator's ground truth; a `kill -9` of the sim process mid-row
 //! (restarted by `harvest up`, its world restored from its state file) harvests no apple twice,
 //! loses none, and the row completes.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -3,7 +3,6 @@
 //! trait. The other implementations run the same suites elsewhere: the serial valve board
 //! against the fake board (`hw/tests/valve_board_serial.rs`), the in-process platform stages
 //! (sim crate), and here the evaluation's in-process servos.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -118,7 +117,7 @@ fn simulated_valve_board_passes_the_conformance_suite() {
     assert_all_passed(&report, 7);
 }
 
-/// The joint limits the simulated arms enforce (paper 003 Table 1, from the arm parameters).
+/// The joint limits the simulated arms enforce ([dual-arm Table 1], from the arm parameters).
 fn declared_limits(arm: ArmId) -> [[f64; 2]; 4] {
     let scenario = Scenario::preset(SCENARIO).expect("scenario");
     let robot = SimRobot::new(&scenario, 1).expect("robot");

@@ -2,7 +2,6 @@
 //! memory: the tractor passes its conformance suite, the platform's travel of the row file is
 //! enforced and the world follows the platform and the trailer, and the world's state (apples,
 //! harvested set, trailer and platform positions) survives a `kill -9` of the sim process.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -2,7 +2,6 @@
 //! domain of its own): one scheduled SIGKILL, operator commands and bad inputs; the JSON report
 //! has samples of every process, the killed process's restart is explained and no restart is
 //! unexplained; the domain's files are gone afterwards. No timing is asserted.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

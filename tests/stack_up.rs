@@ -1,6 +1,5 @@
 //! `harvest up` with the real processes over real shared memory: frames flow, children are
 //! restarted, shutdown is clean, domains are separate.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -1,5 +1,4 @@
 //! Supervisor behaviour with fault-injection fixtures: real processes, real shared memory.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -3,7 +3,6 @@
 //! stack is killed at once (systemd's final SIGKILL to the service, an OOM kill of the group),
 //! every node stays behind: the next start removes those stale resources, runs, and leaves
 //! nothing.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

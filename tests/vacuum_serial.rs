@@ -1,13 +1,14 @@
 //! The vacuum supervisor process driving the serial valve-board driver (`harvest vacuum --device
 //! serial --port ...`) against the fake board on a pseudo-terminal: the same process the stack
-//! runs on the robot, with its board reached over a real serial line.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
+//! runs on the robot, with its board reached over a real serial line. A board that falls silent
+//! reaches `system/health` as a device error of kind timeout.
 
 mod common;
 
 use common::*;
-use harvest_hw::valve_board::fake_board::{FakeBoard, FakeBoardConfig};
-use harvest_ipc::catalogue::VACUUM_STATE;
+use harvest_hw::valve_board::fake_board::{FakeBoard, FakeBoardConfig, FaultMode};
+use harvest_ipc::catalogue::{PROCESS_HEALTH, VACUUM_STATE};
+use harvest_ipc::payloads::{DeviceErrorCode, ProcessRunState};
 use harvest_ipc::{Context, Domain};
 use std::time::{Duration, Instant};
 
@@ -86,5 +87,68 @@ fn a_missing_serial_port_is_named_in_the_error() {
         run_harvest(&domain_name, &["vacuum", "--device", "serial"], WATCHDOG);
     assert!(!status.success());
     assert!(stderr.contains("--port"), "stderr:\n{stderr}");
+    assert_eq!(leftover_files(&domain_name), "", "nothing left behind");
+}
+
+#[test]
+fn a_silent_board_reaches_health_as_a_timeout() {
+    let _stack = one_stack_at_a_time();
+    let board = FakeBoard::spawn(FakeBoardConfig::default()).expect("fake board on a pty");
+    let domain_name = unique_domain("vsil");
+    let domain = Domain::new(&domain_name).expect("domain");
+    let context = Context::new(&domain, "vacuum-silent-test").expect("node");
+    let states = context.subscriber(VACUUM_STATE).expect("vacuum/state");
+    let health = context.subscriber(PROCESS_HEALTH).expect("system/health");
+    let child = spawn_harvest(
+        &domain_name,
+        &["vacuum", "--device", "serial", "--port", board.port_path()],
+    );
+
+    // Healthy first: the board answers and the heartbeats carry no device error.
+    let deadline = Instant::now() + WATCHDOG;
+    let mut healthy_beat = None;
+    while healthy_beat.is_none() && Instant::now() < deadline {
+        while states.receive().expect("receive").is_some() {}
+        while let Some(beat) = health.receive().expect("receive") {
+            if beat.process_name.as_str() == "vacuum"
+                && beat.run_state.get() == Ok(ProcessRunState::Running)
+            {
+                healthy_beat = Some(beat.last_device_error.get());
+            }
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+
+    // Then the board stops answering: the driver's timeouts reach the heartbeat by kind.
+    board.set_fault_mode(FaultMode::Silent);
+    let mut silent_beat = None;
+    while silent_beat.is_none() && Instant::now() < deadline {
+        while let Some(beat) = health.receive().expect("receive") {
+            if beat.process_name.as_str() == "vacuum"
+                && beat.last_device_error.get() != Ok(DeviceErrorCode::None)
+            {
+                silent_beat = Some((beat.last_device_error.get(), beat.run_state.get()));
+            }
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let _ = nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(child.id() as i32),
+        nix::sys::signal::Signal::SIGTERM,
+    );
+    let (_, _, stderr) = wait_with_watchdog(child, WATCHDOG);
+    assert_eq!(
+        healthy_beat,
+        Some(Ok(DeviceErrorCode::None)),
+        "a running heartbeat before the fault; stderr:\n{stderr}"
+    );
+    assert_eq!(
+        silent_beat,
+        Some((Ok(DeviceErrorCode::Timeout), Ok(ProcessRunState::Degraded))),
+        "the silent board in the heartbeat; stderr:\n{stderr}"
+    );
+    drop(states);
+    drop(health);
+    drop(context);
     assert_eq!(leftover_files(&domain_name), "", "nothing left behind");
 }

@@ -3,7 +3,6 @@
 //! SDK's definitions (`FastCRCsw.cpp`: CRC-16/MCRF4XX from seed 0x4c49; CRC-32 with the register
 //! started at `seed ^ 0xFFFFFFFF` for seed 0x564f580a, which is crcmod's `initCrc = seed` with
 //! `xorOut = 0xFFFFFFFF`).
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_hw::lidar::livox::command::{
     CMD_CONTROL_SAMPLE, CMD_HANDSHAKE, CMD_HEARTBEAT, Handshake, HeartbeatAck,

@@ -2,7 +2,6 @@
 //! point-data packet): any datagram decodes or is refused without panicking, every encodable
 //! frame and packet round-trips, any single-bit corruption of a control frame is refused, and
 //! every truncation of a point packet is.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_hw::lidar::livox::command::{Broadcast, Handshake, HeartbeatAck, HostCommand};
 use harvest_hw::lidar::livox::frame::{Frame, PacketType, decode_frame, encode_frame};

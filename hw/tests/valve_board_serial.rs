@@ -4,7 +4,6 @@
 //!
 //! Every test arms a watchdog that aborts the process after 30 s, and every driver call is
 //! bounded by its per-request timeout times its attempts.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_hw::valve_board::conformance::{
     ConformanceConfig, ConformanceError, TestWatchdog, conformance_suite_with,

@@ -1,8 +1,7 @@
-//! Property tests of the valve board's serial decoders (issue 18, item 3): the line assembler
+//! Property tests of the valve board's serial decoders: the line assembler
 //! and the frame, reply, fault and request decoders take any byte stream without panicking,
 //! never hand out a line the protocol forbids, recover every well-formed frame from between
 //! any noise, and refuse any single-bit corruption of a frame.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_hw::valve_board::line_assembler::LineAssembler;
 use harvest_hw::valve_board::protocol::{

@@ -1,5 +1,5 @@
 //! Which of the robot's two arms: the one arm identifier of the whole stack (channel selection in
-//! the catalogue, the robot model's Table 1 parameters, the policies, the monitor, the simulator).
+//! the catalogue, the robot model's [dual-arm Table 1] parameters, the policies, the monitor, the simulator).
 
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -14,6 +14,7 @@ pub enum ArmId {
 }
 
 impl ArmId {
+    /// Both arms, in index order.
     pub const ALL: [ArmId; 2] = [ArmId::Arm1, ArmId::Arm2];
 
     /// The arm numbered 1 or 2 (command lines, wire ids); `None` for any other number.
@@ -38,6 +39,7 @@ impl ArmId {
         self.number() as usize - 1
     }
 
+    /// The arm on the other side.
     pub const fn other(self) -> Self {
         match self {
             Self::Arm1 => Self::Arm2,

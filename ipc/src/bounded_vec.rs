@@ -19,8 +19,10 @@ pub struct BoundedVec<T: Copy + Default + ZeroCopySend, const N: usize> {
 }
 
 impl<T: Copy + Default + ZeroCopySend, const N: usize> BoundedVec<T, N> {
+    /// The largest number of items (`N`).
     pub const CAPACITY: usize = N;
 
+    /// An empty vector (all slots default).
     pub fn new() -> Self {
         Self {
             len: 0,
@@ -34,14 +36,17 @@ impl<T: Copy + Default + ZeroCopySend, const N: usize> BoundedVec<T, N> {
         &self.items[..(self.len as usize).min(N)]
     }
 
+    /// The number of meaningful items.
     pub fn len(&self) -> usize {
         self.as_slice().len()
     }
 
+    /// Whether there are no items.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
+    /// Forgets every item (the slots keep their bytes).
     pub fn clear(&mut self) {
         self.len = 0;
     }
@@ -57,6 +62,7 @@ impl<T: Copy + Default + ZeroCopySend, const N: usize> BoundedVec<T, N> {
         Ok(())
     }
 
+    /// The meaningful items, in order.
     pub fn iter(&self) -> std::slice::Iter<'_, T> {
         self.as_slice().iter()
     }

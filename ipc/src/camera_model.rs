@@ -17,11 +17,17 @@ use serde::{Deserialize, Serialize};
 )]
 #[serde(deny_unknown_fields)]
 pub struct CameraIntrinsics {
+    /// Image width, pixels.
     pub width_px: u32,
+    /// Image height, pixels.
     pub height_px: u32,
+    /// Focal length along x, pixels.
     pub fx_px: f64,
+    /// Focal length along y, pixels.
     pub fy_px: f64,
+    /// Principal point x, pixels from the left edge.
     pub cx_px: f64,
+    /// Principal point y, pixels from the top edge.
     pub cy_px: f64,
     /// `[k1, k2, p1, p2, k3]`.
     pub distortion: [f64; 5],
@@ -168,7 +174,9 @@ impl CameraIntrinsics {
 )]
 #[serde(deny_unknown_fields)]
 pub struct RigidTransform {
+    /// Rotation matrix, row-major (`rotation[row][column]`).
     pub rotation: [[f64; 3]; 3],
+    /// Translation, metres, applied after the rotation.
     pub translation_m: [f64; 3],
 }
 
@@ -179,6 +187,7 @@ impl Default for RigidTransform {
 }
 
 impl RigidTransform {
+    /// The transform that changes nothing.
     pub const IDENTITY: Self = Self {
         rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
         translation_m: [0.0; 3],

@@ -13,7 +13,7 @@
 //! on the servos or valves. Channels with several writers say so with
 //! [`Qos::with_max_publishers`] and name their writers: `vacuum/valve_request` (the two arms),
 //! `harvest/events` (arms and vacuum supervisor), `system/health` (every process),
-//! `operator/command` (`harvest ctl`, the console). A crashed
+//! `operator/command` and `operator/mark` (`harvest ctl`, the console). A crashed
 //! writer's port is removed by the supervisor's stale-resource cleanup before its restart
 //! ([`crate::cleanup::remove_dead_nodes`]), so restarts still find the slot free. Replaying a
 //! recording into a domain where the stack runs is refused per channel for the channels the
@@ -38,7 +38,9 @@ pub struct Qos {
     /// Publishers the channel accepts at once: its legitimate writers (1 in every preset; see
     /// the module's writer policy). Also the event companion's notifier limit.
     pub max_publishers: usize,
+    /// Subscribers the channel accepts at once (also the event companion's listener limit).
     pub max_subscribers: usize,
+    /// Nodes (processes) that may have the channel's service open at once.
     pub max_nodes: usize,
     /// Samples one publisher may hold loaned at once.
     pub max_loans: usize,
@@ -62,16 +64,27 @@ impl Qos {
         ..Self::SMALL
     };
     /// Multi-megabyte frames. iceoryx2 pre-allocates each publisher's data segment for the
-    /// worst case, (subscribers x buffer + history + loans) x payload size, so every buffer slot
-    /// costs a whole frame of shared memory: buffers here are small on purpose. One writer.
+    /// worst case, [`Self::data_segment_samples`] x payload size, so every buffer slot costs a
+    /// whole frame of shared memory in every subscriber slot. Most readers want only the
+    /// newest frame (perception, the viewers, the benchmarks: buffer 1-2), and the recorder,
+    /// which wants every frame, copies each one out at once into its own writer queue, so a
+    /// short buffer covers its receive loop: many subscribers with short buffers, not a few
+    /// with long ones. 8 subscribers x (3 + 2 borrowed) + 2 loans = 42 frames, as many as the
+    /// earlier 4 x (8 + 2) + 2: the stack's four readers (perception, recorder, Foxglove
+    /// bridge, console) plus four tools at once (a benchmark, a second viewer, a monitor, a
+    /// replay check) in the same shared memory. A ninth subscriber is refused at port creation
+    /// ([`crate::error::OpenChannelError::PortLimit`], naming the channel and the limit) and
+    /// changes nothing for the others. One writer.
     pub const FRAMES: Self = Self {
         history_size: 0,
-        subscriber_max_buffer_size: 8,
+        subscriber_max_buffer_size: 3,
         default_buffer_size: 2,
         safe_overflow: true,
         max_publishers: 1,
-        max_subscribers: 4,
-        max_nodes: 8,
+        max_subscribers: 8,
+        // The subscribers' nodes, the publisher's, and room for a restarted process's node
+        // before its stale one is cleaned.
+        max_nodes: 12,
         max_loans: 2,
     };
 
@@ -88,7 +101,21 @@ impl Qos {
     pub const fn single_writer(&self) -> bool {
         self.max_publishers == 1
     }
+
+    /// Samples in each publisher's data segment, as iceoryx2 0.10 sizes it
+    /// (`required_amount_of_samples_per_data_segment`): subscribers x (buffer + borrowed) +
+    /// history + loans. Times the payload size, that is the shared memory one publisher holds.
+    pub const fn data_segment_samples(&self) -> usize {
+        self.max_subscribers * (self.subscriber_max_buffer_size + SUBSCRIBER_MAX_BORROWED_SAMPLES)
+            + self.history_size
+            + self.max_loans
+    }
 }
+
+/// Samples one subscriber may hold at once (set on every service; iceoryx2's default). Two,
+/// because [`crate::Subscriber::receive_latest`] takes the next sample before it lets go of the
+/// one before.
+pub const SUBSCRIBER_MAX_BORROWED_SAMPLES: usize = 2;
 
 /// Which layer a channel belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -106,10 +133,15 @@ pub enum Layer {
 pub struct ChannelSpec {
     /// Topic name, also the MCAP topic: `camera/rgbd`, `arm1/state`.
     pub topic: &'static str,
+    /// Whether the channel is between processes, between a driver and its device, or ground truth.
     pub layer: Layer,
+    /// The payload's stable type name ([`Payload::TYPE_NAME`]), also the MCAP schema name.
     pub type_name: &'static str,
+    /// The payload's layout version ([`Payload::VERSION`]); raised on every layout change.
     pub version: u32,
+    /// Buffers, history and port limits of the channel's service.
     pub qos: Qos,
+    /// One line for people: what flows, its frame or units, its rate and its writers.
     pub description: &'static str,
 }
 
@@ -122,6 +154,7 @@ impl ChannelSpec {
 
 /// A typed channel of the catalogue.
 pub struct Channel<T: Payload> {
+    /// Topic, layer, payload type and QoS of the channel.
     pub spec: ChannelSpec,
     payload: PhantomData<fn() -> T>,
 }
@@ -179,30 +212,42 @@ impl<T: Payload> Channel<T> {
     }
 }
 
+/// Registered RGB-D frames, written by the camera driver (`harvest camera`), read by perception,
+/// the recorder and the Foxglove bridge.
 pub const CAMERA_RGBD: Channel<RgbdFrame> = Channel::new(
     "camera/rgbd",
     Qos::FRAMES,
     "registered RGB-D frames of the ToF camera (1920x1080 RGB8 + 640x480 depth mm), 30 Hz",
 );
+/// Apples detected in one camera frame, localized in the robot frame; written by perception, read
+/// by the vacuum supervisor (target assignment), the recorder and the viewers.
 pub const PERCEPTION_APPLES: Channel<AppleDetections> = Channel::new(
     "perception/apples",
     Qos::SMALL,
     "apples detected and localized in one camera frame",
 );
+/// Requests to scan one apple with the ALACS unit, written by perception, read by the laser
+/// process.
 pub const LASER_SCAN_REQUEST: Channel<LaserScanRequest> = Channel::new(
     "laser/scan_request",
     Qos::SMALL,
     "ask the ALACS unit to scan one apple",
 );
+/// The laser process's answer to each scan request: the fused centre, every per-image candidate
+/// and the timing of the scan.
 pub const LASER_SCAN_RESULT: Channel<LaserScanResult> = Channel::new(
     "laser/scan_result",
     Qos::SMALL,
     "ALACS scan result with all per-image candidates and timing",
 );
+/// The apple assigned to each arm (indexed by [`ArmId::index`]), latched; written by the vacuum
+/// supervisor, read by that arm's process.
 pub const ARM_TARGET: [Channel<ArmTarget>; 2] = [
     Channel::new("arm1/target", Qos::STATE, "apple assigned to arm 1"),
     Channel::new("arm2/target", Qos::STATE, "apple assigned to arm 2"),
 ];
+/// Joint set-points each arm process sends to its servo driver, 200 Hz (indexed by
+/// [`ArmId::index`]).
 pub const ARM_COMMAND: [Channel<ArmCommand>; 2] = [
     Channel::new(
         "arm1/command",
@@ -215,6 +260,8 @@ pub const ARM_COMMAND: [Channel<ArmCommand>; 2] = [
         "joint set-points for arm 2's servos, 200 Hz",
     ),
 ];
+/// Each arm's phase, joints and end-effector pose, latched, 200 Hz; written by the arm process,
+/// read by the vacuum supervisor, the safety monitor and the viewers.
 pub const ARM_STATE: [Channel<ArmState>; 2] = [
     Channel::new(
         "arm1/state",
@@ -227,16 +274,20 @@ pub const ARM_STATE: [Channel<ArmState>; 2] = [
         "arm 2 phase, joints and end-effector, 200 Hz",
     ),
 ];
+/// Valve open/close requests of the two arm processes to the vacuum supervisor.
 pub const VALVE_REQUEST: Channel<ValveRequest> = Channel::new(
     "vacuum/valve_request",
     Qos::SMALL.with_max_publishers(2),
     "arms ask to open or close their valves (writers: arm1, arm2)",
 );
+/// The vacuum supervisor's answer (granted or refused) to each valve request.
 pub const VALVE_GRANT: Channel<ValveGrant> = Channel::new(
     "vacuum/valve_grant",
     Qos::SMALL,
     "vacuum supervisor's answer to each valve request",
 );
+/// The vacuum system's state, latched: valves, the three pressures and the attachment inferred per
+/// arm; written by the vacuum supervisor.
 pub const VACUUM_STATE: Channel<VacuumState> = Channel::new(
     "vacuum/state",
     Qos::STATE,
@@ -260,6 +311,8 @@ pub const SAFETY_VIOLATION: Channel<SafetyViolation> = Channel::new(
     "safety rules the independent monitor found broken on the live channels, with the action \
 it asks for (report, or the protective stop)",
 );
+/// Per-apple harvest events (assigned, phases, result, rejected targets) of the arms, the vacuum
+/// supervisor and the row executive; read by the recorder, `harvest up`'s summary and `eval`.
 pub const HARVEST_EVENTS: Channel<HarvestEvent> = Channel::new(
     "harvest/events",
     // arm1, arm2 and the vacuum supervisor, with room for diagnostic tools.
@@ -267,6 +320,8 @@ pub const HARVEST_EVENTS: Channel<HarvestEvent> = Channel::new(
     "per-apple harvest events of the arms and the vacuum supervisor (assigned, phases, result, \
 rejected targets with a reason)",
 );
+/// Every process's heartbeat (2 Hz), with its state, counters and last device error; read by the
+/// supervisor, the console and the recorder.
 pub const PROCESS_HEALTH: Channel<ProcessHealth> = Channel::new(
     "system/health",
     Qos {
@@ -282,11 +337,14 @@ pub const HW_CAMERA_RGBD: Channel<RgbdFrame> = Channel::in_layer(
     "hw/camera/rgbd",
     Qos {
         max_subscribers: 2,
+        subscriber_max_buffer_size: 8,
+        max_nodes: 8,
         ..Qos::FRAMES
     },
     "frames as the ToF camera device delivers them to its driver",
 );
 
+/// Servo set-points from each arm's servo driver to its device (the simulator stands in), 200 Hz.
 pub const HW_ARM_SERVO: [Channel<ServoSetpoint>; 2] = [
     Channel::in_layer(
         Layer::Hardware,
@@ -301,6 +359,7 @@ pub const HW_ARM_SERVO: [Channel<ServoSetpoint>; 2] = [
         "servo set-points to arm 2, 200 Hz",
     ),
 ];
+/// Encoder feedback of each arm device to its driver, latched, 200 Hz.
 pub const HW_ARM_ENCODERS: [Channel<EncoderFeedback>; 2] = [
     Channel::in_layer(
         Layer::Hardware,
@@ -315,59 +374,71 @@ pub const HW_ARM_ENCODERS: [Channel<EncoderFeedback>; 2] = [
         "arm 2 encoder feedback, 200 Hz",
     ),
 ];
+/// Valve commands from the valve-board driver to the (simulated) valve board, latched.
 pub const HW_VALVE_COMMAND: Channel<ValveBoardCommand> = Channel::in_layer(
     Layer::Hardware,
     "hw/valves/command",
     Qos::STATE,
     "valve commands to the valve board",
 );
+/// Valve states and the three pressures the (simulated) valve board reports, 200 Hz.
 pub const HW_VALVE_READINGS: Channel<ValveBoardReadings> = Channel::in_layer(
     Layer::Hardware,
     "hw/valves/readings",
     Qos::STATE,
     "valve states and the 3 pressures from the valve board, 200 Hz",
 );
+/// Slide, laser and capture commands from the ALACS driver to its device.
 pub const HW_ALACS_COMMAND: Channel<AlacsCommand> = Channel::in_layer(
     Layer::Hardware,
     "hw/alacs/command",
     Qos::SMALL,
     "ALACS slide, laser and capture commands",
 );
+/// The ALACS device's answers: one 1440x1080 RGB image per capture, with the slide position.
 pub const HW_ALACS_IMAGE: Channel<AlacsImage> = Channel::in_layer(
     Layer::Hardware,
     "hw/alacs/image",
     Qos {
         max_subscribers: 2,
+        subscriber_max_buffer_size: 8,
+        max_nodes: 8,
         ..Qos::FRAMES
     },
     "ALACS device answers with the 1440x1080 RGB image",
 );
+/// In-out and up-down targets (or stop) from the platform driver to the platform movement
+/// module.
 pub const HW_PLATFORM_COMMAND: Channel<PlatformCommand> = Channel::in_layer(
     Layer::Hardware,
     "hw/platform/command",
     Qos::STATE,
     "in-out and up-down targets (or stop) to the platform movement module",
 );
+/// The platform module's stage positions and motion state, latched, 50 Hz.
 pub const HW_PLATFORM_FEEDBACK: Channel<PlatformFeedback> = Channel::in_layer(
     Layer::Hardware,
     "hw/platform/feedback",
     Qos::STATE,
     "platform stage positions and motion state, 50 Hz",
 );
-// Issue 17 (field row): the tractor pulling the trailer along the row.
+// The field row: the tractor pulling the trailer along the row.
+/// The target along the row (or stop) from the tractor driver to the tractor pulling the trailer.
 pub const HW_TRACTOR_COMMAND: Channel<TractorCommand> = Channel::in_layer(
     Layer::Hardware,
     "hw/tractor/command",
     Qos::STATE,
     "target along the row (or stop) to the tractor pulling the trailer",
 );
+/// The trailer's position along the row and motion state, latched, 20 Hz.
 pub const HW_TRACTOR_FEEDBACK: Channel<TractorFeedback> = Channel::in_layer(
     Layer::Hardware,
     "hw/tractor/feedback",
     Qos::STATE,
     "trailer position along the row and motion state, 20 Hz",
 );
-// End of issue 17's tractor channels.
+/// True apple centres and states from the simulator, latched; for evaluation only (no stack
+/// process subscribes).
 pub const SIM_GROUND_TRUTH: Channel<GroundTruth> = Channel::in_layer(
     Layer::Evaluation,
     "sim/ground_truth",
@@ -387,12 +458,14 @@ pub const HW_LIDAR_POINTS: Channel<PointCloud> = Channel::in_layer(
     "hw/lidar/points",
     Qos {
         max_subscribers: 2,
+        subscriber_max_buffer_size: 8,
+        max_nodes: 8,
         ..Qos::FRAMES
     },
     "point frames as the LiDAR device delivers them to its driver, 10 Hz",
 );
 
-// --- Operator channels (issue 15): commands, acknowledgements, the mode, manual arm orders.
+// --- Operator channels: commands, acknowledgements, the mode, manual arm orders.
 
 /// Operator commands to the executive (`harvest ctl`, the console; the safety monitor asks on
 /// `safety/violation` instead).
@@ -439,8 +512,22 @@ pub const ARM_MANUAL: [Channel<ArmManualCommand>; 2] = [
     ),
 ];
 
+/// Operator marks: any operator client may publish one (`harvest ctl mark`, the console); a
+/// mark is a note, not a command, so it needs no token. Readers: the recorder (a flight-recorder
+/// clip around each mark, the events channel of the recording).
+pub const OPERATOR_MARK: Channel<OperatorMark> = Channel::new(
+    "operator/mark",
+    Qos {
+        max_publishers: 8,
+        max_nodes: 24,
+        ..Qos::SMALL
+    },
+    "an operator's note that something worth keeping happened now (the recorder files a clip)",
+);
+
 /// Called once per catalogue channel with its payload type.
 pub trait ChannelVisitor {
+    /// Called with one channel of the catalogue.
     fn visit<T: Payload>(&mut self, channel: Channel<T>);
 }
 
@@ -481,6 +568,7 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(OPERATOR_COMMAND);
     visitor.visit(OPERATOR_ACK);
     visitor.visit(OPERATOR_MODE);
+    visitor.visit(OPERATOR_MARK);
     for arm in ArmId::ALL {
         visitor.visit(ARM_MANUAL[arm.index()]);
     }
@@ -502,6 +590,28 @@ pub fn all_specs() -> Vec<ChannelSpec> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_frame_channel_serves_eight_readers_in_the_memory_four_had() {
+        let frames = CAMERA_RGBD.spec.qos;
+        assert!(
+            frames.max_subscribers >= 8,
+            "the stack's 4 readers + 4 tools"
+        );
+        // Before: 4 subscribers x (buffer 8 + 2 borrowed) + 0 history + 2 loans.
+        let before = 4 * (8 + SUBSCRIBER_MAX_BORROWED_SAMPLES) + 2;
+        assert_eq!(before, 42);
+        assert!(frames.data_segment_samples() <= before);
+        assert!(frames.max_nodes > frames.max_subscribers);
+        // The hardware-layer frame channels keep their sizing (driver + one observer).
+        for qos in [
+            HW_CAMERA_RGBD.spec.qos,
+            HW_ALACS_IMAGE.spec.qos,
+            HW_LIDAR_POINTS.spec.qos,
+        ] {
+            assert_eq!(qos.data_segment_samples(), 2 * (8 + 2) + 2);
+        }
+    }
 
     #[test]
     fn topics_are_unique_and_well_formed() {
@@ -536,7 +646,9 @@ mod tests {
                 ("system/health", 24),
                 // Operator clients (console, ctl sessions): the executive decides which one
                 // controls.
-                ("operator/command", 8)
+                ("operator/command", 8),
+                // Marks are notes from any operator client.
+                ("operator/mark", 8)
             ]
         );
     }

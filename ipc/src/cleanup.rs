@@ -14,6 +14,7 @@ pub struct CleanupReport {
     pub removed_nodes: Vec<String>,
     /// Dead nodes whose resources could not be removed, with the reason.
     pub failed_nodes: Vec<(String, String)>,
+    /// Nodes of the domain that are alive (their resources kept).
     pub alive_nodes: usize,
 }
 
@@ -21,7 +22,9 @@ pub struct CleanupReport {
 #[derive(Debug, thiserror::Error)]
 #[error("cannot list the iceoryx2 nodes of domain {domain:?}: {reason}")]
 pub struct CleanupError {
+    /// The domain whose nodes were listed.
     pub domain: String,
+    /// iceoryx2's error, as text.
     pub reason: String,
 }
 
@@ -63,7 +66,10 @@ pub enum RegistryRemoval {
     Absent,
     /// Kept: this many nodes of the domain exist (alive, dead with resources left, or another
     /// user's).
-    InUse { nodes: usize },
+    InUse {
+        /// Nodes of the domain found.
+        nodes: usize,
+    },
 }
 
 /// Removes the domain's node registry, iceoryx2's global management segment

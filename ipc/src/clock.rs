@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// A source of "now" in nanoseconds (see the module docs for which clock).
 pub trait Clock {
+    /// Now, nanoseconds.
     fn now_ns(&self) -> u64;
 }
 
@@ -49,16 +50,19 @@ pub struct ManualClock {
 }
 
 impl ManualClock {
+    /// A clock that reads `now_ns` until moved.
     pub fn starting_at(now_ns: u64) -> Self {
         Self {
             now_ns: Arc::new(AtomicU64::new(now_ns)),
         }
     }
 
+    /// Moves the time forward by `delta_ns`.
     pub fn advance_ns(&self, delta_ns: u64) {
         self.now_ns.fetch_add(delta_ns, Ordering::SeqCst);
     }
 
+    /// Sets the time to `now_ns` (may go backward: tests only).
     pub fn set_ns(&self, now_ns: u64) {
         self.now_ns.store(now_ns, Ordering::SeqCst);
     }

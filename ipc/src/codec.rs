@@ -25,7 +25,12 @@ pub enum CodecError {
     Decode(String),
     /// The bytes are valid but of the wrong length for the expected type.
     #[error("message has {actual} bytes, expected {expected}")]
-    Length { expected: usize, actual: usize },
+    Length {
+        /// Bytes the payload type encodes to.
+        expected: usize,
+        /// Bytes the message has.
+        actual: usize,
+    },
 }
 
 /// Most bytes one decode may read or set aside for containers. A length prefix is outside

@@ -13,7 +13,9 @@ pub enum ConfigFileError {
     Read {
         /// What the file holds ("arm settings", "perception config", ...).
         what: &'static str,
+        /// The file.
         path: PathBuf,
+        /// Why it could not be read.
         source: std::io::Error,
     },
     /// Not valid TOML, an unknown key or a wrongly typed value.

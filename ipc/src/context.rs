@@ -58,14 +58,17 @@ impl Context {
         })
     }
 
+    /// The process's iceoryx2 node.
     pub fn node(&self) -> &Node<Ipc> {
         &self.node
     }
 
+    /// The domain the node lives in.
     pub fn domain(&self) -> &Domain {
         &self.domain
     }
 
+    /// The name the process was launched under (its node name).
     pub fn process_name(&self) -> &str {
         &self.process_name
     }
@@ -192,6 +195,7 @@ impl Context {
             .publish_subscribe::<T>()
             .history_size(qos.history_size)
             .subscriber_max_buffer_size(qos.subscriber_max_buffer_size)
+            .subscriber_max_borrowed_samples(crate::catalogue::SUBSCRIBER_MAX_BORROWED_SAMPLES)
             .enable_safe_overflow(qos.safe_overflow)
             .max_publishers(qos.max_publishers)
             .max_subscribers(qos.max_subscribers)

@@ -2,7 +2,7 @@
 //! ([`PeriodicTimer`]), a heartbeat every [`HEARTBEAT_PERIOD`], the tick-to-tick intervals
 //! recorded ([`PeriodStats`]).
 //!
-//! The arm and vacuum processes run this way at 200 Hz (paper 003, section 2.2): each tick is a
+//! The arm and vacuum processes run this way at 200 Hz ([dual-arm sec. 2.2]): each tick is a
 //! timer expiration on a fixed schedule, never a sleep, and every heartbeat carries the period
 //! distribution so far. The loop ends on SIGINT/SIGTERM, when the callback returns
 //! [`Flow::Stop`], or with the callback's error.
@@ -34,10 +34,16 @@ use crate::period_stats::{PeriodStats, PeriodStatsError, PeriodSummary};
 pub enum Wake {
     /// A control tick, read from the monotonic clock (already recorded in the period
     /// statistics).
-    Tick { now_ns: u64 },
+    Tick {
+        /// The tick time, ns on the monotonic stack clock.
+        now_ns: u64,
+    },
     /// Time for a heartbeat (right after a tick); `period` is the tick-to-tick distribution so
     /// far, with the deadline misses.
-    Heartbeat { period: PeriodSummary },
+    Heartbeat {
+        /// Tick-to-tick periods since start.
+        period: PeriodSummary,
+    },
 }
 
 /// Runs `on_wake` every `period_ns` ([`Wake::Tick`]) and every [`HEARTBEAT_PERIOD`]

@@ -24,10 +24,12 @@ pub struct Domain(String);
     "invalid domain {name:?}: use 1-{MAX_DOMAIN_LEN} characters of lowercase letters, digits, '_' or '-'"
 )]
 pub struct InvalidDomain {
+    /// The name that was refused.
     pub name: String,
 }
 
 impl Domain {
+    /// The domain `name`, if it is 1 to `MAX_DOMAIN_LEN` lowercase letters, digits, `_` or `-`.
     pub fn new(name: &str) -> Result<Self, InvalidDomain> {
         let valid = !name.is_empty()
             && name.len() <= MAX_DOMAIN_LEN
@@ -78,6 +80,7 @@ impl Domain {
         Self(name)
     }
 
+    /// The domain name (the iceoryx2 file prefix).
     pub fn name(&self) -> &str {
         &self.0
     }

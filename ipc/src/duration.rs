@@ -3,6 +3,8 @@
 
 use std::time::Duration;
 
+/// Parses `text` (`10s`, `500ms`, `2m`, `1h`, `1.5s`, or plain seconds); the error says what
+/// was expected.
 pub fn parse_duration(text: &str) -> Result<Duration, String> {
     let text = text.trim();
     let (number, scale_s) = if let Some(n) = text.strip_suffix("ms") {

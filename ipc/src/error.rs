@@ -3,15 +3,25 @@
 /// Creating the process's iceoryx2 node failed.
 #[derive(Debug, thiserror::Error)]
 pub enum NodeError {
+    /// The node name is not one iceoryx2 accepts.
     #[error("invalid node name {name:?}: {reason}")]
-    InvalidName { name: String, reason: String },
+    InvalidName {
+        /// The name asked for (the process name).
+        name: String,
+        /// iceoryx2's reason for refusing it.
+        reason: String,
+    },
+    /// iceoryx2 could not create the node (usually shared memory in `/dev/shm`).
     #[error(
         "cannot create the iceoryx2 node {name:?} in domain {domain:?}: {reason} \
 (is /dev/shm full or not writable? `df -h /dev/shm`)"
     )]
     Create {
+        /// The node name (the process name).
         name: String,
+        /// The iceoryx2 domain (service-name prefix) the node was created in.
         domain: String,
+        /// iceoryx2's error, as text.
         reason: String,
     },
 }
@@ -28,10 +38,15 @@ pub enum OpenChannelError {
 the other stack, or run `harvest clean --domain {domain}`"
     )]
     Incompatible {
+        /// The channel's topic in the catalogue.
         topic: &'static str,
+        /// The payload type this process expects (the catalogue's type name).
         type_name: &'static str,
+        /// The payload layout version this process expects.
         version: u32,
+        /// The iceoryx2 domain the channel lives in.
         domain: String,
+        /// How the existing service differs.
         mismatch: Incompatibility,
     },
     /// The channel already has as many ports of this kind as its QoS allows.
@@ -40,7 +55,9 @@ the other stack, or run `harvest clean --domain {domain}`"
 (catalogue QoS); a stale process may still hold ports (`harvest clean`)"
     )]
     PortLimit {
+        /// The channel's topic in the catalogue.
         topic: &'static str,
+        /// The kind of port that found no room.
         port: PortKind,
         /// The service's limit for `port`.
         limit: usize,
@@ -48,25 +65,40 @@ the other stack, or run `harvest clean --domain {domain}`"
     /// Shared memory for the port could not be allocated.
     #[error(
         "channel {topic:?}: no shared memory for the {port}'s data segment (`df -h /dev/shm`; \
-its size is the payload size times subscribers x buffer + history + loans)"
+its size is the payload size times subscribers x (buffer + borrowed) + history + loans)"
     )]
-    OutOfMemory { topic: &'static str, port: PortKind },
+    OutOfMemory {
+        /// The channel's topic in the catalogue.
+        topic: &'static str,
+        /// The kind of port whose segment could not be allocated.
+        port: PortKind,
+    },
     /// Another failure creating a port.
     #[error("channel {topic:?}: cannot create the {port}: {reason}")]
     Port {
+        /// The channel's topic in the catalogue.
         topic: &'static str,
+        /// The kind of port being created.
         port: PortKind,
+        /// iceoryx2's error, as text.
         reason: String,
     },
     /// Another failure opening or creating the channel's services.
     #[error("channel {topic:?}: {reason}")]
-    Service { topic: &'static str, reason: String },
+    Service {
+        /// The channel's topic in the catalogue.
+        topic: &'static str,
+        /// iceoryx2's error, as text.
+        reason: String,
+    },
 }
 
 /// The kind of iceoryx2 port (or participant) a channel operation concerns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PortKind {
+    /// The publisher of a channel's payloads.
     Publisher,
+    /// A subscriber of a channel's payloads.
     Subscriber,
     /// The event notifier paired with every publisher.
     Notifier,
@@ -125,7 +157,9 @@ pub enum SendError {
 use (send or drop a loan first)"
     )]
     LoansExhausted {
+        /// The channel's topic in the catalogue.
         topic: &'static str,
+        /// The publisher's loan limit (catalogue QoS).
         max_loans: usize,
     },
     /// Every sample of the publisher's data segment is in use (held by subscribers or loans).
@@ -133,18 +167,35 @@ use (send or drop a loan first)"
         "channel {topic:?}: cannot loan a sample: every sample of the publisher's data segment is \
 in use (subscribers hold them longer than the QoS budgets)"
     )]
-    OutOfMemory { topic: &'static str },
+    OutOfMemory {
+        /// The channel's topic in the catalogue.
+        topic: &'static str,
+    },
+    /// Another failure loaning a sample.
     #[error("channel {topic:?}: cannot loan a sample: {reason}")]
-    Loan { topic: &'static str, reason: String },
+    Loan {
+        /// The channel's topic in the catalogue.
+        topic: &'static str,
+        /// iceoryx2's error, as text.
+        reason: String,
+    },
+    /// Delivering the sample (or notifying its listeners) failed.
     #[error("channel {topic:?}: send failed: {reason}")]
-    Send { topic: &'static str, reason: String },
+    Send {
+        /// The channel's topic in the catalogue.
+        topic: &'static str,
+        /// iceoryx2's error, as text.
+        reason: String,
+    },
 }
 
 /// Receiving failed.
 #[derive(Debug, thiserror::Error)]
 #[error("channel {topic:?}: receive failed: {reason}")]
 pub struct ReceiveError {
+    /// The channel's topic in the catalogue.
     pub topic: &'static str,
+    /// iceoryx2's error, as text.
     pub reason: String,
 }
 
@@ -152,6 +203,7 @@ pub struct ReceiveError {
 #[derive(Debug, thiserror::Error)]
 #[error("wait set: {reason}")]
 pub struct WaitError {
+    /// iceoryx2's error, as text.
     pub reason: String,
 }
 
@@ -160,14 +212,19 @@ pub struct WaitError {
 /// transport error in every process.
 #[derive(Debug, thiserror::Error)]
 pub enum IpcError {
+    /// Creating the node failed.
     #[error(transparent)]
     Node(#[from] NodeError),
+    /// Opening a channel or a port failed.
     #[error(transparent)]
     Channel(#[from] OpenChannelError),
+    /// Loaning or sending a sample failed.
     #[error(transparent)]
     Send(#[from] SendError),
+    /// Receiving a sample failed.
     #[error(transparent)]
     Receive(#[from] ReceiveError),
+    /// Waiting for events failed.
     #[error(transparent)]
     Wait(#[from] WaitError),
 }

@@ -11,6 +11,7 @@ pub struct FixedString<const N: usize> {
 }
 
 impl<const N: usize> FixedString<N> {
+    /// `text`, truncated to `N` bytes at a character boundary.
     pub fn new(text: &str) -> Self {
         let mut bytes = [0u8; N];
         let mut end = text.len().min(N);
@@ -30,6 +31,7 @@ impl<const N: usize> FixedString<N> {
         out
     }
 
+    /// The text up to the first zero byte (`<invalid utf-8>` for bytes that are not UTF-8).
     pub fn as_str(&self) -> &str {
         let end = self.bytes.iter().position(|&b| b == 0).unwrap_or(N);
         std::str::from_utf8(&self.bytes[..end]).unwrap_or("<invalid utf-8>")

@@ -27,7 +27,10 @@ use serde::{Deserialize, Serialize};
 )]
 #[type_name("harvest.Header.v1")]
 pub struct Header {
+    /// Per-publisher sequence number, from 1; set by the transport.
     pub msg_seq: u64,
+    /// Time of validity of the data, ns on the stack clock; set by the producer.
     pub capture_ns: u64,
+    /// When the transport handed the sample to iceoryx2, ns on the stack clock.
     pub publish_ns: u64,
 }

@@ -5,7 +5,7 @@ use crate::clock::MonotonicClock;
 use crate::context::Context;
 use crate::error::{OpenChannelError, SendError};
 use crate::fixed_string::FixedString;
-use crate::payloads::{ProcessHealth, ProcessRunState};
+use crate::payloads::{DeviceErrorCode, ProcessHealth, ProcessRunState};
 use crate::period_stats::PeriodSummary;
 use crate::publisher::Publisher;
 use std::time::Duration;
@@ -18,15 +18,30 @@ pub struct HealthReporter {
     publisher: Publisher<ProcessHealth>,
     process_name: FixedString<32>,
     pid: u32,
+    last_device_error: DeviceErrorCode,
 }
 
 impl HealthReporter {
+    /// Opens the publisher of `system/health` for this process.
     pub fn new(context: &Context) -> Result<Self, OpenChannelError> {
         Ok(Self {
             publisher: context.publisher(PROCESS_HEALTH)?,
             process_name: FixedString::new(context.process_name()),
             pid: std::process::id(),
+            last_device_error: DeviceErrorCode::None,
         })
+    }
+
+    /// Records the kind of a device error the process met; every following heartbeat carries
+    /// it ([`ProcessHealth::last_device_error`]) until the next one. The process maps its
+    /// driver's error with `harvest_hw::ErrorKind`'s conversion.
+    pub fn note_device_error(&mut self, kind: DeviceErrorCode) {
+        self.last_device_error = kind;
+    }
+
+    /// The kind of the last device error noted ([`DeviceErrorCode::None`]: none).
+    pub fn last_device_error(&self) -> DeviceErrorCode {
+        self.last_device_error
     }
 
     /// Sends one heartbeat. `main_channel_count` counts messages on the process's main channel
@@ -68,12 +83,14 @@ impl HealthReporter {
     ) -> Result<(), SendError> {
         let process_name = self.process_name;
         let pid = self.pid;
+        let last_device_error = self.last_device_error;
         self.publisher
             .publish_with(MonotonicClock::read_ns(), |health| {
                 health.process_name = process_name;
                 health.pid = pid;
                 health.run_state.set(run_state);
-                health._reserved = [0; 3];
+                health.last_device_error.set(last_device_error);
+                health._reserved = [0; 2];
                 health.main_channel_count = main_channel_count;
                 health.detail = FixedString::new(detail);
                 health.detail_value = detail_value;

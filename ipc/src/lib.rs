@@ -9,6 +9,9 @@
 //!   enums carried as typed codes.
 //! - [`termination`]: the one SIGINT/SIGTERM mechanism of every loop.
 
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+#![deny(missing_docs)]
+
 // The derives name `::harvest_ipc::...`; this lets them work inside this crate too.
 extern crate self as harvest_ipc;
 
@@ -33,7 +36,7 @@ pub mod fixed_string;
 pub mod header;
 pub mod health;
 pub mod memory_lock;
-// The operator channels' client side (issue 15).
+// The operator channels' client side.
 pub mod operator_client;
 pub mod payload;
 pub mod payloads;

@@ -22,10 +22,16 @@ pub enum MemoryLock {
     /// The launch file did not ask for it ([`LOCK_MEMORY_ENV`] unset).
     NotRequested,
     /// `mlockall(MCL_CURRENT | MCL_FUTURE)` succeeded; `locked_kib` is the kernel's `VmLck`.
-    Locked { locked_kib: u64 },
+    Locked {
+        /// Memory locked, KiB (`VmLck` of `/proc/self/status`).
+        locked_kib: u64,
+    },
     /// The kernel refused (`EPERM` without `CAP_IPC_LOCK`, `ENOMEM` beyond `RLIMIT_MEMLOCK`):
     /// the process runs unlocked.
-    Refused { errno: nix::errno::Errno },
+    Refused {
+        /// The error `mlockall` returned.
+        errno: nix::errno::Errno,
+    },
 }
 
 /// Whether this process was asked to lock its memory.

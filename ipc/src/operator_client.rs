@@ -16,10 +16,13 @@ use crate::subscriber::Subscriber;
 #[derive(Debug, thiserror::Error)]
 pub enum OperatorClientError {
     #[error(transparent)]
+    /// Opening the operator channels failed.
     Open(#[from] OpenChannelError),
     #[error(transparent)]
+    /// Sending the command failed.
     Send(#[from] SendError),
     #[error(transparent)]
+    /// Receiving the acknowledgement failed.
     Receive(#[from] ReceiveError),
 }
 

@@ -26,7 +26,9 @@ pub trait Payload: AnyBitPattern + ZeroCopySend + std::fmt::Debug {
     /// schema data.
     const SCHEMA: &'static str;
 
+    /// The envelope every payload starts with.
     fn header(&self) -> &Header;
+    /// The envelope, to stamp before sending.
     fn header_mut(&mut self) -> &mut Header;
     /// Appends the encoded message to `out`.
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), CodecError>;

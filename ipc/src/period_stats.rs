@@ -1,6 +1,6 @@
 //! Timing of a periodic control loop: the distribution of its tick-to-tick intervals.
 //!
-//! The arm and vacuum processes run at 200 Hz (paper 003, section 2.2: a 5 ms control period).
+//! The arm and vacuum processes run at 200 Hz (a 5 ms control period, [dual-arm sec. 2.2]).
 //! Each tick records the interval since the previous one; the percentiles tell how regular the
 //! loop really is on the host (jitter = interval minus the nominal period). Recording does not
 //! allocate: the histogram is sized once for intervals up to [`PeriodStats::MAX_RECORDED_NS`].

@@ -33,7 +33,10 @@ pub enum PeriodicTimerError {
 pub enum TimerWake {
     /// One or more ticks are due: `elapsed` expirations since the previous wait (1 when the
     /// caller kept up; more when it was held up past the next tick).
-    Tick { elapsed: u64 },
+    Tick {
+        /// Timer expirations since the previous wait.
+        elapsed: u64,
+    },
     /// A signal interrupted the wait before a tick (check for a termination request).
     Interrupted,
 }

@@ -51,6 +51,7 @@ impl<T: Payload> Publisher<T> {
         }
     }
 
+    /// The channel this publisher writes.
     pub fn channel(&self) -> Channel<T> {
         self.channel
     }

@@ -3,7 +3,7 @@
 //!
 //! [`Domain::unique`] names a fresh domain; every node created in it makes iceoryx2 create the
 //! domain's node registry, which iceoryx2 keeps for good (see
-//! [`remove_unused_registry`](crate::cleanup::remove_unused_registry)). Without this guard each
+//! [`remove_unused_registry`]). Without this guard each
 //! test domain left one `*.global_mgmt` file behind, about 45 per run of the test suite.
 
 use crate::cleanup::{RegistryRemoval, remove_dead_nodes, remove_unused_registry};
@@ -22,6 +22,7 @@ impl ScratchDomain {
         Self(Domain::unique(tag))
     }
 
+    /// The domain, for contexts opened in it.
     pub fn domain(&self) -> &Domain {
         &self.0
     }

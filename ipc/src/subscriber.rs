@@ -56,6 +56,7 @@ impl<T: Payload> Subscriber<T> {
         }
     }
 
+    /// The channel this subscriber reads.
     pub fn channel(&self) -> Channel<T> {
         self.channel
     }

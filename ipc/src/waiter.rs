@@ -10,7 +10,9 @@ use iceoryx2::waitset::WaitSetRunResult;
 /// What the callback wants after handling a wake-up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Flow {
+    /// Keep waiting.
     Continue,
+    /// End the loop.
     Stop,
 }
 
@@ -119,8 +121,10 @@ impl Waiter {
 #[derive(Debug, thiserror::Error)]
 pub enum RunError<E> {
     #[error(transparent)]
+    /// Waiting failed.
     Wait(WaitError),
     #[error(transparent)]
+    /// The callback returned an error.
     Callback(E),
 }
 

@@ -2,7 +2,6 @@
 //! name and version, the payload type's `TYPE_NAME`/`VERSION`, its iceoryx2 type name and the
 //! MCAP schema the recorder stores (`schema_name(TYPE_NAME, VERSION)`, schema data around
 //! `SCHEMA`), and the codec round-trips a value of the type.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::catalogue::{ChannelVisitor, all_specs, visit_all};
 use harvest_ipc::codec;

@@ -1,6 +1,5 @@
 //! iceoryx2 failures reach callers as typed [`OpenChannelError`]/[`SendError`] variants, chosen
 //! from iceoryx2's error enums. Real shared memory, a private domain per test.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::catalogue::{Channel, Qos};
 use harvest_ipc::error::{Incompatibility, OpenChannelError, PortKind, SendError};

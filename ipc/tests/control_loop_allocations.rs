@@ -7,7 +7,6 @@
 //! is sent. Same size every time, so glibc serves it from the thread's cache (no lock, no system
 //! call) and, with the memory locked, without a page fault. Counted by `allocation_counter` on the thread that runs the loop, from the end of the warm-up to the
 //! end of the loop. (What the arm and vacuum nodes do in a tick is counted in their own crates.)
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::allocation_counter::{self, CountingAllocator};
 use harvest_ipc::catalogue::{ARM_STATE, HARVEST_EVENTS};

@@ -1,6 +1,5 @@
 //! SIGINT/SIGTERM reach every loop through one mechanism (`harvest_ipc::termination`), even after
 //! iceoryx2's own signal handling was touched. One test: the flag is process-wide and sticky.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::{Flow, RunEnd, Waiter, termination};
 use iceoryx2::prelude::*;

@@ -10,6 +10,9 @@
 //! The argument is the collection time in seconds (default 20); collection starts once the
 //! first encoder sample arrived.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 use harvest_ipc::catalogue::{ARM_STATE, HW_ARM_ENCODERS};
 use harvest_ipc::period_stats::PeriodStats;
 use harvest_ipc::{Context, Domain, Flow, Payload, Subscriber, Waiter};

@@ -2,6 +2,9 @@
 //! PNGs, for looking at the simulated camera.
 //! Usage: `cargo run -p harvest-sim --example render_png -- [preset] [seed] [out_dir]`
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 use harvest_sim::World;
 use harvest_sim::render_rgbd::{RgbdRenderer, apple_from_label, label};
 use harvest_sim::scenario::Scenario;

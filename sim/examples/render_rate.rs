@@ -1,6 +1,9 @@
 //! Prints the single-thread render rate of a scenario preset.
 //! Usage: `cargo run --release -p harvest-sim --example render_rate -- [preset] [frames]`
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 use harvest_sim::render_rate::measure_render_rate;
 use harvest_sim::scenario::Scenario;
 

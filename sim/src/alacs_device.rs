@@ -1,4 +1,4 @@
-//! The simulated ALACS unit (paper 000, section 3): a line laser on a 20 cm slide and a
+//! The simulated ALACS unit ([alacs sec. 3]): a line laser on a 20 cm slide and a
 //! 1440x1080 RGB camera, answering the driver's commands on the `hw/alacs/*` channels.
 //!
 //! [`AlacsDeviceServer`] owns the device state (slide position, laser) and the unit's *true*
@@ -52,7 +52,7 @@ use crate::orchard::{AppleState, World};
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AlacsDeviceConfig {
-    /// The unit's true laser-camera extrinsics (default: paper Table 1, method 4).
+    /// The unit's true laser-camera extrinsics (default: [alacs Table 1], method 4).
     pub extrinsics: AlacsExtrinsics,
     /// Laser stripe and sensor noise; `laser_on` is the device's state and the noise seed
     /// advances by one per rendered frame.

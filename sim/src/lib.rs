@@ -9,6 +9,9 @@
 //! 200 Hz physics ([`physics_thread`]) and the renderers ([`render_thread`]), linked by a world
 //! snapshot ([`thread_link`]).
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod alacs;
 pub mod alacs_device;
 pub mod fake_mid70;

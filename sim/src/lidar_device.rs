@@ -1,4 +1,4 @@
-//! The simulated solid-state LiDAR (Livox Mid-70, LiDAR-camera paper Table II) looking at the
+//! The simulated solid-state LiDAR (Livox Mid-70, [fusion Table II]) looking at the
 //! same orchard world as the ToF camera, serving `hw/lidar/points` (enabled by `harvest sim
 //! --lidar`).
 //!

@@ -1,7 +1,7 @@
 //! Contact physics of vacuum harvesting: seal, attach, detach, hold, drop and release, driven by
 //! the end-effector positions the caller feeds in and by the vacuum model of [`vacuum`].
 //!
-//! Per arm and step (paper 003, sections 2.2-2.3 and 4.3):
+//! Per arm and step ([dual-arm sec. 2.2-2.3 and 4.3]):
 //! - seal: the cup is within `seal_distance_m` (1.5 cm) of an apple's surface, the arm's inlet
 //!   valve is commanded open and no leaf is in between. Whether a leaf blocks is drawn once per
 //!   attempt (apple and valve opening) with probability `failures.seal_failure`;

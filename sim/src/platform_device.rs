@@ -1,4 +1,4 @@
-//! The simulated platform movement module (paper 003, section 2): two stepper stages, in-out
+//! The simulated platform movement module ([dual-arm sec. 2]): two stepper stages, in-out
 //! (toward the canopy) and up-down, behind an Arduino that takes targets and reports the
 //! stages' positions at a steady rate.
 //!

@@ -5,7 +5,7 @@
 //!
 //! Per step (split into sub-steps of at most [`SimRobotConfig::max_substep_s`]):
 //! 1. each arm's servo drive turns its latest set-point into a joint-rate command (below) and the
-//!    first-order [`ServoModel`] integrates it (paper 003 section 3.2.3 treats the Teknic servos
+//!    first-order [`ServoModel`] integrates it ([dual-arm sec. 3.2.3] treats the Teknic servos
 //!    as first-order rate inputs);
 //! 2. the end-effector positions follow from the joints by forward kinematics, eq. 1 of paper
 //!    003, with each arm's Table 1 parameters ([`harvest_robot_model::params::ArmParams`]); the twist

@@ -1,5 +1,5 @@
 //! Row scenarios: an orchard row of several tree sections, the platform's travel and the
-//! tractor that pulls the robot's trailer along the row (paper 003, sections 2.2 and 4.1: the
+//! tractor that pulls the robot's trailer along the row ([dual-arm sec. 2.2 and 4.1]: the
 //! robot harvests stop and go along a row).
 //!
 //! A row file is TOML (unknown keys rejected):
@@ -34,7 +34,7 @@
 //! that axis is `min + stage position`. The camera, background, lighting, vacuum and failure
 //! rates of the row are those of the first section's preset.
 //!
-//! Placement (paper 003, section 4.1: the tractor halts, then the platform moves the robot in
+//! Placement ([dual-arm sec. 4.1]: the tractor halts, then the platform moves the robot in
 //! and up "so that the dropping module makes contact with the canopy"). A preset puts its
 //! canopy where the arms reach best with the stages at their stops; in a row the tractor's
 //! path keeps a clearance from the canopy that varies along the row, and so does the height

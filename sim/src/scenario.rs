@@ -2,12 +2,12 @@
 //!
 //! A scenario is a TOML file (schema below, unknown keys rejected) describing the canopy, the
 //! apples, the foliage, the light, the stems, the injected failure probabilities of the field
-//! evaluation (paper 003, Table 3), the camera pose and, optionally, the camera and vacuum
-//! hardware constants (defaults: paper 003 sections 2.1-2.3). Named presets are compiled into the
+//! evaluation ([dual-arm Table 3]), the camera pose and, optionally, the camera and vacuum
+//! hardware constants (defaults: [dual-arm sec. 2.1-2.3]). Named presets are compiled into the
 //! binary from `processes/sim/scenarios/*.toml`.
 //!
 //! Frames: the robot frame has x forward (towards the canopy), y to the left, z up, metres; it is
-//! the frame of the arm kinematics (paper 003, eq. 1). The camera frame is the ToF depth sensor's
+//! the frame of the arm kinematics ([dual-arm eq. 1]). The camera frame is the ToF depth sensor's
 //! optical frame (x right, y down, z forward); the RGB sensor sits `color_from_depth` away.
 
 use std::path::{Path, PathBuf};
@@ -159,7 +159,7 @@ pub enum AppleLayout {
     /// Uniformly random in the fruiting zone, at least `min_spacing_m` apart, with clusters.
     Random,
     /// A regular grid on one plane in the middle of the canopy depth (uniform distances to the
-    /// arms, as assumed by the cycle-time analysis of paper 003, Fig. 12).
+    /// arms, as assumed by the cycle-time analysis of [dual-arm Fig. 12]).
     Grid,
 }
 
@@ -188,7 +188,7 @@ pub struct ApplesConfig {
     pub z_range_m: [f64; 2],
     /// Apple radius distribution, metres.
     pub radius_m: TruncatedNormal,
-    /// Fraction of the apples that belong to a cluster of touching apples (paper 003, Table 3,
+    /// Fraction of the apples that belong to a cluster of touching apples ([dual-arm Table 3],
     /// "Cluster").
     pub cluster_probability: f64,
     /// Apples per cluster, seed included, `[min, max]`.
@@ -262,7 +262,7 @@ pub struct StemConfig {
     pub twist_full_rad: f64,
 }
 
-/// Failure probabilities, per harvest attempt or per apple (paper 003, Table 3).
+/// Failure probabilities, per harvest attempt or per apple ([dual-arm Table 3]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FailureConfig {
@@ -279,8 +279,8 @@ pub struct FailureConfig {
     pub heavy_occlusion: f64,
 }
 
-/// Camera mounting and the ToF camera's error model (defaults: Percipio TL460-S1-E1, paper 003
-/// section 2.1).
+/// Camera mounting and the ToF camera's error model (defaults: Percipio TL460-S1-E1,
+/// [dual-arm sec. 2.1]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CameraConfig {
@@ -376,7 +376,7 @@ impl CameraConfig {
     }
 }
 
-/// The centralized vacuum, the valve box and the end-effector (paper 003 sections 2.2-2.3).
+/// The centralized vacuum, the valve box and the end-effector ([dual-arm sec. 2.2-2.3]).
 ///
 /// Conductances are linearised flow paths, m^3/h of air per mmH2O of pressure difference.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -438,7 +438,7 @@ impl Default for VacuumConfig {
             seal_distance_m: 0.015,
             attach_min_force_n: 8.0,
             hold_min_force_n: 3.0,
-            // The module touches the canopy front (paper 003, section 4.1: the platform is
+            // The module touches the canopy front ([dual-arm sec. 4.1]: the platform is
             // moved until the dropping module contacts the canopy; 1.15 m in every preset).
             // 1.1 m put arm 2's released apples (home cup at x = 1.07 m, Table 1) off it.
             dropping_module_max_x_m: 1.15,

@@ -1,4 +1,4 @@
-//! The simulated tractor pulling the robot's trailer along the row (paper 003, sections 2.2 and
+//! The simulated tractor pulling the robot's trailer along the row ([dual-arm sec. 2.2] and
 //! 4.1), served on `hw/tractor/command` (in) and `hw/tractor/feedback` (out, 20 Hz).
 //!
 //! Dynamics: `dx/dt = clamp((r - x) / tau, 0, v)` toward the target `r` (the tractor creeps at

@@ -1,7 +1,7 @@
 //! The world's state on disk, so a restart of the sim process continues the same row exactly
 //! where it stood: the same apples (the world is regenerated from its scenario and seed), the
 //! same harvested and dropped apples, the trailer and the platform where they stood, and the
-//! robot as it was (issue 17): each arm's joints, the apple each cup held (sealed on its stem or
+//! robot as it was: each arm's joints, the apple each cup held (sealed on its stem or
 //! already detached, at the same place on the cup) and the attempt under way, the valves'
 //! commands and openings, and the vacuum's pressures. A fruit on a cup at a `kill -9` therefore
 //! stays on the cup and is counted once, when it is released over the dropping module.

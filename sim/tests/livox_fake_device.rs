@@ -3,7 +3,6 @@
 //! `tests/sim_devices.rs`), then each fault the fake can inject: dropped packets counted
 //! exactly, corrupted datagrams counted by reason and dropped, silence reported and the device
 //! reconnected when it returns, a reboot survived, discovery by broadcast code, dual returns.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_hw::conformance::TestWatchdog;
 use harvest_hw::lidar::conformance::{LidarConformanceConfig, conformance_suite};

@@ -2,7 +2,6 @@
 //! rendered: with a camera renderer that holds its frame until the test releases it, the
 //! physics steps and the encoder feedback go on. Counts ticks and samples; no timing is
 //! asserted (the bounded waits only keep a broken build from hanging).
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::catalogue::HW_ARM_ENCODERS;
 use harvest_ipc::payloads::RgbdFrame;

@@ -1,8 +1,7 @@
-//! Property test of the scenario reader (issue 18, item 3): every preset scenario with values
+//! Property test of the scenario reader: every preset scenario with values
 //! replaced by anything (NaN, negative, huge, wrongly typed), lines dropped or doubled and bytes
 //! changed: the scenario is accepted (and its camera accessors work) or refused with an error
 //! naming the file; never a panic.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_sim::scenario::Scenario;
 use harvest_test_support::toml_mutation::{mutate_toml, toml_edit};

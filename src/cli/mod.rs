@@ -28,7 +28,7 @@ enum Command {
     /// Run the whole stack under the process supervisor (default: simulated robot).
     ///
     /// One stack per domain: refused while another `harvest up` (or a process of its stack)
-    /// runs in the domain; the lock is <iceoryx2 root>/harvest-up/<domain>.lock
+    /// runs in the domain; the lock is `<iceoryx2 root>/harvest-up/<domain>.lock`
     /// (/tmp/iceoryx2/harvest-up/), holding the running supervisor's pid.
     Up(up::UpArgs),
     /// Simulated robot: the orchard world serving the hardware channels.
@@ -69,13 +69,13 @@ enum Command {
     /// LiDAR process: integrated point clouds of the solid-state LiDAR -> lidar/points.
     Lidar(harvest_lidar_process::LidarArgs),
     /// Recorder process: every channel of the domain -> MCAP files.
-    Recorder(harvest_recorder::RecorderArgs),
+    Recorder(Box<harvest_recorder::RecorderArgs>),
     /// Foxglove bridge: the stack's channels, mapped to Foxglove's schemas, on a WebSocket
     /// server (ws://127.0.0.1:8765) for Foxglove or Lichtblick.
     Foxglove(harvest_foxglove::FoxgloveArgs),
     /// Republish a recording into the channels at recorded timing.
     Replay(harvest_rec::ReplayArgs),
-    /// Recording tools: info, cat, export, recover.
+    /// Recording tools: info, cat, export, clips, recover.
     Rec {
         #[command(subcommand)]
         command: harvest_rec::RecCommand,
@@ -96,7 +96,7 @@ enum Command {
     /// the platform.
     Executive(harvest_executive::ExecutiveArgs),
     /// Operator commands from the terminal: status, start, pause, resume, stop, estop,
-    /// release, home, arm N enable|disable, jog, drop-off, platform.
+    /// release, home, arm N enable|disable, jog, drop-off, platform, mark.
     Ctl(harvest_executive::ctl::CtlArgs),
     /// Operator console: the robot's camera view, status and control panels in a browser
     /// (http://127.0.0.1:8080 by default).
@@ -123,6 +123,9 @@ enum BenchCommand {
     /// End-to-end latency in a running stack (simulated robot): capture -> camera ->
     /// perception -> arm target -> arm command per hop, and the arm control loop's jitter.
     Pipeline(harvest_bench::BenchPipelineArgs),
+    /// Perception's detectors' latency per 1920x1080 frame: ONNX models (CPU provider) beside the
+    /// colour segmentation, on one simulated frame.
+    Detector(harvest_bench::BenchDetectorArgs),
     /// The Livox Mid-70 driver (`harvest lidar --device livox`) against the fake device on
     /// loopback: rate, lost packets, CPU, latency, silence report and reconnection.
     LidarLivox(harvest_bench::BenchLidarLivoxArgs),
@@ -137,7 +140,7 @@ enum EvalCommand {
     /// clock): cycle times per apple and per attempt, success, per-apple events.
     Harvest(harvest_eval::harvest::EvalHarvestArgs),
     /// Rows stop by stop under a simulated clock with perception in the loop (the executive's
-    /// stop-and-go cycle, platform positioning): Table 2 and Table 3 of paper 003, single vs
+    /// stop-and-go cycle, platform positioning): [dual-arm Tables 2-3], single vs
     /// dual arm.
     Row(harvest_eval::row::EvalRowArgs),
     /// Laser refinement of ToF apple positions: error before/after and the time a scan costs.
@@ -237,10 +240,16 @@ impl Cli {
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Detector(args)) => {
+                harvest_bench::run_bench_detector(&args).context("detector benchmark")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::LidarLivox(args)) => {
                 harvest_bench::run_bench_lidar_livox(&args).context("lidar-livox benchmark")?;
                 Ok(ExitCode::SUCCESS)
             }
+            #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::Pipeline(args)) => {
                 let report = harvest_bench::run_bench_pipeline(&args, &domain)
                     .context("pipeline benchmark")?;

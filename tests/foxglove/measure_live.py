@@ -1,7 +1,7 @@
-"""Figures of a running `harvest foxglove` with one client (README, "Foxglove"): the bridge's CPU
-share of one core while this client is subscribed to every channel at the default rates, and the
-camera's capture-to-client latency (client receive time minus the image's capture timestamp, both
-wall clock on this host).
+"""Figures of a running `harvest foxglove` with one client (docs/benchmarks.md, "Foxglove
+bridge"): the bridge's CPU share of one core while this client is subscribed to every channel at
+the default rates, and the camera's capture-to-client latency (client receive time minus the
+image's capture timestamp, both wall clock on this host).
 
 usage: measure_live.py --url ws://127.0.0.1:8765 --seconds 20 --pid PID_OF_HARVEST_FOXGLOVE
 """

@@ -1,4 +1,4 @@
-//! Robust trajectory-tracking controller of one arm (paper 003, section 3.2.3, eq. 4-6),
+//! Robust trajectory-tracking controller of one arm ([dual-arm sec. 3.2.3, eq. 4-6]),
 //! derived in `processes/arm/CONTROLLER.md`.
 //!
 //! With the task error `e = p_e(q) - p_r` (eq. 4) the controller asks for the end-effector

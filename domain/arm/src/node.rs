@@ -3,7 +3,7 @@
 //! and answers, the other arm's state, the emergency stop) into that tick's outputs (servo
 //! set-points, the standing valve request, the `ArmState` to publish and what happened).
 //!
-//! Inside, one [`PickingCycle`] runs the four phases of paper 003 section 3.3 (Fig. 9a) with the
+//! Inside, one [`PickingCycle`] runs the four phases of [dual-arm sec. 3.3] (Fig. 9a) with the
 //! tracking controller of eq. 5-6. The node adds what the process needs around it:
 //!
 //! - **Targets.** A new `ArmTarget` (new `msg_seq`) is offered to the cycle every tick while the

@@ -1,5 +1,5 @@
 //! First-order servo plant of one arm, used to verify the tracking controller and the picking
-//! cycle (and usable by a simulator). Section 3.2.3 of paper 003 treats the Teknic servos as
+//! cycle (and usable by a simulator). [dual-arm sec. 3.2.3] treats the Teknic servos as
 //! first-order velocity inputs; we model each joint rate as a first-order lag of the commanded
 //! rate, `tau v_dot = u - v`, plus an additive rate disturbance `d` (load, friction, servo
 //! mismatch), integrated to position: `q_dot = v + d`. Positions stop at the joint limits

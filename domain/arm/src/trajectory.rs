@@ -1,4 +1,4 @@
-//! Quintic spline trajectories (paper 003, section 3.2.2, eq. 3) and their time scaling.
+//! Quintic spline trajectories ([dual-arm sec. 3.2.2, eq. 3]) and their time scaling.
 //!
 //! [`QuinticSpline`] interpolates `n` timed waypoints, independently per axis, with one quintic
 //! polynomial per segment (eq. 3, written in local time `tau = t - t_i` for conditioning). The

@@ -5,7 +5,6 @@
 //! check against the other arm, attach, twist, retract, release), a missed deadline and an
 //! emergency stop, after one cycle of warm-up. Also `pick_reachable`, the kinematic test the
 //! vacuum supervisor runs per apple and arm on each detection set.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_arm::harvest_events::ArmEventReporter;
 use harvest_arm::node::{

@@ -209,7 +209,7 @@ mod tests {
         ));
     }
 
-    /// The measurement of issue 17: apples in reach per stop with the chosen offsets vs the
+    /// What positioning buys: apples in reach per stop with the chosen offsets vs the
     /// fixed position (stages at their stops), on the same generated rows. Prints the figures
     /// (`cargo test -p harvest-field --release -- --nocapture positioning_beats`).
     #[test]

@@ -1,4 +1,4 @@
-//! The stop-and-go cycle along a row (paper 003, sections 2.2 and 4.1): the tractor halts at a
+//! The stop-and-go cycle along a row ([dual-arm sec. 2.2 and 4.1]): the tractor halts at a
 //! harvest location; with the arms parked the platform moves the robot so that the most
 //! detected apples are in reach ([`crate::choose_offsets`]); after fresh detections the arms
 //! harvest until nothing reachable is left; then the tractor advances to the next stop, by

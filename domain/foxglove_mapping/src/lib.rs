@@ -14,6 +14,9 @@
 //! Frames: [`frames`]. Time: [`stamps`]. Viewing rates: [`rates`]. Pure: no transport, no
 //! network, no files; a [`topics::MappedSink`] takes the messages.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod arm_frames;
 pub mod camera;
 pub mod color;

@@ -1,4 +1,3 @@
-#![allow(clippy::unwrap_used, clippy::expect_used)]
 //! The shipped Foxglove layout (`docs/foxglove/harvest-layout.json`) names only topics the
 //! mapping publishes, `/vacuum` fields its schema declares and joints the arms report: a renamed
 //! topic or field fails here instead of leaving an empty panel.

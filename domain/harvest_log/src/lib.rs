@@ -1,6 +1,6 @@
 //! The harvest as a reader of `harvest/events` sees it: one line per per-apple event worth
 //! showing (assigned, phases, result, failure cause, refused targets) and, at the end, the
-//! summary (paper 003, section 4.2 and Table 2 definitions, as in `harvest eval harvest`):
+//! summary ([dual-arm sec. 4.2, Table 2] definitions, as in `harvest eval harvest`):
 //!
 //! - an *attempt* is one target taken by an arm until the arm is idle again (the arm's
 //!   `AttemptEnded`), or a target dispatched and never taken (the vacuum supervisor's
@@ -20,6 +20,9 @@
 //!
 //! "Harvested" is the arm's account (the apple was released at the drop-off with the seal
 //! held): the live stack has no ground truth. The evaluation scores against the simulator's.
+
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod table3;
 
@@ -106,7 +109,7 @@ pub struct HarvestLogSummary {
     pub attempts: u32,
     /// Failed attempts by cause label.
     pub failure_causes: BTreeMap<&'static str, u32>,
-    /// Failed attempts by paper 003's Table 3 category, as far as the live stack can tell
+    /// Failed attempts by category of [dual-arm Table 3], as far as the live stack can tell
     /// ([`table3::table3_category`]).
     pub failure_categories: BTreeMap<&'static str, u32>,
     /// Targets the arms refused for good, by cause label.

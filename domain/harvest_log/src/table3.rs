@@ -1,4 +1,4 @@
-//! The live stack's failed attempts in the categories of paper 003's Table 3, as far as the
+//! The live stack's failed attempts in the categories of [dual-arm Table 3], as far as the
 //! stack can tell them apart without ground truth.
 //!
 //! The stack sees a failed attempt only through the vacuum: no seal within the attach window

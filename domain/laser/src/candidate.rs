@@ -1,4 +1,4 @@
-//! Per-image position candidate of the target apple (paper 000, section 3, step 3; the paper
+//! Per-image position candidate of the target apple ([alacs sec. 3], step 3; the paper
 //! gives no formula, so this is our design).
 //!
 //! The laser plane cuts the apple (a sphere of radius `R`, centre `C`) along a circle of radius

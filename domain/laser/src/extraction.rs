@@ -1,4 +1,4 @@
-//! Laser-line extraction: one sub-pixel stripe position per image row (paper 000, section 3,
+//! Laser-line extraction: one sub-pixel stripe position per image row ([alacs sec. 3],
 //! "refinement of 3D position"; the paper defers the details to its ref. 44, so this is our
 //! design).
 //!

@@ -1,10 +1,14 @@
-//! harvest-laser: the ALACS laser scanner's algorithms (paper 000): triangulation (eq. 7-8,
-//! eq. 10), laser-line extraction, per-image position candidates and their selection, the
-//! interval scan, extrinsic calibration (Algorithm 1 and the section 5.1 comparison).
+//! harvest-laser: the ALACS laser scanner's algorithms: triangulation ([alacs eq. 7-8,
+//! eq. 10]), laser-line extraction, per-image position candidates and their selection, the
+//! interval scan ([alacs sec. 3]), extrinsic calibration ([alacs Algorithm 1] and the comparison
+//! of [alacs sec. 5.1]).
 //!
 //! Transport-free: [`service`] answers one scan request on any ALACS unit; the `harvest laser`
 //! process (crate `harvest-laser-process`) runs it over the channels. The calibration command
 //! is in `harvest-calibrate`, the evaluations (`harvest eval laser`) in `harvest-eval`.
+
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod calibration;
 pub mod candidate;

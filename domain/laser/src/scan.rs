@@ -1,4 +1,4 @@
-//! The ALACS perception strategy (paper 000, section 3): initialisation, interval scanning,
+//! The ALACS perception strategy ([alacs sec. 3]): initialisation, interval scanning,
 //! refinement. No IPC here: [`ScanPlanner`] says where to put the slide, [`ScanProcessor`]
 //! turns each image into a candidate and picks the final position, and [`run_scan`] drives any
 //! [`AlacsUnit`] through one scan.

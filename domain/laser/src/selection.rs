@@ -1,5 +1,5 @@
 //! The evaluation function that picks the final apple position among the interval scan's
-//! candidates (paper 000, section 3, step 3: "a holistic evaluation function"; the paper gives
+//! candidates ([alacs sec. 3], step 3: "a holistic evaluation function"; the paper gives
 //! no formula, so this is our design).
 //!
 //! Each candidate is scored by its *predicted standard error*

@@ -1,4 +1,4 @@
-//! Answering one scan request (paper 000, section 3): perception's rough apple position, given
+//! Answering one scan request ([alacs sec. 3]): perception's rough apple position, given
 //! in the ToF colour-camera frame, is moved into the ALACS camera frame with
 //! [`ALACS_FROM_TOF_CAMERA`] (initialisation), the 5-image interval scan runs on any
 //! [`AlacsUnit`], and the refined centre and every candidate are written back into a

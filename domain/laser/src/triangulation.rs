@@ -1,4 +1,4 @@
-//! Laser triangulation (paper 000, section 4.1): from a pixel on the laser stripe to a 3D point
+//! Laser triangulation ([alacs sec. 4.1]): from a pixel on the laser stripe to a 3D point
 //! in the ALACS camera frame.
 //!
 //! - High-fidelity model, eq. 7-8: `z = L / (sin a - u_bar cos a - v_bar tan b)`,

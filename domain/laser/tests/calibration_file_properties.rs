@@ -1,9 +1,8 @@
-//! Property tests of the laser calibration readers (issue 18, item 3): sample CSVs of any
+//! Property tests of the laser calibration readers: sample CSVs of any
 //! numbers (and with fields replaced by anything), through the reader and all four calibration
 //! methods, and the calibration file with values replaced by anything, lines dropped or doubled
 //! and bytes changed. Every failure is an error naming the file (and the line); a calibration
 //! that succeeds has finite extrinsics; never a panic.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_laser::calibration::{
     CalibrationMethod, CalibrationOptions, CalibrationSample, calibrate, parse_samples_csv,

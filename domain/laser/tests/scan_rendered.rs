@@ -1,6 +1,5 @@
 //! End-to-end interval scan on the in-process rendered ALACS: plan, move, capture, extract,
 //! triangulate, fit candidates, select; with and without a leaf hiding part of the apple.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_hw::alacs::{AlacsExtrinsics, AlacsUnit, alacs_camera_intrinsics};
 use harvest_ipc::camera_model::CameraIntrinsics;

@@ -1,4 +1,4 @@
-//! Property test of what the laser process reads from shared memory (issue 18, item 3): scan
+//! Property test of what the laser process reads from shared memory: scan
 //! requests of any content (NaN or infinite rough positions, absurd radii, garbage sequence
 //! numbers) answered by the transport-free `ScanService` on the in-process rendered ALACS unit.
 //! The service answers every request: a result, or an error with its status code, never a
@@ -6,7 +6,6 @@
 //!
 //! Requests are filled through their raw bytes (`Payload` makes every bit pattern a valid
 //! value), so the property holds whatever the field types of the payload become.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsUnit, alacs_camera_intrinsics};
 use harvest_ipc::Payload;

@@ -1,4 +1,4 @@
-//! LiDAR-camera fusion (LiDAR-camera paper, section II-B): every LiDAR point `L_p` is moved into
+//! LiDAR-camera fusion ([fusion sec. II-B]): every LiDAR point `L_p` is moved into
 //! the colour camera frame by the extrinsic `camera_from_lidar` (the paper's `T_L^C`) and
 //! projected through the intrinsics `K` and the lens distortion `pi` (eq. 1-2):
 //! `p_uv = pi(K T_L^C L_p)`.

@@ -1,15 +1,19 @@
-//! harvest-lidar: the solid-state LiDAR path of the perception stack (Kang, Wang and Chen,
-//! "Accurate fruit localisation using high resolution LiDAR-camera fusion").
+//! harvest-lidar: the solid-state LiDAR path of the perception stack ([fusion sec. II]:
+//! Kang, Wang and Chen, "Accurate fruit localisation using high resolution LiDAR-camera fusion").
 //!
-//! - [`fusion`]: eq. 1-2, LiDAR points into the colour image: registered depth image,
+//! - [`fusion`]: [fusion eq. 1-2], LiDAR points into the colour image: registered depth image,
 //!   colourised cloud, mask points.
 //! - [`extrinsic_file`]: the calibrated `camera_from_lidar` as `harvest calibrate lidar-camera`
 //!   writes it (the calibration itself is in `harvest-calibrate`).
 //! - [`integration_window`]: how long returns are integrated into one cloud.
-//! - [`localization`]: fused fruit localization (section II-D-3, Z-score rejection, eq. 20).
+//! - [`localization`]: fused fruit localization ([fusion sec. II-D-3], Z-score rejection,
+//!   [fusion eq. 20]).
 //!
 //! The `harvest lidar` process is `harvest-lidar-process`; `harvest eval lidar` is in
 //! `harvest-eval`.
+
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod extrinsic_file;
 pub mod fusion;

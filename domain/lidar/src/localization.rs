@@ -1,4 +1,4 @@
-//! Fused fruit localization (LiDAR-camera paper, section II-D-3): the points of one fruit are
+//! Fused fruit localization ([fusion sec. II-D-3]): the points of one fruit are
 //! the fused points under its instance mask (`C_P_mask`, see
 //! [`crate::fusion::Fusion::points_in_mask`]); outliers from depth discontinuities (mask pixels
 //! that see a leaf in front or the background behind) are rejected by their Z-score; the fruit's

@@ -21,9 +21,12 @@
 //! Every command passes, in order: a known code; the control token; the single controlling
 //! session (another live session is refused; a session is live while it was heard within the
 //! heartbeat timeout); the mode; the arguments and the arms' states (idle, at rest, fresh);
-//! the joint limits and the clearance between the arms. The emergency stop needs the token but
-//! is taken from any session, since stopping is always allowed. The safety monitor's protective
-//! stop ([`Executive::protective_stop`]) needs neither token nor session; it engages only. In
+//! the joint limits and the clearance between the arms. The emergency stop is the exception: it
+//! needs no authority (ISO 13850: a stop is always allowed and takes effect at once), so a known
+//! `estop` code is accepted from any session, with the token, a wrong one or none, even while
+//! another session controls; it takes no control and only engages (the release is a control
+//! command like the others and returns to idle). The safety monitor's protective stop
+//! ([`Executive::protective_stop`]) likewise needs neither token nor session. In
 //! manual mode, a motion under way is stopped when the controlling session is not heard for the heartbeat timeout (500 ms
 //! by default). Refused commands change nothing.
 
@@ -278,6 +281,13 @@ impl Executive {
             Err(refusal) => return Decision::refused(refusal),
         };
         let token = message.token.as_str();
+        let client = message.client.as_str();
+        let code = message.code;
+        // The stop needs no authority: before the token, the session and the mode.
+        if command == Command::EmergencyStop {
+            let with_token = !token.is_empty() && self.token.matches(token);
+            return self.emergency_stop(now_ns, code, client, with_token);
+        }
         if token.is_empty() {
             return Decision::refused(Refusal::MissingToken);
         }
@@ -286,11 +296,6 @@ impl Executive {
         }
         if message.session_id == 0 {
             return Decision::refused(Refusal::BadArgument("session id 0".to_owned()));
-        }
-        let client = message.client.as_str();
-        let code = message.code;
-        if command == Command::EmergencyStop {
-            return self.emergency_stop(now_ns, code, client);
         }
         if command == Command::LeaveControl {
             return match &self.controller {
@@ -412,9 +417,21 @@ impl Executive {
         decision
     }
 
-    fn emergency_stop(&mut self, now_ns: u64, code: u16, client: &str) -> Decision {
+    /// The operator's emergency stop, from anyone (`with_token`: the sender showed the control
+    /// token; said in the reason so the log tells who stopped the robot and with what right).
+    fn emergency_stop(
+        &mut self,
+        now_ns: u64,
+        code: u16,
+        client: &str,
+        with_token: bool,
+    ) -> Decision {
         let already = self.mode == OperatorModeCode::EmergencyStopped;
-        let reason = format!("emergency stop by {client}");
+        let reason = if with_token {
+            format!("emergency stop by {client}")
+        } else {
+            format!("emergency stop by {client} (without the control token)")
+        };
         let mut decision = Decision::accepted(if already {
             "emergency stop already engaged"
         } else {

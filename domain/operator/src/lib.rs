@@ -1,5 +1,5 @@
 //! harvest-operator: what the operator may ask of the stack, and the one place that decides
-//! (paper 003, section 3.4: the GUI's control panel; issue 15).
+//! ([dual-arm sec. 3.4]: the GUI's control panel).
 //!
 //! - [`command`]: the typed operator commands, decoded from `operator/command` (an unknown
 //!   code is refused, never acted on) and encoded by the clients (`harvest ctl`, the console).
@@ -14,6 +14,9 @@
 //!
 //! Transport-free: the process feeds commands and the arms' states in and publishes what comes
 //! out.
+
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod action;
 pub mod command;

@@ -1,7 +1,7 @@
 //! DBSCAN (Ester et al. 1996) over 3D points, with a uniform-grid spatial index.
 //!
-//! Zhu et al. 3.1.3 cluster each apple's mask points with DBSCAN to separate the fruit surface
-//! from occluders, background and flying pixels. A point is a core point when at least
+//! [dual-arm sec. 3.1.3] clusters each apple's mask points with DBSCAN to separate the fruit
+//! surface from occluders, background and flying pixels. A point is a core point when at least
 //! `min_points` points (itself included) lie within `eps_m`; clusters are the connected sets of
 //! core points plus the border points within `eps_m` of them; all other points are noise.
 //!

@@ -1,6 +1,6 @@
 //! Where perception takes its depth from: the ToF camera's depth image (`tof`, the default) or
-//! the LiDAR cloud fused into that image's geometry (`lidar_fused`, LiDAR-camera paper section
-//! II-B, eq. 1-2 via [`harvest_lidar::fusion::Fusion`]).
+//! the LiDAR cloud fused into that image's geometry (`lidar_fused`, [fusion sec. II-B,
+//! eq. 1-2] via [`harvest_lidar::fusion::Fusion`]).
 //!
 //! The fused depth image has the ToF depth image's layout (640x480 depth intrinsics, millimetres,
 //! 0 = no point), so the pipeline (registration into the colour image, the estimators) runs on it

@@ -73,6 +73,12 @@ pub enum FrameError {
         expected_width_px: u32,
         expected_height_px: u32,
     },
+    /// The detector failed on the frame (a learned detector's runtime error).
+    #[error("detector {detector} failed: {reason}")]
+    DetectorFailed {
+        detector: &'static str,
+        reason: String,
+    },
 }
 
 impl RgbView<'_> {

@@ -19,6 +19,9 @@
 //! "Camera frame" in this crate always means the colour (RGB) camera frame: x right, y down,
 //! z forward, metres.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod apple_tracks;
 pub mod blob_localization;
 pub mod calibration;
@@ -31,6 +34,7 @@ pub mod downscale;
 pub mod estimate_checks;
 pub mod estimator;
 pub mod frame;
+pub mod frame_freshness;
 pub mod laser_refiner;
 pub mod node;
 pub mod noise_model;

@@ -5,6 +5,7 @@
 
 use crate::calibration::Calibration;
 use crate::camera_setup::CameraSetup;
+use crate::detector::{Detector, make_detector};
 use crate::estimator::EstimatorKind;
 use crate::frame::{DepthView, RgbView};
 use crate::laser_refiner::{LaserRefiner, ScanResultOutcome, TrackedApple};
@@ -21,6 +22,9 @@ pub struct PerceptionNode {
     config: PerceptionConfig,
     calibration: Calibration,
     pipeline: Option<(RgbdFrameMeta, Perception)>,
+    /// The detector until the first pipeline is built (then the pipeline holds it, and hands it
+    /// to the next one when the cameras change).
+    detector: Option<Box<dyn Detector + Send>>,
     apples: Vec<AppleEstimate>,
     refiner: LaserRefiner,
     tracked: Vec<TrackedApple>,
@@ -29,13 +33,36 @@ pub struct PerceptionNode {
 }
 
 impl PerceptionNode {
+    /// A node whose detector is built from `config.detector` with the first frame (a detector
+    /// that cannot be built rejects every frame; processes build it first with
+    /// [`Self::with_detector`] to refuse a bad model at start).
     pub fn new(config: PerceptionConfig, calibration: Calibration) -> Self {
+        Self::build(config, calibration, None)
+    }
+
+    /// A node running `detector` (built by [`make_detector`] from `config.detector`, or a
+    /// test's).
+    pub fn with_detector(
+        config: PerceptionConfig,
+        calibration: Calibration,
+        detector: Box<dyn Detector + Send>,
+    ) -> Self {
+        Self::build(config, calibration, Some(detector))
+    }
+
+    fn build(
+        config: PerceptionConfig,
+        calibration: Calibration,
+        detector: Option<Box<dyn Detector + Send>>,
+    ) -> Self {
+        let refiner = LaserRefiner::new(config.laser);
         Self {
             config,
             calibration,
             pipeline: None,
+            detector,
             apples: Vec::new(),
-            refiner: LaserRefiner::new(config.laser),
+            refiner,
             tracked: Vec::new(),
             frames_processed: 0,
             frames_rejected: 0,
@@ -204,14 +231,29 @@ impl PerceptionNode {
     ) -> Result<&mut Perception, PerceptionSetupError> {
         let perception = match self.pipeline.take() {
             Some((built_for, perception)) if built_for == *meta => perception,
-            _ => {
+            previous => {
                 let cameras = CameraSetup {
                     color: meta.rgb_intrinsics,
                     depth: meta.depth_intrinsics,
                     color_from_depth: meta.color_from_depth,
                     robot_from_camera: self.calibration.camera.robot_from_camera,
                 };
-                Perception::new(self.config, cameras)?
+                let detector = match previous {
+                    Some((_, old)) => old.into_detector(),
+                    None => match self.detector.take() {
+                        Some(detector) => detector,
+                        None => make_detector(&self.config.detector)?,
+                    },
+                };
+                // A refused camera setup keeps the detector for the next frame.
+                let config = self.config.clone();
+                match Perception::try_with_detector(config, cameras, detector) {
+                    Ok(perception) => perception,
+                    Err((error, detector)) => {
+                        self.detector = Some(detector);
+                        return Err(error);
+                    }
+                }
             }
         };
         let (_, perception) = self.pipeline.insert((*meta, perception));

@@ -1,6 +1,6 @@
 //! Depth noise model of the ToF camera.
 //!
-//! The Percipio TL460-S1-E1 datasheet (Zhu et al., section 2.1) specifies a depth accuracy of
+//! The Percipio TL460-S1-E1 datasheet ([dual-arm sec. 2.1]) specifies a depth accuracy of
 //! +/-(4 mm + 0.25 % of depth) over a 0.3-9.5 m range. This crate uses that band as a one-sigma
 //! noise scale: it sizes DBSCAN neighbourhoods and the sphere-fit inlier tolerances.
 

@@ -5,8 +5,8 @@
 //! `p_depth = z_d * (x_n, y_n, 1)` with `(x_n, y_n)` the undistorted normalized coordinates of
 //! the depth camera, `p_color = color_from_depth.apply(p_depth)`, and the colour pixel is
 //! `color.project(p_color)` (pinhole + Brown-Conrady, `harvest_ipc::camera_model`). This is the
-//! per-fruit mask-point extraction of Zhu et al. 3.1.3 and of the LiDAR-camera paper (projection
-//! eq. 1-2), with the depth camera in the LiDAR's place.
+//! per-fruit mask-point extraction of [dual-arm sec. 3.1.3] and of [fusion eq. 1-2] (projection),
+//! with the depth camera in the LiDAR's place.
 //!
 //! The rotated rays `R * (x_n, y_n, 1)` are computed once per camera rig, so each sample costs a
 //! multiply-add and one projection.

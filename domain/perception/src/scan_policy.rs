@@ -1,5 +1,5 @@
-//! When perception asks the ALACS laser scanner for a scan (paper 003 section 5: the ToF camera
-//! serves the typical apples, the laser the hard ones; paper 000: the scan localizes to
+//! When perception asks the ALACS laser scanner for a scan ([dual-arm sec. 5]: the ToF camera
+//! serves the typical apples, the laser the hard ones; [alacs sec. 5.2]: the scan localizes to
 //! millimetres where the ToF depth is uncertain).
 //!
 //! An apple qualifies when it is heavily occluded (the visible part of its image disc is below

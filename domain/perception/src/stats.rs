@@ -65,6 +65,8 @@ pub struct PerceptionStats {
     pub frames_rejected_rgb: u64,
     /// Frames rejected because the depth frame was malformed or of the wrong size.
     pub frames_rejected_depth: u64,
+    /// Frames the detector failed on (a learned detector's runtime error).
+    pub frames_detector_failed: u64,
     /// Frames whose depth image registered no sample at all (all zero / out of range).
     pub frames_without_depth: u64,
     /// Frames with more than half of the colour image over-exposed.
@@ -95,6 +97,7 @@ impl PerceptionStats {
                 | FrameError::RgbBufferSize { .. }
                 | FrameError::RgbSizeMismatch { .. },
             ) => self.frames_rejected_rgb += 1,
+            Some(FrameError::DetectorFailed { .. }) => self.frames_detector_failed += 1,
             Some(_) => self.frames_rejected_depth += 1,
             None => {
                 if frame.depth_registered_px == 0 {

@@ -38,7 +38,7 @@ pub fn measure_processing_time(
     seed: u64,
 ) -> Result<ProcessingTimeReport, PerceptionSetupError> {
     let cameras = CameraSetup::tl460_simulated(RigidTransform::IDENTITY);
-    let mut perception = Perception::new(*config, cameras)?;
+    let mut perception = Perception::new(config.clone(), cameras)?;
     let scenes: Vec<SyntheticFrame> = (0..frames.clamp(1, 4))
         .map(|k| SyntheticScene::orchard(&cameras, apple_count, seed + k as u64).render(&cameras))
         .collect();

@@ -1,4 +1,4 @@
-//! Property tests of what perception reads from outside (issue 18, item 3). From shared memory:
+//! Property tests of what perception reads from outside. From shared memory:
 //! camera frames
 //! whose metadata holds any bit pattern (NaN or zero focal lengths, sizes that do not match the
 //! buffers, rotations that are not rotations), LiDAR clouds of any content and point count, and
@@ -10,7 +10,6 @@
 //!
 //! Payloads are filled through their raw bytes (`Payload` makes every bit pattern a valid
 //! value), so the properties hold whatever the field types of the payloads become.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::Payload;
 use harvest_ipc::payloads::{

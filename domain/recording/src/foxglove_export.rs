@@ -12,7 +12,7 @@
 //! camera's mounting comes from its `harvest.calibration` record.
 
 use crate::json_schema::infer_schema;
-use crate::wall_clock::ClockPair;
+use crate::time_base::FileTimeBase;
 use harvest_foxglove_mapping::mounting_files::robot_from_camera_text;
 use harvest_foxglove_mapping::topics::{self, MappedSink, Topic, encode_into};
 use harvest_foxglove_mapping::{EncodedMapper, ImageSettings, MapError, Mounting, TimeBase};
@@ -106,7 +106,8 @@ impl MappedSink for Output {
 /// A Foxglove-readable MCAP being written.
 pub struct FoxgloveWriter {
     output: Output,
-    clock: Option<ClockPair>,
+    /// How the input's log times read (learnt from its `harvest.clock` record).
+    time: FileTimeBase,
     mounting: Mounting,
     /// Made on the first mapped message, once the clock and calibration records are known.
     mapper: Option<EncodedMapper>,
@@ -133,7 +134,7 @@ impl FoxgloveWriter {
                 buffer: Vec::new(),
                 messages_written: 0,
             },
-            clock: None,
+            time: FileTimeBase::default(),
             mounting: Mounting::default(),
             mapper: None,
             image,
@@ -146,9 +147,7 @@ impl FoxgloveWriter {
 
     /// Takes in a metadata record of the input (clock, calibration) and copies it.
     pub fn write_metadata(&mut self, metadata: &Metadata) -> Result<(), String> {
-        if let Some(pair) = crate::metadata::parse_clock(metadata) {
-            self.clock.get_or_insert(pair);
-        }
+        self.time.observe(metadata);
         if metadata.name == crate::metadata::CALIBRATION
             && self.mounting.robot_from_camera.is_none()
             && let Some(text) = metadata.metadata.get("text")
@@ -166,10 +165,13 @@ impl FoxgloveWriter {
             .map_err(mcap_text)
     }
 
-    fn stamp(&self, monotonic_ns: u64) -> u64 {
-        self.clock
-            .map(|pair| pair.to_realtime_ns(monotonic_ns))
-            .unwrap_or(monotonic_ns)
+    /// An input log or publish time on the output's UTC time base (unchanged when the input
+    /// has no clock record).
+    fn stamp(&self, file_time_ns: u64) -> u64 {
+        self.time
+            .realtime_pair()
+            .map(|pair| pair.to_realtime_ns(self.time.stack_ns(file_time_ns)))
+            .unwrap_or(file_time_ns)
     }
 
     /// True for the mapped channels a recording already holds (left out: made again).
@@ -218,10 +220,11 @@ impl FoxgloveWriter {
         bytes: &[u8],
         log_time_ns: u64,
     ) -> Result<bool, MapError<String>> {
-        let time = match self.clock {
+        let time = match self.time.realtime_pair() {
             Some(pair) => TimeBase::realtime(pair.monotonic_ns, pair.realtime_ns),
             None => TimeBase::MONOTONIC,
         };
+        let log_time_ns = self.time.stack_ns(log_time_ns);
         let mapper = self
             .mapper
             .get_or_insert_with(|| EncodedMapper::new(time, self.image, self.mounting));

@@ -4,7 +4,8 @@
 //! Every segment file starts with `harvest.recording` and `harvest.clock`, then the session
 //! records (`harvest.launch`, `harvest.calibration`, `harvest.scenario`, `harvest.notes`, each
 //! only when given); the last segment ends with `harvest.drops`, a segment closed because the
-//! disk filled up with `harvest.disk_full`.
+//! disk filled up with `harvest.disk_full`; a segment whose events channel has messages ends
+//! with `harvest.events` (their count by kind).
 
 use crate::wall_clock::{ClockPair, format_utc_iso};
 use mcap::records::Metadata;
@@ -30,6 +31,12 @@ pub const RECOVERY: &str = "harvest.recovery";
 /// Ends a segment the recorder closed because its disk was full (free and needed bytes).
 pub const DISK_FULL: &str = "harvest.disk_full";
 
+/// Events of the segment or clip (triggers and marks on `recorder/events`), counted by kind.
+pub const EVENTS: &str = "harvest.events";
+
+/// Describes a flight-recorder clip: its triggers, window and what the ring covered.
+pub const CLIP: &str = "harvest.clip";
+
 /// Version of the software that writes recordings (the workspace version).
 pub const SOFTWARE_VERSION: &str = env!("CARGO_PKG_VERSION");
 
@@ -47,22 +54,44 @@ pub fn record<K: Into<String>, V: Into<String>>(
     }
 }
 
-/// The `harvest.clock` record of a clock pair.
-pub fn clock_record(pair: ClockPair) -> Metadata {
-    record(
-        CLOCK,
-        [
-            ("monotonic_ns", pair.monotonic_ns.to_string()),
-            ("realtime_ns", pair.realtime_ns.to_string()),
-            ("realtime_utc", format_utc_iso(pair.realtime_ns)),
-            (
+/// Key of the `harvest.clock` record holding the offset added to stack-clock stamps to make
+/// the file's log and publish times (see [`crate::time_base`]).
+pub const LOG_TIME_OFFSET_NS: &str = "log_time_offset_ns";
+
+/// The `harvest.clock` record of a clock pair; `log_time_offset_ns` when the file's log and
+/// publish times are wall-clock time (stack stamp + this offset).
+pub fn clock_record(pair: ClockPair, log_time_offset_ns: Option<i64>) -> Metadata {
+    let mut entries = vec![
+        ("monotonic_ns", pair.monotonic_ns.to_string()),
+        ("realtime_ns", pair.realtime_ns.to_string()),
+        ("realtime_utc", format_utc_iso(pair.realtime_ns)),
+    ];
+    match log_time_offset_ns {
+        Some(offset) => {
+            entries.push((LOG_TIME_OFFSET_NS, offset.to_string()));
+            entries.push((
                 "meaning",
-                "log_time and publish_time are CLOCK_MONOTONIC ns of the recording host; \
-realtime_ns = stamp + (realtime_ns - monotonic_ns) of this record"
+                "log_time and publish_time are Unix-epoch ns (UTC) = CLOCK_MONOTONIC stamp of \
+the recording host + log_time_offset_ns; stamps inside payloads stay CLOCK_MONOTONIC ns"
                     .to_owned(),
-            ),
-        ],
-    )
+            ));
+        }
+        None => entries.push((
+            "meaning",
+            "log_time and publish_time are CLOCK_MONOTONIC ns of the recording host; \
+realtime_ns = stamp + (realtime_ns - monotonic_ns) of this record"
+                .to_owned(),
+        )),
+    }
+    record(CLOCK, entries)
+}
+
+/// The log-time offset of a `harvest.clock` record (`None`: stack-clock log times).
+pub fn parse_log_time_offset(metadata: &Metadata) -> Option<i64> {
+    if metadata.name != CLOCK {
+        return None;
+    }
+    metadata.metadata.get(LOG_TIME_OFFSET_NS)?.parse().ok()
 }
 
 /// Reads a clock pair back from a `harvest.clock` record.
@@ -135,13 +164,17 @@ mod tests {
             monotonic_ns: 123,
             realtime_ns: 1_700_000_000_000_000_000,
         };
-        let metadata = clock_record(pair);
+        let metadata = clock_record(pair, None);
         assert_eq!(parse_clock(&metadata), Some(pair));
         assert_eq!(
             metadata.metadata["realtime_utc"],
             "2023-11-14T22:13:20.000Z"
         );
         assert_eq!(parse_clock(&record(NOTES, [("a", "b")])), None);
+        assert_eq!(parse_log_time_offset(&metadata), None);
+        let wall = clock_record(pair, Some(-5));
+        assert_eq!(parse_clock(&wall), Some(pair));
+        assert_eq!(parse_log_time_offset(&wall), Some(-5));
     }
 
     #[test]

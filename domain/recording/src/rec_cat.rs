@@ -7,6 +7,7 @@
 
 use crate::foxglove_export::FoxgloveWriter;
 use crate::payload_codec::{JsonDecoder, SchemaMatch, json_decoder};
+use crate::recorded_events::EVENTS_TOPIC;
 use crate::recording_file::ReadError;
 use crate::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
 use crate::time_window::{absolute_window, recording_start_ns};
@@ -90,7 +91,13 @@ pub fn cat(path: &Path, options: &CatOptions, out: &mut dyn Write) -> Result<Cat
                 .as_ref()
                 .map(|schema| schema.name.as_str())
                 .unwrap_or("");
-            let decoder = decoders.entry(channel.id).or_insert_with(|| match json_decoder(schema) {
+            // The recorder's events channel (JSON) prints as it is.
+            let json_value = (channel.topic == EVENTS_TOPIC && channel.message_encoding == "json")
+                .then(|| serde_json::from_slice::<serde_json::Value>(message.data).ok())
+                .flatten();
+            let decoder = decoders.entry(channel.id).or_insert_with(|| match &json_value {
+            Some(_) => None,
+            None => match json_decoder(schema) {
             SchemaMatch::Known(decoder) => Some(decoder),
             other => {
                 let reason = other.problem(schema).unwrap_or_default();
@@ -98,14 +105,20 @@ pub fn cat(path: &Path, options: &CatOptions, out: &mut dyn Write) -> Result<Cat
                 report.undecodable.insert(channel.topic.clone(), (0, reason));
                 None
             }
-        });
-            let Some(decoder) = decoder else {
-                if let Some((count, _)) = report.undecodable.get_mut(&channel.topic) {
-                    *count += 1;
+        }});
+            let decoded = match (json_value, decoder.as_mut()) {
+                (Some(value), _) => Ok(value),
+                (None, Some(decoder)) => decoder
+                    .to_json(message.data)
+                    .map_err(|error| error.to_string()),
+                (None, None) => {
+                    if let Some((count, _)) = report.undecodable.get_mut(&channel.topic) {
+                        *count += 1;
+                    }
+                    return ControlFlow::Continue(());
                 }
-                return ControlFlow::Continue(());
             };
-            let value = match decoder.to_json(message.data) {
+            let value = match decoded {
                 Ok(value) => value,
                 Err(error) => {
                     let entry = report

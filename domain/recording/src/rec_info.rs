@@ -4,6 +4,7 @@
 use crate::metadata;
 use crate::recording_file::{ReadError, open_recording, read_indexed_metadata, read_summary};
 use crate::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
+use crate::time_base::FileTimeBase;
 use crate::units::format_bytes;
 use crate::wall_clock::format_utc_iso;
 use mcap::records::Metadata;
@@ -239,12 +240,10 @@ impl std::fmt::Display for RecordingInfo {
                 metadata::SOFTWARE_VERSION
             )?;
         }
-        let clock = self.metadata.iter().find_map(metadata::parse_clock);
-        let start = match clock {
-            Some(pair) => format!(
-                " from {}",
-                format_utc_iso(pair.to_realtime_ns(self.start_ns))
-            ),
+        let mut time = FileTimeBase::default();
+        self.metadata.iter().for_each(|record| time.observe(record));
+        let start = match time.realtime_ns(self.start_ns) {
+            Some(realtime_ns) => format!(" from {}", format_utc_iso(realtime_ns)),
             None => String::new(),
         };
         writeln!(f, "duration:    {:.3} s{start}", self.duration_s())?;
@@ -318,7 +317,20 @@ fn describe_metadata(record: &Metadata) -> String {
             "include",
             "exclude",
         ]),
-        metadata::CLOCK => pick(&["realtime_utc", "monotonic_ns"]),
+        metadata::EVENTS => entries
+            .iter()
+            .map(|(kind, count)| format!("{kind}={count}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        metadata::CLIP => pick(&[
+            "triggers",
+            "first_trigger_utc",
+            "window_s",
+            "covered_s",
+            "messages",
+            "texts",
+        ]),
+        metadata::CLOCK => pick(&["realtime_utc", "monotonic_ns", metadata::LOG_TIME_OFFSET_NS]),
         metadata::DROPS => {
             let mut lines = Vec::new();
             let mut total = 0u64;

@@ -18,6 +18,8 @@ pub struct TopicInfo {
     pub spec: ChannelSpec,
     /// [`Payload::SCHEMA`] of the channel's payload type.
     pub layout: &'static str,
+    /// Size of the payload type in memory, bytes.
+    pub payload_bytes: usize,
 }
 
 impl TopicInfo {
@@ -25,7 +27,14 @@ impl TopicInfo {
         Self {
             spec: channel.spec,
             layout: T::SCHEMA,
+            payload_bytes: std::mem::size_of::<T>(),
         }
+    }
+
+    /// A bound on one encoded message of this channel: the fixed-size payload in memory plus
+    /// room for the encoding's length prefixes.
+    pub fn max_encoded_bytes(&self) -> usize {
+        self.payload_bytes + 4096
     }
 
     /// The MCAP schema name of this channel's payload.

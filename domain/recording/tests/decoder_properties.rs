@@ -1,4 +1,4 @@
-//! Property tests of every reader of recording files (issue 18, item 3): a small valid
+//! Property tests of every reader of recording files: a small valid
 //! recording written with the segment writer, then truncated, mutated, given CRC-valid but
 //! malformed chunks or garbage, goes through the scanner, the summary readers, `rec info`,
 //! `rec cat`, `rec export` and `rec recover`. None may panic; whatever they report must be
@@ -6,7 +6,6 @@
 //! recovered file is always complete and holds what the scan of its input delivered).
 //!
 //! Case counts are bounded (see `CASES`) so the whole file runs in a few seconds on CI.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::Payload;
 use harvest_ipc::catalogue::{
@@ -145,10 +144,13 @@ fn recording(
         ))
         .expect("metadata");
     writer
-        .write_metadata(&metadata::clock_record(ClockPair {
-            monotonic_ns: 1_000_000_000,
-            realtime_ns: 1_700_000_000_000_000_000,
-        }))
+        .write_metadata(&metadata::clock_record(
+            ClockPair {
+                monotonic_ns: 1_000_000_000,
+                realtime_ns: 1_700_000_000_000_000_000,
+            },
+            None,
+        ))
         .expect("metadata");
     for n in 0..count {
         for (index, topic) in topics.iter().enumerate() {

@@ -1,6 +1,5 @@
-//! Inputs the cargo-fuzz targets in `fuzz/` found (README, "Fuzzing and property tests"), kept
+//! Inputs the cargo-fuzz targets in `fuzz/` found (docs/testing.md, "Fuzzing"), kept
 //! as regression tests. This file has its own process, so its allocator counts only its tests.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_recording::record_lengths::{RecordError, check_length_prefixes};
 use harvest_recording::scan::{ScanOptions, scan_file};

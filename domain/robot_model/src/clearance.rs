@@ -1,4 +1,4 @@
-//! Inter-arm clearance check run before an arm starts a motion (paper 003, section 3.3: each
+//! Inter-arm clearance check run before an arm starts a motion ([dual-arm sec. 3.3]: each
 //! arm checks the other arm's status before moving toward its apple).
 //!
 //! Model (choice; the paper gives no geometry for the check): each arm body is the straight

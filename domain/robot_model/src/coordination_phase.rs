@@ -1,4 +1,4 @@
-//! The phase of one arm as the vacuum coordination reasons about it (paper 003, section 3.3: each
+//! The phase of one arm as the vacuum coordination reasons about it ([dual-arm sec. 3.3]: each
 //! cycle is split into Approach, Detach, Retract and Release; Fig. 9a), with the propositions
 //! `Approach_i` (at the apple) and `Retract_i` (at the drop-off) of its logic.
 //!

@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
-/// How an attachment failed, as inferred from the pressure sensors (paper 003, section 3.3 and
+/// How an attachment failed, as inferred from the pressure sensors ([dual-arm sec. 3.3] and
 /// Table 3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum FailureKind {

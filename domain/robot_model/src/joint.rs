@@ -1,4 +1,4 @@
-//! Joint-space vectors of one 4-DOF tube arm (paper 003, section 2.2): the prismatic joint `D`
+//! Joint-space vectors of one 4-DOF tube arm ([dual-arm sec. 2.2]): the prismatic joint `D`
 //! along the robot x axis, the pitch joint `theta`, the yaw joint `phi` and the end-effector
 //! twist `psi` that rotates the soft cup about the tube axis. The twist does not move the
 //! end-effector position, so eq. 1 and eq. 2 only involve the first three joints.

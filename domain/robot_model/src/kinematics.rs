@@ -1,4 +1,4 @@
-//! Kinematics of one tube arm in the robot frame (paper 003, section 3.2.1): forward
+//! Kinematics of one tube arm in the robot frame ([dual-arm sec. 3.2.1]): forward
 //! kinematics (eq. 1), its closed-form inverse, the position Jacobian whose product with the
 //! joint rates is eq. 2, and the structured inverse of that Jacobian used by the tracking
 //! controller (eq. 5).

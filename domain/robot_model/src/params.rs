@@ -1,4 +1,4 @@
-//! Geometry and limits of the two tube arms: paper 003, Table 1 (link parameters of eq. 1 and
+//! Geometry and limits of the two tube arms: [dual-arm Table 1] (link parameters of eq. 1 and
 //! joint limits) and section 2.2 (maximum end-effector speed of the Teknic servos).
 //!
 //! Frame. Eq. 1 expresses both arms in one frame: Table 1 gives each arm its own base offset

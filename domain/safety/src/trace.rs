@@ -1,6 +1,6 @@
 //! Plain, time-stamped facts about a harvesting episode, as the safety monitor consumes them.
 //!
-//! Producers: the cycle model ([`crate::cycle_model`]), and later the full simulator and the
+//! Producers: the cycle model (`harvest_eval::cycle_model`), and later the full simulator and the
 //! recorder replaying a field log. Consumer: [`crate::safety_monitor`]. The events carry only
 //! observations (valve commands, what the pressure inference concluded, joint commands,
 //! end-effector positions), never a policy's reasoning, so the monitor can judge a trace without
@@ -11,7 +11,7 @@ pub use harvest_robot_model::FailureKind;
 use harvest_robot_model::coordination_phase::CoordinationPhase;
 use serde::{Deserialize, Serialize};
 
-/// Joints of one 4-DOF tube arm (paper 003, section 2.2 and eq. 1).
+/// Joints of one 4-DOF tube arm ([dual-arm sec. 2.2, eq. 1]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum JointId {
     /// Prismatic extension `D`, metres.

@@ -1,4 +1,4 @@
-//! Apple assignment to the two arms: Algorithm 1 of paper 003 (section 3.3, Fig. 8).
+//! Apple assignment to the two arms: [dual-arm Algorithm 1] (sec. 3.3, Fig. 8).
 //!
 //! 1. Each apple is classified by reachability: arm 1 only, arm 2 only, both, or neither (the
 //!    paper's `dist_i(p) < ∞`). Reachability is a caller-provided predicate so this crate does

@@ -1,4 +1,4 @@
-//! harvest-vacuum: the centralized vacuum of the dual-arm harvester (paper 003, sections 2.3,
+//! harvest-vacuum: the centralized vacuum of the dual-arm harvester ([dual-arm sec. 2.3],
 //! 3.3 and 4.2), as pure logic: no I/O, no clock reads (times are passed in).
 //!
 //! - [`pressure`]: attachment inference from the three pressure sensors.
@@ -14,6 +14,9 @@
 //! this crate; the discrete-event cycle model that drives the policies against it is in
 //! `harvest-eval`. The mapping from the paper's formulas to the policy state machine is in
 //! `POLICY.md`.
+
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod assignment;
 pub mod harvest_events;

@@ -1,5 +1,5 @@
 //! The vacuum supervisor's logic without any transport: [`VacuumNode`] owns the four valves of
-//! the shared vacuum (paper 003, section 2.3), infers each arm's attachment from the three
+//! the shared vacuum ([dual-arm sec. 2.3]), infers each arm's attachment from the three
 //! pressure sensors, runs the coordination policy (section 3.3, eq. 7-12, or the 2023 / baseline
 //! policies of section 4.2) and **assigns the apples to the arms**.
 //!

@@ -1,5 +1,5 @@
-//! Attachment inference from the three pressure sensors of the valve system (paper 003,
-//! section 2.3, Fig. 3: one sensor inside arm 1, one inside arm 2, one at the vacuum source;
+//! Attachment inference from the three pressure sensors of the valve system ([dual-arm sec.
+//! 2.3, Fig. 3]: one sensor inside arm 1, one inside arm 2, one at the vacuum source;
 //! source up to 2500 mmH2O of vacuum at 360 m^3/h).
 //!
 //! All pressures are *vacuum* in mmH2O below atmosphere (positive = suction), the convention

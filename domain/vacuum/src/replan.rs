@@ -1,4 +1,4 @@
-//! Keeping the assignment current as detection sets arrive (paper 003, section 3.3: the arms
+//! Keeping the assignment current as detection sets arrive ([dual-arm sec. 3.3]: the arms
 //! harvest continuously "whenever apples are available", and `Apple_Detected_i` may become true
 //! at any time).
 //!

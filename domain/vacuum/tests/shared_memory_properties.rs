@@ -1,5 +1,5 @@
-//! Property tests of what the vacuum supervisor and the arms read from shared memory (issue 18,
-//! item 3): a small stack of the real transport-free nodes (`VacuumNode`, both `ArmNode`s) wired
+//! Property tests of what the vacuum supervisor and the arms read from shared memory: a small
+//! stack of the real transport-free nodes (`VacuumNode`, both `ArmNode`s) wired
 //! as the processes wire them, around a plant (servos that follow their set-points, valves that
 //! take time to move, cups that seal at an apple), where every message between them passes a
 //! "wire" that may corrupt it: any bit pattern in any field (NaN, infinities, unknown codes,
@@ -15,7 +15,6 @@
 //!
 //! Payloads are corrupted through their raw bytes (`Payload` makes every bit pattern a valid
 //! value), so the properties hold whatever the field types of the payloads become.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_arm::node::{
     ArmNode, ArmNodeConfig, ArmNodeInput, EncoderSample, OtherArmInput, ServoOrder, pick_reachable,

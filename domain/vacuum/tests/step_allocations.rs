@@ -4,7 +4,6 @@
 //! the work the vacuum process does per tick between reading its inputs and publishing.
 //! Counted on this thread with `harvest_ipc::allocation_counter` while two simulated arms pick
 //! a tree of apples seen by the camera at 30 Hz, after a warm-up that runs the same way.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::allocation_counter::{self, CountingAllocator};
 use harvest_ipc::payloads::{

@@ -9,7 +9,9 @@ use super::{AlacsUnit, SLIDE_STROKE_M};
 #[derive(Debug, thiserror::Error)]
 #[error("ALACS conformance check `{check}` failed: {detail}")]
 pub struct ConformanceFailure {
+    /// The check's name.
     pub check: &'static str,
+    /// What was observed instead of what the check expects.
     pub detail: String,
 }
 

@@ -1,11 +1,11 @@
-//! Laser-camera extrinsics of the ALACS unit and the laser plane they imply (paper 000,
-//! section 4.1, eq. 4-8).
+//! Laser-camera extrinsics of the ALACS unit and the laser plane they imply ([alacs
+//! sec. 4.1, eq. 4-8]).
 //!
-//! Frames (paper Figure 4): the camera frame `F_c` follows the stack convention (x right, y down,
+//! Frames ([alacs Fig. 4]): the camera frame `F_c` follows the stack convention (x right, y down,
 //! z forward, metres). The laser frame `F_l` has its origin on the laser emitter, `z_l` along the
 //! centre of the fan and the fan spanning the `(y_l, z_l)` plane when `beta = 0`. The slide moves
 //! the emitter along `x_l`; moving it by `d` towards the camera shortens the laser-camera distance
-//! to `L = L0 - d` (paper section 5.2).
+//! to `L = L0 - d` ([alacs sec. 5.2]).
 
 use harvest_ipc::camera_model::RigidTransform;
 use serde::{Deserialize, Serialize};
@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use super::error::AlacsError;
 
 /// Full stroke of the linear slide: the slide position `d` lives in `[0, SLIDE_STROKE_M]`
-/// (paper section 3: 20 cm).
+/// (20 cm, [alacs sec. 3]).
 pub const SLIDE_STROKE_M: f64 = 0.20;
 
 /// Slack allowed on the stroke ends when validating a requested position (floating-point
@@ -37,20 +37,20 @@ pub fn check_slide_position(slide_position_m: f64) -> Result<(), AlacsError> {
     }
 }
 
-/// The three extrinsic parameters of the high-fidelity model (paper eq. 4-7).
+/// The three extrinsic parameters of the high-fidelity model ([alacs eq. 4-7]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AlacsExtrinsics {
-    /// `alpha`: rotation about `y_l` between the laser frame and the camera frame (eq. 4), rad.
+    /// `alpha`: rotation about `y_l` between the laser frame and the camera frame ([alacs eq. 4]), rad.
     pub alpha_rad: f64,
     /// `L0`: laser-camera distance along `x_l` with the slide at its home position `d = 0`, m.
     pub l0_m: f64,
-    /// `beta`: angle between the laser plane and the `(y_l, z_l)` plane (eq. 5), rad.
+    /// `beta`: angle between the laser plane and the `(y_l, z_l)` plane ([alacs eq. 5]), rad.
     pub beta_rad: f64,
 }
 
 impl AlacsExtrinsics {
-    /// The values the paper calibrated with its own method (Table 1, method 4): alpha 19.07 deg,
+    /// The values the ALACS paper calibrated with its own method ([alacs Table 1], method 4): alpha 19.07 deg,
     /// L0 381.98 mm, beta 0.69 deg. Used as the simulated unit's ground truth.
     pub fn paper_table1() -> Self {
         Self {
@@ -71,13 +71,13 @@ impl AlacsExtrinsics {
             && self.beta_rad.abs() < std::f64::consts::FRAC_PI_2
     }
 
-    /// Laser-camera distance `L = L0 - d` for slide position `d` (paper section 5.2), m.
+    /// Laser-camera distance `L = L0 - d` for slide position `d` ([alacs sec. 5.2]), m.
     pub fn baseline_m(&self, slide_position_m: f64) -> f64 {
         self.l0_m - slide_position_m
     }
 
     /// `camera_from_laser` at slide position `d`: the rotation about `y` by `alpha` and the
-    /// translation `(-L cos alpha, 0, L sin alpha)` of eq. 4.
+    /// translation `(-L cos alpha, 0, L sin alpha)` of [alacs eq. 4].
     pub fn camera_from_laser(&self, slide_position_m: f64) -> RigidTransform {
         let (sin_a, cos_a) = self.alpha_rad.sin_cos();
         let baseline_m = self.baseline_m(slide_position_m);
@@ -89,8 +89,8 @@ impl AlacsExtrinsics {
 
     /// The laser plane in the camera frame at slide position `d`.
     ///
-    /// The plane `x_l + y_l tan(beta) = 0` (eq. 5) mapped through eq. 4 is
-    /// `x cos(alpha) + y tan(beta) - z sin(alpha) + L = 0`, which gives eq. 7 once `x = z u_bar`
+    /// The plane `x_l + y_l tan(beta) = 0` ([alacs eq. 5]) mapped through [alacs eq. 4] is
+    /// `x cos(alpha) + y tan(beta) - z sin(alpha) + L = 0`, which gives [alacs eq. 7] once `x = z u_bar`
     /// and `y = z v_bar` are substituted.
     pub fn laser_plane_in_camera(&self, slide_position_m: f64) -> LaserPlane {
         let (sin_a, cos_a) = self.alpha_rad.sin_cos();
@@ -109,17 +109,19 @@ impl AlacsExtrinsics {
 
 /// A plane `normal . p + offset_m = 0` in the camera frame, with `normal` *not* normalised:
 /// for the laser plane `normal = (cos alpha, tan beta, -sin alpha)` and `offset_m = L`, so that
-/// the depth along a normalised ray `(u_bar, v_bar, 1)` is `-offset / (normal . ray)` (eq. 7).
+/// the depth along a normalised ray `(u_bar, v_bar, 1)` is `-offset / (normal . ray)` [alacs eq. 7].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LaserPlane {
+    /// The plane's normal (not normalised), camera frame.
     pub normal: [f64; 3],
+    /// The plane's offset `L`, metres.
     pub offset_m: f64,
 }
 
 impl LaserPlane {
     /// Unit normal, pointing to the side the slide moves the plane towards as `d` grows
-    /// (image right for the paper's geometry).
+    /// (image right for the geometry of [alacs Fig. 4]).
     pub fn unit_normal(&self) -> [f64; 3] {
         let norm = dot(self.normal, self.normal).sqrt();
         [
@@ -161,11 +163,11 @@ mod tests {
             let camera_from_laser = extrinsics.camera_from_laser(slide_position_m);
             let plane = extrinsics.laser_plane_in_camera(slide_position_m);
             for (y_l, z_l) in [(0.0, 0.5), (-0.3, 0.9), (0.2, 1.3)] {
-                // eq. 5: x_l = -y_l tan(beta).
+                // [alacs eq. 5]: x_l = -y_l tan(beta).
                 let point_in_laser = [-y_l * extrinsics.beta_rad.tan(), y_l, z_l];
                 let point_in_camera = camera_from_laser.apply(point_in_laser);
                 assert!(plane.signed_distance_m(point_in_camera).abs() < 1e-12);
-                // eq. 7 gives back the same depth from the normalised coordinates.
+                // [alacs eq. 7] gives back the same depth from the normalised coordinates.
                 let u_bar = point_in_camera[0] / point_in_camera[2];
                 let v_bar = point_in_camera[1] / point_in_camera[2];
                 let (sin_a, cos_a) = extrinsics.alpha_rad.sin_cos();

@@ -1,8 +1,8 @@
-//! ALACS unit: red line laser on a 20 cm linear slide plus an RGB camera (paper 000, section 3).
+//! ALACS unit: red line laser on a 20 cm linear slide plus an RGB camera ([alacs sec. 3]).
 //!
 //! - [`AlacsUnit`]: the device trait every implementation provides.
 //! - [`extrinsics`]: the laser-camera extrinsics `(alpha, L0, beta)`, the slide stroke and the
-//!   laser plane as a function of the slide position (eq. 4-8).
+//!   laser plane as a function of the slide position ([alacs eq. 4-8]).
 //! - [`conformance`]: the behaviour every implementation must show, generic over the trait.
 //! - [`camera`]: the default ALACS camera intrinsics.
 //! - [`mounting`]: where the unit sits relative to the ToF camera (`alacs_from_tof_camera`).

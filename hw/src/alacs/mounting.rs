@@ -1,6 +1,6 @@
 //! Where the ALACS unit sits relative to the ToF camera: the one transform the simulator uses to
 //! place its ALACS and the laser process uses to move perception's rough apple position (ToF
-//! colour-camera frame) into the ALACS camera frame before planning a scan (paper 000, section 3,
+//! colour-camera frame) into the ALACS camera frame before planning a scan ([alacs sec. 3],
 //! "Initialization": the rough location is transformed into the ALACS unit's frame).
 
 use harvest_ipc::camera_model::RigidTransform;
@@ -19,7 +19,7 @@ const ALACS_PITCH_SIN: f64 = 0.08715574274765817;
 /// y down, z forward, metres.
 ///
 /// Design mounting (the simulated unit's truth; a real robot replaces it with a measured one;
-/// the paper does not say where its unit sits): with the ToF colour sensor at robot
+/// the ALACS paper does not say where its unit sits): with the ToF colour sensor at robot
 /// `(0, -0.025, 0.9)` m pitched down 23.96 deg (every scenario preset), the ALACS camera sits at
 /// robot `(0.30, 0.20, 0.40)` m, looking along robot +x tilted 5 deg down, image x towards
 /// robot -y (the slide moves the laser left and right, as in the paper's unit). Chosen from a
@@ -27,9 +27,9 @@ const ALACS_PITCH_SIN: f64 = 0.08715574274765817;
 /// scan (`tools/eval/tests/laser_mounting.rs`, which prints the figures):
 /// - the apples the arms pick on the simulated rows lie at robot x 1.27-1.49 m, y -0.29-0.30 m,
 ///   z 0.02-0.61 m (10th-90th percentiles): about 1.0-1.2 m in front of the camera, inside
-///   the 0.6-1.2 m range the paper validated the unit over (section 5.2);
+///   the 0.6-1.2 m range [alacs sec. 5.2] validated the unit over;
 /// - the laser emitter sits `L cos(alpha)` (0.18-0.36 m) left of the camera and the laser
-///   crosses to the right (eq. 4), so the band of apple centres the 20 cm slide can scan is
+///   crosses to the right ([alacs eq. 4]), so the band of apple centres the 20 cm slide can scan is
 ///   about 0.23 m wide: at 1.1 m in front of the camera it spans robot y 0.00-0.23 m (the
 ///   earlier level mount at `(0.30, 0.05, 0.45)` m: -0.15-0.08 m) and its image, tilted 5 deg
 ///   down from 5 cm lower, now holds the lowest apples the arms pick (the earlier mount missed

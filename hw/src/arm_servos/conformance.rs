@@ -28,7 +28,7 @@ const JOINT_NAMES: [&str; JOINT_COUNT] = ["D", "theta", "phi", "twist"];
 /// `[D m, theta rad, phi rad, twist rad]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ServoConformanceConfig {
-    /// `[min, max]` position per joint, as the driver declares them (paper 003 Table 1 for the
+    /// `[min, max]` position per joint, as the driver declares them ([dual-arm Table 1] for the
     /// real arms).
     pub limits: [[f64; 2]; JOINT_COUNT],
     /// Size of the test step per joint.

@@ -2,13 +2,15 @@
 //! end-effector rotation (twist, rad), with encoder feedback.
 //!
 //! Physical caveats: servos follow set-points with a lag (first order, tens of milliseconds);
-//! set-points outside the joint limits of Table 1 are refused by the driver, never sent; the
+//! set-points outside the joint limits of [dual-arm Table 1] are refused by the driver, never sent; the
 //! encoders are sampled by the servo controller at its own rate, so feedback carries the
 //! controller's capture time. Commands are expected at >= 200 Hz; a servo controller that stops
 //! receiving them holds position.
 
 #[cfg(any(test, feature = "testing"))]
 pub mod conformance;
+#[cfg(any(test, feature = "testing"))]
+pub mod double;
 pub mod sim;
 
 use crate::error_kind::DeviceError;
@@ -21,7 +23,9 @@ pub const JOINT_COUNT: usize = 4;
 pub struct JointFeedback {
     /// When the servo controller sampled the encoders (stack clock).
     pub capture_ns: u64,
+    /// Joint positions: D in m, theta/phi/twist in rad.
     pub position: [f64; JOINT_COUNT],
+    /// Joint velocities: m/s for D, rad/s for the others.
     pub velocity: [f64; JOINT_COUNT],
     /// Bit per joint: the servo reports a fault.
     pub fault_bits: u8,
@@ -29,6 +33,7 @@ pub struct JointFeedback {
 
 /// One arm's servos.
 pub trait ArmServos {
+    /// The driver's error; its kind tells a refused set-point from a lost link.
     type Error: DeviceError;
 
     /// Sends position set-points with feed-forward velocities. Fails with kind `InvalidRequest`

@@ -4,6 +4,7 @@
 use super::{ArmServos, JOINT_COUNT, JointFeedback};
 use crate::error_kind::{DeviceError, ErrorKind};
 use harvest_ipc::catalogue::{HW_ARM_ENCODERS, HW_ARM_SERVO};
+use harvest_ipc::error::IpcError;
 use harvest_ipc::payloads::{EncoderFeedback, ServoSetpoint};
 use harvest_ipc::{ArmId, Context, MonotonicClock, Publisher, Subscriber};
 
@@ -13,13 +14,18 @@ pub enum SimServoError {
     /// A set-point was not finite or outside the joint's limits; nothing was sent.
     #[error("joint {joint} set-point {value} outside [{min}, {max}] or not finite")]
     OutOfLimits {
+        /// Joint index 0-3 (D, theta, phi, twist).
         joint: usize,
+        /// The set-point, m (joint 0) or rad.
         value: f64,
+        /// The joint's lower limit, same unit.
         min: f64,
+        /// The joint's upper limit, same unit.
         max: f64,
     },
+    /// The hardware channels to the simulator failed (opening, sending or receiving).
     #[error("simulated servo link: {0}")]
-    Link(String),
+    Link(#[from] IpcError),
 }
 
 impl DeviceError for SimServoError {
@@ -41,13 +47,14 @@ pub struct SimArmServos {
 }
 
 impl SimArmServos {
+    /// Opens arm `arm`'s servo and encoder channels; `limits` are the `[min, max]` per joint
+    /// the driver refuses set-points outside of.
     pub fn connect(
         context: &Context,
         arm: ArmId,
         limits: [[f64; 2]; JOINT_COUNT],
     ) -> Result<Self, SimServoError> {
-        let link =
-            |error: harvest_ipc::error::OpenChannelError| SimServoError::Link(error.to_string());
+        let link = |error: harvest_ipc::error::OpenChannelError| SimServoError::Link(error.into());
         Ok(Self {
             setpoints: context.publisher(HW_ARM_SERVO[arm.index()]).map_err(link)?,
             encoders: context
@@ -71,7 +78,7 @@ impl SimArmServos {
                 setpoint.joint_position = position;
                 setpoint.joint_velocity = velocity;
             })
-            .map_err(|error| SimServoError::Link(error.to_string()))?;
+            .map_err(|error| SimServoError::Link(error.into()))?;
         Ok(())
     }
 }
@@ -109,7 +116,7 @@ impl ArmServos for SimArmServos {
         let newest = self
             .encoders
             .receive_latest()
-            .map_err(|error| SimServoError::Link(error.to_string()))?;
+            .map_err(|error| SimServoError::Link(error.into()))?;
         if let Some(sample) = newest {
             self.latest = Some(JointFeedback {
                 capture_ns: sample.header.capture_ns,
@@ -119,5 +126,26 @@ impl ArmServos for SimArmServos {
             });
         }
         Ok(self.latest)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error_kind::lost_link;
+
+    #[test]
+    fn every_error_maps_to_its_kind() {
+        let refused = SimServoError::OutOfLimits {
+            joint: 1,
+            value: 4.0,
+            min: -1.0,
+            max: 1.0,
+        };
+        assert_eq!(refused.kind(), ErrorKind::InvalidRequest);
+        assert_eq!(
+            SimServoError::from(lost_link()).kind(),
+            ErrorKind::Disconnected
+        );
     }
 }

@@ -5,6 +5,7 @@
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum LidarCondition {
     #[default]
+    /// Measuring normally.
     Normal,
     /// Still measuring, but something needs attention (the name says what).
     Warning(&'static str),
@@ -17,6 +18,7 @@ pub enum LidarCondition {
 pub struct LidarHealth {
     /// Returns are flowing (false while the device is lost and being reconnected).
     pub connected: bool,
+    /// The device's own report of its condition.
     pub condition: LidarCondition,
     /// Packets the device sent that never arrived, since start.
     pub lost_packets: u64,

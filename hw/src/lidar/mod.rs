@@ -1,12 +1,12 @@
-//! Solid-state LiDAR (Livox Mid-70, LiDAR-camera paper Table II): 70.4 deg circular field of
+//! Solid-state LiDAR (Livox Mid-70, [fusion Table II]): 70.4 deg circular field of
 //! view, about 100,000 points/s, range error within 2 cm over 0.2-20 m, a return intensity per
 //! point, and a non-repetitive rosette scan whose coverage of the field of view densifies the
-//! longer the returns are integrated (the paper integrates under 2 s for perception and 15 s for
+//! longer the returns are integrated (the fusion paper integrates under 2 s for perception and 15 s for
 //! calibration).
 //!
 //! Physical caveats: the two Risley prisms trace rosette petals, so the centre of the field is
 //! sampled more densely than the rim; a point at a depth discontinuity can mix both surfaces
-//! (beam divergence, the paper's "bleeding points", not simulated); returns carry no colour:
+//! (beam divergence, the fusion paper's "bleeding points", not simulated); returns carry no colour:
 //! colour comes from fusing with the camera (`harvest-lidar`).
 //!
 //! - [`spec`]: the Mid-70 parameters as constants and a typed configuration.
@@ -34,6 +34,7 @@ pub use spec::LidarSpec;
 
 /// An integrated point-cloud source the `lidar` process drives.
 pub trait Lidar {
+    /// The driver's error; its kind tells a refused setting from a lost device.
     type Error: DeviceError;
 
     /// Blocks until the device has delivered one integration window of returns or `timeout`,

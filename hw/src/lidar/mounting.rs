@@ -12,7 +12,7 @@ pub const OPTICAL_FROM_LIDAR: RigidTransform = RigidTransform {
     translation_m: [0.0; 3],
 };
 
-/// The extrinsic `camera_from_lidar` (the paper's T_L^C) as designed: the LiDAR sits 80 mm
+/// The extrinsic `camera_from_lidar` (T_L^C in [fusion eq. 2]) as designed: the LiDAR sits 80 mm
 /// above the colour camera's optical centre (camera -y), boresight parallel to the optical axis.
 /// This is the initial guess of the calibration; the built unit differs by its assembly error.
 pub const CAD_CAMERA_FROM_LIDAR: RigidTransform = RigidTransform {

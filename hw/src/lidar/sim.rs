@@ -12,6 +12,7 @@
 use super::Lidar;
 use crate::error_kind::{DeviceError, ErrorKind};
 use harvest_ipc::catalogue::HW_LIDAR_POINTS;
+use harvest_ipc::error::IpcError;
 use harvest_ipc::payloads::PointCloud;
 use harvest_ipc::{Context, Subscriber};
 use std::time::{Duration, Instant};
@@ -21,10 +22,13 @@ use std::time::{Duration, Instant};
 pub enum SimLidarError {
     /// The hardware channel could not be opened or read.
     #[error("simulated lidar link: {0}")]
-    Link(String),
+    Link(#[from] IpcError),
     /// The requested integration window is not positive and finite.
     #[error("lidar integration time {integration_s} s is not positive and finite")]
-    BadIntegration { integration_s: f64 },
+    BadIntegration {
+        /// The window asked for, seconds.
+        integration_s: f64,
+    },
 }
 
 impl DeviceError for SimLidarError {
@@ -52,7 +56,7 @@ impl SimLidar {
         }
         let frames = context
             .subscriber_with_buffer(HW_LIDAR_POINTS, 8)
-            .map_err(|error| SimLidarError::Link(error.to_string()))?;
+            .map_err(|error| SimLidarError::Link(error.into()))?;
         let mut window: Box<PointCloud> = harvest_ipc::payload::boxed_zeroed();
         window.clear();
         Ok(Self {
@@ -67,7 +71,7 @@ impl SimLidar {
         while let Some(frame) = self
             .frames
             .receive()
-            .map_err(|error| SimLidarError::Link(error.to_string()))?
+            .map_err(|error| SimLidarError::Link(error.into()))?
         {
             let before = self.window.meta.point_count;
             self.window.extend_from_slice(frame.valid_points());
@@ -120,5 +124,21 @@ impl Lidar for SimLidar {
                 return Ok(false);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error_kind::lost_link;
+
+    #[test]
+    fn every_error_maps_to_its_kind() {
+        let refused = SimLidarError::BadIntegration { integration_s: 0.0 };
+        assert_eq!(refused.kind(), ErrorKind::InvalidRequest);
+        assert_eq!(
+            SimLidarError::from(lost_link()).kind(),
+            ErrorKind::Disconnected
+        );
     }
 }

@@ -1,4 +1,4 @@
-//! Livox Mid-70 parameters (LiDAR-camera paper, Table II) and the sensor configuration the
+//! Livox Mid-70 parameters ([fusion Table II]) and the sensor configuration the
 //! simulator and the driver share.
 
 use serde::{Deserialize, Serialize};

@@ -1,5 +1,5 @@
 //! The mobile platform's positioning stages: in-out (toward the canopy) and up-down, with
-//! position feedback (paper 003, section 2: two stepper motors behind an Arduino Uno that
+//! position feedback ([dual-arm sec. 2]: two stepper motors behind an Arduino Uno that
 //! reports the positions to the main computer). The robot moves them between harvesting zones,
 //! never while an arm picks.
 //!
@@ -38,6 +38,7 @@ pub struct PlatformPosition {
 
 /// The platform movement module.
 pub trait Platform {
+    /// The driver's error; its kind tells a refused target from a stage fault or a lost device.
     type Error: DeviceError;
 
     /// The travel the stages accept; targets outside it are refused.

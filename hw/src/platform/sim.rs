@@ -9,6 +9,7 @@
 use super::{Platform, PlatformAxis, PlatformPosition, PlatformTravel};
 use crate::error_kind::{DeviceError, ErrorKind};
 use harvest_ipc::catalogue::{HW_PLATFORM_COMMAND, HW_PLATFORM_FEEDBACK};
+use harvest_ipc::error::IpcError;
 use harvest_ipc::payloads::PlatformCommand;
 use harvest_ipc::payloads::PlatformFeedback;
 use harvest_ipc::payloads::PlatformStatus;
@@ -21,16 +22,29 @@ pub enum SimPlatformError {
     /// A target outside the stage's travel `[0, max_m]` or not finite; nothing was sent.
     #[error("{axis} target {value_m} m outside the travel [0, {max_m}] m or not finite")]
     OutOfTravel {
+        /// The stage.
         axis: PlatformAxis,
+        /// The target asked for, metres.
         value_m: f64,
+        /// The stage's travel, metres.
         max_m: f64,
     },
     /// The device refused our latest target (its travel is narrower than the driver's).
     #[error("platform refused the target ({in_out_m} m in-out, {up_down_m} m up-down)")]
-    DeviceRefused { in_out_m: f64, up_down_m: f64 },
+    DeviceRefused {
+        /// The refused in-out target, metres.
+        in_out_m: f64,
+        /// The refused up-down target, metres.
+        up_down_m: f64,
+    },
     /// The device reports a stage fault (stall, limit switch).
     #[error("platform reports a stage fault at ({in_out_m} m in-out, {up_down_m} m up-down)")]
-    DeviceFault { in_out_m: f64, up_down_m: f64 },
+    DeviceFault {
+        /// In-out stage position at the fault, metres.
+        in_out_m: f64,
+        /// Up-down stage position at the fault, metres.
+        up_down_m: f64,
+    },
     /// The feedback carries a status code this driver does not know.
     #[error("simulated platform: {0} in its feedback")]
     UnknownStatus(harvest_ipc::UnknownCode),
@@ -38,10 +52,13 @@ pub enum SimPlatformError {
     #[error(
         "simulated platform sent no feedback within {timeout_ms} ms (is the sim process running?)"
     )]
-    Silent { timeout_ms: u64 },
+    Silent {
+        /// How long the driver waited, milliseconds.
+        timeout_ms: u64,
+    },
     /// The hardware channel failed.
     #[error("simulated platform link: {0}")]
-    Link(String),
+    Link(#[from] IpcError),
 }
 
 impl DeviceError for SimPlatformError {
@@ -79,7 +96,7 @@ impl SimPlatform {
         timeout: Duration,
     ) -> Result<Self, SimPlatformError> {
         let link =
-            |error: harvest_ipc::error::OpenChannelError| SimPlatformError::Link(error.to_string());
+            |error: harvest_ipc::error::OpenChannelError| SimPlatformError::Link(error.into());
         Ok(Self {
             commands: context.publisher(HW_PLATFORM_COMMAND).map_err(link)?,
             feedback: context.subscriber(HW_PLATFORM_FEEDBACK).map_err(link)?,
@@ -102,7 +119,7 @@ impl SimPlatform {
                 command.stop = u8::from(stop);
                 command._reserved = [0; 7];
             })
-            .map_err(|error| SimPlatformError::Link(error.to_string()))?;
+            .map_err(|error| SimPlatformError::Link(error.into()))?;
         self.sent_ns = stamp_ns;
         self.sent_target_m = target_m;
         tracing::debug!(stop, ?target_m, stamp_ns, "platform command sent");
@@ -116,7 +133,7 @@ impl SimPlatform {
             feedback
                 .receive_latest()
                 .map(|sample| sample.map(|sample| *sample))
-                .map_err(|error| SimPlatformError::Link(error.to_string()))
+                .map_err(|error| SimPlatformError::Link(error.into()))
         };
         if let Some(sample) = receive(&self.feedback)? {
             self.latest = Some(sample);
@@ -198,5 +215,44 @@ impl Platform for SimPlatform {
             up_down_m: feedback.up_down_m,
             in_motion: feedback.in_motion != 0 || !acted_on,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error_kind::lost_link;
+
+    #[test]
+    fn every_error_maps_to_its_kind() {
+        let out_of_travel = SimPlatformError::OutOfTravel {
+            axis: PlatformAxis::InOut,
+            value_m: 9.0,
+            max_m: 0.5,
+        };
+        assert_eq!(out_of_travel.kind(), ErrorKind::InvalidRequest);
+        let refused = SimPlatformError::DeviceRefused {
+            in_out_m: 0.1,
+            up_down_m: 0.2,
+        };
+        assert_eq!(refused.kind(), ErrorKind::InvalidRequest);
+        let fault = SimPlatformError::DeviceFault {
+            in_out_m: 0.1,
+            up_down_m: 0.2,
+        };
+        assert_eq!(fault.kind(), ErrorKind::Fault);
+        let unknown = SimPlatformError::UnknownStatus(harvest_ipc::UnknownCode {
+            enum_name: "PlatformStatus",
+            code: 200,
+        });
+        assert_eq!(unknown.kind(), ErrorKind::Fault);
+        assert_eq!(
+            SimPlatformError::Silent { timeout_ms: 500 }.kind(),
+            ErrorKind::Timeout
+        );
+        assert_eq!(
+            SimPlatformError::from(lost_link()).kind(),
+            ErrorKind::Disconnected
+        );
     }
 }

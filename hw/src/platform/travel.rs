@@ -1,6 +1,6 @@
 //! The platform stages' travel limits.
 //!
-//! Paper 003 (section 2) describes the platform movement module (two stepper stages, in-out
+//! [dual-arm sec. 2] describes the platform movement module (two stepper stages, in-out
 //! and up-down, with position feedback) but gives no stroke. Chosen here: 0.50 m in-out (from
 //! the home stop, where the dropping module clears the canopy, to contact with it) and 0.80 m
 //! up-down (enough to centre the arms' workspace on a fruiting zone of a 2-3 m tall wall),
@@ -16,6 +16,7 @@ pub enum PlatformAxis {
 }
 
 impl PlatformAxis {
+    /// Both stages, in index order.
     pub const ALL: [PlatformAxis; 2] = [PlatformAxis::InOut, PlatformAxis::UpDown];
 
     /// Index in `[in_out, up_down]` arrays.
@@ -26,6 +27,7 @@ impl PlatformAxis {
         }
     }
 
+    /// The stage's name in messages (`in-out`, `up-down`).
     pub fn name(self) -> &'static str {
         match self {
             Self::InOut => "in-out",

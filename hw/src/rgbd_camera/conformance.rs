@@ -21,7 +21,7 @@ use harvest_ipc::payloads::rgbd_frame::{
 };
 use std::time::Duration;
 
-/// Working range of the TL460's depth, mm (paper 003, section 2.1: 0.3-9.5 m).
+/// Working range of the TL460's depth, mm (0.3-9.5 m, [dual-arm sec. 2.1]).
 pub const TL460_RANGE_MM: [f64; 2] = [300.0, 9500.0];
 /// TL460 depth accuracy: +/-(4 mm + 0.25 % of depth), taken as one standard deviation.
 pub const TL460_ACCURACY_MM: f64 = 4.0;

@@ -16,6 +16,7 @@ use std::time::Duration;
 
 /// A frame source the camera process drives.
 pub trait RgbdCamera {
+    /// The driver's error; its kind tells a late frame from a lost camera.
     type Error: DeviceError;
 
     /// Blocks until the device's next frame or `timeout`, and writes the frame into `frame`

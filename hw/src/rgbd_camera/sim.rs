@@ -6,6 +6,7 @@
 use super::RgbdCamera;
 use crate::error_kind::{DeviceError, ErrorKind};
 use harvest_ipc::catalogue::HW_CAMERA_RGBD;
+use harvest_ipc::error::IpcError;
 use harvest_ipc::payloads::RgbdFrame;
 use harvest_ipc::{Context, Subscriber};
 use std::time::Duration;
@@ -13,8 +14,9 @@ use std::time::Duration;
 /// Errors of the simulated camera link.
 #[derive(Debug, thiserror::Error)]
 pub enum SimCameraError {
+    /// The hardware channel from the simulator failed (opening or receiving).
     #[error("simulated camera link: {0}")]
-    Link(String),
+    Link(#[from] IpcError),
 }
 
 impl DeviceError for SimCameraError {
@@ -25,15 +27,18 @@ impl DeviceError for SimCameraError {
     }
 }
 
+/// Driver of the simulated ToF camera: receives the frames the simulator renders on
+/// `hw/camera/rgbd`.
 pub struct SimRgbdCamera {
     frames: Subscriber<RgbdFrame>,
 }
 
 impl SimRgbdCamera {
+    /// Subscribes to the simulator's frames.
     pub fn connect(context: &Context) -> Result<Self, SimCameraError> {
         let frames = context
             .subscriber_with_buffer(HW_CAMERA_RGBD, 2)
-            .map_err(|error| SimCameraError::Link(error.to_string()))?;
+            .map_err(|error| SimCameraError::Link(error.into()))?;
         Ok(Self { frames })
     }
 }
@@ -49,7 +54,7 @@ impl RgbdCamera for SimRgbdCamera {
         let receive = |frames: &Subscriber<RgbdFrame>| {
             frames
                 .receive_latest()
-                .map_err(|error| SimCameraError::Link(error.to_string()))
+                .map_err(|error| SimCameraError::Link(error.into()))
         };
         let mut latest = receive(&self.frames)?;
         if latest.is_none() {
@@ -68,5 +73,18 @@ impl RgbdCamera for SimRgbdCamera {
         frame.rgb.copy_from_slice(&device_frame.rgb);
         frame.depth_mm.copy_from_slice(&device_frame.depth_mm);
         Ok(true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error_kind::lost_link;
+
+    #[test]
+    fn every_error_maps_to_its_kind() {
+        let lost = SimCameraError::from(lost_link());
+        assert_eq!(lost.kind(), ErrorKind::Disconnected);
+        assert!(lost.to_string().contains("the simulator's node is gone"));
     }
 }

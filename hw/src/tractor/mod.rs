@@ -1,5 +1,5 @@
-//! The tractor pulling the robot's trailer along the orchard row (paper 003, sections 2.2 and
-//! 4.1: the robot harvests stop and go; the tractor halts at a harvest location and advances
+//! The tractor pulling the robot's trailer along the orchard row ([dual-arm sec. 2.2, 4.1]:
+//! the robot harvests stop and go; the tractor halts at a harvest location and advances
 //! to the next when the robot is done).
 //!
 //! Positions are metres along the row from its start. A target is accepted when the command is
@@ -31,6 +31,7 @@ pub struct TractorPosition {
 
 /// The tractor, as the robot commands it.
 pub trait Tractor {
+    /// The driver's error; its kind tells a refused advance from a silent tractor.
     type Error: DeviceError;
 
     /// Starts driving forward by `distance_m` from the current position (at the tractor's

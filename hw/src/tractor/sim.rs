@@ -8,6 +8,7 @@
 use super::{Tractor, TractorPosition};
 use crate::error_kind::{DeviceError, ErrorKind};
 use harvest_ipc::catalogue::{HW_TRACTOR_COMMAND, HW_TRACTOR_FEEDBACK};
+use harvest_ipc::error::IpcError;
 use harvest_ipc::payloads::TractorStatus;
 use harvest_ipc::payloads::{TractorCommand, TractorFeedback};
 use harvest_ipc::{Context, MonotonicClock, Publisher, Subscriber};
@@ -22,13 +23,19 @@ pub enum SimTractorError {
          before the end of the row at {row_end_m} m"
     )]
     InvalidAdvance {
+        /// The advance asked for, metres.
         distance_m: f64,
+        /// The trailer's position, metres along the row.
         position_m: f64,
+        /// The end of the row, metres along the row.
         row_end_m: f64,
     },
     /// The device refused our latest target.
     #[error("tractor refused the target {target_m} m")]
-    DeviceRefused { target_m: f64 },
+    DeviceRefused {
+        /// The refused target, metres along the row.
+        target_m: f64,
+    },
     /// The feedback carries a status code this driver does not know.
     #[error("simulated tractor: {0} in its feedback")]
     UnknownStatus(harvest_ipc::UnknownCode),
@@ -36,10 +43,13 @@ pub enum SimTractorError {
     #[error(
         "simulated tractor sent no feedback within {timeout_ms} ms (is the sim process running?)"
     )]
-    Silent { timeout_ms: u64 },
+    Silent {
+        /// How long the driver waited, milliseconds.
+        timeout_ms: u64,
+    },
     /// The hardware channel failed.
     #[error("simulated tractor link: {0}")]
-    Link(String),
+    Link(#[from] IpcError),
 }
 
 impl DeviceError for SimTractorError {
@@ -68,7 +78,7 @@ impl SimTractor {
     /// Connects; `timeout` bounds the wait for the first feedback and its age.
     pub fn connect(context: &Context, timeout: Duration) -> Result<Self, SimTractorError> {
         let link =
-            |error: harvest_ipc::error::OpenChannelError| SimTractorError::Link(error.to_string());
+            |error: harvest_ipc::error::OpenChannelError| SimTractorError::Link(error.into());
         Ok(Self {
             commands: context.publisher(HW_TRACTOR_COMMAND).map_err(link)?,
             feedback: context.subscriber(HW_TRACTOR_FEEDBACK).map_err(link)?,
@@ -88,7 +98,7 @@ impl SimTractor {
                 command.stop = u8::from(stop);
                 command._reserved = [0; 7];
             })
-            .map_err(|error| SimTractorError::Link(error.to_string()))?;
+            .map_err(|error| SimTractorError::Link(error.into()))?;
         self.sent_ns = stamp_ns;
         self.sent_target_m = target_m;
         tracing::debug!(stop, target_m, stamp_ns, "tractor command sent");
@@ -100,7 +110,7 @@ impl SimTractor {
             feedback
                 .receive_latest()
                 .map(|sample| sample.map(|sample| *sample))
-                .map_err(|error| SimTractorError::Link(error.to_string()))
+                .map_err(|error| SimTractorError::Link(error.into()))
         };
         if let Some(sample) = receive(&self.feedback)? {
             self.latest = Some(sample);
@@ -173,5 +183,36 @@ impl Tractor for SimTractor {
             row_end_m: feedback.row_end_m,
             in_motion: feedback.in_motion != 0 || feedback.last_command_ns < self.sent_ns,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error_kind::lost_link;
+
+    #[test]
+    fn every_error_maps_to_its_kind() {
+        let invalid = SimTractorError::InvalidAdvance {
+            distance_m: -1.0,
+            position_m: 2.0,
+            row_end_m: 10.0,
+        };
+        assert_eq!(invalid.kind(), ErrorKind::InvalidRequest);
+        let refused = SimTractorError::DeviceRefused { target_m: 12.0 };
+        assert_eq!(refused.kind(), ErrorKind::InvalidRequest);
+        let unknown = SimTractorError::UnknownStatus(harvest_ipc::UnknownCode {
+            enum_name: "TractorStatus",
+            code: 200,
+        });
+        assert_eq!(unknown.kind(), ErrorKind::Fault);
+        assert_eq!(
+            SimTractorError::Silent { timeout_ms: 500 }.kind(),
+            ErrorKind::Timeout
+        );
+        assert_eq!(
+            SimTractorError::from(lost_link()).kind(),
+            ErrorKind::Disconnected
+        );
     }
 }

@@ -9,7 +9,7 @@
 //! unsolicited fault lines, and a disconnect (closing the pty master).
 //!
 //! Pressure model (a test fixture, not a physics simulation): valve `2k-1` is taken as arm
-//! `k`'s gate to the source and valve `2k` as its gate to atmosphere (paper 003, Fig. 3 pairs
+//! `k`'s gate to the source and valve `2k` as its gate to atmosphere ([dual-arm Fig. 3] pairs
 //! them per arm without fixing the roles); with `f` the opening fraction of each gate,
 //! `source = S0 (1 - 0.3 (f1 + f3))` and `arm_k = source f(2k-1) (1 - f(2k))`, plus Gaussian
 //! noise.

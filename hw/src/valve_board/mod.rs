@@ -1,6 +1,6 @@
 //! Valve board: 4 butterfly valves and 3 pressure sensors behind one controller.
 //!
-//! The real board is an Arduino on a serial line (paper 003, section 2.3): it drives the four
+//! The real board is an Arduino on a serial line ([dual-arm sec. 2.3]): it drives the four
 //! butterfly gates that route the shared vacuum source to either arm or to atmosphere, and it
 //! samples the pressure inside each arm and at the source.
 //!
@@ -25,7 +25,7 @@ pub mod serial;
 pub mod sim;
 pub mod types;
 
-pub use dyn_board::{BoxedBoardError, DynValveBoard, ErasedValveBoard};
+pub use dyn_board::{DynValveBoard, ErasedValveBoard};
 pub use serial::{SerialBoardConfig, SerialBoardError, SerialValveBoard};
 pub use types::{
     BoardFault, Heartbeat, PressureReadings, PressureSensor, VALVE_COUNT, ValveId, ValveState,
@@ -51,7 +51,7 @@ use crate::error_kind::DeviceError;
 ///   filter them or threshold with margin. Pressure also lags valve motion because the tube
 ///   volume has to fill or empty.
 /// - **Shared source.** Opening both arms to the source at once without a sealed end-effector
-///   drops the vacuum available to each (paper 003, section 3.3); this trait does not enforce
+///   drops the vacuum available to each ([dual-arm sec. 3.3]); this trait does not enforce
 ///   the coordination policy, the vacuum process does.
 pub trait ValveBoard {
     /// The implementation's error; its [`DeviceError::kind`] is what generic code reacts to.

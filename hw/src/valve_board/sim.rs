@@ -6,6 +6,7 @@ use super::types::{Heartbeat, PressureReadings, VALVE_COUNT, ValveId, ValveState
 use super::{BoardFault, ValveBoard};
 use crate::error_kind::{DeviceError, ErrorKind};
 use harvest_ipc::catalogue::{HW_VALVE_COMMAND, HW_VALVE_READINGS};
+use harvest_ipc::error::IpcError;
 use harvest_ipc::payloads::{ValveBoardCommand, ValveBoardReadings};
 use harvest_ipc::{Context, MonotonicClock, Publisher, Subscriber};
 use std::time::Duration;
@@ -20,10 +21,13 @@ pub enum SimValveBoardError {
     #[error(
         "simulated valve board did not report within {timeout_ms} ms (is the sim process running?)"
     )]
-    Silent { timeout_ms: u64 },
+    Silent {
+        /// How long the driver waited, milliseconds.
+        timeout_ms: u64,
+    },
     /// The hardware channel failed.
     #[error("simulated valve board link: {0}")]
-    Link(String),
+    Link(#[from] IpcError),
 }
 
 impl DeviceError for SimValveBoardError {
@@ -49,9 +53,8 @@ pub struct SimValveBoard {
 impl SimValveBoard {
     /// Connects; requests wait up to `timeout` for the board's first reading.
     pub fn connect(context: &Context, timeout: Duration) -> Result<Self, SimValveBoardError> {
-        let link = |error: harvest_ipc::error::OpenChannelError| {
-            SimValveBoardError::Link(error.to_string())
-        };
+        let link =
+            |error: harvest_ipc::error::OpenChannelError| SimValveBoardError::Link(error.into());
         Ok(Self {
             commands: context.publisher(HW_VALVE_COMMAND).map_err(link)?,
             readings: context.subscriber(HW_VALVE_READINGS).map_err(link)?,
@@ -69,7 +72,7 @@ impl SimValveBoard {
                 command.valve_open = valve_open;
                 command._reserved = [0; 4];
             })
-            .map_err(|error| SimValveBoardError::Link(error.to_string()))?;
+            .map_err(|error| SimValveBoardError::Link(error.into()))?;
         Ok(())
     }
 
@@ -79,7 +82,7 @@ impl SimValveBoard {
             readings
                 .receive_latest()
                 .map(|sample| sample.map(|reading| *reading))
-                .map_err(|error| SimValveBoardError::Link(error.to_string()))
+                .map_err(|error| SimValveBoardError::Link(error.into()))
         };
         if let Some(reading) = receive(&self.readings)? {
             self.latest = Some(reading);
@@ -148,5 +151,27 @@ impl ValveBoard for SimValveBoard {
 
     fn take_faults(&mut self) -> Vec<BoardFault> {
         Vec::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error_kind::lost_link;
+
+    #[test]
+    fn every_error_maps_to_its_kind() {
+        assert_eq!(
+            SimValveBoardError::InvalidValve(9).kind(),
+            ErrorKind::InvalidRequest
+        );
+        assert_eq!(
+            SimValveBoardError::Silent { timeout_ms: 500 }.kind(),
+            ErrorKind::Timeout
+        );
+        assert_eq!(
+            SimValveBoardError::from(lost_link()).kind(),
+            ErrorKind::Disconnected
+        );
     }
 }

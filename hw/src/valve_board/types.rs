@@ -1,7 +1,7 @@
 //! Plain data exchanged with a valve board: valve ids, valve states, pressure readings, board
 //! heartbeats and board faults.
 //!
-//! Layout of the valve system (paper 003, section 2.3 and Fig. 3): one vacuum source shared by
+//! Layout of the valve system ([dual-arm sec. 2.3, Fig. 3]): one vacuum source shared by
 //! two arms; valves 1 and 2 serve arm 1, valves 3 and 4 serve arm 2; pressure sensors sit
 //! inside arm 1, inside arm 2 and at the source.
 
@@ -14,8 +14,8 @@ pub const VALVE_COUNT: usize = 4;
 /// Number of pressure sensors on the board (arm 1, arm 2, source).
 pub const PRESSURE_SENSOR_COUNT: usize = 3;
 
-/// Peak vacuum the source can pull, in mmH2O below atmosphere (paper 003, section 2.3:
-/// up to 2500 mmH2O at 360 m^3/h).
+/// Peak vacuum the source can pull, in mmH2O below atmosphere (up to 2500
+/// mmH2O at 360 m^3/h, [dual-arm sec. 2.3]).
 pub const SOURCE_MAX_VACUUM_MMH2O: f32 = 2500.0;
 
 /// Upper bound of a physically plausible reading, in mmH2O of vacuum: the source maximum plus
@@ -26,8 +26,8 @@ pub const PLAUSIBLE_MAX_VACUUM_MMH2O: f32 = 3000.0;
 /// (a little above atmosphere) come from sensor offset and noise when a line is vented.
 pub const PLAUSIBLE_MIN_VACUUM_MMH2O: f32 = -200.0;
 
-/// Upper bound on the time a butterfly valve takes to travel between its end stops (paper 003,
-/// section 2.3: actuation under one second).
+/// Upper bound on the time a butterfly valve takes to travel between its end stops (actuation
+/// under one second, [dual-arm sec. 2.3]).
 pub const VALVE_ACTUATION_MAX_MS: u32 = 1000;
 
 /// One of the four butterfly valves, numbered 1..=4 as on the board.

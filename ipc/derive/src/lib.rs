@@ -6,6 +6,10 @@
 //! depends on `harvest-ipc` (and in `harvest-ipc` itself, which declares
 //! `extern crate self as harvest_ipc`).
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+#![deny(missing_docs)]
+
 use proc_macro::TokenStream;
 use proc_macro2::TokenStream as TokenStream2;
 use quote::quote;

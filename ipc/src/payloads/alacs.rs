@@ -9,8 +9,11 @@ use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
+/// Width of the ALACS camera image, pixels.
 pub const ALACS_WIDTH_PX: usize = 1440;
+/// Height of the ALACS camera image, pixels.
 pub const ALACS_HEIGHT_PX: usize = 1080;
+/// Bytes of one ALACS RGB8 image.
 pub const ALACS_RGB_BYTES: usize = ALACS_WIDTH_PX * ALACS_HEIGHT_PX * 3;
 
 /// Driver -> device: move the slide, switch the laser, and capture one image once there.
@@ -28,12 +31,15 @@ pub const ALACS_RGB_BYTES: usize = ALACS_WIDTH_PX * ALACS_HEIGHT_PX * 3;
 )]
 #[type_name("harvest.AlacsCommand.v1")]
 pub struct AlacsCommand {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
+    /// Chosen by the driver; the device echoes it in its [`AlacsImage`].
     pub request_seq: u32,
     /// 1 laser on.
     pub laser_on: u8,
     /// 1 capture an image after the move.
     pub capture: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 2],
     /// Slide position target, metres from the home end, within the 0.20 m stroke.
     pub slide_target_m: f64,
@@ -51,6 +57,7 @@ request_seq:u32; laser_on:u8; capture:u8; _reserved:[u8;2]; slide_target_m:f64"
 #[repr(u8)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum AlacsStatus {
+    /// Done as asked.
     Ok = 0,
     /// The slide target is outside the stroke: nothing moved.
     SlideOutOfStroke = 1,
@@ -63,14 +70,21 @@ pub enum AlacsStatus {
 #[derive(ZeroCopySend, crate::AnyBitPattern)]
 #[type_name("harvest.AlacsImage.v1")]
 pub struct AlacsImage {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
+    /// The `request_seq` of the command answered.
     pub request_seq: u32,
+    /// 1 when the laser was on for the capture.
     pub laser_on: u8,
+    /// How the device carried out the command.
     pub status: WireCode<AlacsStatus>,
+    /// 1 when `rgb` holds a captured image.
     pub has_image: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: u8,
     /// Where the slide actually stopped, metres.
     pub slide_position_m: f64,
+    /// Intrinsics of the ALACS camera the image was taken with.
     pub intrinsics: CameraIntrinsics,
     /// Row-major RGB8, `ALACS_WIDTH_PX` x `ALACS_HEIGHT_PX`.
     pub rgb: [u8; ALACS_RGB_BYTES],

@@ -13,7 +13,7 @@ pub const MAX_APPLES_PER_FRAME: usize = 64;
 #[repr(u8)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum LocalizationMethod {
-    /// The paper's DBSCAN largest-cluster centroid depth along the box-centre ray.
+    /// The DBSCAN largest-cluster centroid depth ([dual-arm sec. 2.1]) along the box-centre ray.
     ClusterCentroid = 1,
     /// Robust sphere fit with an apple-radius prior.
     SphereFit = 2,
@@ -38,6 +38,7 @@ pub enum DepthSourceCode {
     LaserLine = 3,
 }
 
+/// One apple found in a camera frame, with where it is.
 #[repr(C)]
 #[derive(
     Debug,
@@ -57,17 +58,23 @@ pub struct AppleDetection {
     pub method: WireCode<LocalizationMethod>,
     /// The depth the position was computed from.
     pub depth_source: WireCode<DepthSourceCode>,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 2],
+    /// Centre in the ToF colour-camera frame, metres.
     pub position_in_camera_m: [f64; 3],
+    /// Centre in the robot frame, metres (through the camera mounting).
     pub position_in_robot_m: [f64; 3],
+    /// Estimated apple radius, metres.
     pub radius_m: f64,
     /// 0..1.
     pub confidence: f32,
     /// Colour-image box: x, y, width, height in pixels.
     pub box_px: [u32; 4],
+    /// Pixels of the apple visible (not hidden by leaves) in the colour image.
     pub visible_px: u32,
 }
 
+/// The apples perception found in one camera frame (`perception/apples`).
 #[repr(C)]
 #[derive(
     Debug,
@@ -82,12 +89,15 @@ pub struct AppleDetection {
 )]
 #[type_name("harvest.AppleDetections.v2")]
 pub struct AppleDetections {
+    /// `capture_ns` is the camera frame's capture time; see [`Header`].
     pub header: Header,
     /// `msg_seq` and `capture_ns` of the camera frame these come from.
     pub source_frame_seq: u64,
+    /// `capture_ns` of that camera frame.
     pub source_capture_ns: u64,
     /// Time perception spent on the frame.
     pub processing_ns: u64,
+    /// The apples found, at most [`MAX_APPLES_PER_FRAME`].
     pub apples: BoundedVec<AppleDetection, MAX_APPLES_PER_FRAME>,
 }
 

@@ -13,11 +13,17 @@ pub const JOINT_COUNT: usize = 4;
 #[repr(u8)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum ArmPhase {
+    /// No attempt running; waiting for a target.
     Idle = 0,
+    /// Moving the end-effector to the apple.
     Approach = 1,
+    /// Opening the vacuum and waiting for the seal at the apple.
     AttachDetach = 2,
+    /// Pulling the apple back out of the canopy.
     Retract = 3,
+    /// Releasing the apple at the drop-off.
     Release = 4,
+    /// Stopped by the emergency stop or a fault; set-points hold.
     Stopped = 5,
 }
 
@@ -52,11 +58,17 @@ pub enum TargetStatus {
 )]
 #[type_name("harvest.ArmTarget.v1")]
 pub struct ArmTarget {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
+    /// The arm the target is for, 1 or 2.
     pub arm_id: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 3],
+    /// The vacuum supervisor's id of the apple (0 withdraws the waiting target).
     pub apple_id: u32,
+    /// Apple centre in the robot frame, metres (NaN in a withdrawal).
     pub position_in_robot_m: [f64; 3],
+    /// Apple radius, metres.
     pub radius_m: f64,
     /// `capture_ns` of the frame the position was measured in (staleness check).
     pub source_capture_ns: u64,
@@ -91,10 +103,13 @@ source_capture_ns:u64"
 )]
 #[type_name("harvest.ArmCommand.v2")]
 pub struct ArmCommand {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
+    /// The arm commanded, 1 or 2.
     pub arm_id: u8,
     /// 1: hold (ignore set-points, brake), 0: track set-points.
     pub hold: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 2],
     /// The apple of the arm's current target (0: none).
     pub apple_id: u32,
@@ -132,8 +147,11 @@ source_capture_ns:u64 (camera frame behind the current target, 0 none); joint_po
 )]
 #[type_name("harvest.ArmState.v2")]
 pub struct ArmState {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
+    /// The reporting arm, 1 or 2.
     pub arm_id: u8,
+    /// Where the arm is in its picking cycle.
     pub phase: WireCode<ArmPhase>,
     /// 1 when the arm believes it holds an apple (vacuum sealed).
     pub holding: u8,
@@ -144,10 +162,14 @@ pub struct ArmState {
     pub target_apple_id: u32,
     /// The apple of the running attempt (0: none).
     pub apple_id: u32,
+    /// Apples this arm has released at the drop-off since the process started.
     pub harvested_count: u32,
-    /// Encoder feedback.
+    /// Encoder feedback: D in m, theta/phi/twist in rad.
     pub joint_position: [f64; JOINT_COUNT],
+    /// Encoder feedback velocities: m/s for D, rad/s for the others.
     pub joint_velocity: [f64; JOINT_COUNT],
+    /// End-effector (suction cup) position in the robot frame from the forward kinematics,
+    /// metres.
     pub end_effector_in_robot_m: [f64; 3],
     /// Period of the last control cycle.
     pub control_period_ns: u64,

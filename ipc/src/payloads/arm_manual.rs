@@ -17,6 +17,7 @@ pub enum ArmManualKind {
 }
 
 impl ArmManualKind {
+    /// The kind with this wire code; `None` for an unknown code.
     pub fn from_code(code: u8) -> Option<Self> {
         match code {
             1 => Some(Self::MoveTo),
@@ -41,12 +42,15 @@ impl ArmManualKind {
 )]
 #[type_name("harvest.ArmManualCommand.v1")]
 pub struct ArmManualCommand {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
     /// The operator command's `request_id` behind this order.
     pub request_id: u64,
+    /// The arm, 1 or 2.
     pub arm_id: u8,
     /// [`ArmManualKind`] code.
     pub kind: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 6],
     /// `[D m, theta rad, phi rad, twist rad]`, inside the arm's joint limits.
     pub goal_joint_position: [f64; 4],
@@ -64,6 +68,7 @@ goal_joint_position:[f64;4] (D m, theta rad, phi rad, twist rad); speed_fraction
 );
 
 impl ArmManualCommand {
+    /// The order's kind; `None` for an unknown code.
     pub fn manual_kind(&self) -> Option<ArmManualKind> {
         ArmManualKind::from_code(self.kind)
     }

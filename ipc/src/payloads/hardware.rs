@@ -24,9 +24,11 @@ use serde::{Deserialize, Serialize};
 )]
 #[type_name("harvest.ServoSetpoint.v1")]
 pub struct ServoSetpoint {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
     /// 1: hold position (brake), 0: track.
     pub hold: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 7],
     /// D in m, theta/phi/twist in rad.
     pub joint_position: [f64; JOINT_COUNT],
@@ -57,11 +59,15 @@ hold:u8; _reserved:[u8;7]; joint_position:[f64;4]; joint_velocity:[f64;4]"
 )]
 #[type_name("harvest.EncoderFeedback.v1")]
 pub struct EncoderFeedback {
+    /// `capture_ns` is when the encoders were read; see [`Header`].
     pub header: Header,
+    /// Measured joint positions: D in m, theta/phi/twist in rad.
     pub joint_position: [f64; JOINT_COUNT],
+    /// Measured joint velocities: m/s for D, rad/s for the others.
     pub joint_velocity: [f64; JOINT_COUNT],
     /// Bit per joint: fault (over-current, limit switch).
     pub fault_bits: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 7],
 }
 
@@ -88,9 +94,11 @@ joint_position:[f64;4]; joint_velocity:[f64;4]; fault_bits:u8; _reserved:[u8;7]"
 )]
 #[type_name("harvest.ValveBoardCommand.v1")]
 pub struct ValveBoardCommand {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
     /// 1 open, 0 closed, valves 1..4.
     pub valve_open: [u8; VALVE_COUNT],
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 4],
 }
 
@@ -117,11 +125,15 @@ valve_open:[u8;4]; _reserved:[u8;4]"
 )]
 #[type_name("harvest.ValveBoardReadings.v1")]
 pub struct ValveBoardReadings {
+    /// `capture_ns` is when the board sampled; see [`Header`].
     pub header: Header,
+    /// 1 open, 0 closed, valves 1..4 (valves 1-2 arm 1, 3-4 arm 2).
     pub valve_open: [u8; VALVE_COUNT],
+    /// 1 while a valve is moving between its end positions.
     pub valve_in_transit: [u8; VALVE_COUNT],
     /// Vacuum in mmH2O: inside arm 1, inside arm 2, at the source.
     pub pressure_mmh2o: [f32; PRESSURE_SENSOR_COUNT],
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 4],
 }
 
@@ -140,6 +152,7 @@ pub const MAX_TRUE_APPLES: usize = 256;
 #[repr(u8)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum TrueAppleState {
+    /// Still on the tree.
     OnTree = 0,
     /// Held by arm 1's end-effector.
     OnArm1 = 1,
@@ -165,10 +178,15 @@ pub enum TrueAppleState {
     crate::AnyBitPattern,
 )]
 pub struct TrueApple {
+    /// The simulator's id of the apple.
     pub apple_id: u32,
+    /// Where the apple is.
     pub state: WireCode<TrueAppleState>,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 3],
+    /// True centre in the robot frame, metres.
     pub center_in_robot_m: [f64; 3],
+    /// True radius, metres.
     pub radius_m: f64,
 }
 
@@ -187,7 +205,9 @@ pub struct TrueApple {
 )]
 #[type_name("harvest.GroundTruth.v1")]
 pub struct GroundTruth {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
+    /// Every apple of the scene.
     pub apples: BoundedVec<TrueApple, MAX_TRUE_APPLES>,
 }
 

@@ -16,10 +16,13 @@ pub const HARVEST_EVENT_REASON_BYTES: usize = 96;
 #[repr(u8)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
 pub enum HarvestEventSource {
+    /// Arm 1's process.
     Arm1 = 1,
+    /// Arm 2's process.
     Arm2 = 2,
+    /// The vacuum supervisor.
     Vacuum = 3,
-    /// The executive's stop-and-go cycle along a row (issue 17).
+    /// The executive's stop-and-go cycle along a row.
     Field = 4,
 }
 
@@ -176,7 +179,9 @@ impl HarvestCause {
 pub struct HarvestEvent {
     /// `capture_ns`: the control tick the event happened at.
     pub header: Header,
+    /// Which process reported the event.
     pub source: WireCode<HarvestEventSource>,
+    /// What happened.
     pub kind: WireCode<HarvestEventKind>,
     /// The arm concerned (1 or 2; 0 none).
     pub arm_id: u8,
@@ -186,10 +191,13 @@ pub struct HarvestEvent {
     /// 1 when the attempt harvested its apple (`AttemptEnded`, `AttemptFinished`), when the
     /// refusal is retried (`TargetRejected`), when engaged (`EmergencyStop`).
     pub harvested: u8,
+    /// Why, for failures and refusals ([`HarvestCause::None`] otherwise).
     pub cause: WireCode<HarvestCause>,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 2],
     /// The apple (the vacuum supervisor's id as on `armN/target`; 0 none).
     pub apple_id: u32,
+    /// Zero; keeps the following fields aligned.
     pub _reserved2: u32,
     /// The apple centre, robot frame, m (NaN when unknown).
     pub position_in_robot_m: [f64; 3],

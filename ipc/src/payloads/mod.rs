@@ -14,9 +14,10 @@ pub mod rgbd_frame;
 pub mod safety_violation;
 pub mod tractor;
 pub mod vacuum;
-// Operator channels (issue 15).
+// Operator channels: commands, acknowledgements, the mode, manual arm orders.
 pub mod arm_manual;
 pub mod operator;
+pub mod operator_mark;
 
 pub use alacs::{AlacsCommand, AlacsImage, AlacsStatus};
 pub use apple_detections::{AppleDetection, AppleDetections, DepthSourceCode, LocalizationMethod};
@@ -35,9 +36,10 @@ pub use operator::{
     OperatorAck, OperatorCommand, OperatorCommandCode, OperatorModeCode, OperatorModeState,
     OperatorRefusalCode,
 };
+pub use operator_mark::{MARK_SOURCE_BYTES, MARK_TEXT_BYTES, OperatorMark};
 pub use platform::{PlatformCommand, PlatformFeedback, PlatformStatus};
 pub use point_cloud::{LidarPoint, PointCloud, PointCloudMeta};
-pub use process_health::{ProcessHealth, ProcessRunState};
+pub use process_health::{DeviceErrorCode, ProcessHealth, ProcessRunState};
 pub use rgbd_frame::{RgbdFrame, RgbdFrameMeta};
 pub use safety_violation::{SafetyViolation, VIOLATION_TEXT_BYTES, ViolationAction, ViolationRule};
 pub use tractor::{TractorCommand, TractorFeedback, TractorStatus};

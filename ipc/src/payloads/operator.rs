@@ -57,6 +57,7 @@ pub enum OperatorCommandCode {
 }
 
 impl OperatorCommandCode {
+    /// Every command code, in code order.
     pub const ALL: [Self; 15] = [
         Self::Start,
         Self::Pause,
@@ -119,6 +120,7 @@ pub enum OperatorModeCode {
 }
 
 impl OperatorModeCode {
+    /// Every mode, in code order.
     pub const ALL: [Self; 5] = [
         Self::Idle,
         Self::Harvesting,
@@ -127,10 +129,12 @@ impl OperatorModeCode {
         Self::EmergencyStopped,
     ];
 
+    /// The mode with this wire code; `None` for an unknown code.
     pub fn from_code(code: u8) -> Option<Self> {
         Self::ALL.into_iter().find(|known| *known as u8 == code)
     }
 
+    /// The mode's name as the console and `ctl` print it.
     pub fn name(self) -> &'static str {
         match self {
             Self::Idle => "idle",
@@ -174,6 +178,7 @@ pub enum OperatorRefusalCode {
 }
 
 impl OperatorRefusalCode {
+    /// Every refusal code, in code order.
     pub const ALL: [Self; 12] = [
         Self::UnknownCommand,
         Self::MissingToken,
@@ -189,6 +194,7 @@ impl OperatorRefusalCode {
         Self::Field,
     ];
 
+    /// The refusal with this wire code; `None` for an unknown code.
     pub fn from_code(code: u8) -> Option<Self> {
         Self::ALL.into_iter().find(|known| *known as u8 == code)
     }
@@ -209,6 +215,7 @@ impl OperatorRefusalCode {
 )]
 #[type_name("harvest.OperatorCommand.v1")]
 pub struct OperatorCommand {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
     /// Chosen by the client, echoed in the acknowledgement (unique per session).
     pub request_id: u64,
@@ -220,6 +227,7 @@ pub struct OperatorCommand {
     pub arm_id: u8,
     /// Joint index 0-3 (`D`, `theta`, `phi`, twist) of a jog, else 0.
     pub joint: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 4],
     /// Jog delta, m (joint 0) or rad.
     pub value: f64,
@@ -264,6 +272,7 @@ impl OperatorCommand {
 )]
 #[type_name("harvest.OperatorAck.v1")]
 pub struct OperatorAck {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
     /// The command's `request_id`.
     pub request_id: u64,
@@ -277,9 +286,11 @@ pub struct OperatorAck {
     pub refusal: u8,
     /// [`OperatorModeCode`] after the command.
     pub mode: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 3],
     /// Planned duration of the motion the command started (0: none), ms.
     pub motion_duration_ms: u32,
+    /// Zero; keeps the following fields aligned.
     pub _reserved2: [u8; 4],
     /// In words: what was done, or why not.
     pub reason: FixedString<OPERATOR_REASON_BYTES>,
@@ -312,6 +323,7 @@ _reserved:[u8;3]; motion_duration_ms:u32; _reserved2:[u8;4]; reason: u64 length 
 )]
 #[type_name("harvest.OperatorModeState.v1")]
 pub struct OperatorModeState {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
     /// [`OperatorModeCode`] code.
     pub mode: u8,
@@ -327,6 +339,7 @@ pub struct OperatorModeState {
     /// park, the platform repositions, fresh detections are awaited): the vacuum supervisor
     /// dispatches no new target, the running attempts finish.
     pub field_hold: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 1],
     /// The controlling session (0: none).
     pub controlling_session: u64,
@@ -336,6 +349,7 @@ pub struct OperatorModeState {
     pub platform_position_m: [f64; 2],
     /// Command code behind the last change (0: none, e.g. heartbeat lost).
     pub last_change_code: u16,
+    /// Zero; keeps the following fields aligned.
     pub _reserved2: [u8; 6],
     /// The controlling session's client label.
     pub controller: FixedString<OPERATOR_CLIENT_BYTES>,

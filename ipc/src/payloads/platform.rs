@@ -1,4 +1,4 @@
-//! Hardware-layer messages of the platform movement module (paper 003, section 2): two stepper
+//! Hardware-layer messages of the platform movement module ([dual-arm sec. 2]): two stepper
 //! stages, in-out (toward the canopy) and up-down, behind an Arduino that reports their
 //! positions. The driver sends targets; the device answers with position feedback at its own
 //! steady rate.
@@ -35,6 +35,7 @@ pub enum PlatformStatus {
 )]
 #[type_name("harvest.PlatformCommand.v1")]
 pub struct PlatformCommand {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
     /// Target of the in-out stage, metres from its home stop, positive toward the canopy.
     pub target_in_out_m: f64,
@@ -42,6 +43,7 @@ pub struct PlatformCommand {
     pub target_up_down_m: f64,
     /// 1: stop both stages where they are (the targets are ignored); 0: move to the targets.
     pub stop: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 7],
 }
 
@@ -69,6 +71,7 @@ target_in_out_m:f64; target_up_down_m:f64; stop:u8; _reserved:[u8;7]"
 )]
 #[type_name("harvest.PlatformFeedback.v1")]
 pub struct PlatformFeedback {
+    /// `capture_ns` is when the encoders were read; see [`Header`].
     pub header: Header,
     /// In-out stage position, metres from its home stop.
     pub in_out_m: f64,
@@ -80,6 +83,7 @@ pub struct PlatformFeedback {
     pub up_down_velocity_m_per_s: f64,
     /// The targets the device is moving to (its current position after a stop).
     pub target_in_out_m: f64,
+    /// The up-down target the device is moving to, metres.
     pub target_up_down_m: f64,
     /// `header.capture_ns` of the last command the device processed (0: none yet), so the
     /// driver knows whether its latest command has been acted on (stamps of the stack clock
@@ -89,6 +93,7 @@ pub struct PlatformFeedback {
     pub in_motion: u8,
     /// What became of the last command.
     pub status: WireCode<PlatformStatus>,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 6],
 }
 

@@ -1,4 +1,4 @@
-//! One point cloud of the solid-state LiDAR (Livox Mid-70, LiDAR-camera paper Table II): up to
+//! One point cloud of the solid-state LiDAR (Livox Mid-70, [fusion Table II]): up to
 //! [`POINT_CLOUD_CAPACITY`] returns in the LiDAR frame with their intensity. About 1.6 MB: always
 //! loaned and written in place.
 //!
@@ -32,7 +32,9 @@ pub const POINT_CLOUD_CAPACITY: usize = 100_000;
 pub struct LidarPoint {
     /// Position in the LiDAR frame, metres.
     pub x_m: f32,
+    /// Position in the LiDAR frame, metres.
     pub y_m: f32,
+    /// Position in the LiDAR frame, metres.
     pub z_m: f32,
     /// Reflectivity of the return, 0-255 (Livox scale: 0-150 diffuse, 151-255 retro-reflective).
     pub intensity: f32,
@@ -74,14 +76,18 @@ pub struct PointCloudMeta {
 }
 
 impl PointCloudMeta {
+    /// Bit of [`Self::flags`]: points beyond the capacity were dropped.
     pub const FLAG_TRUNCATED: u32 = 1;
 }
 
+/// One integrated LiDAR point cloud in the LiDAR frame (`lidar/points`, `hw/lidar/points`).
 #[repr(C)]
 #[derive(ZeroCopySend, crate::AnyBitPattern)]
 #[type_name("harvest.PointCloud.v1")]
 pub struct PointCloud {
+    /// `capture_ns` is the end of the integration window; see [`Header`].
     pub header: Header,
+    /// Point count, flags and integration window.
     pub meta: PointCloudMeta,
     /// The first `meta.point_count` entries are valid; the rest is stale memory.
     pub points: [LidarPoint; POINT_CLOUD_CAPACITY],

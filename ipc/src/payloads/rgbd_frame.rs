@@ -9,11 +9,17 @@ use crate::payload::Payload;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
+/// Width of the colour image, pixels.
 pub const RGB_WIDTH_PX: usize = 1920;
+/// Height of the colour image, pixels.
 pub const RGB_HEIGHT_PX: usize = 1080;
+/// Bytes of one RGB8 colour image.
 pub const RGB_BYTES: usize = RGB_WIDTH_PX * RGB_HEIGHT_PX * 3;
+/// Width of the depth image, pixels.
 pub const DEPTH_WIDTH_PX: usize = 640;
+/// Height of the depth image, pixels.
 pub const DEPTH_HEIGHT_PX: usize = 480;
+/// Pixels of one depth image.
 pub const DEPTH_PIXELS: usize = DEPTH_WIDTH_PX * DEPTH_HEIGHT_PX;
 
 /// Frame metadata: everything but the pixel buffers.
@@ -22,16 +28,20 @@ pub const DEPTH_PIXELS: usize = DEPTH_WIDTH_PX * DEPTH_HEIGHT_PX;
     Debug, Clone, Copy, PartialEq, ZeroCopySend, Serialize, Deserialize, crate::AnyBitPattern,
 )]
 pub struct RgbdFrameMeta {
+    /// Intrinsics of the colour camera.
     pub rgb_intrinsics: CameraIntrinsics,
+    /// Intrinsics of the depth camera.
     pub depth_intrinsics: CameraIntrinsics,
     /// Registration: maps points in the depth camera frame to the colour camera frame.
     pub color_from_depth: RigidTransform,
+    /// Exposure time of the colour image, microseconds.
     pub exposure_us: u32,
     /// Bit 0: the driver saw saturated (over-exposed) regions.
     pub flags: u32,
 }
 
 impl RgbdFrameMeta {
+    /// Bit of [`Self::flags`]: saturated regions were seen.
     pub const FLAG_OVER_EXPOSED: u32 = 1;
 }
 
@@ -47,11 +57,14 @@ impl Default for RgbdFrameMeta {
     }
 }
 
+/// One registered RGB-D frame of the ToF camera (`camera/rgbd`, `hw/camera/rgbd`).
 #[repr(C)]
 #[derive(ZeroCopySend, crate::AnyBitPattern)]
 #[type_name("harvest.RgbdFrame.v1")]
 pub struct RgbdFrame {
+    /// `capture_ns` is the exposure time of the frame; see [`Header`].
     pub header: Header,
+    /// Intrinsics, registration, exposure and flags.
     pub meta: RgbdFrameMeta,
     /// Row-major RGB8, `RGB_WIDTH_PX` x `RGB_HEIGHT_PX`.
     pub rgb: [u8; RGB_BYTES],

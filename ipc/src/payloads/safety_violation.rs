@@ -62,6 +62,7 @@ pub enum ViolationAction {
 )]
 #[type_name("harvest.SafetyViolation.v1")]
 pub struct SafetyViolation {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
     /// When the rule was broken, as the monitor's trace dates it, ns (monotonic clock).
     pub violated_ns: u64,
@@ -71,6 +72,7 @@ pub struct SafetyViolation {
     pub action: WireCode<ViolationAction>,
     /// Arm 1 or 2 the rule concerns, 0 for both or none.
     pub arm_id: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 5],
     /// In words, as `harvest monitor` prints it.
     pub description: FixedString<VIOLATION_TEXT_BYTES>,

@@ -1,6 +1,6 @@
-//! Hardware-layer messages of the tractor that pulls the robot's trailer along the row (paper
-//! 003, sections 2.2 and 4.1: the tractor halts at a harvest location and advances to the next
-//! when the robot is done). The driver sends an absolute target along the row; the device
+//! Hardware-layer messages of the tractor that pulls the robot's trailer along the row: the tractor
+//! halts at a harvest location and advances to the next when the robot is done ([dual-arm
+//! sec. 2.2, 4.1]). The driver sends an absolute target along the row; the device
 //! answers with the trailer's position at its own steady rate.
 
 use crate::header::Header;
@@ -34,12 +34,14 @@ pub enum TractorStatus {
 )]
 #[type_name("harvest.TractorCommand.v1")]
 pub struct TractorCommand {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
     /// Where the trailer should stop, metres along the row (absolute, so a repeated or
     /// replayed command does not advance twice).
     pub target_m: f64,
     /// 1: stop where it is (the target is ignored); 0: drive to the target.
     pub stop: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 7],
 }
 
@@ -66,6 +68,7 @@ target_m:f64; stop:u8; _reserved:[u8;7]"
 )]
 #[type_name("harvest.TractorFeedback.v1")]
 pub struct TractorFeedback {
+    /// `capture_ns` is when the position was measured; see [`Header`].
     pub header: Header,
     /// Trailer position, metres along the row.
     pub position_m: f64,
@@ -81,6 +84,7 @@ pub struct TractorFeedback {
     pub in_motion: u8,
     /// What became of the last command.
     pub status: WireCode<TractorStatus>,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 6],
 }
 

@@ -7,7 +7,9 @@ use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
+/// Valves of the vacuum system: 1-2 serve arm 1, 3-4 serve arm 2.
 pub const VALVE_COUNT: usize = 4;
+/// Pressure sensors: inside arm 1, inside arm 2, at the source.
 pub const PRESSURE_SENSOR_COUNT: usize = 3;
 
 /// What an arm asks of its valves (code in [`ValveRequest::kind`]).
@@ -45,6 +47,7 @@ pub enum VacuumPolicyCode {
     Policy2024 = 2,
 }
 
+/// An arm's request to open or close its valves (`vacuum/valve_request`).
 #[repr(C)]
 #[derive(
     Debug,
@@ -59,10 +62,15 @@ pub enum VacuumPolicyCode {
 )]
 #[type_name("harvest.ValveRequest.v1")]
 pub struct ValveRequest {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
+    /// The requesting arm, 1 or 2.
     pub arm_id: u8,
+    /// What the arm asks.
     pub kind: WireCode<ValveRequestKind>,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 2],
+    /// Chosen by the arm; echoed in the [`ValveGrant`].
     pub request_seq: u32,
 }
 
@@ -74,6 +82,7 @@ crate::serde_payload!(
 arm_id:u8; kind:u8 (1 open for attach, 2 close); _reserved:[u8;2]; request_seq:u32"
 );
 
+/// The vacuum supervisor's answer to one [`ValveRequest`] (`vacuum/valve_grant`).
 #[repr(C)]
 #[derive(
     Debug,
@@ -88,13 +97,17 @@ arm_id:u8; kind:u8 (1 open for attach, 2 close); _reserved:[u8;2]; request_seq:u
 )]
 #[type_name("harvest.ValveGrant.v1")]
 pub struct ValveGrant {
+    /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
+    /// The arm the answer is for, 1 or 2.
     pub arm_id: u8,
     /// 1 granted, 0 refused.
     pub granted: u8,
     /// Policy-specific reason code when refused (0 = none).
     pub reason: u8,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: u8,
+    /// The request's `request_seq`.
     pub request_seq: u32,
 }
 
@@ -106,6 +119,7 @@ crate::serde_payload!(
 arm_id:u8; granted:u8; reason:u8; _reserved:u8; request_seq:u32"
 );
 
+/// The vacuum system as the vacuum supervisor sees it (`vacuum/state`).
 #[repr(C)]
 #[derive(
     Debug,
@@ -120,6 +134,7 @@ arm_id:u8; granted:u8; reason:u8; _reserved:u8; request_seq:u32"
 )]
 #[type_name("harvest.VacuumState.v1")]
 pub struct VacuumState {
+    /// `capture_ns` is when the valve board sampled; see [`Header`].
     pub header: Header,
     /// 1 open, 0 closed, per valve 1..4.
     pub valve_open: [u8; VALVE_COUNT],
@@ -131,6 +146,7 @@ pub struct VacuumState {
     pub arm_attachment: [WireCode<ArmAttachment>; 2],
     /// Active policy.
     pub policy: WireCode<VacuumPolicyCode>,
+    /// Zero; keeps the following fields aligned.
     pub _reserved: u8,
 }
 

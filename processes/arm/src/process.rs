@@ -1,60 +1,45 @@
-//! `harvest arm --id 1|2`: one arm's 200 Hz control loop over the channels.
+//! `harvest arm --id 1|2`: one arm's 200 Hz control loop over the channels: [`ArmTask`]
+//! (`crate::task`: `ArmNode` between its channels and its servos) under the node runtime
+//! ([`run_node`]), every [`ArmProcessConfig::control_period_us`] on a kernel periodic timer.
 //!
-//! Per tick (a wait-set interval of [`ArmProcessConfig::control_period_us`], never a sleep), in
-//! the order of the in-process evaluation (`harvest_eval::harvest::runner`, steps 2, 3 and 5):
-//! 1. the encoders are read through the [`ArmServos`] trait;
-//! 2. the newest samples of this arm's target, `vacuum/state`, this arm's `vacuum/valve_grant`
-//!    answers, the other arm's state and target, and `safety/emergency_stop` are taken;
-//! 3. [`ArmNode::step`] runs;
-//! 4. its servo order goes to the servos through the trait (`command` or `hold`; a set-point
-//!    the driver refuses brakes the arm instead);
-//! 5. `armN/command` (the set-points, the current apple and the capture time of the detection
-//!    behind its target), `armN/state`, `vacuum/valve_request` (on change, and re-sent every
-//!    [`ArmProcessConfig::valve_request_resend_ms`] so a restarted vacuum supervisor learns the
-//!    standing request) and the node's events on `harvest/events` are published.
+//! The tick is the runtime's (`harvest_node::Runner::tick`), in the order of the in-process
+//! evaluation (`harvest_eval::harvest::runner`, steps 2, 3 and 5): `safety/emergency_stop` first
+//! (engaged: the servos brake before anything else); the encoders through [`ArmServos`] (a
+//! failed read brakes too; the node still steps, without fresh feedback, so that a stop reaches
+//! the picking cycle); `operator/mode` by the stack's one rule
+//! ([`harvest_robot_model::obedience`], `field_hold` included; no mode heard means hold unless
+//! `--without-operator`); this arm's target, `vacuum/state`, its `vacuum/valve_grant` answers,
+//! the other arm's state and target and its `armN/manual` orders; `ArmNode::step`; the servo
+//! order written unless the arm was braked (a refused set-point brakes instead); then
+//! `harvest/events`, `armN/command` (saying whether the arm holds), `armN/state` and the
+//! standing `vacuum/valve_request` (on change, and re-sent every
+//! [`ArmProcessConfig::valve_request_resend_ms`] so a restarted vacuum supervisor learns it).
+//! Manual orders run in manual mode only; a manual move stops when the mode leaves manual or
+//! is not heard for [`MODE_STALE_NS`]. Until the servos report for the first time the arm is
+//! not ready: nothing is stepped or published.
 //!
-//! The operator (`operator/mode`, from `harvest executive`): while the mode is not harvesting,
-//! or this arm is disabled, new targets are held back (an attempt under way runs to its end).
-//! Manual orders on `armN/manual` are carried out only in manual mode; a manual move stops as
-//! soon as the mode leaves manual or is not heard for [`MODE_STALE_NS`] (the executive is
-//! gone). With no mode ever published (a stack without the executive) the arm harvests as
-//! before.
-//!
-//! Until the servos report encoder feedback for the first time the arm is not ready: nothing
-//! is stepped or published.
-//!
-//! The loop measures its own tick-to-tick intervals ([`run_control_loop`]): the p99 goes out
-//! with every heartbeat (`period_p99_us`), the full distribution is logged at shutdown. On
-//! SIGTERM the arm brakes and asks for its valve to be closed before exiting.
-//!
-//! The device implementation is chosen in one place, [`run`] (`--device sim`: the simulated
-//! servos behind `hw/armN/servo|encoders`), together with its timing profile
-//! ([`ArmDevice::node_config`]).
+//! The heartbeat carries the period's p99 and deadline misses, degraded while the servos fail;
+//! the full distribution is logged at the end. However the loop ends (SIGTERM, an error) the arm
+//! brakes and asks for its valve to be closed. The device is chosen in one place, [`run`]
+//! (`--device sim`: the simulated servos behind `hw/armN/servo|encoders`), with its timing
+//! profile ([`ArmDevice::node_config`]).
 
 use std::path::{Path, PathBuf};
 
+use harvest_arm::node::{ArmNode, ArmNodeConfig, ArmNodeError};
+use harvest_hw::AnyDeviceError;
 use harvest_hw::arm_servos::ArmServos;
 use harvest_hw::arm_servos::sim::SimArmServos;
-use harvest_ipc::catalogue::{
-    ARM_COMMAND, ARM_MANUAL, ARM_STATE, ARM_TARGET, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MODE,
-    VACUUM_STATE, VALVE_GRANT, VALVE_REQUEST,
-};
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
-use harvest_ipc::payloads::{
-    ArmPhase as PhaseCode, ArmState, ArmTarget, HarvestEventKind, VacuumState, ValveGrant,
-    ValveRequest,
-};
-use harvest_ipc::{Context, Domain, Flow, HealthReporter, MonotonicClock};
+use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
+use harvest_ipc::{Context, Domain};
+use harvest_node::RunnerConfig;
+use harvest_robot_model::ModeSource;
+use harvest_robot_model::params::{ArmId, ArmParams};
+use harvest_runtime::{RunError, RunOptions, run_node};
 use serde::Deserialize;
 
-use harvest_arm::harvest_events::ArmEventReporter;
-use harvest_arm::node::{
-    ArmNode, ArmNodeConfig, ArmNodeError, ArmNodeInput, EncoderSample, OtherArmInput, ServoOrder,
-};
-use harvest_ipc::control_loop::{Wake, run_control_loop};
-use harvest_ipc::failure_streak::FailureStreak;
-use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
-use harvest_robot_model::params::{ArmId, ArmParams};
+use crate::task::{ArmDevices, ArmTask};
 
 /// Which servo device drives the arm (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -98,6 +83,10 @@ pub struct ArmArgs {
     /// Process settings (TOML file, every key optional; see `ArmProcessConfig`).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// No executive runs in this stack (a bench profile, a test): until an `operator/mode` is
+    /// heard, take up targets. Without it, no mode heard means hold.
+    #[arg(long)]
+    pub without_operator: bool,
 }
 
 /// Settings of the arm process (`--config FILE`). Every key is optional.
@@ -111,7 +100,7 @@ pub struct ArmArgs {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ArmProcessConfig {
-    /// Control period, us (default 5000: 200 Hz, paper 003 section 2.2).
+    /// Control period, us (default 5000: 200 Hz, [dual-arm sec. 2.2]).
     pub control_period_us: u64,
     /// The standing valve request is re-sent this often, ms (default 500).
     pub valve_request_resend_ms: u64,
@@ -176,18 +165,24 @@ pub enum ArmProcessError {
     #[error(transparent)]
     Period(#[from] PeriodStatsError),
     /// The servo device could not be reached.
-    #[error("arm {arm} servo device: {message}")]
-    Device { arm: u8, message: String },
+    #[error("arm {arm} servo device: {source}")]
+    Device {
+        /// The arm, 1 or 2.
+        arm: u8,
+        /// The driver's error, with its kind.
+        source: AnyDeviceError,
+    },
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
+    /// The run ended on an error (transport, too many failed encoder reads in a row).
+    #[error(transparent)]
+    Run(#[from] RunError),
 }
 
 harvest_ipc::from_ipc_errors!(ArmProcessError);
 
-/// A manual move stops when `operator/mode` was not heard for this long (the executive
-/// re-sends it at 10 Hz), ns.
-pub const MODE_STALE_NS: u64 = 500_000_000;
+pub use harvest_robot_model::obedience::MODE_STALE_NS;
 
 /// Device errors in a row after which the process stops (and the supervisor restarts it).
 const MAX_CONSECUTIVE_DEVICE_ERRORS: u32 = 200;
@@ -212,328 +207,57 @@ pub fn run(
     let lo = params.position_limits.min.to_array();
     let hi = params.position_limits.max.to_array();
     let limits = std::array::from_fn(|j| [lo[j], hi[j]]);
-    let device_error = |message: String| ArmProcessError::Device {
+    let device_error = |source: AnyDeviceError| ArmProcessError::Device {
         arm: arm.number(),
-        message,
+        source,
     };
     match args.device {
         ArmDevice::Sim => {
             let servos = SimArmServos::connect(&context, arm, limits)
-                .map_err(|error| device_error(error.to_string()))?;
-            control_loop(&context, servos, arm, &config, node_config)
+                .map_err(|error| device_error(AnyDeviceError::new(error)))?;
+            let mode_source = if args.without_operator {
+                ModeSource::WithoutOperator
+            } else {
+                ModeSource::Executive
+            };
+            control_loop(&context, servos, arm, &config, node_config, mode_source)
         }
     }
 }
 
-/// The newest sample of every input channel the node reads.
-#[derive(Debug, Default)]
-struct Inputs {
-    target: Option<ArmTarget>,
-    vacuum: Option<VacuumState>,
-    grant: Option<ValveGrant>,
-    other_state: Option<ArmState>,
-    other_target: Option<ArmTarget>,
-    emergency_stop: bool,
-}
-
-fn control_loop<S: ArmServos>(
+/// The control loop of [`run`] on the given servos (a test drives it with a servo double):
+/// [`ArmTask`] under the node runtime ([`run_node`]) until SIGINT/SIGTERM or an error.
+pub fn control_loop<S: ArmServos>(
     context: &Context,
-    mut servos: S,
+    servos: S,
     arm: ArmId,
     config: &ArmProcessConfig,
     node_config: ArmNodeConfig,
+    mode_source: ModeSource,
 ) -> Result<PeriodSummary, ArmProcessError> {
-    let i = arm.index();
-    let other = 1 - i;
-    let number = arm.number();
-    let mut node = ArmNode::new(arm, node_config)?;
-    let mut reporter = ArmEventReporter::new(arm);
-
-    let target_in = context.subscriber(ARM_TARGET[i])?;
-    let vacuum_in = context.subscriber(VACUUM_STATE)?;
-    let grant_in = context.subscriber(VALVE_GRANT)?;
-    let other_state_in = context.subscriber(ARM_STATE[other])?;
-    let other_target_in = context.subscriber(ARM_TARGET[other])?;
-    let estop_in = context.subscriber(EMERGENCY_STOP)?;
-    let mode_in = context.subscriber(OPERATOR_MODE)?;
-    let manual_in = context.subscriber(ARM_MANUAL[i])?;
-    let mut operator_mode: Option<harvest_ipc::payloads::OperatorModeState> = None;
-    let mut command_out = context.publisher(ARM_COMMAND[i])?;
-    let mut state_out = context.publisher(ARM_STATE[i])?;
-    let mut request_out = context.publisher(VALVE_REQUEST)?;
-    let mut events_out = context.publisher(HARVEST_EVENTS)?;
-    let mut health = HealthReporter::new(context)?;
-
-    let period_ns = config.control_period_us * 1000;
-    let resend_ns = config.valve_request_resend_ms * 1_000_000;
-
-    let mut inputs = Inputs::default();
-    let mut last_request: Option<(ValveRequest, u64)> = None;
-    let mut device_errors = FailureStreak::new(MAX_CONSECUTIVE_DEVICE_ERRORS);
-    let mut ticks = 0u64;
-    tracing::info!(arm = %arm, period_us = config.control_period_us, "arm control loop running");
-    let summary = run_control_loop(period_ns, |wake| -> Result<Flow, ArmProcessError> {
-        match wake {
-            Wake::Tick { now_ns } => {
-                ticks += 1;
-
-                // 1. Encoders.
-                let feedback = match servos.feedback() {
-                    Ok(sample) => {
-                        device_errors.succeeded();
-                        sample.map(|f| EncoderSample {
-                            capture_ns: f.capture_ns,
-                            position: f.position,
-                            velocity: f.velocity,
-                        })
-                    }
-                    Err(error) => {
-                        if let Some(failures) = device_errors.failed("encoder read", &error) {
-                            return Err(ArmProcessError::Device {
-                                arm: number,
-                                message: format!("{failures} encoder reads failed: {error}"),
-                            });
-                        }
-                        None
-                    }
-                };
-
-                // Until the servos report for the first time the arm is not ready: nothing is
-                // stepped or published (no state: the vacuum supervisor assigns it nothing and
-                // the other arm defers its motions).
-                if feedback.is_none() {
-                    return Ok(Flow::Continue);
-                }
-
-                // 2. Channels.
-                read_inputs(
-                    number,
-                    &mut inputs,
-                    &target_in,
-                    &vacuum_in,
-                    &grant_in,
-                    &other_state_in,
-                    &other_target_in,
-                    &estop_in,
-                )?;
-
-                // The operator's mode and manual orders.
-                if let Some(sample) = mode_in.receive_latest()? {
-                    operator_mode = Some(*sample);
-                }
-                obey_operator(
-                    &mut node,
-                    number,
-                    now_ns,
-                    operator_mode.as_ref(),
-                    &manual_in,
-                )?;
-
-                // 3. The node.
-                let input = ArmNodeInput {
-                    now_ns,
-                    feedback,
-                    target: inputs.target.as_ref(),
-                    vacuum: inputs.vacuum.as_ref(),
-                    grant: inputs.grant.as_ref(),
-                    other_arm: inputs.other_state.as_ref().map(|state| OtherArmInput {
-                        state,
-                        target: inputs.other_target.as_ref(),
-                    }),
-                    emergency_stop: inputs.emergency_stop,
-                };
-                let out = node.step(&input);
-
-                // 4. Servos.
-                let hold = match out.servo {
-                    ServoOrder::Track { position, velocity } => {
-                        match servos.command(position, velocity) {
-                            Ok(()) => false,
-                            Err(error) => {
-                                tracing::warn!(%error, ?position, "set-point refused: braking");
-                                if let Err(error) = servos.hold() {
-                                    tracing::warn!(%error, "brake command failed");
-                                }
-                                true
-                            }
-                        }
-                    }
-                    ServoOrder::Hold => {
-                        if let Err(error) = servos.hold() {
-                            tracing::warn!(%error, "brake command failed");
-                        }
-                        true
-                    }
-                };
-
-                // 5. Outputs.
-                // The node's own state: its phase code is always known.
-                let phase = out.state.phase.get().unwrap_or(PhaseCode::Idle);
-                for event in &out.events {
-                    if let Some(harvest_event) =
-                        reporter.convert(now_ns, phase, event, inputs.target.as_ref())
-                    {
-                        if harvest_event.kind == HarvestEventKind::TargetRejected {
-                            tracing::info!(apple_id = harvest_event.apple_id,
-                                reason = %harvest_event.reason, "target rejected");
-                        }
-                        events_out.publish(&harvest_event)?;
-                    }
-                }
-                reporter.end_tick();
-                let (apple_id, source_capture_ns) = reporter
-                    .current_target()
-                    .map_or((0, 0), |t| (t.apple_id, t.source_capture_ns));
-                let (position, velocity) = match out.servo {
-                    ServoOrder::Track { position, velocity } if !hold => (position, velocity),
-                    _ => (out.state.joint_position, [0.0; 4]),
-                };
-                command_out.publish_with(now_ns, |command| {
-                    command.arm_id = number;
-                    command.hold = u8::from(hold);
-                    command._reserved = [0; 2];
-                    command.apple_id = apple_id;
-                    command.source_capture_ns = source_capture_ns;
-                    command.joint_position = position;
-                    command.joint_velocity = velocity;
-                })?;
-                state_out.publish(&out.state)?;
-                let request = out.valve_request;
-                let due = match last_request {
-                    None => true,
-                    Some((last, at_ns)) => {
-                        last.request_seq != request.request_seq
-                            || last.kind != request.kind
-                            || now_ns.saturating_sub(at_ns) >= resend_ns
-                    }
-                };
-                if due {
-                    let mut message = request;
-                    message.header.capture_ns = now_ns;
-                    request_out.publish(&message)?;
-                    last_request = Some((request, now_ns));
-                }
-            }
-            Wake::Heartbeat { period } => {
-                let state = device_errors.run_state();
-                health.report_control_loop(state, ticks, &period)?;
-            }
-        }
-        Ok(Flow::Continue)
-    })?;
-
-    // Leave the arm braked with its valve closed.
-    if let Err(error) = servos.hold() {
-        tracing::warn!(%error, "final brake command failed");
-    }
-    let close = ValveRequest {
-        header: harvest_ipc::Header {
-            capture_ns: MonotonicClock::read_ns(),
-            ..harvest_ipc::Header::default()
+    let node = ArmNode::new(arm, node_config)?;
+    let task = ArmTask::<S>::new(node, config.valve_request_resend_ms);
+    let options = RunOptions {
+        period_ns: config.control_period_us * 1000,
+        runner: RunnerConfig {
+            max_read_failures: MAX_CONSECUTIVE_DEVICE_ERRORS,
+            mode_source,
         },
-        arm_id: number,
-        kind: harvest_ipc::payloads::ValveRequestKind::Close.into(),
-        _reserved: [0; 2],
-        request_seq: last_request.map_or(0, |(r, _)| r.request_seq.wrapping_add(1)),
     };
-    request_out.publish(&close)?;
+    let finished = run_node(context, task, ArmDevices(servos), options)?;
+    let summary = finished.result?;
+    let (read_failures, write_failures) = finished.runner.device_failures();
     tracing::info!(
         arm = %arm,
-        harvested = node.harvested_count(),
-        device_errors = device_errors.total(),
+        harvested = finished.runner.node().node().harvested_count(),
+        read_failures,
+        write_failures,
         p50_us = summary.p50_ns / 1000,
         p99_us = summary.p99_ns / 1000,
         max_us = summary.max_ns / 1000,
         "arm stopped; control period: {summary}"
     );
     Ok(summary)
-}
-
-/// Holds new targets unless harvesting with this arm enabled, and carries out manual orders
-/// in manual mode only (module docs).
-fn obey_operator(
-    node: &mut ArmNode,
-    number: u8,
-    now_ns: u64,
-    mode: Option<&harvest_ipc::payloads::OperatorModeState>,
-    manual_in: &harvest_ipc::Subscriber<harvest_ipc::payloads::ArmManualCommand>,
-) -> Result<(), ArmProcessError> {
-    use harvest_ipc::payloads::{ArmManualKind, OperatorModeCode};
-    let code = mode.and_then(|m| m.mode_code());
-    let enabled = mode.is_none_or(|m| m.arms_enabled[usize::from(number - 1)] != 0);
-    let harvesting = mode.is_none() || code == Some(OperatorModeCode::Harvesting);
-    node.hold_targets(!(harvesting && enabled));
-    let manual_fresh = code == Some(OperatorModeCode::Manual)
-        && mode.is_some_and(|m| now_ns.saturating_sub(m.header.capture_ns) <= MODE_STALE_NS);
-    while let Some(order) = manual_in.receive()? {
-        if order.arm_id != number {
-            continue;
-        }
-        match order.manual_kind() {
-            Some(ArmManualKind::MoveTo) if manual_fresh => {
-                match node.start_manual(
-                    now_ns,
-                    order.goal_joint_position,
-                    order.speed_fraction,
-                    order.request_id,
-                ) {
-                    Ok(duration_s) => {
-                        tracing::info!(request_id = order.request_id, duration_s, "manual move")
-                    }
-                    Err(refusal) => {
-                        tracing::warn!(request_id = order.request_id, %refusal, "manual move refused")
-                    }
-                }
-            }
-            Some(ArmManualKind::MoveTo) => {
-                tracing::warn!(request_id = order.request_id, mode = ?code,
-                    "manual move refused: not in manual mode");
-            }
-            Some(ArmManualKind::Stop) => node.stop_manual(),
-            None => tracing::warn!(kind = order.kind, "unknown manual order ignored"),
-        }
-    }
-    if node.manual_active() && !manual_fresh {
-        tracing::warn!(mode = ?code, "manual move stopped: mode left manual or went silent");
-        node.stop_manual();
-    }
-    Ok(())
-}
-
-/// Takes the newest sample of each input channel (this arm's answers only on the shared grant
-/// channel).
-#[allow(clippy::too_many_arguments)]
-fn read_inputs(
-    number: u8,
-    inputs: &mut Inputs,
-    target_in: &harvest_ipc::Subscriber<ArmTarget>,
-    vacuum_in: &harvest_ipc::Subscriber<VacuumState>,
-    grant_in: &harvest_ipc::Subscriber<ValveGrant>,
-    other_state_in: &harvest_ipc::Subscriber<ArmState>,
-    other_target_in: &harvest_ipc::Subscriber<ArmTarget>,
-    estop_in: &harvest_ipc::Subscriber<harvest_ipc::payloads::EmergencyStop>,
-) -> Result<(), ArmProcessError> {
-    if let Some(sample) = target_in.receive_latest()? {
-        inputs.target = Some(*sample);
-    }
-    if let Some(sample) = vacuum_in.receive_latest()? {
-        inputs.vacuum = Some(*sample);
-    }
-    while let Some(sample) = grant_in.receive()? {
-        if sample.arm_id == number {
-            inputs.grant = Some(*sample);
-        }
-    }
-    if let Some(sample) = other_state_in.receive_latest()? {
-        inputs.other_state = Some(*sample);
-    }
-    if let Some(sample) = other_target_in.receive_latest()? {
-        inputs.other_target = Some(*sample);
-    }
-    if let Some(sample) = estop_in.receive_latest()? {
-        inputs.emergency_stop = sample.engaged != 0;
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -1,9 +1,8 @@
-//! Property test of the arm settings reader (issue 18, item 3): a complete settings file (with
+//! Property test of the arm settings reader: a complete settings file (with
 //! its `[node]` table) with values replaced by anything (NaN, negative, huge, wrongly typed),
 //! lines dropped or doubled and bytes changed. The file is refused with an error naming it, or
 //! the node it configures is refused, or that node drives its arm to a target with set-points
 //! that are finite and inside the Table 1 joint limits; never a panic.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_arm::node::{ArmNode, ArmNodeConfig, ArmNodeInput, EncoderSample, ServoOrder};
 use harvest_arm_process::ArmDevice;

@@ -5,6 +5,7 @@
 
 use harvest_hw::rgbd_camera::RgbdCamera;
 use harvest_hw::rgbd_camera::sim::SimRgbdCamera;
+use harvest_hw::{AnyDeviceError, DeviceError};
 use harvest_ipc::catalogue::CAMERA_RGBD;
 use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD, HealthReporter};
@@ -31,8 +32,10 @@ pub enum CameraError {
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
+    /// The camera driver failed (opening it, or too many captures in a row); the source keeps the
+    /// driver's error kind.
     #[error("camera device: {0}")]
-    Device(String),
+    Device(#[source] AnyDeviceError),
     #[error("installing signal handler: {0}")]
     Signal(#[from] std::io::Error),
 }
@@ -45,7 +48,7 @@ pub fn run(args: &CameraArgs, domain: &Domain, process_name: &str) -> Result<(),
     let context = Context::new(domain, process_name)?;
     let camera = match args.device {
         CameraDevice::Sim => SimRgbdCamera::connect(&context)
-            .map_err(|error| CameraError::Device(error.to_string()))?,
+            .map_err(|error| CameraError::Device(AnyDeviceError::new(error)))?,
     };
     stream(&context, camera, args)
 }
@@ -76,16 +79,20 @@ fn stream<C: RgbdCamera>(
             Ok(false) => loan = Some(frame),
             Err(error) => {
                 consecutive_errors += 1;
-                tracing::warn!(%error, kind = ?harvest_hw::DeviceError::kind(&error), "capture failed");
+                let kind = error.kind();
+                tracing::warn!(%error, %kind, "capture failed");
+                health.note_device_error(kind.into());
                 if consecutive_errors > 10 {
-                    return Err(CameraError::Device(error.to_string()));
+                    return Err(CameraError::Device(AnyDeviceError::new(error)));
                 }
                 loan = Some(frame);
             }
         }
         if Instant::now() >= next_heartbeat {
             next_heartbeat += HEARTBEAT_PERIOD;
-            let state = if frames.last_seq() == 0 {
+            let state = if consecutive_errors > 0 {
+                ProcessRunState::Degraded
+            } else if frames.last_seq() == 0 {
                 ProcessRunState::Starting
             } else {
                 ProcessRunState::Running

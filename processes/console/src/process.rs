@@ -3,21 +3,25 @@
 //! - the **status thread** (this process's main loop, a wait set at 10 Hz) reads the channels
 //!   into the [`StatusBoard`] and stores its JSON; it also sends the heartbeat;
 //! - the **camera-view thread** ([`run_camera_view`]) encodes the view at `--view-rate-hz`;
-//! - the **command thread** sends each command a page posts on `operator/command` and waits
-//!   for its acknowledgement (one at a time, bounded by [`ACK_TIMEOUT`]);
+//! - two **command lanes** ([`Lane`]) send what a page posts on `operator/command` and wait
+//!   for each acknowledgement (bounded by `--ack-timeout-ms`): the **e-stop lane** carries the
+//!   emergency stop only, so a stop goes out at once even while another command's answer is
+//!   pending; the **command lane** carries every other command, one at a time. Whether each
+//!   lane can reach the executive is part of the status (`links`), and the page says so;
 //! - the **HTTP threads**, one per connection ([`crate::http`]).
 //!
 //! Routes: `GET /` (and `/app.js`, `/style.css`), `GET /api/status`, `GET
 //! /api/camera.jpg[?after=VIEW_SEQ]` (waits up to 1 s for a view newer than `after`),
 //! `GET /api/clock` (the stack clock, for the page's latency estimate), `POST /api/command`
-//! (`{"token": "...", "session": N, "command": {"command": "pause", ...}}`).
+//! (`{"token": "...", "session": N, "command": {"command": "pause", ...}}`; the e-stop needs
+//! no token). A command a lane cannot send is answered at once, 503 with `"unreachable": true`
+//! and the reason.
 //!
 //! The console commands nothing by itself: killing it changes nothing for the robot (in
 //! manual mode, the executive stops a motion whose controlling page is silent for 500 ms).
 
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -25,25 +29,22 @@ use harvest_ipc::catalogue::{
     ARM_STATE, ARM_TARGET, HARVEST_EVENTS, OPERATOR_ACK, OPERATOR_MODE, PERCEPTION_APPLES,
     PROCESS_HEALTH, VACUUM_STATE,
 };
-use harvest_ipc::operator_client::OperatorClient;
-use harvest_ipc::payloads::{
-    OperatorAck, OperatorCommand, OperatorModeCode, OperatorRefusalCode, ProcessRunState,
-};
+use harvest_ipc::payloads::{OperatorModeCode, OperatorRefusalCode, ProcessRunState};
 use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
 };
+use harvest_operator::Command;
 use harvest_operator::request::CommandRequest;
 use serde::Deserialize;
 use serde_json::json;
 
 use crate::camera_view::{CameraView, ViewSettings, run_camera_view};
+use crate::command_lane::{Lane, LaneAnswer};
 use crate::error::ConsoleError;
 use crate::http::{Handler, Request, Response, serve};
 use crate::page;
 use crate::status_board::StatusBoard;
 
-/// How long a command waits for the executive's answer.
-pub const ACK_TIMEOUT: Duration = Duration::from_millis(1500);
 /// Status refresh period.
 const STATUS_PERIOD: Duration = Duration::from_millis(100);
 /// How often a busy listening address is tried again.
@@ -66,19 +67,20 @@ pub struct ConsoleArgs {
     /// JPEG quality of the view, 1-100.
     #[arg(long, default_value_t = 70, value_parser = clap::value_parser!(u8).range(1..=100))]
     pub jpeg_quality: u8,
-}
-
-/// One command for the command thread.
-struct CommandJob {
-    message: OperatorCommand,
-    reply: mpsc::Sender<Option<OperatorAck>>,
+    /// How long a command waits for the executive's answer, ms.
+    #[arg(long, default_value_t = 1500, value_parser = clap::value_parser!(u64).range(100..=60_000))]
+    pub ack_timeout_ms: u64,
 }
 
 /// What the HTTP threads share.
 struct Shared {
     view: CameraView,
     status: Mutex<Arc<[u8]>>,
-    jobs: Mutex<mpsc::Sender<CommandJob>>,
+    /// The emergency stop's own lane.
+    estop_lane: Lane,
+    /// Every other command.
+    command_lane: Lane,
+    ack_timeout: Duration,
 }
 
 /// A command as the page posts it.
@@ -117,20 +119,16 @@ fn command_response(shared: &Shared, request: &Request) -> Response {
             .map_or_else(|| "?".to_owned(), |peer| peer.ip().to_string())
     );
     let message = command.to_message(0, posted.session, &posted.token, &client);
-    let (reply, answer) = mpsc::channel();
-    let sent = shared
-        .jobs
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
-        .send(CommandJob { message, reply });
-    if sent.is_err() {
-        return Response::json(
-            503,
-            &br#"{"accepted":false,"reason":"console shutting down"}"#[..],
-        );
-    }
-    match answer.recv_timeout(ACK_TIMEOUT + Duration::from_millis(500)) {
-        Ok(Some(ack)) => {
+    let lane = if command == Command::EmergencyStop {
+        &shared.estop_lane
+    } else {
+        &shared.command_lane
+    };
+    let answer = lane.submit(message);
+    // The lane answers within its acknowledgement timeout once it takes the command; the margin
+    // covers a command waiting behind another one on the command lane.
+    match answer.recv_timeout(2 * shared.ack_timeout + Duration::from_millis(500)) {
+        Ok(LaneAnswer::Ack(ack)) => {
             let body = json!({
                 "accepted": ack.accepted != 0,
                 "reason": ack.reason.as_str(),
@@ -140,11 +138,19 @@ fn command_response(shared: &Shared, request: &Request) -> Response {
             });
             Response::json(200, body.to_string().into_bytes())
         }
-        _ => Response::json(
+        Ok(LaneAnswer::Unreachable(problem)) => Response::json(
+            503,
+            json!({"accepted": false, "unreachable": true, "reason": format!(
+                "the console cannot reach the executive: {problem}"
+            )})
+            .to_string()
+            .into_bytes(),
+        ),
+        Ok(LaneAnswer::NoAnswer) | Err(_) => Response::json(
             504,
             json!({"accepted": false, "reason": format!(
-                "no answer from the executive within {} ms (is it running?)",
-                ACK_TIMEOUT.as_millis()
+                "sent; no answer from the executive within {} ms (is it running?)",
+                shared.ack_timeout.as_millis()
             )})
             .to_string()
             .into_bytes(),
@@ -200,29 +206,6 @@ fn route(shared: &Shared, request: &Request) -> Response {
     }
 }
 
-fn run_commands(
-    domain: &Domain,
-    node_name: &str,
-    jobs: mpsc::Receiver<CommandJob>,
-    stop: &AtomicBool,
-) -> Result<(), ConsoleError> {
-    let context = Context::new(domain, node_name)?;
-    let mut client = OperatorClient::new(&context)?;
-    while !stop.load(Ordering::Acquire) {
-        // Bounded so the thread notices the shutdown; commands wake it at once.
-        let job = match jobs.recv_timeout(Duration::from_millis(500)) {
-            Ok(job) => job,
-            Err(mpsc::RecvTimeoutError::Timeout) => continue,
-            Err(mpsc::RecvTimeoutError::Disconnected) => break,
-        };
-        let session = job.message.session_id;
-        let request = client.send(job.message)?;
-        let ack = client.wait_ack(session, request, ACK_TIMEOUT)?;
-        let _ = job.reply.send(ack);
-    }
-    Ok(())
-}
-
 /// Binds `address`; while it is taken (another console, another program), logs it and tries
 /// again every [`BIND_RETRY`] instead of failing: a busy port must not stop the stack (the
 /// supervisor stops everything when a process fails for good). `None` once `stop` is set.
@@ -253,13 +236,29 @@ pub fn run(args: &ConsoleArgs, domain: &Domain, process_name: &str) -> Result<()
             args.view_rate_hz
         )));
     }
-    let (jobs_in, jobs) = mpsc::channel();
+    let stop = Arc::new(AtomicBool::new(false));
+    let ack_timeout = Duration::from_millis(args.ack_timeout_ms);
+    let (estop_lane, estop_thread) = Lane::spawn(
+        "e-stop",
+        domain,
+        format!("{process_name}-estop"),
+        ack_timeout,
+        stop.clone(),
+    )?;
+    let (command_lane, command_thread) = Lane::spawn(
+        "command",
+        domain,
+        format!("{process_name}-cmd"),
+        ack_timeout,
+        stop.clone(),
+    )?;
     let shared = Arc::new(Shared {
         view: CameraView::default(),
         status: Mutex::new(Arc::from(&b"{}"[..])),
-        jobs: Mutex::new(jobs_in),
+        estop_lane,
+        command_lane,
+        ack_timeout,
     });
-    let stop = Arc::new(AtomicBool::new(false));
     let settings = ViewSettings {
         rate_hz: args.view_rate_hz,
         scale: args.view_scale,
@@ -281,13 +280,6 @@ pub fn run(args: &ConsoleArgs, domain: &Domain, process_name: &str) -> Result<()
         spawn(
             "console-view",
             Box::new(move || run_camera_view(&domain, &name, settings, &shared.view)),
-        )?
-    };
-    let command_thread = {
-        let (domain, name, stop) = (domain.clone(), format!("{process_name}-cmd"), stop.clone());
-        spawn(
-            "console-commands",
-            Box::new(move || run_commands(&domain, &name, jobs, &stop)),
         )?
     };
     let bound: Arc<Mutex<Option<SocketAddr>>> = Arc::new(Mutex::new(None));
@@ -317,11 +309,14 @@ pub fn run(args: &ConsoleArgs, domain: &Domain, process_name: &str) -> Result<()
         let _ = TcpStream::connect_timeout(&address, Duration::from_millis(200));
     }
     let _ = http_thread.join();
-    for (name, thread) in [("view", view_thread), ("commands", command_thread)] {
-        match thread.join() {
-            Ok(Ok(())) => {}
-            Ok(Err(error)) => tracing::warn!(thread = name, %error, "console thread failed"),
-            Err(_) => tracing::warn!(thread = name, "console thread panicked"),
+    match view_thread.join() {
+        Ok(Ok(())) => {}
+        Ok(Err(error)) => tracing::warn!(thread = "view", %error, "console thread failed"),
+        Err(_) => tracing::warn!(thread = "view", "console thread panicked"),
+    }
+    for (name, thread) in [("e-stop", estop_thread), ("command", command_thread)] {
+        if thread.join().is_err() {
+            tracing::warn!(thread = name, "console lane panicked");
         }
     }
     result
@@ -397,7 +392,12 @@ fn run_status(domain: &Domain, process_name: &str, shared: &Shared) -> Result<()
                     "work_ms_total": shared.view.work_ns.load(Ordering::Relaxed) as f64 * 1e-6,
                 })
             });
-            let text = board.to_json(now_ns, view).to_string();
+            let mut status = board.to_json(now_ns, view);
+            status["links"] = json!({
+                "estop": shared.estop_lane.status_json(),
+                "commands": shared.command_lane.status_json(),
+            });
+            let text = status.to_string();
             *shared
                 .status
                 .lock()

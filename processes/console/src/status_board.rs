@@ -11,9 +11,9 @@ use std::collections::{BTreeMap, VecDeque};
 
 use harvest_arm::node::{ArmNodeConfig, pick_reachable};
 use harvest_ipc::payloads::{
-    AppleDetections, ArmPhase, ArmState, ArmTarget, DepthSourceCode, HarvestEvent, OperatorAck,
-    OperatorCommandCode, OperatorModeCode, OperatorModeState, OperatorRefusalCode, ProcessHealth,
-    VacuumState,
+    AppleDetections, ArmPhase, ArmState, ArmTarget, DepthSourceCode, DeviceErrorCode, HarvestEvent,
+    OperatorAck, OperatorCommandCode, OperatorModeCode, OperatorModeState, OperatorRefusalCode,
+    ProcessHealth, VacuumState,
 };
 use harvest_log::HarvestLog;
 use harvest_robot_model::joint::JointPosition;
@@ -49,6 +49,16 @@ pub struct StatusBoard {
     processes: BTreeMap<String, ProcessRow>,
     events: VecDeque<String>,
     arm_config: ArmNodeConfig,
+}
+
+/// The kind of a heartbeat's last device error (`timeout`, `disconnected`, ...), `None` without
+/// one; an unknown code shows as `code N`.
+fn device_error_name(code: WireCode<DeviceErrorCode>) -> Option<String> {
+    match code.get() {
+        Ok(DeviceErrorCode::None) => None,
+        Ok(kind) => Some(kind.name().to_owned()),
+        Err(unknown) => Some(format!("code {}", unknown.code)),
+    }
 }
 
 fn phase_name(code: WireCode<ArmPhase>) -> String {
@@ -304,6 +314,7 @@ impl StatusBoard {
                     "value": row.latest.detail_value,
                     "age_ms": now_ns.saturating_sub(row.heard_ns) / 1_000_000,
                     "restarts": row.pids_seen.len().saturating_sub(1),
+                    "device_error": device_error_name(row.latest.last_device_error),
                 })
             })
             .collect()
@@ -424,5 +435,21 @@ mod tests {
         let rows = board.processes_json(2_000_000_000);
         assert_eq!(rows[0]["restarts"], 1);
         assert_eq!(rows[0]["rate_hz"], 200.0);
+        assert_eq!(rows[0]["device_error"], Value::Null);
+    }
+
+    #[test]
+    fn the_kind_of_the_last_device_error_is_shown() {
+        let mut board = StatusBoard::new(0);
+        let mut beat = ProcessHealth {
+            process_name: FixedString::new("vacuum"),
+            pid: 10,
+            run_state: harvest_ipc::payloads::ProcessRunState::Degraded.into(),
+            ..ProcessHealth::default()
+        };
+        beat.last_device_error.set(DeviceErrorCode::Timeout);
+        board.on_health(&beat, 0);
+        let rows = board.processes_json(0);
+        assert_eq!(rows[0]["device_error"], "timeout");
     }
 }

@@ -2,7 +2,9 @@
 //! stack). Each command is sent on `operator/command` with the control token and the answer
 //! on `operator/ack` is printed; the exit code is 0 when accepted, 1 when refused, 2 when no
 //! answer came (is the executive running?). `status` reads `operator/mode`, the arms' and the
-//! vacuum's state; it needs no token.
+//! vacuum's state; it needs no token. Neither does `estop`: without a token (no file, none
+//! given, or a malformed one) it is sent without one, and the executive stops the robot all the
+//! same (a stop needs no authority).
 //!
 //! A manual move (jog, drop-off, home, platform) keeps this session's heartbeat going until the
 //! move's planned time is over (or the platform stops), since the executive stops manual
@@ -16,7 +18,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use harvest_ipc::catalogue::{ARM_STATE, OPERATOR_MODE, VACUUM_STATE};
+use harvest_ipc::catalogue::{ARM_STATE, OPERATOR_MARK, OPERATOR_MODE, VACUUM_STATE};
+use harvest_ipc::fixed_string::FixedString;
 use harvest_ipc::operator_client::{OperatorClient, OperatorClientError};
 use harvest_ipc::payloads::{
     OperatorAck, OperatorModeCode, OperatorModeState, OperatorRefusalCode,
@@ -59,7 +62,8 @@ pub enum CtlCommand {
     Resume,
     /// Stop harvesting (or manual motion): idle.
     Stop,
-    /// Engage the emergency stop (a protective stop; the hardware e-stop stays the certified one).
+    /// Engage the emergency stop (a protective stop; the hardware e-stop stays the certified
+    /// one). Needs no token: accepted from anyone, even while another session controls.
     Estop,
     /// Release the emergency stop.
     Release,
@@ -106,6 +110,13 @@ pub enum CtlCommand {
     /// an arm holds an apple, the platform or the trailer moves, the row is done, or the
     /// executive works no row).
     NextStop,
+    /// Mark this moment (`operator/mark`, no token needed: a mark commands nothing): the
+    /// recorder keeps a clip of its flight recorder around it and lists the mark in the
+    /// recording's events.
+    Mark {
+        /// What happened, in a few words (cut at 120 bytes).
+        text: String,
+    },
 }
 
 /// `enable` or `disable`.
@@ -144,7 +155,7 @@ const PLATFORM_MAX_WAIT: Duration = Duration::from_secs(60);
 impl CtlCommand {
     fn to_command(&self) -> Option<Command> {
         Some(match *self {
-            Self::Status { .. } => return None,
+            Self::Status { .. } | Self::Mark { .. } => return None,
             Self::Start => Command::Start,
             Self::Pause => Command::Pause,
             Self::Resume => Command::Resume,
@@ -186,30 +197,44 @@ fn client_label() -> String {
     format!("ctl {user}")
 }
 
-/// Runs `harvest ctl`.
-pub fn run(args: &CtlArgs, domain: &Domain) -> Result<ExitCode, CtlError> {
-    let context = Context::new(domain, &format!("ctl-{}", std::process::id()))?;
-    let timeout = Duration::from_millis(args.timeout_ms);
-    let Some(command) = args.command.to_command() else {
-        let CtlCommand::Status { json } = args.command else {
-            return Ok(ExitCode::SUCCESS);
-        };
-        return status(&context, json, timeout);
-    };
-    let token = match &args.token {
-        Some(text) => ControlToken::parse(text, "--token")?,
+/// The control token: `--token`, else the token file.
+fn control_token(args: &CtlArgs, domain: &Domain) -> Result<ControlToken, TokenError> {
+    match &args.token {
+        Some(text) => ControlToken::parse(text, "--token"),
         None => {
             let path = args
                 .token_file
                 .clone()
                 .unwrap_or_else(|| token_path(domain.name()));
-            read_token_file(&path)?
+            read_token_file(&path)
         }
+    }
+}
+
+/// Runs `harvest ctl`.
+pub fn run(args: &CtlArgs, domain: &Domain) -> Result<ExitCode, CtlError> {
+    let context = Context::new(domain, &format!("ctl-{}", std::process::id()))?;
+    let timeout = Duration::from_millis(args.timeout_ms);
+    let Some(command) = args.command.to_command() else {
+        return match &args.command {
+            CtlCommand::Status { json } => status(&context, *json, timeout),
+            CtlCommand::Mark { text } => mark(&context, text),
+            _ => Ok(ExitCode::SUCCESS),
+        };
+    };
+    let token = match (control_token(args, domain), command) {
+        (Ok(token), _) => token.as_str().to_owned(),
+        // A stop needs no authority: without a (valid) token it is sent without one.
+        (Err(error), Command::EmergencyStop) => {
+            eprintln!("estop: no control token ({error}); sent without it (a stop needs none)");
+            String::new()
+        }
+        (Err(error), _) => return Err(error.into()),
     };
     let session = session_id(domain);
     let client = client_label();
     let mut operator = OperatorClient::new(&context)?;
-    let request = operator.send(command.to_message(0, session, token.as_str(), &client))?;
+    let request = operator.send(command.to_message(0, session, &token, &client))?;
     let Some(ack) = operator.wait_ack(session, request, timeout)? else {
         eprintln!(
             "{}: no answer within {} ms (is `harvest executive` running in domain {domain}?)",
@@ -235,12 +260,7 @@ pub fn run(args: &CtlArgs, domain: &Domain) -> Result<ExitCode, CtlError> {
         let mut moving_seen = false;
         while Instant::now() < until {
             std::thread::sleep(HEARTBEAT_PERIOD);
-            let beat = operator.send(Command::Heartbeat.to_message(
-                0,
-                session,
-                token.as_str(),
-                &client,
-            ))?;
+            let beat = operator.send(Command::Heartbeat.to_message(0, session, &token, &client))?;
             if let Some(ack) = operator.wait_ack(session, beat, timeout)?
                 && ack.accepted == 0
             {
@@ -256,6 +276,24 @@ pub fn run(args: &CtlArgs, domain: &Domain) -> Result<ExitCode, CtlError> {
         }
         println!("{}: motion done", command.name());
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// How long `ctl mark` keeps its publisher after sending: the sample lives in the publisher's
+/// shared memory, so the recorder must have taken it before this process ends (it wakes on the
+/// mark's event within a millisecond; the margin covers a loaded machine).
+const MARK_LINGER: Duration = Duration::from_millis(300);
+
+/// Publishes one mark on `operator/mark`.
+fn mark(context: &Context, text: &str) -> Result<ExitCode, CtlError> {
+    let mut publisher = context.publisher(OPERATOR_MARK)?;
+    let marked_ns = MonotonicClock::read_ns();
+    publisher.publish_with(marked_ns, |mark| {
+        mark.text = FixedString::new(text);
+        mark.source = FixedString::new(&client_label());
+    })?;
+    println!("mark: sent {text:?}");
+    std::thread::sleep(MARK_LINGER);
     Ok(ExitCode::SUCCESS)
 }
 

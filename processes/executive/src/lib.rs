@@ -4,6 +4,9 @@
 //! moves to the arms (`armN/manual`), drives the platform and, along a row, the stop-and-go
 //! cycle ([`row`]).
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod ctl;
 pub mod process;
 pub mod row;

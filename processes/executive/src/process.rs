@@ -29,16 +29,18 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use crate::row::{RowLink, RowOptions};
+use harvest_field::StopCycleError;
 use harvest_hw::platform::sim::SimPlatform;
 use harvest_hw::platform::{Platform, PlatformTravel};
+use harvest_hw::{AnyDeviceError, DeviceError};
 use harvest_ipc::catalogue::{
     ARM_MANUAL, ARM_STATE, EMERGENCY_STOP, OPERATOR_ACK, OPERATOR_COMMAND, OPERATOR_MODE,
     SAFETY_VIOLATION,
 };
 use harvest_ipc::control_loop::{Wake, run_control_loop};
 use harvest_ipc::payloads::{
-    ArmManualKind, ArmPhase, ArmState, OperatorCommand, OperatorModeCode, OperatorModeState,
-    ProcessRunState,
+    ArmManualKind, ArmPhase, ArmState, DeviceErrorCode, OperatorCommand, OperatorModeCode,
+    OperatorModeState, ProcessRunState,
 };
 use harvest_ipc::period_stats::PeriodStatsError;
 use harvest_ipc::{Context, Domain, FixedString, Flow, HealthReporter, MonotonicClock, Publisher};
@@ -83,7 +85,7 @@ pub struct ExecutiveArgs {
     /// `harvest_operator::token::token_path`).
     #[arg(long)]
     pub token_file: Option<PathBuf>,
-    /// Work a row stop by stop (issue 17): this many stops (0: no row, the robot stays where
+    /// Work a row stop by stop: this many stops (0: no row, the robot stays where
     /// it is). Needs the simulated tractor (`harvest sim --row`).
     #[arg(long, default_value_t = 0)]
     pub row_stops: u32,
@@ -111,10 +113,13 @@ pub enum ExecutiveProcessError {
     Period(#[from] PeriodStatsError),
     /// The platform could not be reached.
     #[error("platform device: {0}")]
-    Platform(String),
-    /// The row's stop-and-go cycle could not be set up.
+    Platform(#[source] AnyDeviceError),
+    /// The row's stop-and-go cycle refused its settings.
     #[error("row: {0}")]
-    Row(String),
+    Row(#[from] StopCycleError),
+    /// The tractor could not be reached.
+    #[error("row: tractor device: {0}")]
+    Tractor(#[source] AnyDeviceError),
     /// The transport failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
@@ -137,11 +142,34 @@ enum PlatformLink {
     None,
 }
 
+/// Why a platform action or poll did not happen.
+#[derive(Debug, thiserror::Error)]
+enum PlatformFailure {
+    /// The stack runs without a platform.
+    #[error("{}", Refusal::NoPlatform)]
+    Absent,
+    /// The platform's driver failed or refused; the source keeps its kind.
+    #[error(transparent)]
+    Device(AnyDeviceError),
+}
+
+impl PlatformFailure {
+    /// The device error's kind for the heartbeat (`None` without a device error).
+    fn device_error(&self) -> DeviceErrorCode {
+        match self {
+            Self::Absent => DeviceErrorCode::None,
+            Self::Device(error) => error.kind().into(),
+        }
+    }
+}
+
 impl PlatformLink {
-    fn poll(&mut self) -> Result<Option<PlatformView>, String> {
+    fn poll(&mut self) -> Result<Option<PlatformView>, PlatformFailure> {
         let (position, travel) = match self {
             Self::Sim(platform) => (
-                platform.position().map_err(|e| e.to_string())?,
+                platform
+                    .position()
+                    .map_err(|e| PlatformFailure::Device(AnyDeviceError::new(e)))?,
                 platform.travel(),
             ),
             Self::None => return Ok(None),
@@ -153,18 +181,20 @@ impl PlatformLink {
         }))
     }
 
-    fn move_to(&mut self, target_m: [f64; 2]) -> Result<(), String> {
+    fn move_to(&mut self, target_m: [f64; 2]) -> Result<(), PlatformFailure> {
         match self {
             Self::Sim(platform) => platform
                 .move_to(target_m[0], target_m[1])
-                .map_err(|e| e.to_string()),
-            Self::None => Err(Refusal::NoPlatform.to_string()),
+                .map_err(|e| PlatformFailure::Device(AnyDeviceError::new(e))),
+            Self::None => Err(PlatformFailure::Absent),
         }
     }
 
-    fn stop(&mut self) -> Result<(), String> {
+    fn stop(&mut self) -> Result<(), PlatformFailure> {
         match self {
-            Self::Sim(platform) => platform.stop().map_err(|e| e.to_string()),
+            Self::Sim(platform) => platform
+                .stop()
+                .map_err(|e| PlatformFailure::Device(AnyDeviceError::new(e))),
             Self::None => Ok(()),
         }
     }
@@ -201,7 +231,7 @@ pub fn run(
     let mut platform = match args.platform {
         PlatformDevice::Sim => PlatformLink::Sim(Box::new(
             SimPlatform::connect(&context, PlatformTravel::default(), PLATFORM_TIMEOUT)
-                .map_err(|error| ExecutiveProcessError::Platform(error.to_string()))?,
+                .map_err(|error| ExecutiveProcessError::Platform(AnyDeviceError::new(error)))?,
         )),
         PlatformDevice::None => PlatformLink::None,
     };
@@ -287,6 +317,7 @@ pub fn run(
                                 view.platform = platform_view;
                             }
                             Err(error) => {
+                                health.note_device_error(error.device_error());
                                 platform_failures = platform_failures.saturating_add(1);
                                 if platform_failures == 3 {
                                     tracing::warn!(%error, "platform silent: polling at 1 Hz");
@@ -341,14 +372,15 @@ pub fn run(
                         }
                         let text = violation.description.as_str().to_owned();
                         for action in executive.protective_stop(now_ns, &text) {
-                            if let Err(message) = apply(
+                            if let Err(failure) = apply(
                                 &action,
                                 now_ns,
                                 &mut estop_out,
                                 &mut manual_out,
                                 &mut platform,
                             )? {
-                                tracing::warn!(%message, ?action, "action failed");
+                                health.note_device_error(failure.device_error());
+                                tracing::warn!(%failure, ?action, "action failed");
                             }
                         }
                     }
@@ -371,26 +403,28 @@ pub fn run(
                                     Ok((what, target_m)) => {
                                         decision.reason = what;
                                         if let Some(target_m) = target_m
-                                            && let Err(message) = platform.move_to(target_m)
+                                            && let Err(failure) = platform.move_to(target_m)
                                         {
-                                            tracing::warn!(%message, ?target_m, "platform move refused");
+                                            health.note_device_error(failure.device_error());
+                                            tracing::warn!(%failure, ?target_m, "platform move refused");
                                         }
                                     }
                                     Err(reason) => decision.refuse(Refusal::NextStop(reason)),
                                 }
                                 continue;
                             }
-                            if let Err(message) = apply(
+                            if let Err(failure) = apply(
                                 action,
                                 now_ns,
                                 &mut estop_out,
                                 &mut manual_out,
                                 &mut platform,
                             )? {
-                                tracing::warn!(%message, ?action, "action failed");
+                                health.note_device_error(failure.device_error());
+                                tracing::warn!(%failure, ?action, "action failed");
                                 if decision.is_accepted() {
                                     decision.refusal = Some(Refusal::NoPlatform);
-                                    decision.reason = message;
+                                    decision.reason = failure.to_string();
                                 }
                             }
                         }
@@ -485,14 +519,15 @@ pub fn run(
     Ok(())
 }
 
-/// Carries out one action; `Ok(Err(message))` when the device refused it.
+/// Carries out one action; `Ok(Err(failure))` when the platform is absent or its device failed
+/// or refused.
 fn apply(
     action: &Action,
     now_ns: u64,
     estop_out: &mut Publisher<harvest_ipc::payloads::EmergencyStop>,
     manual_out: &mut [Publisher<harvest_ipc::payloads::ArmManualCommand>; 2],
     platform: &mut PlatformLink,
-) -> Result<Result<(), String>, ExecutiveProcessError> {
+) -> Result<Result<(), PlatformFailure>, ExecutiveProcessError> {
     match action {
         Action::EngageEmergencyStop { reason } => publish_estop(estop_out, now_ns, true, reason)?,
         Action::ReleaseEmergencyStop => {

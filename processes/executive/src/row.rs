@@ -1,5 +1,5 @@
 //! The executive's part of the field workflow: it drives [`harvest_field::StopCycle`] along a
-//! row (issue 17).
+//! row.
 //!
 //! Why here and not in a process of its own: the executive is already the one writer of the
 //! platform commands and the holder of the operator's mode; a separate `harvest field` process
@@ -20,7 +20,7 @@ use harvest_field::{
 };
 use harvest_hw::tractor::Tractor;
 use harvest_hw::tractor::sim::SimTractor;
-use harvest_hw::{DeviceError, ErrorKind};
+use harvest_hw::{AnyDeviceError, DeviceError, ErrorKind};
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PERCEPTION_APPLES};
 use harvest_ipc::payloads::{
     AppleDetections, ArmPhase, ArmState, HarvestCause, HarvestEvent, HarvestEventKind,
@@ -80,10 +80,9 @@ impl RowLink {
             quiet_ns: options.quiet_ms * 1_000_000,
             resend_ns: RESEND_NS,
         };
-        let cycle = StopCycle::new(config, [ArmParams::arm1(), ArmParams::arm2()])
-            .map_err(|error| ExecutiveProcessError::Row(error.to_string()))?;
+        let cycle = StopCycle::new(config, [ArmParams::arm1(), ArmParams::arm2()])?;
         let tractor = SimTractor::connect(context, TRACTOR_TIMEOUT)
-            .map_err(|error| ExecutiveProcessError::Row(format!("tractor: {error}")))?;
+            .map_err(|error| ExecutiveProcessError::Tractor(AnyDeviceError::new(error)))?;
         Ok(Self {
             cycle,
             tractor,

@@ -9,6 +9,9 @@
 //!   oldest message when a client is slow; the channels the mapping writes to.
 //! - [`args`]: the command line.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod args;
 pub mod bridge;
 pub mod camera_thread;

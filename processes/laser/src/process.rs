@@ -20,9 +20,11 @@ use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT};
 use harvest_ipc::payloads::{LaserScanResult, LaserScanStatus, ProcessRunState};
 use harvest_ipc::{Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, Waiter, WireCode};
 
+use harvest_hw::DeviceError;
 use harvest_laser::calibration::{CalibrationFileError, read_extrinsics};
 use harvest_laser::extraction::ExtractionError;
-use harvest_laser::service::ScanService;
+use harvest_laser::scan::ScanError;
+use harvest_laser::service::{ScanRequestError, ScanService};
 
 /// Arguments of `harvest laser`.
 #[derive(Debug, Clone, PartialEq, clap::Args)]
@@ -150,6 +152,9 @@ pub fn run_until(
                             "apple scanned"
                         ),
                         Err(error) if result.status == LaserScanStatus::DeviceError => {
+                            if let ScanRequestError::Scan(ScanError::Device(device)) = &error {
+                                health.note_device_error(device.kind().into());
+                            }
                             tracing::warn!(
                                 request_seq = request.request_seq,
                                 apple_id = request.apple_id,

@@ -6,7 +6,6 @@
 //! Checks: a known apple's request is answered with status 0 within a few millimetres of the
 //! truth (ToF colour-camera frame, as requested) and echoes the request's ids; an apple out of
 //! the slide's reach gets status 2 without moving the device; the loop stops cleanly.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

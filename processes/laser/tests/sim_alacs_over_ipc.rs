@@ -5,7 +5,6 @@
 //!
 //! Checks: the driver passes the ALACS conformance checks; a full scan request of a known apple
 //! (the `ideal` scenario: no leaves) comes back within a few millimetres of the true centre.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -11,11 +11,11 @@
 //! heartbeat after a capture error the driver already recovered from; otherwise
 //! `Running` with the last cloud's points, or the lost packets once there are any.
 
-use harvest_hw::ErrorKind;
 use harvest_hw::lidar::livox::command::BroadcastCode;
 use harvest_hw::lidar::livox::{DeviceTarget, LivoxConfig, LivoxLidar};
 use harvest_hw::lidar::sim::SimLidar;
 use harvest_hw::lidar::{Lidar, LidarCondition, LidarSpec};
+use harvest_hw::{AnyDeviceError, DeviceError, ErrorKind};
 use harvest_ipc::catalogue::LIDAR_POINTS;
 use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::payloads::point_cloud::POINT_CLOUD_CAPACITY;
@@ -118,7 +118,7 @@ pub enum LidarProcessError {
     Ipc(#[from] harvest_ipc::error::IpcError),
     /// The device failed (repeatedly) or could not be opened.
     #[error("lidar device: {0}")]
-    Device(String),
+    Device(#[source] AnyDeviceError),
     /// A device option is missing or wrong (the message names it).
     #[error("lidar options: {0}")]
     Config(String),
@@ -153,12 +153,12 @@ pub fn run(args: &LidarArgs, domain: &Domain, process_name: &str) -> Result<(), 
     match args.device {
         LidarDevice::Sim => {
             let lidar = SimLidar::connect(&context, integration)
-                .map_err(|error| LidarProcessError::Device(error.to_string()))?;
+                .map_err(|error| LidarProcessError::Device(AnyDeviceError::new(error)))?;
             stream(&context, lidar, args)
         }
         LidarDevice::Livox => {
             let lidar = LivoxLidar::open(args.livox.config(integration)?)
-                .map_err(|error| LidarProcessError::Device(error.to_string()))?;
+                .map_err(|error| LidarProcessError::Device(AnyDeviceError::new(error)))?;
             stream(&context, lidar, args)
         }
     }
@@ -227,16 +227,17 @@ fn stream<L: Lidar>(
             Ok(false) => loan = Some(cloud),
             Err(error) => {
                 consecutive_errors += 1;
-                error_since_heartbeat = Some(match harvest_hw::DeviceError::kind(&error) {
+                error_since_heartbeat = Some(match error.kind() {
                     ErrorKind::Disconnected => "disconnected",
                     ErrorKind::Timeout => "timeout",
                     ErrorKind::Fault => "device_fault",
                     ErrorKind::Protocol => "protocol_error",
                     ErrorKind::InvalidRequest | ErrorKind::Other => "device_error",
                 });
-                tracing::warn!(%error, kind = ?harvest_hw::DeviceError::kind(&error), "capture failed");
+                tracing::warn!(%error, kind = %error.kind(), "capture failed");
+                health.note_device_error(error.kind().into());
                 if consecutive_errors > 10 {
-                    return Err(LidarProcessError::Device(error.to_string()));
+                    return Err(LidarProcessError::Device(AnyDeviceError::new(error)));
                 }
                 loan = Some(cloud);
             }

@@ -1,7 +1,6 @@
 //! The LiDAR path over real shared memory: the simulator's LiDAR device publishing frames on
 //! `hw/lidar/points`, the driver integrating them into one cloud, and the cloud fused into the
 //! simulated colour camera lands on the objects the camera renders there.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_hw::lidar::sim::SimLidar;
 use harvest_hw::lidar::{Lidar, LidarSpec};

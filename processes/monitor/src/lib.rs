@@ -1,5 +1,5 @@
-//! harvest-monitor: `harvest monitor`, the independent safety monitor of issue 5 run on the
-//! stack's channels, live or from a recording.
+//! harvest-monitor: `harvest monitor`, the independent safety monitor ([`harvest_safety`]) run
+//! on the stack's channels, live or from a recording.
 //!
 //! The checker itself is [`harvest_safety::safety_monitor::SafetyMonitor`], which judges a
 //! stream of [`harvest_safety::trace::TraceEvent`]s and shares no logic with the policies. This
@@ -13,6 +13,9 @@
 //! - [`live`]: the same on a running stack (subscribers woken by the wait set), publishing each
 //!   violation on `safety/violation` in the stack ([`violation_message`]);
 //! - [`args`]: the command line and [`args::run_monitor`].
+
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod args;
 pub mod error;

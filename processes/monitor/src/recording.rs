@@ -11,6 +11,7 @@ use harvest_ipc::catalogue::{ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, VACUUM_STAT
 use harvest_ipc::{Channel, Payload};
 use harvest_recording::scan::{ScanItem, ScanOptions, ScannedMessage, scan_file};
 use harvest_recording::schema::TopicInfo;
+use harvest_recording::time_base::FileTimeBase;
 use harvest_robot_model::ArmId;
 use harvest_safety::safety_monitor::{MonitorConfig, Violation};
 
@@ -71,14 +72,22 @@ pub fn check_recording(
     let mut monitor = StackMonitor::new(mapping, checks);
     let mut failure = None;
     let mut end_ns = 0;
+    // Log times may be wall-clock (stack stamp + the session's offset): the rules compare
+    // them with payload stamps, so they are judged on the stack clock.
+    let mut time = FileTimeBase::default();
     let outcome = scan_file(path, ScanOptions::default(), |item| {
-        let ScanItem::Message(message) = item else {
-            return ControlFlow::Continue(());
+        let message = match item {
+            ScanItem::Message(message) => message,
+            ScanItem::Metadata(record) => {
+                time.observe(record);
+                return ControlFlow::Continue(());
+            }
+            _ => return ControlFlow::Continue(()),
         };
         let Some(topic) = topic_of(&message.channel.topic) else {
             return ControlFlow::Continue(());
         };
-        let t = message.log_time;
+        let t = time.stack_ns(message.log_time);
         end_ns = end_ns.max(t);
         let result = match topic {
             Topic::Vacuum => decode(VACUUM_STATE, &message)

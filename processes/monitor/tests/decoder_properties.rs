@@ -1,11 +1,10 @@
-//! Property tests of the monitor's readers (issue 18, item 3): the stack channels it judges,
+//! Property tests of the monitor's readers: the stack channels it judges,
 //! fed payloads of any bit pattern in any order and at any time stamps, and recordings of such
 //! payloads, cut or with bytes overwritten, through `harvest monitor --recording`. The monitor
 //! judges or reports an error naming what was wrong; it never panics.
 //!
 //! Payloads are filled through their raw bytes (`Payload` makes every bit pattern a valid
 //! value), so the properties hold whatever the field types of the payloads become.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::Payload;
 use harvest_ipc::catalogue::{ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, VACUUM_STATE};

@@ -2,7 +2,14 @@
 //!
 //! Event-driven: the wait set wakes on each frame; the frame is read in place in shared memory
 //! and the detections are written in place into a loaned sample. Only the newest frame is
-//! processed when several are queued (perception must not fall behind the camera).
+//! processed when several are queued: a slow detector (a learned model on a CPU) costs skipped
+//! frames, never a queue. Each processed frame's age (capture to start of processing) and the
+//! camera frames skipped before it are tracked ([`FreshnessTracker`]): per frame at TRACE, the
+//! last age in the heartbeat (`frame_age_ns`), the totals when the process stops.
+//!
+//! Detector (`[detector]` in the config, or `--detector` / `--model`): built before the process
+//! joins the channels, so a model that cannot be loaded, or fits no known layout, stops the
+//! process at start with the reason.
 //!
 //! Laser refinement (`[laser]` in the config): before each frame every `laser/scan_result`
 //! that has arrived is taken (never waited for); after it, the scans the frame asked for are
@@ -30,10 +37,13 @@ use harvest_lidar::ExtrinsicFile;
 use harvest_perception::calibration::Calibration;
 use harvest_perception::config_file::{ConfigFileError, read_config};
 use harvest_perception::depth_source::{DepthSource, FusedDepth};
+use harvest_perception::detector::{Detector, DetectorKind, make_detector};
 use harvest_perception::estimator::EstimatorKind;
+use harvest_perception::frame_freshness::FreshnessTracker;
 use harvest_perception::node::PerceptionNode;
 use harvest_perception::pipeline::PerceptionConfig;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct PerceptionArgs {
@@ -49,6 +59,15 @@ pub struct PerceptionArgs {
     /// sphere fit).
     #[arg(long)]
     pub estimator: Option<EstimatorKind>,
+    /// Detector: `color-segmentation` or `onnx` (overrides the config's `[detector] kind`;
+    /// default there: colour segmentation).
+    #[arg(long)]
+    pub detector: Option<DetectorKind>,
+    /// The ONNX model of the `onnx` detector (a YOLOv8/YOLO11 detect or segment export;
+    /// overrides the config's `[detector] model`). Other `[detector]` keys (classes, thresholds,
+    /// providers) come from the config.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
     /// Ask the laser scanner for no scans (overrides the config's `laser.enabled`).
     #[arg(long)]
     pub no_laser: bool,
@@ -82,6 +101,12 @@ pub enum PerceptionProcessError {
     /// The `--laser-calibration` file cannot be used (named in the message).
     #[error(transparent)]
     LaserCalibration(#[from] harvest_laser::calibration::CalibrationFileError),
+    /// `--detector` / `--model` do not fit together or with the config.
+    #[error("{0}")]
+    DetectorChoice(String),
+    /// The detector cannot start (e.g. the ONNX model or runtime; named in the message).
+    #[error(transparent)]
+    Detector(#[from] harvest_perception::pipeline::PerceptionSetupError),
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
@@ -94,6 +119,18 @@ pub fn run(
     args: &PerceptionArgs,
     domain: &Domain,
     process_name: &str,
+) -> Result<(), PerceptionProcessError> {
+    run_until(args, domain, process_name, None, &AtomicBool::new(false))
+}
+
+/// [`run`] with `detector` in place of the configured one (when given) that also stops once
+/// `stop` is set (checked at each heartbeat, so within [`HEARTBEAT_PERIOD`]).
+pub fn run_until(
+    args: &PerceptionArgs,
+    domain: &Domain,
+    process_name: &str,
+    detector: Option<Box<dyn Detector + Send>>,
+    stop: &AtomicBool,
 ) -> Result<(), PerceptionProcessError> {
     let calibration_path =
         args.calibration
@@ -113,6 +150,14 @@ pub fn run(
     if args.no_laser {
         config.laser.enabled = false;
     }
+    config
+        .detector
+        .override_with(args.detector, args.model.as_deref())
+        .map_err(PerceptionProcessError::DetectorChoice)?;
+    let detector = match detector {
+        Some(detector) => detector,
+        None => make_detector(&config.detector)?,
+    };
     if let Some(source) = args.depth_source {
         config.depth_source = source;
     }
@@ -130,7 +175,8 @@ pub fn run(
             Some(FusedDepth::new(camera_from_lidar))
         }
     };
-    let mut node = PerceptionNode::new(config, calibration);
+    let detector_name = detector.name();
+    let mut node = PerceptionNode::with_detector(config.clone(), calibration, detector);
     match &args.laser_calibration {
         Some(path) => node.set_laser_reach(LaserReach::new(
             read_extrinsics(path)?,
@@ -157,9 +203,10 @@ pub fn run(
     let waiter = Waiter::new()?;
     let frame_guard = waiter.attach_listener(frames.listener())?;
     let heartbeat = waiter.attach_interval(HEARTBEAT_PERIOD)?;
-    let mut last_receive_latency_ns = 0u64;
+    let mut freshness = FreshnessTracker::default();
     let mut apples_published = 0u64;
     tracing::info!(
+        detector = detector_name,
         estimator = config.estimator.kind.name(),
         laser = config.laser.enabled,
         depth_source = ?config.depth_source,
@@ -180,8 +227,11 @@ pub fn run(
                         "laser scan result"
                     );
                 }
-                let received_ns = MonotonicClock::read_ns();
-                last_receive_latency_ns = received_ns.saturating_sub(frame.header.publish_ns);
+                let fresh = freshness.start_frame(
+                    frame.header.msg_seq,
+                    frame.header.capture_ns,
+                    MonotonicClock::read_ns(),
+                );
                 if let (Some(fused), Some(clouds)) = (fused_depth.as_mut(), clouds.as_ref())
                     && let Some(cloud) = clouds.receive_latest()?
                 {
@@ -203,6 +253,7 @@ pub fn run(
                     .and_then(|fused| fused.depth_for(&frame.meta));
                 let mut out = detections.loan()?;
                 let result = node.process_with_depth(&frame, depth_override, &mut out);
+                let out_seq = frame.header.msg_seq;
                 out.header.capture_ns = frame.header.capture_ns;
                 let count = out.apples.len();
                 drop(frame);
@@ -213,8 +264,11 @@ pub fn run(
                 }
                 match result {
                     Ok(stats) => tracing::trace!(
+                        frame_seq = out_seq,
                         apples = count,
-                        receive_latency_ns = last_receive_latency_ns,
+                        frame_age_ns = fresh.age_ns,
+                        frames_skipped = fresh.skipped,
+                        detect_us = stats.timings.detect_us,
                         total_us = stats.timings.total_us,
                         "frame processed"
                     ),
@@ -234,17 +288,23 @@ pub fn run(
                 health.report(
                     state,
                     frames.received_count(),
-                    "recv_latency_ns",
-                    last_receive_latency_ns,
+                    "frame_age_ns",
+                    freshness.totals().last.age_ns,
                 )?;
+                if stop.load(Ordering::Relaxed) {
+                    return Ok(Flow::Stop);
+                }
             }
             Ok(Flow::Continue)
         })
         .map_err(harvest_ipc::RunError::flatten)?;
+    let totals = freshness.totals();
     tracing::info!(
         frames = node.frames_processed(),
         rejected = node.frames_rejected(),
-        dropped = frames.dropped_count(),
+        frames_skipped = totals.skipped,
+        max_frame_age_ns = totals.max_age_ns,
+        dropped_by_channel = frames.dropped_count(),
         apples = apples_published,
         laser = ?node.laser_refiner().stats(),
         fused_depth = ?fused_depth.as_ref().map(FusedDepth::counters),

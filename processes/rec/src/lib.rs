@@ -2,6 +2,9 @@
 //! `harvest replay` ([`replay`]), which republishes a recording into a domain's channels at
 //! recorded timing (space pauses, arrows step: [`keyboard`]).
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod keyboard;
 pub mod rec;
 pub mod replay;

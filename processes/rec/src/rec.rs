@@ -1,6 +1,7 @@
-//! `harvest rec info|cat|export|recover`: the recording tools' command line.
+//! `harvest rec info|cat|export|clips|recover`: the recording tools' command line.
 
 use harvest_foxglove_mapping::ImageSettings;
+use harvest_recording::clip_list::{format_clips, list_clips};
 use harvest_recording::export::{ExportError, ExportOptions, export};
 use harvest_recording::metadata;
 use harvest_recording::rec_cat::{CatError, CatOptions, cat};
@@ -60,6 +61,11 @@ pub enum RecCommand {
         #[arg(long, value_parser = parse_duration)]
         end: Option<Duration>,
     },
+    /// The flight-recorder clips of a directory: trigger, time, length, size.
+    Clips {
+        #[arg(value_name = "DIR", default_value = "recordings/clips")]
+        dir: PathBuf,
+    },
     /// Rewrite a truncated, index-less or damaged recording into a valid file; report the loss.
     Recover {
         #[arg(value_name = "IN")]
@@ -83,6 +89,12 @@ pub enum RecError {
     Export(#[from] ExportError),
     #[error(transparent)]
     Recover(#[from] RecoverError),
+    /// The clip directory cannot be read.
+    #[error("cannot list the clips in {dir}: {source}")]
+    Clips {
+        dir: PathBuf,
+        source: std::io::Error,
+    },
     /// Printing to stdout failed.
     #[error("writing to stdout: {0}")]
     Stdout(std::io::Error),
@@ -185,6 +197,13 @@ pub fn run_rec(command: &RecCommand) -> Result<(), RecError> {
             if let Some(reason) = &report.incomplete {
                 eprintln!("rec export: {}: {reason}", file.display());
             }
+        }
+        RecCommand::Clips { dir } => {
+            let clips = list_clips(dir).map_err(|source| RecError::Clips {
+                dir: dir.clone(),
+                source,
+            })?;
+            write!(stdout.lock(), "{}", format_clips(&clips)).map_err(RecError::Stdout)?;
         }
         RecCommand::Recover {
             input,

@@ -14,6 +14,7 @@ use crate::keyboard::{Key, Keyboard};
 use harvest_ipc::catalogue::{self, PROCESS_HEALTH};
 use harvest_ipc::{Channel, ChannelVisitor, Context, Domain, Payload, Publisher};
 use harvest_recording::foxglove_export::FoxgloveWriter;
+use harvest_recording::recorded_events::EVENTS_TOPIC;
 use harvest_recording::recording_file::ReadError;
 use harvest_recording::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
 use harvest_recording::schema::schema_name;
@@ -105,6 +106,9 @@ pub struct ReplayReport {
     /// Messages of the channels mapped for Foxglove (protobuf views of the raw channels, made
     /// again by whoever views them), not replayed.
     pub mapped_views: u64,
+    /// Messages of the recorder's events channel (triggers and marks found in the replayed
+    /// channels themselves), not replayed.
+    pub recorded_events: u64,
     pub loops: u32,
     /// Recorded time covered by the published messages (one pass), ns.
     pub recorded_span_ns: u64,
@@ -153,6 +157,13 @@ impl std::fmt::Display for ReplayReport {
                 f,
                 "  {} message(s) of the mapped Foxglove channels left out",
                 self.mapped_views
+            )?;
+        }
+        if self.recorded_events > 0 {
+            writeln!(
+                f,
+                "  {} message(s) of the recorder's events channel left out",
+                self.recorded_events
             )?;
         }
         for (file, reason) in &self.incomplete {
@@ -287,6 +298,7 @@ pub fn run_replay_with(
         published: BTreeMap::new(),
         skipped: BTreeMap::new(),
         mapped_views: 0,
+        recorded_events: 0,
         loops: 0,
         recorded_span_ns: 0,
         wall_time: Duration::ZERO,
@@ -317,6 +329,10 @@ pub fn run_replay_with(
                     }
                     if FoxgloveWriter::is_mapped_output(topic, &message.channel.message_encoding) {
                         report.mapped_views += 1;
+                        return ControlFlow::Continue(());
+                    }
+                    if topic == EVENTS_TOPIC {
+                        report.recorded_events += 1;
                         return ControlFlow::Continue(());
                     }
                     let port = ports.entry(topic.clone()).or_insert_with(|| {

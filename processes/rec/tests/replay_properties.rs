@@ -1,9 +1,8 @@
-//! Property test of `harvest replay`'s reading side (issue 18, item 3): recordings holding
+//! Property test of `harvest replay`'s reading side: recordings holding
 //! payloads of any bit pattern, cut anywhere or with bytes overwritten, replayed (as fast as
 //! possible) into real iceoryx2 channels: every message is decoded into loaned shared memory and
 //! published, or skipped and counted; an unreadable file is refused with an error naming it.
 //! Never a panic.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_ipc::catalogue::{
     ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, PERCEPTION_APPLES, VACUUM_STATE,

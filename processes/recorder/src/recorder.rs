@@ -6,9 +6,11 @@
 //! watches the writer and the stop flag. SIGINT/SIGTERM end the loop; the recorder then drains
 //! what is still queued, writes per-channel drop counts and finishes the file.
 
+use crate::clip_writer::ClipSettings;
+use crate::flight_thread::{FlightFeed, FlightSettings, LiveEvents};
 use crate::tap::{Tap, TapCounts, TypedTap};
 use crate::view_thread::{self, ViewFeed};
-use crate::writer_thread::{OutputSettings, WriteError, WriterHandle};
+use crate::writer_thread::{OutputSettings, WriteError, WriterHandle, log_time_offset_ns};
 use harvest_foxglove_mapping::Mounting;
 use harvest_foxglove_mapping::mounting_files::{camera_from_lidar_file, robot_from_camera_file};
 use harvest_ipc::catalogue::{self, Layer};
@@ -17,7 +19,9 @@ use harvest_ipc::{
     Channel, ChannelVisitor, Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, Payload,
     RunEnd, RunError, Waiter,
 };
+use harvest_recording::flight_ring::RECORD_HEADER_BYTES;
 use harvest_recording::metadata;
+use harvest_recording::recorded_events::events_channel;
 use harvest_recording::schema::{TopicInfo, catalogue_topics, layer_name};
 use harvest_recording::segment_writer::{ChunkCompression, ChunkSettings};
 use harvest_recording::topic_filter::TopicFilter;
@@ -114,6 +118,30 @@ pub struct RecorderArgs {
     /// Extra `key=value` metadata; repeatable.
     #[arg(long = "note", value_name = "KEY=VALUE")]
     pub notes: Vec<String>,
+    /// RAM of the flight recorder's ring: every recorded channel at full rate (0: no flight
+    /// recorder). Allocated once; resident as it fills. The default stack's raw channels take
+    /// about 125 MB/s, so 2 GiB holds about 16 s.
+    #[arg(long, default_value = "2GiB", value_parser = parse_size_bytes)]
+    pub flight_ring_size: u64,
+    /// Window a clip keeps before its trigger (a failed attempt, a safety violation, the e-stop
+    /// engaged, `harvest ctl mark`).
+    #[arg(long, default_value = "10s", value_parser = parse_duration)]
+    pub clip_before: Duration,
+    /// Window a clip keeps after its last trigger.
+    #[arg(long, default_value = "5s", value_parser = parse_duration)]
+    pub clip_after: Duration,
+    /// Longest clip: triggers inside an open window extend it up to this.
+    #[arg(long, default_value = "120s", value_parser = parse_duration)]
+    pub clip_max_duration: Duration,
+    /// Directory of the clips (default: `<output-dir>/clips`).
+    #[arg(long)]
+    pub clip_dir: Option<PathBuf>,
+    /// Clips kept at most (the oldest removed first).
+    #[arg(long, default_value_t = 20)]
+    pub clip_max_count: usize,
+    /// Total size of the clips kept at most (the oldest removed first).
+    #[arg(long, default_value = "20GiB", value_parser = parse_size_bytes)]
+    pub clip_max_total_size: u64,
     /// How often channels that could not be opened are retried, and how often the free space
     /// is checked while the disk is full (recording resumes in a new segment once there is
     /// room again).
@@ -144,6 +172,13 @@ impl Default for RecorderArgs {
             no_foxglove: false,
             scenario: None,
             notes: Vec::new(),
+            flight_ring_size: 2 << 30,
+            clip_before: Duration::from_secs(10),
+            clip_after: Duration::from_secs(5),
+            clip_max_duration: Duration::from_secs(120),
+            clip_dir: None,
+            clip_max_count: 20,
+            clip_max_total_size: 20 << 30,
             retry_interval: Duration::from_secs(1),
         }
     }
@@ -170,6 +205,47 @@ impl RecorderArgs {
             compression_threads: self.compression_threads,
             chunk_size_bytes: self.chunk_size,
         }
+    }
+
+    /// The flight recorder's settings (`None` with `--flight-ring-size 0`).
+    pub fn flight_settings(&self, topics: &[TopicInfo]) -> Option<FlightSettings> {
+        if self.flight_ring_size == 0 {
+            return None;
+        }
+        // A block holds the largest recorded message (a camera frame) with room to spare.
+        let largest = topics
+            .iter()
+            .map(|topic| topic.max_encoded_bytes())
+            .max()
+            .unwrap_or(0);
+        let block_bytes = (largest + largest / 4 + RECORD_HEADER_BYTES).max(1 << 20);
+        let compression = match self.compression {
+            ChunkCompression::None => ChunkCompression::None,
+            _ => ChunkCompression::Lz4,
+        };
+        Some(FlightSettings {
+            ring_bytes: usize::try_from(self.flight_ring_size).unwrap_or(usize::MAX),
+            block_bytes,
+            before: self.clip_before,
+            after: self.clip_after,
+            max_clip: self
+                .clip_max_duration
+                .max(self.clip_before + self.clip_after),
+            clips: ClipSettings {
+                dir: self
+                    .clip_dir
+                    .clone()
+                    .unwrap_or_else(|| self.output_dir.join("clips")),
+                chunks: ChunkSettings {
+                    compression,
+                    compression_level: 0,
+                    compression_threads: 0,
+                    chunk_size_bytes: self.chunk_size,
+                },
+                max_count: self.clip_max_count.max(1),
+                max_total_bytes: self.clip_max_total_size,
+            },
+        })
     }
 
     /// Output settings, after checking the options fit together.
@@ -403,24 +479,49 @@ pub fn run_recorder_until(
     let started = ClockPair::now();
     let recording_fields =
         recording_fields(args, &settings, domain, process_name, &topics, started);
-    let foreign = if args.no_foxglove {
-        Vec::new()
-    } else {
-        view_thread::foreign_channels()
-    };
+    // The events channel first, then the mapped channels.
+    let events_index = topics.len();
+    let mut foreign = vec![events_channel()];
+    if !args.no_foxglove {
+        foreign.extend(view_thread::foreign_channels());
+    }
+    let flight_settings = args.flight_settings(&topics);
     let mut writer = WriterHandle::spawn(
         settings,
         topics.clone(),
         foreign,
-        recording_fields,
+        recording_fields.clone(),
         session_records(args),
+        started,
     )?;
     if !args.no_foxglove {
-        let view =
-            ViewFeed::spawn(&topics, view_mounting(args), writer.enqueuer()).map_err(|error| {
-                RecorderError::Wait(format!("cannot start the view thread: {error}"))
-            })?;
+        let view = ViewFeed::spawn(
+            &topics,
+            events_index + 1,
+            view_mounting(args),
+            writer.enqueuer(),
+            started,
+        )
+        .map_err(|error| RecorderError::Wait(format!("cannot start the view thread: {error}")))?;
         writer.attach_view(view);
+    }
+    if let Some(flight_settings) = flight_settings {
+        let flight = FlightFeed::spawn(
+            flight_settings,
+            topics.clone(),
+            recording_fields,
+            session_records(args),
+            started,
+            log_time_offset_ns(started),
+            LiveEvents {
+                enqueuer: writer.enqueuer(),
+                index: events_index,
+            },
+        )
+        .map_err(|error| {
+            RecorderError::Wait(format!("cannot start the flight recorder: {error}"))
+        })?;
+        writer.attach_flight(flight);
     }
     let waiter = Waiter::new().map_err(|error| RecorderError::Wait(error.to_string()))?;
 
@@ -473,6 +574,21 @@ pub fn run_recorder_until(
             )
         })
         .collect();
+    if let Some(flight) = writer.finish_flight() {
+        tracing::info!(
+            ring_capacity_bytes = flight.ring_capacity_bytes,
+            appended = flight.ring.appended,
+            left_out_behind = flight.dropped_behind,
+            left_out_held = flight.ring.dropped_held,
+            left_out_too_large = flight.ring.dropped_too_large,
+            triggers = flight.triggers,
+            clips = flight.clips.clips.len(),
+            clips_failed = flight.clips.failed,
+            clips_removed = flight.clips.removed,
+            clip_max_latency_s = flight.clips.max_latency_s,
+            "flight recorder"
+        );
+    }
     if let Some(view) = writer.finish_view() {
         tracing::info!(
             admitted = view.admitted,
@@ -835,11 +951,12 @@ fn recording_fields(
         ("topics".to_owned(), topic_list.join(",")),
         (
             "log_time".to_owned(),
-            "receive time, CLOCK_MONOTONIC ns (see harvest.clock)".to_owned(),
+            "receive time, Unix-epoch ns: CLOCK_MONOTONIC + log_time_offset_ns of harvest.clock"
+                .to_owned(),
         ),
         (
             "publish_time".to_owned(),
-            "header.publish_ns, CLOCK_MONOTONIC ns".to_owned(),
+            "header.publish_ns + log_time_offset_ns of harvest.clock, Unix-epoch ns".to_owned(),
         ),
     ])
 }

@@ -84,7 +84,10 @@ impl<T: Payload> Tap for TypedTap<T> {
             let log_time_ns = MonotonicClock::read_ns();
             received += 1;
             let size_hint = std::mem::size_of::<T>();
-            if !writer.has_room(size_hint) {
+            // The flight recorder takes the message even when the disk queue is full (and the
+            // other way round): each drops on its own.
+            let live_room = writer.has_room(size_hint);
+            if !live_room && !writer.flight_has_room(size_hint) {
                 self.dropped_by_queue.set(self.dropped_by_queue.get() + 1);
                 continue;
             }
@@ -98,11 +101,25 @@ impl<T: Payload> Tap for TypedTap<T> {
                 continue;
             }
             let data = Arc::new(data);
-            writer.offer_view(self.topic_index, self.topic(), log_time_ns, &data);
             let header = sample.header();
+            let sequence = header.msg_seq as u32;
+            writer.offer_flight(
+                self.topic_index,
+                self.topic(),
+                sequence,
+                log_time_ns,
+                header.publish_ns,
+                &data,
+            );
+            if !live_room {
+                self.dropped_by_queue.set(self.dropped_by_queue.get() + 1);
+                writer.release(data);
+                continue;
+            }
+            writer.offer_view(self.topic_index, self.topic(), log_time_ns, &data);
             let message = QueuedMessage {
                 topic: self.topic_index,
-                sequence: header.msg_seq as u32,
+                sequence,
                 log_time_ns,
                 publish_time_ns: header.publish_ns,
                 data,

@@ -9,7 +9,8 @@
 //! ([`MessageBytes`]), decoded, mapped (the camera image downscaled and
 //! JPEG-encoded) and queued for the writer like any message. When this thread falls behind, its
 //! input is dropped and counted: the raw channels never wait for the view. Mapped messages carry
-//! the raw message's log time (monotonic ns), so both share one timeline in the file.
+//! the raw message's log time and their stamps on the session's wall-clock time base (the
+//! writer shifts the raw channels' log times by the same offset), so both share one timeline.
 
 use crate::writer_thread::{Enqueuer, MessageBytes, QueuedMessage};
 use harvest_foxglove_mapping::encoded::is_mapped;
@@ -19,6 +20,7 @@ use harvest_foxglove_mapping::{
 };
 use harvest_recording::schema::TopicInfo;
 use harvest_recording::segment_writer::ForeignChannel;
+use harvest_recording::wall_clock::ClockPair;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -91,12 +93,15 @@ pub struct ViewFeed {
 
 impl ViewFeed {
     /// Starts the view thread for the recording's `topics` (catalogue indices) whose mapped
-    /// channels follow at `topics.len()` in the writer's table.
+    /// channels follow at `first_index` in the writer's table.
     pub fn spawn(
         topics: &[TopicInfo],
+        first_index: usize,
         mounting: Mounting,
         enqueuer: Enqueuer,
+        session_clock: ClockPair,
     ) -> std::io::Result<Self> {
+        let time = TimeBase::realtime(session_clock.monotonic_ns, session_clock.realtime_ns);
         let rates = ViewingRates::VIEWING;
         let limits = topics
             .iter()
@@ -107,7 +112,7 @@ impl ViewFeed {
         let positions = topics::all()
             .iter()
             .enumerate()
-            .map(|(position, topic)| (topic.name, topics.len() + position))
+            .map(|(position, topic)| (topic.name, first_index + position))
             .collect();
         let (inputs, receiver) = mpsc::sync_channel(MAX_PENDING_MESSAGES);
         let pending_bytes = Arc::new(AtomicUsize::new(0));
@@ -121,7 +126,7 @@ impl ViewFeed {
         };
         let thread = std::thread::Builder::new()
             .name("recorder-view".to_owned())
-            .spawn(move || run(receiver, thread_pending, mounting, sink))?;
+            .spawn(move || run(receiver, thread_pending, mounting, time, sink))?;
         Ok(Self {
             inputs,
             pending_bytes,
@@ -229,9 +234,10 @@ fn run(
     inputs: Receiver<ViewInput>,
     pending_bytes: Arc<AtomicUsize>,
     mounting: Mounting,
+    time: TimeBase,
     mut sink: RecordingSink,
 ) -> ViewReport {
-    let mut mapper = EncodedMapper::new(TimeBase::MONOTONIC, ImageSettings::VIEWING, mounting);
+    let mut mapper = EncodedMapper::new(time, ImageSettings::VIEWING, mounting);
     let mut warned = false;
     while let Ok(input) = inputs.recv() {
         pending_bytes.fetch_sub(input.data.len(), Ordering::Relaxed);

@@ -22,10 +22,12 @@
 //! same way. Other write errors end the recording as before.
 
 use crate::disk_space::{OutOfSpace, SpaceReservation, free_bytes_in};
+use crate::flight_thread::{FlightFeed, FlightReport};
 use crate::output_dir::{create_segment, enforce_size_bound};
 use crate::view_thread::{ViewFeed, ViewReport};
 use harvest_recording::mcap_error::{is_disk_full, is_out_of_space, mcap_error_text};
 use harvest_recording::metadata;
+use harvest_recording::recorded_events::{EVENTS_TOPIC, RecordedEvent};
 use harvest_recording::schema::TopicInfo;
 use harvest_recording::seal::seal_cut_file;
 use harvest_recording::segment_writer::{ChunkSettings, ForeignChannel, SegmentWriter};
@@ -79,9 +81,10 @@ pub struct QueuedMessage {
     pub topic: usize,
     /// `msg_seq` of the header (MCAP stores 32 bits: wraps after 4e9 messages).
     pub sequence: u32,
-    /// Receive time on the stack clock.
+    /// Receive time on the stack clock (catalogue topics; the writer adds the session's
+    /// log-time offset), or the file's log time already (foreign channels).
     pub log_time_ns: u64,
-    /// `header.publish_ns`.
+    /// `header.publish_ns` (same time base as `log_time_ns`).
     pub publish_time_ns: u64,
     pub data: MessageBytes,
 }
@@ -152,6 +155,8 @@ pub struct WriterHandle {
     thread: JoinHandle<Result<WriterReport, WriteError>>,
     /// The mapped channels' thread, when the recording has them.
     view: Option<ViewFeed>,
+    /// The flight recorder's thread, when it runs.
+    flight: Option<FlightFeed>,
 }
 
 /// Buffers at least this big are pooled as "large" (frames); smaller ones as "small".
@@ -171,6 +176,7 @@ impl WriterHandle {
         foreign: Vec<ForeignChannel>,
         recording_fields: BTreeMap<String, String>,
         session_records: Vec<Metadata>,
+        session_clock: ClockPair,
     ) -> Result<Self, WriteError> {
         std::fs::create_dir_all(&settings.dir).map_err(|source| WriteError::CreateDir {
             dir: settings.dir.clone(),
@@ -194,7 +200,8 @@ impl WriterHandle {
             registered: Vec::new(),
             recording_fields,
             session_records,
-            session_utc: format_utc_compact(ClockPair::now().realtime_ns),
+            session_utc: format_utc_compact(session_clock.realtime_ns),
+            log_time_offset_ns: log_time_offset_ns(session_clock),
             segment_index: 0,
             current: None,
             segment_started: Instant::now(),
@@ -202,6 +209,7 @@ impl WriterHandle {
             pause: None,
             largest_message_bytes: 0,
             disk_full: disk_full.clone(),
+            segment_events: BTreeMap::new(),
         };
         match state.open_segment() {
             Ok(()) => {}
@@ -232,7 +240,42 @@ impl WriterHandle {
             disk_full,
             thread,
             view: None,
+            flight: None,
         })
+    }
+
+    /// Hands every message offered with [`Self::offer_flight`] to the flight recorder.
+    pub fn attach_flight(&mut self, flight: FlightFeed) {
+        self.flight = Some(flight);
+    }
+
+    /// True when the flight recorder would take a message of about `size_bytes` now.
+    pub fn flight_has_room(&self, size_bytes: usize) -> bool {
+        self.flight
+            .as_ref()
+            .is_some_and(|flight| flight.has_room(size_bytes))
+    }
+
+    /// Offers an encoded message of catalogue topic `index` to the flight recorder, if any (it
+    /// shares `data`; times on the stack clock).
+    pub fn offer_flight(
+        &mut self,
+        index: usize,
+        topic: &'static str,
+        sequence: u32,
+        log_time_ns: u64,
+        publish_time_ns: u64,
+        data: &MessageBytes,
+    ) {
+        if let Some(flight) = self.flight.as_mut() {
+            flight.offer(index, topic, sequence, log_time_ns, publish_time_ns, data);
+        }
+    }
+
+    /// Stops the flight recorder (an open clip is closed with what it has), before
+    /// [`Self::finish`] so its last events make it into the file.
+    pub fn finish_flight(&mut self) -> Option<FlightReport> {
+        self.flight.take().map(FlightFeed::finish)
     }
 
     /// Hands the messages offered with [`Self::offer_view`] to `view` from now on.
@@ -312,7 +355,7 @@ impl WriterHandle {
     }
 
     /// Returns a shared buffer that was not sent, unless another thread still holds it.
-    fn give_back_shared(&mut self, bytes: MessageBytes) {
+    pub fn release(&mut self, bytes: MessageBytes) {
         if let Some(buffer) = reclaim(bytes) {
             self.give_back(buffer);
         }
@@ -323,7 +366,7 @@ impl WriterHandle {
     pub fn try_enqueue(&mut self, message: QueuedMessage) -> bool {
         let bytes = message.data.len();
         if !self.has_room(bytes) || self.has_failed() {
-            self.give_back_shared(message.data);
+            self.release(message.data);
             return false;
         }
         self.queued_bytes.fetch_add(bytes, Ordering::Relaxed);
@@ -332,7 +375,7 @@ impl WriterHandle {
             Err(TrySendError::Full(Command::Message(message)))
             | Err(TrySendError::Disconnected(Command::Message(message))) => {
                 self.queued_bytes.fetch_sub(bytes, Ordering::Relaxed);
-                self.give_back_shared(message.data);
+                self.release(message.data);
                 false
             }
             Err(_) => false,
@@ -359,6 +402,7 @@ impl WriterHandle {
     /// Writes `trailing` metadata, finishes the open segment and waits for the thread.
     pub fn finish(mut self, trailing: Vec<Metadata>) -> Result<WriterReport, WriteError> {
         let _ = self.finish_view();
+        let _ = self.finish_flight();
         let _ = self.commands.send(Command::Finish(trailing));
         drop(self.commands);
         self.thread.join().unwrap_or(Err(WriteError::Panicked))
@@ -404,6 +448,16 @@ impl Enqueuer {
     }
 }
 
+/// The log-time offset of a session: realtime minus monotonic of its clock pair.
+pub fn log_time_offset_ns(session_clock: ClockPair) -> i64 {
+    i64::try_from(session_clock.realtime_offset_ns()).unwrap_or(0)
+}
+
+/// A stack-clock stamp as a file log time (saturating).
+pub fn wall_clock_ns(stack_ns: u64, offset_ns: i64) -> u64 {
+    (i128::from(stack_ns) + i128::from(offset_ns)).clamp(0, i128::from(u64::MAX)) as u64
+}
+
 /// The segment being written.
 struct OpenSegment {
     path: PathBuf,
@@ -432,6 +486,9 @@ struct WriterState {
     recording_fields: BTreeMap<String, String>,
     session_records: Vec<Metadata>,
     session_utc: String,
+    /// Added to the stack-clock stamps of catalogue messages to make the file's log and
+    /// publish times (Unix-epoch ns; one offset for the whole session, so segments line up).
+    log_time_offset_ns: i64,
     segment_index: u32,
     current: Option<OpenSegment>,
     segment_started: Instant,
@@ -444,6 +501,8 @@ struct WriterState {
     largest_message_bytes: u64,
     /// Shared with the handle: true while paused.
     disk_full: Arc<AtomicBool>,
+    /// Events written into the open segment, by kind (its `harvest.events` record).
+    segment_events: BTreeMap<&'static str, u64>,
 }
 
 impl WriterState {
@@ -755,7 +814,7 @@ impl WriterState {
                 name: metadata::RECORDING.to_owned(),
                 metadata: recording,
             },
-            metadata::clock_record(clock),
+            metadata::clock_record(clock, Some(self.log_time_offset_ns)),
         ];
         records.extend(self.session_records.iter().cloned());
         for record in &records {
@@ -836,13 +895,14 @@ impl WriterState {
             }
             return Ok(());
         }
+        let offset_ns = self.log_time_offset_ns;
         self.with_segment(|segment| match (&info, &foreign) {
             (Some(info), _) => segment.write_message(
                 message.topic,
                 info,
                 message.sequence,
-                message.log_time_ns,
-                message.publish_time_ns,
+                wall_clock_ns(message.log_time_ns, offset_ns),
+                wall_clock_ns(message.publish_time_ns, offset_ns),
                 &message.data,
             ),
             (None, Some(foreign)) => segment.write_foreign_message(
@@ -857,6 +917,11 @@ impl WriterState {
         })?;
         if let Some(count) = self.report.messages_per_topic.get_mut(message.topic) {
             *count += 1;
+        }
+        if foreign.as_ref().is_some_and(|f| f.topic == EVENTS_TOPIC)
+            && let Some(event) = RecordedEvent::from_json(&message.data)
+        {
+            *self.segment_events.entry(event.kind.name()).or_insert(0) += 1;
         }
         tracing::trace!(
             topic = message.topic,
@@ -913,6 +978,16 @@ impl WriterState {
     }
 
     fn finish_segment(&mut self, trailing: &[Metadata]) -> Result<(), WriteError> {
+        if self.current.is_some() && !self.segment_events.is_empty() {
+            let counts = std::mem::take(&mut self.segment_events);
+            let record = metadata::record(
+                metadata::EVENTS,
+                counts
+                    .iter()
+                    .map(|(kind, count)| (*kind, count.to_string())),
+            );
+            self.with_segment(|segment| segment.write_metadata(&record))?;
+        }
         for record in trailing {
             self.with_segment(|segment| segment.write_metadata(record))?;
         }

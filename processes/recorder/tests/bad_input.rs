@@ -1,7 +1,6 @@
 //! Bad input never panics: non-MCAP files, truncation anywhere, corrupted bytes, unknown
 //! schemas, recordings of another payload version, a full disk. Errors are clear and whatever
 //! is valid is still read.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -1,5 +1,4 @@
 //! The clap definitions the `harvest` binary embeds parse the documented command lines.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use clap::{CommandFactory, Parser, Subcommand};
 use harvest_rec::{RecCommand, ReplayArgs};
@@ -15,6 +14,7 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
+#[allow(clippy::large_enum_variant)] // parsed once per test
 enum Command {
     Recorder(RecorderArgs),
     Replay(ReplayArgs),

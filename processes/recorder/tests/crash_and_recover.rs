@@ -4,7 +4,6 @@
 //!
 //! The killed recorder is a real process: this test binary re-runs itself as the child
 //! (`recorder_child`, ignored unless the parent sets its environment).
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

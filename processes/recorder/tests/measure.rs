@@ -2,7 +2,6 @@
 //! disk bandwidth measured in the same run, and replay speed in `--fast` mode.
 //!
 //! `cargo test -p harvest-recorder --release --test measure -- --ignored --nocapture`
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

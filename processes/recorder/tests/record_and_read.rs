@@ -1,7 +1,6 @@
 //! The recorder taps real channels (publishers in the test thread, the recorder on its own
 //! thread and node) and the Python `mcap` reader, an independent implementation, reads the
 //! result back.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 
@@ -67,6 +66,23 @@ fn records_every_message_and_an_independent_reader_agrees() {
 
     let read = python_read(&report.files[0]);
     assert_eq!(read["has_summary"], true);
+    // Log and publish times are wall-clock (Unix-epoch ns): the stack-clock stamp plus the
+    // session's offset, which the file's harvest.clock record holds.
+    let clock = read["metadata"]
+        .as_array()
+        .expect("metadata")
+        .iter()
+        .find(|record| record["name"] == "harvest.clock")
+        .expect("a harvest.clock record");
+    let offset_ns: i64 = clock["metadata"]["log_time_offset_ns"]
+        .as_str()
+        .expect("log_time_offset_ns")
+        .parse()
+        .expect("an integer offset");
+    let now_ns = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .expect("after 1970")
+        .as_nanos() as u64;
     let arms = messages_of(&read, "arm1/state");
     assert_eq!(arms.len(), 40);
     for (index, message) in arms.iter().enumerate() {
@@ -81,10 +97,18 @@ fn records_every_message_and_an_independent_reader_agrees() {
         expected.header.publish_ns = decoded.header.publish_ns;
         assert_eq!(decoded, expected);
         assert_eq!(message["sequence"], index as u64 + 1);
-        assert_eq!(message["publish_time"], decoded.header.publish_ns);
+        assert_eq!(
+            message["publish_time"].as_u64(),
+            Some(decoded.header.publish_ns.wrapping_add_signed(offset_ns))
+        );
+        let log_time = message["log_time"].as_u64().expect("log_time");
         assert!(
-            message["log_time"].as_u64() >= message["publish_time"].as_u64(),
+            log_time >= message["publish_time"].as_u64().expect("publish_time"),
             "received after published"
+        );
+        assert!(
+            log_time <= now_ns && log_time > now_ns - 3_600_000_000_000,
+            "log time {log_time} is wall-clock time of the last hour (now {now_ns})"
         );
         assert_eq!(message["schema"], "harvest.ArmState.v2");
     }

@@ -1,6 +1,5 @@
 //! `replay` republishes a recording into another domain: subscribers there receive the
 //! recorded messages, identical but for the transport's fresh `publish_ns`.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

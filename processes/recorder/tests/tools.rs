@@ -1,5 +1,4 @@
 //! `rec info`, `rec cat` and `rec export` on a real recording.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 mod common;
 

@@ -15,6 +15,7 @@
 //! restart_window_s = 60
 //! backoff_initial_ms = 200      # doubles per consecutive restart up to backoff_max_ms
 //! backoff_max_ms = 5000
+//! critical = true               # failing for good stops the stack (default: see below)
 //!
 //! [process.scheduling]          # optional; see crate::scheduling
 //! realtime_priority = 80        # SCHED_FIFO level 1-99
@@ -22,6 +23,14 @@
 //! nice = -5                     # -20..19: normal scheduling (without, or refused, real-time)
 //! lock_memory = true            # mlockall before the loop's first tick
 //! ```
+//!
+//! **Criticality.** A critical process that fails for good (its restarts used up) stops the
+//! whole stack; a non-critical one is reported (its status line says FAILED, the supervisor
+//! publishes its state on `system/health` for the console, the summary names it) and the stack
+//! goes on. Without the key, every process is critical except those that only watch or keep a
+//! record of the robot ([`NON_CRITICAL_COMMANDS`]: the console, the Foxglove bridge, the
+//! recorder): none of them commands anything, and a viewer or a full disk must never be able to
+//! end a harvest. The safety monitor is critical: without it no rule is judged.
 
 use crate::scheduling::{self, MAX_REALTIME_PRIORITY, NICE_RANGE, Scheduling};
 use serde::Deserialize;
@@ -52,11 +61,22 @@ pub const KNOWN_COMMANDS: &[&str] = &[
     "lidar",
     "recorder",
     "monitor",
-    // Operator (issue 15).
+    // The operator's mode machine and the viewers (console, Foxglove bridge).
     "executive",
     "console",
     "foxglove",
 ];
+
+/// `harvest` subcommands that are not critical unless the launch file says `critical = true`
+/// (module docs): they only watch the robot or keep its record.
+pub const NON_CRITICAL_COMMANDS: &[&str] = &["console", "foxglove", "recorder"];
+
+/// Whether a process is critical when its launch entry has no `critical` key: every `harvest`
+/// subcommand but [`NON_CRITICAL_COMMANDS`], and every other program (`executable = ...`,
+/// whose role the supervisor cannot know: stopping is the safe side).
+pub fn critical_by_default(command: Option<&str>) -> bool {
+    command.is_none_or(|command| !NON_CRITICAL_COMMANDS.contains(&command))
+}
 
 /// When a process that exited is started again.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -117,6 +137,8 @@ struct RawProcess {
     #[serde(default = "default_backoff_max_ms")]
     backoff_max_ms: u64,
     #[serde(default)]
+    critical: Option<bool>,
+    #[serde(default)]
     scheduling: Option<RawScheduling>,
 }
 
@@ -168,6 +190,8 @@ pub struct ProcessSpec {
     pub backoff_max: Duration,
     /// Real-time priority, CPU affinity, nice level, memory lock (`[process.scheduling]`).
     pub scheduling: Scheduling,
+    /// Failing for good stops the stack (`critical`; default [`critical_by_default`]).
+    pub critical: bool,
 }
 
 /// A validated launch file.
@@ -306,6 +330,9 @@ impl Launch {
                     name,
                 });
             }
+            let critical = process.critical.unwrap_or_else(|| {
+                critical_by_default(process.command.as_ref().map(|c| c.get_ref().as_str()))
+            });
             let command = match (process.command, &process.executable) {
                 (Some(command), None) => {
                     let command_line = line_of(command.span().start);
@@ -374,6 +401,7 @@ impl Launch {
                 backoff_initial: Duration::from_millis(process.backoff_initial_ms),
                 backoff_max: Duration::from_millis(process.backoff_max_ms),
                 scheduling,
+                critical,
             });
         }
         if processes.is_empty() {
@@ -531,6 +559,58 @@ mod tests {
         assert_eq!(launch.stack.hang_timeout_ms, 2000);
         assert_eq!(launch.processes[1].restart, RestartPolicy::Always);
         assert_eq!(launch.processes[0].restart, RestartPolicy::OnFailure);
+    }
+
+    #[test]
+    fn criticality_defaults_by_role_and_the_key_overrides_it() {
+        let text = "[[process]]\nname = \"monitor\"\ncommand = \"monitor\"\n\n\
+[[process]]\nname = \"console\"\ncommand = \"console\"\n\n\
+[[process]]\nname = \"foxglove\"\ncommand = \"foxglove\"\n\n\
+[[process]]\nname = \"recorder\"\ncommand = \"recorder\"\ncritical = true\n\n\
+[[process]]\nname = \"tool\"\nexecutable = \"/bin/true\"\n\n\
+[[process]]\nname = \"arm1\"\ncommand = \"arm\"\ncritical = false\n";
+        let launch = Launch::parse(text, "critical.toml").expect("parses");
+        let critical: Vec<(&str, bool)> = launch
+            .processes
+            .iter()
+            .map(|p| (p.name.as_str(), p.critical))
+            .collect();
+        assert_eq!(
+            critical,
+            [
+                ("monitor", true),
+                ("console", false),
+                ("foxglove", false),
+                ("recorder", true),
+                ("tool", true),
+                ("arm1", false),
+            ]
+        );
+        let message = Launch::parse(
+            &text.replace("critical = true", "critical = \"yes\""),
+            "critical.toml",
+        )
+        .expect_err("not a boolean")
+        .to_string();
+        assert!(
+            message.contains("critical.toml") && message.contains("line 16"),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn shipped_launch_files_say_what_is_critical() {
+        for (text, name) in [
+            (DEFAULT_LAUNCH, "default.toml"),
+            (include_str!("../launch/lidar.toml"), "lidar.toml"),
+            (include_str!("../launch/row.toml"), "row.toml"),
+        ] {
+            let launch = Launch::parse(text, name).expect("parses");
+            for process in &launch.processes {
+                let expected = !NON_CRITICAL_COMMANDS.contains(&process.command.as_str());
+                assert_eq!(process.critical, expected, "{name}: {}", process.name);
+            }
+        }
     }
 
     #[test]

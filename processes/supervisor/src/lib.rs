@@ -1,5 +1,7 @@
 //! The process supervisor behind `harvest up`.
 
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod child;
 pub mod domain_lock;
 pub mod launch;

@@ -104,6 +104,7 @@ mod tests {
             backoff_initial: Duration::from_millis(100),
             backoff_max: Duration::from_millis(350),
             scheduling: Default::default(),
+            critical: true,
         }
     }
 

@@ -1,6 +1,6 @@
 //! The supervisor's view of each process, its live status lines and the final summary.
 
-use harvest_ipc::payloads::ProcessRunState;
+use harvest_ipc::payloads::{DeviceErrorCode, ProcessRunState};
 use std::fmt::Write as _;
 use std::time::Instant;
 
@@ -32,6 +32,11 @@ pub struct ProcessStatus {
     pub scheduling: String,
     /// The run state of the process's last heartbeat (None before the first one).
     pub run_state: Option<ProcessRunState>,
+    /// Failing for good stops the stack (the launch file's `critical`).
+    pub critical: bool,
+    /// The kind of the last device error the process reported in its heartbeat
+    /// ([`DeviceErrorCode::None`]: none; kept across a restart, like the restart count).
+    pub last_device_error: DeviceErrorCode,
 }
 
 impl ProcessStatus {
@@ -46,7 +51,8 @@ impl ProcessStatus {
                 format!("restart in {:.1}s", wait.as_secs_f64())
             }
             ProcessPhase::Finished => "finished".to_owned(),
-            ProcessPhase::FailedForGood { .. } => "FAILED".to_owned(),
+            ProcessPhase::FailedForGood { .. } if self.critical => "FAILED".to_owned(),
+            ProcessPhase::FailedForGood { .. } => "FAILED:noncritical".to_owned(),
             ProcessPhase::Stopped => "stopped".to_owned(),
         }
     }
@@ -62,10 +68,21 @@ impl ProcessStatus {
         if self.deadline_misses > 0 {
             parts.push(format!("deadline misses {}", self.deadline_misses));
         }
+        if let Some(label) = self.device_error_label() {
+            parts.push(label);
+        }
         if !self.scheduling.is_empty() {
             parts.push(format!("[{}]", self.scheduling));
         }
         parts.join("  ")
+    }
+}
+
+impl ProcessStatus {
+    /// `device error: timeout` (the kind of the last device error), `None` without one.
+    pub fn device_error_label(&self) -> Option<String> {
+        (self.last_device_error != DeviceErrorCode::None)
+            .then(|| format!("device error: {}", self.last_device_error))
     }
 }
 
@@ -84,4 +101,37 @@ pub fn render(statuses: &[ProcessStatus], elapsed_s: f64) -> String {
         );
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn running() -> ProcessStatus {
+        ProcessStatus {
+            name: "vacuum".to_owned(),
+            phase: ProcessPhase::Running { pid: 42 },
+            restarts: 0,
+            last_exit: None,
+            main_channel_count: 0,
+            main_channel_rate_hz: 0.0,
+            detail: "period_p99_us".to_owned(),
+            detail_value: 5012,
+            deadline_misses: 0,
+            scheduling: String::new(),
+            run_state: Some(ProcessRunState::Degraded),
+            critical: true,
+            last_device_error: DeviceErrorCode::None,
+        }
+    }
+
+    #[test]
+    fn the_status_line_names_the_kind_of_the_last_device_error() {
+        let mut status = running();
+        assert!(!render(&[status.clone()], 1.0).contains("device error"));
+        status.last_device_error = DeviceErrorCode::Disconnected;
+        let line = render(&[status], 1.0);
+        assert!(line.contains("DEGRADED pid 42"), "{line}");
+        assert!(line.contains("device error: disconnected"), "{line}");
+    }
 }

@@ -10,6 +10,12 @@
 //! harvested, success rate, first-attempt successes, cycle times) is part of the final
 //! [`Summary`]. With [`UpOptions::until_harvested`] the stack stops once the vacuum supervisor
 //! reports that nothing is left to pick.
+//!
+//! A process that fails for good (its restarts used up) stops the stack when it is critical
+//! (`critical` in the launch file); a non-critical one stays FAILED in the status, the summary
+//! names it, and the supervisor publishes its state ([`ProcessRunState::Failed`]) on
+//! `system/health` every heartbeat period under the process's name, so the console's process
+//! table shows it failed instead of merely silent. The stack goes on.
 
 use crate::child;
 use crate::domain_lock::{DomainLock, DomainLockError, STOPPING_STACK_WAIT};
@@ -19,8 +25,10 @@ use crate::scheduling::SchedulingOutcome;
 use crate::status::{self, ProcessPhase, ProcessStatus};
 use crate::violation_log::ViolationLog;
 use harvest_ipc::catalogue::{HARVEST_EVENTS, PROCESS_HEALTH, SAFETY_VIOLATION};
-use harvest_ipc::payloads::ProcessRunState;
-use harvest_ipc::{Context, Domain, Flow, MonotonicClock, RunEnd, Waiter};
+use harvest_ipc::payloads::{DeviceErrorCode, ProcessHealth, ProcessRunState};
+use harvest_ipc::{
+    Context, Domain, FixedString, Flow, HEARTBEAT_PERIOD, MonotonicClock, Publisher, RunEnd, Waiter,
+};
 use harvest_log::{HarvestLog, HarvestLogSummary};
 use nix::sys::signal::Signal;
 use std::io::IsTerminal;
@@ -56,8 +64,10 @@ pub struct UpOptions {
 #[derive(Debug, Clone)]
 pub struct Summary {
     pub processes: Vec<ProcessStatus>,
-    /// Set when a process failed for good (the stack was stopped because of it).
+    /// Set when a critical process failed for good (the stack was stopped because of it).
     pub failure: Option<String>,
+    /// Non-critical processes that failed for good while the stack went on, in words.
+    pub non_critical_failures: Vec<String>,
     pub ended_by: String,
     pub leftover_files: Vec<PathBuf>,
     /// The harvest as `harvest/events` told it (None when no harvest event arrived).
@@ -87,10 +97,11 @@ impl Summary {
         let mut out = format!("harvest up ended: {}\n", self.ended_by);
         for process in &self.processes {
             out.push_str(&format!(
-                "  {:<12} {:<10} restarts {:<2} messages {:<8} last exit: {}{}{}\n",
+                "  {:<12} {:<10} restarts {:<2} messages {:<8} last exit: {}{}{}{}\n",
                 process.name,
                 match &process.phase {
-                    ProcessPhase::FailedForGood { .. } => "FAILED",
+                    ProcessPhase::FailedForGood { .. } if process.critical => "FAILED",
+                    ProcessPhase::FailedForGood { .. } => "FAILED:noncritical",
                     ProcessPhase::Finished => "finished",
                     _ => "stopped",
                 },
@@ -102,12 +113,18 @@ impl Summary {
                 } else {
                     String::new()
                 },
+                process
+                    .device_error_label()
+                    .map_or(String::new(), |label| format!("  {label}")),
                 if process.scheduling.is_empty() {
                     String::new()
                 } else {
                     format!("  [{}]", process.scheduling)
                 },
             ));
+        }
+        for failure in &self.non_critical_failures {
+            out.push_str(&format!("not critical, the stack went on: {failure}\n"));
         }
         if let Some(failure) = &self.failure {
             out.push_str(&format!("failure: {failure}\n"));
@@ -142,7 +159,7 @@ pub enum SupervisorError {
     ControlToken(#[from] harvest_operator::token::TokenError),
 }
 
-/// The control token of this run (issue 15): made at start, printed, written to the domain's
+/// The control token of this run: made at start, printed, written to the domain's
 /// token file (mode 0600, `harvest_operator::token::token_path`) and handed to the children;
 /// the file (and the executive's mode file beside it) is removed when the stack stops.
 struct ControlTokenFile {
@@ -192,6 +209,8 @@ struct Managed {
     count_at_last_status: u64,
     /// What the current instance's scheduling settings became.
     scheduling: SchedulingOutcome,
+    /// The pid of the latest instance (0 before the first start).
+    last_pid: u32,
 }
 
 impl Managed {
@@ -244,6 +263,8 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     let events_guard = waiter.attach_listener(events.listener())?;
     let violations = context.subscriber_with_buffer(SAFETY_VIOLATION, 256)?;
     let violations_guard = waiter.attach_listener(violations.listener())?;
+    let mut failed_health = context.publisher(PROCESS_HEALTH)?;
+    let failed_health_guard = waiter.attach_interval(HEARTBEAT_PERIOD)?;
     let mut safety_violations = ViolationLog::default();
     let mut harvest_log = HarvestLog::new(MonotonicClock::read_ns());
     let mut harvest_events = 0u64;
@@ -272,9 +293,12 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                 deadline_misses: 0,
                 scheduling: String::new(),
                 run_state: None,
+                critical: spec.critical,
+                last_device_error: DeviceErrorCode::None,
             },
             count_at_last_status: 0,
             scheduling: SchedulingOutcome::none(),
+            last_pid: 0,
         })
         .collect();
     tracing::info!(
@@ -299,6 +323,9 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
 
     let run_end = waiter.run(|attachment| -> Result<Flow, SupervisorError> {
         let now = Instant::now();
+        if attachment.has_event_from(&failed_health_guard) {
+            publish_failed(&mut failed_health, &processes);
+        }
         if attachment.has_event_from(&violations_guard) {
             violations.drain(|violation| {
                 if let Some(line) = safety_violations.record(violation) {
@@ -349,6 +376,15 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                     process.status.detail = beat.detail.as_str().to_owned();
                     process.status.detail_value = beat.detail_value;
                     process.status.deadline_misses = beat.deadline_misses;
+                    let device_error = beat.last_device_error.get().unwrap_or(DeviceErrorCode::Other);
+                    if device_error != DeviceErrorCode::None
+                        && device_error != process.status.last_device_error
+                    {
+                        tracing::warn!(process = %process.spec.name, kind = %device_error, "process reports a device error");
+                    }
+                    if device_error != DeviceErrorCode::None {
+                        process.status.last_device_error = device_error;
+                    }
                     let run_state = beat.run_state.get().ok();
                     if run_state != process.status.run_state {
                         if run_state == Some(ProcessRunState::Degraded) {
@@ -402,20 +438,28 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
                 }
                 _ => {}
             }
-            if let ProcessPhase::FailedForGood { reason } = &process.status.phase {
+            if let ProcessPhase::FailedForGood { reason } = &process.status.phase
+                && process.spec.critical
+            {
                 failure = Some(format!(
                     "process {:?} failed for good: {reason}",
                     process.spec.name
                 ));
-                ended_by = "a process failed for good".to_owned();
+                ended_by = "a critical process failed for good".to_owned();
                 return Ok(Flow::Stop);
             }
         }
+        let failed_non_critical =
+            |p: &Managed| matches!(p.status.phase, ProcessPhase::FailedForGood { .. });
         if processes
             .iter()
-            .all(|p| p.status.phase == ProcessPhase::Finished)
+            .all(|p| p.status.phase == ProcessPhase::Finished || failed_non_critical(p))
         {
-            ended_by = "all processes finished".to_owned();
+            ended_by = if processes.iter().any(failed_non_critical) {
+                "every process finished or failed for good (none critical)".to_owned()
+            } else {
+                "all processes finished".to_owned()
+            };
             return Ok(Flow::Stop);
         }
         if now.duration_since(last_status) >= status_period {
@@ -458,6 +502,7 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
         Err(error) => Some(error.flatten()),
     };
     drop(health_guard);
+    drop(failed_health_guard);
     drop(tick_guard);
     drop(events_guard);
     drop(violations_guard);
@@ -501,9 +546,21 @@ pub fn run(options: UpOptions) -> Result<Summary, SupervisorError> {
     if let Some(error) = run_error {
         return Err(error);
     }
+    let non_critical_failures = processes
+        .iter()
+        .filter_map(|p| match &p.status.phase {
+            ProcessPhase::FailedForGood { reason } if !p.spec.critical => Some(format!(
+                "process {:?} failed for good: {reason}",
+                p.spec.name
+            )),
+            _ => None,
+        })
+        .collect();
+    drop(failed_health);
     let summary = Summary {
         processes: processes.into_iter().map(|p| p.status).collect(),
         failure,
+        non_critical_failures,
         ended_by,
         leftover_files: harvest_ipc::cleanup::leftover_files(domain),
         harvest: (harvest_events > 0).then(|| harvest_log.summary()),
@@ -542,6 +599,7 @@ fn start(
             process.status.scheduling = scheduling.label();
             process.scheduling = scheduling;
             process.status.phase = ProcessPhase::Running { pid: child.id() };
+            process.last_pid = child.id();
             process.child = Some(child);
             process.started_at = now;
             process.last_heartbeat = None;
@@ -571,9 +629,44 @@ fn on_exit(process: &mut Managed, reason: String, failed: bool, now: Instant, do
             ProcessPhase::WaitingToRestart { until }
         }
         RestartDecision::Finished => ProcessPhase::Finished,
-        RestartDecision::FailedForGood => ProcessPhase::FailedForGood { reason },
+        RestartDecision::FailedForGood => {
+            if process.spec.critical {
+                tracing::error!(process = %process.spec.name, %reason, "critical process failed for good: stopping the stack");
+            } else {
+                tracing::error!(process = %process.spec.name, %reason,
+                    "process failed for good; it is not critical: the stack goes on without it");
+            }
+            ProcessPhase::FailedForGood { reason }
+        }
     };
     process.status.restarts = process.tracker.restarts();
+}
+
+/// Publishes, under each non-critical process that failed for good, its state on
+/// `system/health` (the console shows it; the process itself can no longer say it).
+fn publish_failed(publisher: &mut Publisher<ProcessHealth>, processes: &[Managed]) {
+    for process in processes {
+        if !matches!(process.status.phase, ProcessPhase::FailedForGood { .. }) {
+            continue;
+        }
+        let sent = publisher.publish_with(MonotonicClock::read_ns(), |health| {
+            health.process_name = FixedString::new(&process.spec.name);
+            health.pid = process.last_pid;
+            health.run_state.set(ProcessRunState::Failed);
+            // The kind of the last device error the process reported before it failed.
+            health
+                .last_device_error
+                .set(process.status.last_device_error);
+            health._reserved = [0; 2];
+            health.main_channel_count = process.status.main_channel_count;
+            health.detail_value = u64::from(process.status.restarts);
+            health.detail = FixedString::new("failed for good, restarts");
+            health.deadline_misses = process.status.deadline_misses;
+        });
+        if let Err(error) = sent {
+            tracing::debug!(%error, process = %process.spec.name, "failed state not published");
+        }
+    }
 }
 
 fn is_hung(

@@ -1,8 +1,7 @@
-//! Property test of the launch-file reader (issue 18, item 3): the default launch file with
+//! Property test of the launch-file reader: the default launch file with
 //! values replaced by anything (NaN, negative, huge, wrongly typed), lines dropped or doubled
 //! and bytes changed, and text of any characters: `harvest up` accepts it or refuses it with
 //! an error naming the file; never a panic.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_supervisor::launch::{DEFAULT_LAUNCH, Launch};
 use harvest_test_support::toml_mutation::{mutate_toml, toml_edit};

@@ -2,7 +2,6 @@
 //! the kernel shows for the running process (`/proc/<pid>/stat`, `/proc/<pid>/status`), a
 //! refused real-time priority still starts the process, and the memory lock is handed to the
 //! process through its environment.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use std::os::fd::AsRawFd as _;
 use std::path::{Path, PathBuf};
@@ -24,6 +23,7 @@ fn sleeper(scheduling: Scheduling) -> ProcessSpec {
         backoff_initial: Duration::from_millis(1),
         backoff_max: Duration::from_millis(1),
         scheduling,
+        critical: true,
     }
 }
 

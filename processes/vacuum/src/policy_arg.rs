@@ -4,7 +4,7 @@
 use harvest_vacuum::policy::PolicyKind;
 use serde::Serialize;
 
-/// A vacuum coordination policy (paper 003, section 4.2 and Fig. 12).
+/// A vacuum coordination policy ([dual-arm sec. 4.2, Fig. 12]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
 pub enum PolicyArg {
     /// No coordination: the arms run strictly one after the other.

@@ -1,9 +1,8 @@
-//! Property test of the vacuum settings reader (issue 18, item 3): a complete settings file
+//! Property test of the vacuum settings reader: a complete settings file
 //! (with its `[node]` and `[arm_node]` tables) with values replaced by anything (NaN, negative,
 //! huge, wrongly typed), lines dropped or doubled and bytes changed. The file is refused with
 //! an error naming it, or the node it configures is refused, or that node runs a detection set
 //! and answers valve requests without panicking.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_arm::node::{ArmNodeConfig, pick_reachable};
 use harvest_ipc::payloads::{AppleDetection, AppleDetections, ArmState, ValveRequest};

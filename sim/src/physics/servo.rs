@@ -1,5 +1,5 @@
-//! First-order servo dynamics of one arm's four joints (Teknic integrated servos, paper 003
-//! section 2.2).
+//! First-order servo dynamics of one arm's four joints (Teknic integrated servos,
+//! [dual-arm sec. 2.2]).
 //!
 //! Each joint follows its command with a first-order lag of time constant `tau`:
 //! - position command `p*`: `p(t + dt) = p* + (p(t) - p*) exp(-dt / tau)`, the implied velocity

@@ -1,5 +1,5 @@
-//! The centralized vacuum: one source, two arm lines, four butterfly valves (paper 003, section
-//! 2.3 and Fig. 3).
+//! The centralized vacuum: one source, two arm lines, four butterfly valves ([dual-arm sec.
+//! 2.3, Fig. 3]).
 //!
 //! Valve numbering follows the paper: valve 1 connects arm 1's line to the source (attach),
 //! valve 2 vents arm 1's line to the atmosphere (release); valves 3 and 4 do the same for arm 2.

@@ -1,4 +1,4 @@
-//! Rendering of the ToF camera's frames (Percipio TL460-S1-E1, paper 003 section 2.1) from the
+//! Rendering of the ToF camera's frames (Percipio TL460-S1-E1, [dual-arm sec. 2.1]) from the
 //! simulated world: RGB 1920x1080 RGB8 and depth 640x480 u16 millimetres (0 = no return).
 //!
 //! Method: per-object rasterisation with a per-pixel z-buffer. Every object's silhouette is

@@ -12,17 +12,22 @@
 //! - [`run_bench_peer`] / [`BenchPeerArgs`]: the hidden peer subcommand.
 //! - [`run_bench_pipeline`] / [`BenchPipelineArgs`]: `harvest bench pipeline`, per-hop latency
 //!   in a running stack and the arm control loop's jitter ([`pipeline`]).
+//! - [`run_bench_detector`] / [`BenchDetectorArgs`]: `harvest bench detector`, perception's
+//!   detectors' latency per frame (ONNX models beside the colour segmentation) ([`detector`]).
 //! - [`run_bench_lidar_livox`] / [`BenchLidarLivoxArgs`]: `harvest bench lidar-livox`, the
 //!   Livox Mid-70 driver against the fake device on loopback ([`lidar_livox`]).
 //! - [`run_soak`] / [`SoakArgs`]: `harvest soak`, the stack for a long time under kills,
 //!   operator commands and bad inputs, with memory, descriptors and shared memory sampled
 //!   ([`soak`]).
 
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod affinity;
 pub mod bench_payload;
 pub mod case;
 pub mod child_stop;
 pub mod control;
+pub mod detector;
 pub mod error;
 pub mod lidar_livox;
 pub mod message;
@@ -41,6 +46,7 @@ pub mod transport;
 pub mod watchdog;
 
 pub use bench_payload::BenchPayload;
+pub use detector::{BenchDetectorArgs, run_bench_detector};
 pub use error::BenchError;
 pub use lidar_livox::{BenchLidarLivoxArgs, LidarLivoxReport, run_bench_lidar_livox};
 pub use options::{BenchIpcArgs, BenchPeerArgs, PEER_SUBCOMMAND, Transport, WakeMode};

@@ -1,6 +1,5 @@
 //! `bench ipc --quick` across real processes (the bench binary spawns itself as the sending
 //! peer): the JSON report and the SVG plot are well formed and complete. No timing is asserted.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};

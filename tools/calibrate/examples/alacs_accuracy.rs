@@ -1,8 +1,11 @@
-//! Measures the ALACS pipeline end to end, paper 000 style: calibrate (method 4) on generated
-//! samples, then localise rendered apples at d = 0, 5, 10, 15, 20 cm and 0.6-1.2 m with the
-//! calibrated parameters, and time method 4 over repeated runs.
+//! Measures the ALACS pipeline end to end, as [alacs sec. 5.2] does: calibrate (method 4) on
+//! generated samples, then localise rendered apples at d = 0, 5, 10, 15, 20 cm and 0.6-1.2 m with
+//! the calibrated parameters, and time method 4 over repeated runs.
 //!
 //! `cargo run -p harvest-laser --release --example alacs_accuracy -- [SEED]`
+
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 use std::time::Instant;
 

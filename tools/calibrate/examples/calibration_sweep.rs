@@ -1,8 +1,11 @@
-//! Table 1 over many generated sample sets: how often the four methods of paper 000 section 5.1
+//! Table 1 over many generated sample sets: how often the four methods of [alacs sec. 5.1]
 //! rank as the paper's Table 1 does (4 < 3 < 2 < 1 in mean |z - z_hat| over the clean samples),
 //! and the mean of each column.
 //!
 //! `cargo run -p harvest-laser --release --example calibration_sweep -- [SETS] [SCALE_SIGMAS]`
+
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 use harvest_calibrate::laser_samples::{SampleGeneratorConfig, generate_samples};
 use harvest_hw::alacs::alacs_camera_intrinsics;

@@ -1,5 +1,5 @@
 //! Synthetic calibration samples from known extrinsics, shaped like the paper's data set
-//! (paper 000, section 5.1: 10 board positions between 0.6 and 1.2 m, 3 laser points each).
+//! ([alacs sec. 5.1]: 10 board positions between 0.6 and 1.2 m, 3 laser points each).
 //!
 //! For each board: a checkerboard of `board_height_m` at its depth, tilted at random, centred
 //! where the laser line falls. The laser points lie on the board (section 4.2: the image covers

@@ -1,10 +1,9 @@
-//! Property test of the LiDAR-camera calibration data-set reader (issue 18, item 3): a data set
+//! Property test of the LiDAR-camera calibration data-set reader: a data set
 //! written by `write_data_set`, then its `camera.toml` mutated (values replaced by anything,
 //! lines dropped or doubled, bytes changed), its cloud CSVs edited (fields replaced by anything,
 //! lines cut) and its PNGs damaged (bytes changed, cut, or image sizes rewritten with a valid
 //! checksum), through `DataSet::open`, the per-view readers and the whole calibration. Every
 //! failure is an error naming a file; never a panic.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_calibrate::lidar::board_image::GreyImage;
 use harvest_calibrate::lidar::calibration::calibrate_data_set;

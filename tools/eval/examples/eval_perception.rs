@@ -1,6 +1,9 @@
 //! Stand-alone `harvest eval perception` for measuring before the CLI is wired:
 //! `cargo run -p harvest-eval --release --example eval_perception -- --frames 30`.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 use clap::Parser;
 use harvest_eval::{EvalPerceptionArgs, run_eval_perception};
 

@@ -14,6 +14,9 @@
 //!   policies (Fig. 12, single vs. dual arm with injected failures), judged by the safety
 //!   monitor in its property tests; `cycle_report` prints its figures.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod cycle_model;
 pub mod harvest;
 pub mod laser;

@@ -1,8 +1,7 @@
-#![allow(clippy::unwrap_used, clippy::expect_used)]
 //! Where the ALACS unit can sit on the robot: for candidate mountings, the share of the apples
 //! the arms can pick (ground truth, the simulator's rows and default scenario) that the laser
 //! can scan ([`LaserReach`]: in the ALACS image and a scan within the slide's 20 cm stroke),
-//! their depth from the ALACS camera (paper 000 validated 0.6-1.2 m, section 5.2) and how close
+//! their depth from the ALACS camera ([alacs sec. 5.2] validated 0.6-1.2 m) and how close
 //! the arms' tubes come to the unit on their way to those apples.
 //!
 //! `cargo test --release -p harvest-eval --test laser_mounting -- --nocapture` prints the

@@ -1,5 +1,4 @@
 //! End-to-end checks of `harvest eval perception` on small runs.
-#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed setup is a failed test
 
 use harvest_eval::perception::frame::{FrameRenderer, zeroed_frame};
 use harvest_eval::perception::truth::{Condition, TruthMeter};
@@ -27,6 +26,8 @@ fn args(frames: u32, empty_frames: u32) -> EvalPerceptionArgs {
         depth_sources: vec![DepthSource::Tof],
         lidar_integration_s: 1.0,
         table_iii_trials: 0,
+        detector: None,
+        model: None,
     }
 }
 

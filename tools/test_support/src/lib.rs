@@ -3,9 +3,6 @@
 //!
 //! - [`toml_mutation`]: one generator of damaged TOML files for every reader of outside files.
 
-#![allow(
-    clippy::expect_used,
-    reason = "test support: a setup that fails is a failed test"
-)]
+#![forbid(unsafe_code)]
 
 pub mod toml_mutation;

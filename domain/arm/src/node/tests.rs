@@ -669,7 +669,7 @@ fn config_is_checked() {
     ));
 }
 
-// --- Operator: held targets and manual moves (issue 15).
+// --- Operator: held targets and manual moves.
 
 #[test]
 fn a_held_target_waits_and_starts_once_released() {

@@ -27,11 +27,11 @@ pub struct CycleConfig {
     /// Time allowed for the pressure feedback to confirm the attachment once the valve is
     /// open, s.
     pub attach_timeout_s: f64,
-    /// End-effector twist applied to detach the apple before the pull, rad. Paper 000 (section
-    /// 2) rotates the end-effector "by a certain angle"; the default is a quarter turn: twisting
-    /// relieves the stem (the simulator's `stems.twist_relief`, full at a quarter turn), and on
-    /// the rows an eighth of a turn left stems within the cup's force slipping (README, `harvest
-    /// eval row`).
+    /// End-effector twist applied to detach the apple before the pull, rad. [alacs sec. 2]
+    /// rotates the end-effector by an angle it does not give; the default is a quarter turn:
+    /// twisting relieves the stem (the simulator's `stems.twist_relief`, full at a quarter turn),
+    /// and on the rows an eighth of a turn left stems within the cup's force slipping
+    /// (docs/evaluation.md, `harvest eval row`).
     pub detach_twist_rad: f64,
     /// Time the valve stays closed at the drop-off for the apple to fall, s.
     pub release_dwell_s: f64,
@@ -78,7 +78,7 @@ impl Default for CycleConfig {
     }
 }
 
-/// Why a [`PickingCycle`] could not be built.
+/// Why a [`PickingCycle`](super::PickingCycle) could not be built.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum CycleConfigError {
     /// A configuration value is out of range.

@@ -31,7 +31,7 @@ pub struct OtherArmState {
 }
 
 impl OtherArmState {
-    /// The state another [`PickingCycle`] reported in its last output.
+    /// The state another [`PickingCycle`](super::PickingCycle) reported in its last output.
     pub fn from_output(output: &CycleOutput) -> Self {
         Self {
             phase: output.phase,

@@ -1,4 +1,4 @@
-//! The picking cycle of one arm as a plain state machine (paper 003, section 3.3 and Fig. 9a):
+//! The picking cycle of one arm as a plain state machine ([dual-arm sec. 3.3, Fig. 9a]):
 //! Approach -> Attach (valve open, wait for the pressure-confirmed attachment, twist the
 //! end-effector) -> Retract to the drop-off pose with suction held -> Release (valve closed,
 //! apple drops) -> Idle. A failed attachment, or an apple lost on the way back, closes the valve

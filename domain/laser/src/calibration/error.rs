@@ -1,6 +1,6 @@
 //! Why a calibration could not produce parameters.
 
-/// Failures of the calibration methods (paper 000, section 4.2 and 5.1).
+/// Failures of the calibration methods ([alacs sec. 4.2 and 5.1]).
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum CalibrationError {
     /// Fewer samples than one 4-sample hypothesis needs.

@@ -101,7 +101,7 @@ pub fn write_calibration_file(
         });
     }
     let text = format!(
-        "# ALACS laser-camera extrinsics (paper 000, eq. 7), written by `harvest calibrate laser`.\n{}",
+        "# ALACS laser-camera extrinsics ([alacs eq. 7]), written by `harvest calibrate laser`.\n{}",
         toml::to_string(file)?
     );
     let mut temporary = path.as_os_str().to_owned();

@@ -1,4 +1,4 @@
-//! The two ways of solving problem (9) of paper 000 with a model: on all samples, and robustly
+//! The two ways of solving [alacs problem 9] with a model: on all samples, and robustly
 //! with RANSAC (Algorithm 1).
 
 use nalgebra::SVector;

@@ -1,4 +1,4 @@
-//! Levenberg-Marquardt for problem (9) of paper 000: minimise `sum (z_i - z_hat_i)^2` over the
+//! Levenberg-Marquardt for [alacs problem 9]: minimise `sum (z_i - z_hat_i)^2` over the
 //! model parameters, on a subset of the samples. Fixed-size (`N` = 2 or 3) normal equations,
 //! so one iteration allocates nothing.
 

@@ -1,4 +1,4 @@
-//! The four calibration methods compared in paper 000, section 5.1 (Tables 1-2), each timed.
+//! The four calibration methods compared in [alacs sec. 5.1] (Tables 1-2), each timed.
 //!
 //! | # | model | data |
 //! |---|---|---|

@@ -1,4 +1,4 @@
-//! Extrinsic calibration of the ALACS unit (paper 000, section 4.2 and 5.1): samples
+//! Extrinsic calibration of the ALACS unit ([alacs sec. 4.2 and 5.1]): samples
 //! `[u_bar, v_bar, z]`, the two depth models, least squares (problem 9), RANSAC (Algorithm 1),
 //! the four compared methods, and the calibration file.
 

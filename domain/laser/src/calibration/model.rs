@@ -1,4 +1,4 @@
-//! The two depth models calibrated in paper 000, section 5.1, as fit targets: predictions with
+//! The two depth models calibrated in [alacs sec. 5.1], as fit targets: predictions with
 //! their parameter Jacobians (for Levenberg-Marquardt) and a closed-form start.
 //!
 //! - [`HighFidelity`], eq. 7 / problem (9): parameters `[alpha_rad, l0_m, beta_rad]`.

@@ -1,4 +1,4 @@
-//! One calibration sample `s_i = [u_bar, v_bar, z]` (paper 000, section 4.2) and the checks a
+//! One calibration sample `s_i = [u_bar, v_bar, z]` ([alacs sec. 4.2]) and the checks a
 //! sample set must pass before any fit.
 
 use serde::{Deserialize, Serialize};

@@ -107,7 +107,7 @@ fn an_unknown_command_is_refused_and_changes_nothing() {
 }
 
 #[test]
-fn a_missing_or_wrong_token_is_refused_even_for_the_emergency_stop() {
+fn a_missing_or_wrong_token_is_refused_for_every_command_but_the_emergency_stop() {
     let mut b = Bench::new(OperatorModeCode::Harvesting);
     let missing = b.send_as(1, "", Command::Pause);
     assert_eq!(
@@ -115,7 +115,12 @@ fn a_missing_or_wrong_token_is_refused_even_for_the_emergency_stop() {
         Some(OperatorRefusalCode::MissingToken)
     );
     let wrong = ControlToken::generate().expect("token");
-    for command in [Command::Pause, Command::EmergencyStop, Command::Heartbeat] {
+    for command in [
+        Command::Pause,
+        Command::Heartbeat,
+        Command::Release,
+        Command::Start,
+    ] {
         let decision = b.send_as(1, wrong.as_str(), command);
         assert_eq!(
             refusal_code(&decision),
@@ -125,6 +130,44 @@ fn a_missing_or_wrong_token_is_refused_even_for_the_emergency_stop() {
     }
     assert_eq!(b.executive.mode(), OperatorModeCode::Harvesting);
     assert!(b.executive.controller().is_none());
+
+    // The stop needs no authority: a wrong token stops the robot, takes no control, and the
+    // reason says the token was not shown.
+    let estop = b.send_as(7, wrong.as_str(), Command::EmergencyStop);
+    assert!(estop.is_accepted(), "{}", estop.reason);
+    assert!(matches!(
+        estop.actions.first(),
+        Some(Action::EngageEmergencyStop { reason }) if reason.contains("without the control token")
+    ));
+    assert_eq!(b.executive.mode(), OperatorModeCode::EmergencyStopped);
+    assert!(b.executive.controller().is_none());
+    // The release still needs the token; refused, the stop stays engaged.
+    for token in ["", wrong.as_str()] {
+        let release = b.send_as(7, token, Command::Release);
+        assert!(!release.is_accepted());
+        assert!(release.actions.is_empty());
+    }
+    assert_eq!(b.executive.mode(), OperatorModeCode::EmergencyStopped);
+    // With the token the release returns to idle, never to harvesting.
+    assert!(b.send(Command::Release).is_accepted());
+    assert_eq!(b.executive.mode(), OperatorModeCode::Idle);
+
+    // No token at all and no session (session id 0): stopped all the same.
+    let estop = b.send_as(0, "", Command::EmergencyStop);
+    assert!(estop.is_accepted(), "{}", estop.reason);
+    assert_eq!(b.executive.mode(), OperatorModeCode::EmergencyStopped);
+}
+
+#[test]
+fn the_emergency_stop_is_taken_without_token_while_another_session_controls() {
+    let mut b = Bench::new(OperatorModeCode::Harvesting);
+    assert!(b.send(Command::Heartbeat).is_accepted());
+    b.now_ns += 100 * MS;
+    let estop = b.send_as(2, "", Command::EmergencyStop);
+    assert!(estop.is_accepted(), "{}", estop.reason);
+    assert_eq!(b.executive.mode(), OperatorModeCode::EmergencyStopped);
+    // The controlling session keeps control; the stopping one gained none.
+    assert_eq!(b.executive.controller().map(|c| c.session_id), Some(1));
 }
 
 #[test]
@@ -144,7 +187,7 @@ fn a_second_session_is_refused_while_the_first_is_heard() {
         second.reason
     );
     assert_eq!(b.executive.mode(), OperatorModeCode::Harvesting);
-    // The emergency stop is taken from any session with the token.
+    // The emergency stop is taken from any session.
     let estop = b.send_as(2, &token, Command::EmergencyStop);
     assert!(estop.is_accepted());
     assert_eq!(b.executive.mode(), OperatorModeCode::EmergencyStopped);

@@ -1,7 +1,7 @@
 //! Classical apple detector: chromaticity segmentation on a downscaled image, morphological
 //! clean-up, connected components and splitting of touching apples.
 //!
-//! The paper's detector is learned (Zhu et al., section 3.1.1); this is the fallback that needs no
+//! The paper's detector is learned ([dual-arm sec. 3.1.1]); this is the fallback that needs no
 //! model. Pipeline, on cells of `downscale x downscale` colour pixels:
 //! 1. Mean colour of each cell, and whether most of its pixels are clipped (over-exposed).
 //! 2. Classification in normalized chromaticity `r = R/(R+G+B)`, `g = G/(R+G+B)`, which does not
@@ -11,12 +11,12 @@
 //!    255 (the adaptive brightness term). Cells darker than a floor proportional to the frame's
 //!    mean brightness carry no reliable colour and count as background.
 //! 3. Over-exposed cells without usable colour are unknown. Their connected blobs are sorted by
-//!    [`super::saturated_blobs`]: a blob ringed by apple colour is a highlight and joins the fruit;
+//!    `saturated_blobs`: a blob ringed by apple colour is a highlight and joins the fruit;
 //!    a disc-shaped, apple-sized blob without a red ring (a wholly blown-out fruit) becomes a
 //!    [`DetectionSource::SaturatedBlob`] candidate for depth confirmation; the rest join an apple
 //!    region only when it reaches them within `highlight_fill_iterations` cells.
 //! 4. Opening then closing with a 3x3 square removes specks and bridges one-cell gaps.
-//! 5. 8-connected components; each is split into apples by [`super::touching_split`].
+//! 5. 8-connected components; each is split into apples by `touching_split`.
 //! 6. Per apple: box, mask, visible pixels and a confidence combining colour margin, roundness,
 //!    size and exposure.
 
@@ -508,7 +508,8 @@ impl ColorSegmentation {
             let area = region.area_cells as f32;
             let saturated_fraction = region.overexposed_cells as f32 / area;
             let confidence = match source {
-                DetectionSource::Colour => region_confidence(
+                // (This detector reports no `Model` detections.)
+                DetectionSource::Colour | DetectionSource::Model => region_confidence(
                     region.margin_sum / area,
                     area,
                     seed.radius_cells,

@@ -1,17 +1,25 @@
 //! 2D apple detection in the colour image.
 //!
 //! A [`Detector`] turns one colour frame into a list of [`Detection`]s: a pixel box, a pixel mask,
-//! the number of visible apple pixels and a confidence in [0, 1]. The paper (Zhu et al., section
-//! 3.1.1-3.1.2) uses a fine-tuned Grounding-DINO detector with a prompt-guided instance segmenter
-//! and a 0.3 confidence threshold; a learned detector can implement this trait later. The default
-//! is the classical [`color_segmentation::ColorSegmentation`].
+//! the number of visible apple pixels and a confidence in [0, 1]. The paper ([dual-arm sec.
+//! 3.1.1-3.1.2]) uses a fine-tuned Grounding-DINO detector with a prompt-guided instance segmenter
+//! and a 0.3 confidence threshold. Two implementations, chosen in one place ([`choice`], the
+//! `[detector]` table of perception's config):
+//! - [`color_segmentation::ColorSegmentation`] (default): classical, needs no model;
+//! - [`onnx::OnnxDetector`]: a YOLOv8/YOLO11 detect or segment model exported to ONNX
+//!   (decoding in [`yolo`]; the runtime behind the `onnx` cargo feature).
 
+pub mod choice;
 pub mod color_segmentation;
 mod components;
 mod distance_transform;
 mod morphology;
+pub mod onnx;
 mod saturated_blobs;
 mod touching_split;
+pub mod yolo;
+
+pub use choice::{DetectorConfig, DetectorKind, make_detector};
 
 use serde::Serialize;
 
@@ -143,6 +151,8 @@ pub enum DetectionSource {
     /// cannot tell it from white sky or a bright object, so the pipeline keeps it only when the
     /// registered depth confirms a solid, apple-sized object there.
     SaturatedBlob,
+    /// A learned detector's detection (its mask, or the ellipse inscribed in its box).
+    Model,
 }
 
 /// One apple seen in the colour image.

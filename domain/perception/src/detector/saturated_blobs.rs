@@ -1,8 +1,8 @@
 //! Over-exposed (clipped, colourless) regions of the colour image and what they are.
 //!
-//! Direct sunlight blows an apple out to white (the paper's exposure condition, Zhu et al. Table
-//! 3). Chromaticity then carries no information, so such cells are neither apple nor background
-//! to [`super::color_segmentation`]. Each 8-connected region of them (a *blob*) is sorted here:
+//! Direct sunlight blows an apple out to white (the exposure condition of [dual-arm Table 3]).
+//! Chromaticity then carries no information, so such cells are neither apple nor background to
+//! [`super::color_segmentation`]. Each 8-connected region of them (a *blob*) is sorted here:
 //! - **Highlight**: the blob's outer ring is mostly apple-coloured (a specular highlight inside a
 //!   red fruit, or a blown-out centre with a red rim). The whole blob joins the apple mask, so a
 //!   large highlight does not leave a hole that would split the fruit.

@@ -1,4 +1,4 @@
-//! The paper's clustering-based depth estimate (Zhu et al. 3.1.3).
+//! The paper's clustering-based depth estimate ([dual-arm sec. 3.1.3]).
 //!
 //! DBSCAN over the mask points; the cluster with the most points is the apple; its centroid
 //! depth is `z_d`. With `(x_c, y_c, z_c)` the 3D point at the bounding-box centre, the apple is
@@ -7,7 +7,7 @@
 //! radius for a fully visible fruit); the paper accepts this bias.
 //!
 //! The paper reports no radius; here it is estimated from the cluster's lateral spread
-//! ([`super::radius_from_lateral_spread`]). Confidence is the cluster's share of the points
+//! (`radius_from_lateral_spread`). Confidence is the cluster's share of the points
 //! times a support factor.
 
 use super::point_clustering::{ClusteringConfig, PointClustering};

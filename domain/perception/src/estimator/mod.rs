@@ -2,11 +2,11 @@
 //!
 //! An [`Estimator`] receives the registered mask points (colour camera frame) and the ray through
 //! the detection's box centre, and returns a [`PositionEstimate`]. [`EstimatorKind`] selects:
-//! - [`EstimatorKind::ClusterDepth`]: the paper's method (Zhu et al. 3.1.3), see [`cluster_depth`].
+//! - [`EstimatorKind::ClusterDepth`]: the method of [dual-arm sec. 3.1.3], see [`cluster_depth`].
 //! - [`EstimatorKind::SphereFit`]: robust sphere fit with a radius prior, see [`sphere_fit`];
 //!   removes the visible-surface bias and uses every fragment of an occluded fruit.
-//! - [`EstimatorKind::ZScoreCentroid`]: the LiDAR-camera paper's centroid after Z-score outlier
-//!   rejection, see [`zscore_centroid`].
+//! - [`EstimatorKind::ZScoreCentroid`]: the centroid after Z-score outlier rejection of
+//!   [fusion sec. II-D-3], see [`zscore_centroid`].
 
 pub mod cluster_depth;
 mod point_clustering;
@@ -31,7 +31,7 @@ pub enum EstimatorKind {
     ClusterDepth,
     /// Robust sphere fit (RANSAC + Gauss-Newton with a radius prior).
     SphereFit,
-    /// Centroid of the mask points after Z-score outlier rejection (LiDAR-camera paper).
+    /// Centroid of the mask points after Z-score outlier rejection ([fusion sec. II-D-3]).
     ZScoreCentroid,
 }
 

@@ -1,6 +1,6 @@
 //! Improved estimator: robust sphere fit with an apple-radius prior.
 //!
-//! The paper's cluster depth (Zhu et al. 3.1.3) measures the camera-facing surface, so it sits
+//! The cluster depth of [dual-arm sec. 3.1.3] measures the camera-facing surface, so it sits
 //! about 2/3 of a radius in front of the fruit centre, and an occluder that splits the fruit's
 //! points keeps only the biggest fragment (the failure mode named in the paper's 4.3). This
 //! estimator models the fruit as a sphere of radius 35-50 mm:

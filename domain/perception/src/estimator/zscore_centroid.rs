@@ -1,5 +1,6 @@
-//! Centroid of the mask points after Z-score outlier rejection (LiDAR-camera fusion paper,
-//! fruit localisation: the fruit is the centre of its mask points, eq. 20 maps it to the robot).
+//! Centroid of the mask points after Z-score outlier rejection ([fusion sec. II-D-3] fruit
+//! localisation: the fruit is the centre of its mask points, [fusion eq. 20] maps it to the
+//! robot).
 //!
 //! The rejection and the centroid are the LiDAR crate's ([`harvest_lidar::localization`], the
 //! same code behind the Table-III comparison): each point's depth is standardized and points

@@ -3,18 +3,19 @@
 use serde::{Deserialize, Serialize};
 
 use crate::depth_source::DepthSource;
-use crate::detector::color_segmentation::ColorSegmentationConfig;
+use crate::detector::DetectorConfig;
 use crate::estimator::EstimatorConfig;
 use crate::noise_model::DepthNoiseModel;
 use crate::registration::DepthRange;
 use crate::scan_policy::LaserScanConfig;
 
 /// Pipeline configuration.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PerceptionConfig {
-    /// Parameters of the default colour-segmentation detector.
-    pub detector: ColorSegmentationConfig,
+    /// The detector and its parameters (`[detector]`, `kind = "color_segmentation"`, the
+    /// default, or `"onnx"`; see [`crate::detector::choice`]).
+    pub detector: DetectorConfig,
     /// Detections below this confidence are dropped (the paper's detector threshold is 0.3).
     pub min_detection_confidence: f32,
     /// Accepted depth samples, mm.
@@ -37,7 +38,7 @@ pub struct PerceptionConfig {
     /// Apples whose confidence is below this are not reported.
     /// Default (key left out): the depth source's ([`DepthSource::min_output_confidence`]).
     pub min_output_confidence: Option<f32>,
-    /// Colour detections whose mask covers less than this fraction of their fitted fruit's
+    /// Colour and model detections whose mask covers less than this fraction of their fitted fruit's
     /// image disc are dropped (fragments of mostly hidden fruit).
     pub min_visible_fraction: f64,
     /// Tolerance of the depth-agreement check, in depth-noise sigmas at the median depth.
@@ -64,7 +65,7 @@ pub struct PerceptionConfig {
 impl Default for PerceptionConfig {
     fn default() -> Self {
         Self {
-            detector: ColorSegmentationConfig::default(),
+            detector: DetectorConfig::default(),
             min_detection_confidence: 0.3,
             depth_range: DepthRange::default(),
             noise: None,

@@ -4,6 +4,7 @@ use thiserror::Error;
 
 use crate::camera_setup::CameraSetupError;
 use crate::detector::color_segmentation::ColorSegmentationConfigError;
+use crate::detector::onnx::OnnxDetectorError;
 use crate::estimator::EstimatorConfigError;
 use crate::registration::DepthRangeError;
 use crate::scan_policy::LaserScanConfigError;
@@ -17,6 +18,9 @@ pub enum PerceptionSetupError {
     /// The colour-segmentation parameters are invalid.
     #[error(transparent)]
     Detector(#[from] ColorSegmentationConfigError),
+    /// The ONNX detector cannot start (library, providers, model, layout).
+    #[error(transparent)]
+    OnnxDetector(#[from] OnnxDetectorError),
     /// The estimator parameters are invalid.
     #[error(transparent)]
     Estimator(#[from] EstimatorConfigError),

@@ -1,6 +1,6 @@
 //! The perception pipeline of one ToF camera: detections -> mask points -> apple positions.
 //!
-//! Implements Zhu et al. 3.1 with a pluggable detector and estimator. Per frame:
+//! Implements [dual-arm sec. 3.1] with a pluggable detector and estimator. Per frame:
 //! 1. Both frames are checked against the calibrated sizes; a malformed frame yields no apples and
 //!    is counted ([`FrameStats::rejection`]).
 //! 2. The detector finds apples in the colour image; detections below `min_detection_confidence`
@@ -22,12 +22,12 @@
 //!    over-detection, 4.3) are merged when their centres are closer than
 //!    `duplicate_distance_radii` times the sum of their radii (each at least
 //!    `duplicate_min_radius_m`), and re-estimated from the union of their points.
-//! 6. Colour detections whose mask covers less than `min_visible_fraction` of their fitted
+//! 6. Colour and model detections whose mask covers less than `min_visible_fraction` of their fitted
 //!    fruit's image disc are dropped (fragments of mostly hidden fruit localize poorly), and so
 //!    are apples whose confidence (mask confidence times position confidence) is below
 //!    `min_output_confidence` (mostly fallback estimates from few points).
 //! 7. Each apple is reported in the colour camera frame and, via `robot_from_camera`, in the robot
-//!    frame (the LiDAR-camera paper's eq. 20).
+//!    frame ([fusion eq. 20]).
 //!
 //! Layout: `config` and `error` (building the pipeline), `apple_estimate` (its output), one file
 //! per stage that needs more than a few lines: `mask_points` (step 3), `estimation` (step 4),
@@ -50,8 +50,7 @@ use tracing::{debug, trace};
 
 use crate::blob_localization::BlobLocalizer;
 use crate::camera_setup::CameraSetup;
-use crate::detector::color_segmentation::ColorSegmentation;
-use crate::detector::{Detection, DetectionSource, Detector};
+use crate::detector::{Detection, DetectionSource, Detector, make_detector};
 use crate::estimate_checks::{SaturatedBlobCheck, visible_fraction};
 use crate::estimator::{Estimator, EstimatorContext, PositionEstimate, make_estimator};
 use crate::frame::{DepthView, RgbView};
@@ -100,21 +99,86 @@ impl std::fmt::Debug for Perception {
 }
 
 impl Perception {
-    /// A pipeline with the default colour-segmentation detector.
+    /// A pipeline with the configured detector (`config.detector`).
     pub fn new(
         config: PerceptionConfig,
         cameras: CameraSetup,
     ) -> Result<Self, PerceptionSetupError> {
-        let detector = ColorSegmentation::new(config.detector)?;
-        Self::with_detector(config, cameras, Box::new(detector))
+        let detector = make_detector(&config.detector)?;
+        Self::with_detector(config, cameras, detector)
     }
 
-    /// A pipeline with a caller-supplied detector (e.g. a learned one).
+    /// The pipeline's detector, for a pipeline rebuilt for other cameras (a learned detector's
+    /// model is loaded once).
+    pub fn into_detector(self) -> Box<dyn Detector + Send> {
+        self.detector
+    }
+
+    /// A pipeline with a caller-supplied detector (built by [`make_detector`], or a test's).
     pub fn with_detector(
         config: PerceptionConfig,
         cameras: CameraSetup,
         detector: Box<dyn Detector + Send>,
     ) -> Result<Self, PerceptionSetupError> {
+        Self::try_with_detector(config, cameras, detector).map_err(|(error, _)| error)
+    }
+
+    /// [`Self::with_detector`] that hands the detector back when the setup is refused.
+    #[allow(clippy::result_large_err)]
+    pub fn try_with_detector(
+        config: PerceptionConfig,
+        cameras: CameraSetup,
+        detector: Box<dyn Detector + Send>,
+    ) -> Result<Self, (PerceptionSetupError, Box<dyn Detector + Send>)> {
+        let estimator = match Self::checked_estimator(&config, &cameras) {
+            Ok(estimator) => estimator,
+            Err(error) => return Err((error, detector)),
+        };
+        let registration = DepthRegistration::new(
+            cameras.depth,
+            cameras.color,
+            cameras.color_from_depth,
+            config.depth_range,
+        );
+        let label_width = cameras.color.width_px.div_ceil(LABEL_CELL_PX) as usize;
+        let label_height = cameras.color.height_px.div_ceil(LABEL_CELL_PX) as usize;
+        let blob_check = SaturatedBlobCheck {
+            depth_samples_per_color_px: (cameras.depth.fx_px * cameras.depth.fy_px)
+                / (cameras.color.fx_px * cameras.color.fy_px),
+            color_focal_px: 0.5 * (cameras.color.fx_px + cameras.color.fy_px),
+            min_depth_coverage: config.saturated_blob_min_depth_coverage,
+            radius_range_m: config.saturated_blob_radius_m,
+        };
+        Ok(Self {
+            config,
+            cameras,
+            detector,
+            estimator,
+            registration,
+            detections: Vec::new(),
+            active: Vec::new(),
+            label_map: vec![0; label_width * label_height],
+            label_width,
+            label_height,
+            points: Vec::new(),
+            merged_points: Vec::new(),
+            estimates: Vec::new(),
+            pending: Vec::new(),
+            pending_members: Vec::new(),
+            accepted: Vec::new(),
+            depth_scratch: Vec::new(),
+            blob_localizer: BlobLocalizer::default(),
+            blob_check,
+            last: FrameStats::default(),
+            totals: PerceptionStats::default(),
+        })
+    }
+
+    /// Checks the settings and cameras and builds the estimator.
+    fn checked_estimator(
+        config: &PerceptionConfig,
+        cameras: &CameraSetup,
+    ) -> Result<Box<dyn Estimator + Send>, PerceptionSetupError> {
         cameras.validate()?;
         config.depth_range.validate()?;
         config.laser.validate()?;
@@ -208,50 +272,13 @@ impl Perception {
                 });
             }
         }
-        let estimator = make_estimator(
+        Ok(make_estimator(
             &config.estimator,
             EstimatorContext {
                 noise: config.depth_noise(),
                 depth_focal_px: cameras.depth.fx_px,
             },
-        )?;
-        let registration = DepthRegistration::new(
-            cameras.depth,
-            cameras.color,
-            cameras.color_from_depth,
-            config.depth_range,
-        );
-        let label_width = cameras.color.width_px.div_ceil(LABEL_CELL_PX) as usize;
-        let label_height = cameras.color.height_px.div_ceil(LABEL_CELL_PX) as usize;
-        Ok(Self {
-            config,
-            cameras,
-            detector,
-            estimator,
-            registration,
-            detections: Vec::new(),
-            active: Vec::new(),
-            label_map: vec![0; label_width * label_height],
-            label_width,
-            label_height,
-            points: Vec::new(),
-            merged_points: Vec::new(),
-            estimates: Vec::new(),
-            pending: Vec::new(),
-            pending_members: Vec::new(),
-            accepted: Vec::new(),
-            depth_scratch: Vec::new(),
-            blob_localizer: BlobLocalizer::default(),
-            blob_check: SaturatedBlobCheck {
-                depth_samples_per_color_px: (cameras.depth.fx_px * cameras.depth.fy_px)
-                    / (cameras.color.fx_px * cameras.color.fy_px),
-                color_focal_px: 0.5 * (cameras.color.fx_px + cameras.color.fy_px),
-                min_depth_coverage: config.saturated_blob_min_depth_coverage,
-                radius_range_m: config.saturated_blob_radius_m,
-            },
-            last: FrameStats::default(),
-            totals: PerceptionStats::default(),
-        })
+        )?)
     }
 
     pub fn config(&self) -> &PerceptionConfig {
@@ -370,7 +397,7 @@ impl Perception {
         let kind = self.estimator.kind();
         for &k in &self.accepted {
             let p = &self.pending[k];
-            let hidden = p.source == DetectionSource::Colour
+            let hidden = p.source != DetectionSource::SaturatedBlob
                 && visible_fraction(
                     p.visible_px,
                     p.estimate.radius_m,

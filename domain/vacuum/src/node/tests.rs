@@ -690,7 +690,7 @@ fn a_waiting_arm_with_nowhere_else_to_send_its_apple_keeps_it_and_a_refusal_ends
     );
 }
 
-// --- Operator: dispatch held per arm (issue 15).
+// --- Operator: dispatch held per arm.
 
 #[test]
 fn a_held_arm_gets_no_target_until_released() {

@@ -1,4 +1,4 @@
-//! The 2024 failure-aware coordination policy (paper 003, section 3.3, eq. 7-12), run as the
+//! The 2024 failure-aware coordination policy ([dual-arm sec. 3.3, eq. 7-12]), run as the
 //! explicit automaton of [`TlNode`].
 //!
 //! Guards and orders, each traced to its clause (full table in POLICY.md):

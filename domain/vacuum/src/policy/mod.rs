@@ -1,6 +1,6 @@
 //! Vacuum coordination policies: who may open a source valve, and which valves must close now.
 //!
-//! The two arms share one vacuum source (paper 003, section 2.3). A policy sees a snapshot of
+//! The two arms share one vacuum source ([dual-arm sec. 2.3]). A policy sees a snapshot of
 //! both arms ([`PairStatus`]: workflow phase, commanded valve state, attachment state inferred
 //! from the pressure sensors, whether an apple is assigned) and
 //! - answers an arm's request ([`VacuumPolicy::decide`]) with [`Decision::Grant`] or

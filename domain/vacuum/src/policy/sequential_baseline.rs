@@ -1,4 +1,4 @@
-//! The no-coordination baseline of paper 003, section 4.2 and Fig. 12: the two arms work
+//! The no-coordination baseline of [dual-arm sec. 4.2, Fig. 12]: the two arms work
 //! strictly one after the other. An arm may leave the drop-off only while the other one rests
 //! there with its valve closed; the valve itself is then never contended and is granted
 //! without looking at the other arm or at the pressures. Failures are not detected: a valve

@@ -1,4 +1,4 @@
-//! The 2023 dual-arm policy (Lammers et al. 2024, as summarized in paper 003, section 4.2).
+//! The 2023 dual-arm policy (Lammers et al. 2024, as summarized in [dual-arm sec. 4.2]).
 //!
 //! No pressure feedback: the policy ignores the inferred attachment state. Both arms may
 //! approach at the same time, but the vacuum is exclusive from the moment one arm opens its

@@ -43,6 +43,7 @@ pub struct ClockMapping {
 }
 
 impl ClockMapping {
+    /// A mapping that has seen no timestamp yet.
     pub fn new() -> Self {
         Self::default()
     }

@@ -43,10 +43,13 @@ pub struct BroadcastCode([u8; 16]);
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("broadcast code {code:?}: 1 to 15 printable ASCII characters expected")]
 pub struct BadBroadcastCode {
+    /// The code as given.
     pub code: String,
 }
 
 impl BroadcastCode {
+    /// The 15-character broadcast code printed on the device (its serial number and one digit);
+    /// refused when it is not 15 ASCII letters and digits.
     pub fn parse(code: &str) -> Result<Self, BadBroadcastCode> {
         let bytes = code.as_bytes();
         if bytes.is_empty() || bytes.len() > 15 || !bytes.iter().all(|b| b.is_ascii_graphic()) {
@@ -59,6 +62,7 @@ impl BroadcastCode {
         Ok(Self(raw))
     }
 
+    /// The 16 bytes of the protocol (the code, zero padded).
     pub fn as_bytes(&self) -> &[u8; 16] {
         &self.0
     }
@@ -80,9 +84,13 @@ impl std::fmt::Display for BroadcastCode {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 #[error("payload of command {cmd_set}/{cmd_id}: {len} bytes, at least {expected} expected")]
 pub struct PayloadTooShort {
+    /// Command set of the message.
     pub cmd_set: u8,
+    /// Command id of the message.
     pub cmd_id: u8,
+    /// Bytes received.
     pub len: usize,
+    /// Bytes the message needs.
     pub expected: usize,
 }
 
@@ -102,13 +110,17 @@ fn need(cmd_id: u8, payload: &[u8], expected: usize) -> Result<(), PayloadTooSho
 /// the datagram's source): code, device type, 2 reserved bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Broadcast {
+    /// The device's broadcast code.
     pub code: BroadcastCode,
+    /// Device type code (Mid-70: 6 in the SDK 1 table).
     pub device_type: u8,
 }
 
 impl Broadcast {
+    /// Encoded length, bytes.
     pub const LEN: usize = 19;
 
+    /// The payload bytes.
     pub fn encode(&self) -> [u8; Self::LEN] {
         let mut out = [0u8; Self::LEN];
         out[..16].copy_from_slice(self.code.as_bytes());
@@ -116,6 +128,7 @@ impl Broadcast {
         out
     }
 
+    /// Decodes a payload; too short is refused.
     pub fn decode(payload: &[u8]) -> Result<Self, PayloadTooShort> {
         need(CMD_BROADCAST, payload, Self::LEN)?;
         let mut code = [0u8; 16];
@@ -131,15 +144,21 @@ impl Broadcast {
 /// lies in memory), then its data, command and IMU ports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Handshake {
+    /// Where the device sends its point and IMU data (the host's address).
     pub host_ip: Ipv4Addr,
+    /// Host UDP port for point data.
     pub data_port: u16,
+    /// Host UDP port for command acknowledgements.
     pub cmd_port: u16,
+    /// Host UDP port for IMU data (0: none).
     pub sensor_port: u16,
 }
 
 impl Handshake {
+    /// Encoded length, bytes.
     pub const LEN: usize = 10;
 
+    /// The payload bytes.
     pub fn encode(&self) -> [u8; Self::LEN] {
         let mut out = [0u8; Self::LEN];
         out[..4].copy_from_slice(&self.host_ip.octets());
@@ -149,6 +168,7 @@ impl Handshake {
         out
     }
 
+    /// Decodes a payload; too short is refused.
     pub fn decode(payload: &[u8]) -> Result<Self, PayloadTooShort> {
         need(CMD_HANDSHAKE, payload, Self::LEN)?;
         let port = |at: usize| u16::from_le_bytes([payload[at], payload[at + 1]]);
@@ -166,19 +186,27 @@ impl Handshake {
 /// start-up progress while initialising).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct HeartbeatAck {
+    /// 0 on success.
     pub ret_code: u8,
+    /// The device's work state ([`Self::STATE_NORMAL`], [`Self::STATE_ERROR`], ...).
     pub state: u8,
+    /// Feature bits (rain/fog suppression and similar).
     pub feature: u8,
+    /// The status code (see [`super::error_code`]).
     pub status_code: u32,
 }
 
 impl HeartbeatAck {
+    /// Encoded length, bytes.
     pub const LEN: usize = 7;
     /// `kLidarStateInit`: `status_code` is the start-up progress, 0-100.
     pub const STATE_INIT: u8 = 0;
+    /// Work state: sampling normally.
     pub const STATE_NORMAL: u8 = 1;
+    /// Work state: the device reports an error.
     pub const STATE_ERROR: u8 = 4;
 
+    /// The payload bytes.
     pub fn encode(&self) -> [u8; Self::LEN] {
         let mut out = [0u8; Self::LEN];
         out[0] = self.ret_code;
@@ -188,6 +216,7 @@ impl HeartbeatAck {
         out
     }
 
+    /// Decodes a payload; too short is refused.
     pub fn decode(payload: &[u8]) -> Result<Self, PayloadTooShort> {
         need(CMD_HEARTBEAT, payload, Self::LEN)?;
         Ok(Self {
@@ -208,20 +237,28 @@ pub fn ret_code(cmd_id: u8, payload: &[u8]) -> Result<u8, PayloadTooShort> {
 /// What a host may send on the device's command port (what the fake device decodes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum HostCommand {
+    /// The host introduces itself (its address and ports).
     Handshake(Handshake),
+    /// The host's periodic keep-alive.
     Heartbeat,
+    /// Start or stop sampling.
     ControlSample {
+        /// True: start; false: stop.
         start: bool,
     },
+    /// The host leaves.
     Disconnect,
     /// Any other command set or id (the device answers it with a failure code).
     Other {
+        /// Command set.
         cmd_set: u8,
+        /// Command id.
         cmd_id: u8,
     },
 }
 
 impl HostCommand {
+    /// Decodes a command; a payload too short for its command is refused.
     pub fn decode(cmd_set: u8, cmd_id: u8, payload: &[u8]) -> Result<Self, PayloadTooShort> {
         if cmd_set != CMD_SET_GENERAL {
             return Ok(Self::Other { cmd_set, cmd_id });

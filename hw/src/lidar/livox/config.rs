@@ -22,6 +22,7 @@ pub const DEFAULT_SILENCE_TIMEOUT: Duration = Duration::from_secs(2);
 /// Driver configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LivoxConfig {
+    /// Which device to talk to (broadcast code or address).
     pub target: DeviceTarget,
     /// The host address handed to the device (where it sends data) and the one the sockets bind
     /// to; None: the address the kernel routes towards the device, sockets on all interfaces.

@@ -35,17 +35,24 @@ use std::time::{Duration, Instant};
 /// Datagrams dropped from the data port, by reason.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct BadPacketCounts {
+    /// Shorter than their header.
     pub truncated: u64,
+    /// Longer or shorter than their data type holds.
     pub bad_length: u64,
+    /// With a protocol version other than 5.
     pub bad_version: u64,
+    /// With a data type the driver does not decode.
     pub unknown_data_type: u64,
+    /// With a timestamp type the driver does not know.
     pub unknown_timestamp_type: u64,
+    /// With a timestamp that does not map onto the stack clock.
     pub bad_timestamp: u64,
     /// From an address other than the device's.
     pub foreign: u64,
 }
 
 impl BadPacketCounts {
+    /// Datagrams dropped, whatever the reason.
     pub fn total(&self) -> u64 {
         self.truncated
             + self.bad_length
@@ -148,6 +155,7 @@ impl LivoxLidar {
         })
     }
 
+    /// Counters since the driver opened (packets, points, losses, reconnections).
     pub fn stats(&self) -> LivoxStats {
         LivoxStats {
             session: self.session.counters(),
@@ -156,6 +164,7 @@ impl LivoxLidar {
         }
     }
 
+    /// The control session with the device (state and counters).
     pub fn session(&self) -> &Session {
         &self.session
     }

@@ -9,20 +9,26 @@ pub enum LivoxError {
     /// A socket could not be opened, bound or configured (port in use, no such address).
     #[error("livox socket {what}: {source}")]
     Socket {
+        /// What was being done (`bind data port`, ...).
         what: &'static str,
+        /// The system's error.
         source: std::io::Error,
     },
     /// Sending or receiving on an open socket failed.
     #[error("livox link {what}: {source}")]
     Link {
+        /// What was being done (`send heartbeat`, ...).
         what: &'static str,
+        /// The system's error.
         source: std::io::Error,
     },
     /// Nothing (no point packet, no acknowledgement) came from the device for `silent_for`;
     /// the driver keeps trying to reconnect.
     #[error("livox device {device} silent for {silent_for:?}; reconnecting")]
     Silent {
+        /// The device (broadcast code or address).
         device: String,
+        /// How long nothing came.
         silent_for: Duration,
     },
     /// The configuration cannot work (the message names the option and its value).

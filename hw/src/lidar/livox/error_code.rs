@@ -19,8 +19,11 @@
 /// Overall state the device reports (bits 30-31).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Severity {
+    /// Measuring normally.
     Normal,
+    /// Measuring, with a warning bit set.
     Warning,
+    /// An error bit set: the device cannot measure properly.
     Error,
 }
 

@@ -39,6 +39,7 @@ pub enum PacketType {
 }
 
 impl PacketType {
+    /// The code on the wire.
     pub fn code(self) -> u8 {
         match self {
             Self::Command => 0,
@@ -47,6 +48,7 @@ impl PacketType {
         }
     }
 
+    /// The packet type of a wire code; `None` for an unknown one.
     pub fn from_code(code: u8) -> Option<Self> {
         match code {
             0 => Some(Self::Command),
@@ -60,10 +62,15 @@ impl PacketType {
 /// A decoded frame borrowing its payload from the datagram.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Frame<'a> {
+    /// Command, acknowledgement or message.
     pub packet_type: PacketType,
+    /// Sequence number, echoed in the acknowledgement.
     pub seq: u16,
+    /// Command set.
     pub cmd_set: u8,
+    /// Command id within the set.
     pub cmd_id: u8,
+    /// The bytes after the command id, before the checksum.
     pub payload: &'a [u8],
 }
 
@@ -72,16 +79,30 @@ pub struct Frame<'a> {
 pub enum FrameError {
     /// Shorter than a frame without payload.
     #[error("control frame of {len} bytes is shorter than the {WRAPPER_LEN}-byte minimum")]
-    Truncated { len: usize },
+    Truncated {
+        /// Bytes received.
+        len: usize,
+    },
     /// The first byte is not 0xAA.
     #[error("control frame starts with {byte:#04x}, not 0xAA")]
-    BadStart { byte: u8 },
+    BadStart {
+        /// The first byte.
+        byte: u8,
+    },
     /// A protocol version other than 1.
     #[error("control frame version {version}, expected {PROTOCOL_VERSION}")]
-    BadVersion { version: u8 },
+    BadVersion {
+        /// The version byte.
+        version: u8,
+    },
     /// The length field disagrees with the datagram.
     #[error("control frame declares {declared} bytes, datagram holds {received}")]
-    BadLength { declared: usize, received: usize },
+    BadLength {
+        /// Length the frame declares, bytes.
+        declared: usize,
+        /// Bytes the datagram holds.
+        received: usize,
+    },
     /// The preamble's CRC-16 does not match.
     #[error("control frame preamble CRC-16 mismatch")]
     PreambleCrc,
@@ -90,7 +111,10 @@ pub enum FrameError {
     FrameCrc,
     /// Packet type outside 0-2.
     #[error("control frame packet type {code} unknown")]
-    UnknownPacketType { code: u8 },
+    UnknownPacketType {
+        /// The packet type byte.
+        code: u8,
+    },
 }
 
 /// Decodes one datagram as a control frame, checking start byte, version, length and both CRCs.
@@ -138,6 +162,7 @@ pub fn decode_frame(datagram: &[u8]) -> Result<Frame<'_>, FrameError> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 #[error("control frame payload of {payload_len} bytes exceeds the {MAX_FRAME_LEN}-byte frame")]
 pub struct FrameTooLong {
+    /// The payload's length, bytes.
     pub payload_len: usize,
 }
 

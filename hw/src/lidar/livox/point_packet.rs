@@ -34,6 +34,7 @@ pub enum DataType {
 }
 
 impl DataType {
+    /// The code on the wire.
     pub fn code(self) -> u8 {
         match self {
             Self::ExtendedCartesian => 2,
@@ -41,6 +42,7 @@ impl DataType {
         }
     }
 
+    /// The data type of a wire code; `None` for one the driver does not decode.
     pub fn from_code(code: u8) -> Option<Self> {
         match code {
             2 => Some(Self::ExtendedCartesian),
@@ -94,6 +96,7 @@ pub enum TimestampType {
 }
 
 impl TimestampType {
+    /// The code on the wire.
     pub fn code(self) -> u8 {
         match self {
             Self::NoSync => 0,
@@ -103,6 +106,7 @@ impl TimestampType {
         }
     }
 
+    /// The timestamp type of a wire code; `None` for an unknown one.
     pub fn from_code(code: u8) -> Option<Self> {
         match code {
             0 => Some(Self::NoSync),
@@ -117,10 +121,15 @@ impl TimestampType {
 /// One return as the device encodes it.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct RawReturn {
+    /// Position in the LiDAR frame, millimetres.
     pub x_mm: i32,
+    /// Position in the LiDAR frame, millimetres.
     pub y_mm: i32,
+    /// Position in the LiDAR frame, millimetres.
     pub z_mm: i32,
+    /// Reflectivity, 0-255 (0-150 diffuse, 151-255 retro-reflective).
     pub reflectivity: u8,
+    /// Return tag bits (confidence of spatial, intensity and return position).
     pub tag: u8,
 }
 
@@ -155,10 +164,15 @@ impl RawReturn {
 /// The header fields of a point packet.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PointPacketHeader {
+    /// The slot (hub port) the device sits on; 1 without a hub.
     pub slot: u8,
+    /// The LiDAR unit within the device (1 for the Mid-70).
     pub lidar_id: u8,
+    /// The device status code (see [`super::error_code`]).
     pub status_code: u32,
+    /// How `timestamp` is to be read.
     pub timestamp_type: TimestampType,
+    /// How the returns are encoded.
     pub data_type: DataType,
     /// The raw 8 timestamp bytes (see [`TimestampType`] for their meaning).
     pub timestamp: [u8; 8],
@@ -212,6 +226,7 @@ fn utc_ns(bytes: [u8; 8]) -> Result<u64, PacketError> {
 /// A decoded packet borrowing its points from the datagram.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PointPacket<'a> {
+    /// The header fields.
     pub header: PointPacketHeader,
     body: &'a [u8],
 }
@@ -229,19 +244,38 @@ impl PointPacket<'_> {
 pub enum PacketError {
     /// Shorter than its header or than its data type's points.
     #[error("point packet of {len} bytes is truncated ({expected} expected)")]
-    Truncated { len: usize, expected: usize },
+    Truncated {
+        /// Bytes received.
+        len: usize,
+        /// Bytes its header and data type need.
+        expected: usize,
+    },
     /// Longer than its data type's points.
     #[error("point packet of {len} bytes is longer than the {expected} its data type holds")]
-    BadLength { len: usize, expected: usize },
+    BadLength {
+        /// Bytes received.
+        len: usize,
+        /// Bytes its data type holds.
+        expected: usize,
+    },
     /// A packet version other than 5.
     #[error("point packet version {version}, expected {POINT_PACKET_VERSION}")]
-    BadVersion { version: u8 },
+    BadVersion {
+        /// The version byte.
+        version: u8,
+    },
     /// A data type the driver does not decode (spherical, IMU, triple return, unknown).
     #[error("point packet data type {code} not handled (2 or 4 expected)")]
-    UnknownDataType { code: u8 },
+    UnknownDataType {
+        /// The data type byte.
+        code: u8,
+    },
     /// A timestamp type outside 0, 1, 3, 4.
     #[error("point packet timestamp type {code} unknown")]
-    UnknownTimestampType { code: u8 },
+    UnknownTimestampType {
+        /// The timestamp type byte.
+        code: u8,
+    },
     /// A GPS timestamp that is not a date.
     #[error("point packet UTC timestamp is not a valid date")]
     BadTimestamp,
@@ -298,8 +332,11 @@ pub fn decode_point_packet(datagram: &[u8]) -> Result<PointPacket<'_>, PacketErr
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 #[error("{given} returns given, a {data_type:?} packet holds {expected}")]
 pub struct WrongReturnCount {
+    /// The data type.
     pub data_type: DataType,
+    /// Returns given.
     pub given: usize,
+    /// Returns a packet of that type holds.
     pub expected: usize,
 }
 

@@ -55,9 +55,15 @@ pub enum SessionState {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SessionEvent {
     /// The device was lost after this long without a word; reconnecting.
-    Lost { silent_for: Duration },
+    Lost {
+        /// How long nothing came from the device.
+        silent_for: Duration,
+    },
     /// Sampling acknowledged (first time or again after a loss).
-    Streaming { reconnect: bool },
+    Streaming {
+        /// True after a loss (a reconnection), false the first time.
+        reconnect: bool,
+    },
 }
 
 /// Counters of the control link.
@@ -103,6 +109,7 @@ fn bind(ip: Ipv4Addr, port: u16, what: &'static str) -> Result<UdpSocket, LivoxE
 }
 
 impl Session {
+    /// Opens the sockets and starts looking for the device (broadcast, handshake, sampling).
     pub fn open(config: LivoxConfig) -> Result<Self, LivoxError> {
         let bind_ip = config.host_ip.unwrap_or(Ipv4Addr::UNSPECIFIED);
         let cmd = bind(bind_ip, config.host_cmd_port, "command port")?;
@@ -159,10 +166,12 @@ impl Session {
         })
     }
 
+    /// Where the session stands.
     pub fn state(&self) -> SessionState {
         self.state
     }
 
+    /// Counters since the session opened.
     pub fn counters(&self) -> SessionCounters {
         self.counters
     }

@@ -168,8 +168,28 @@ function drawPressures() {
   ctx.fillText('0-3000 mmH2O, 30 s: arm 1 blue, arm 2 orange, source grey', 4, 10);
 }
 
+// --- Reach: whether the page can command the robot. Every reason it cannot is shown in the
+// banner under the header (a console that cannot reach the executive must not look alive).
+const EXECUTIVE_SILENT_MS = 1000;
+function reachProblems(status) {
+  const problems = [];
+  const links = status.links || {};
+  if (links.estop && !links.estop.ok) problems.push(`e-stop path down: ${links.estop.problem}`);
+  if (links.commands && !links.commands.ok) problems.push(`command path down: ${links.commands.problem}`);
+  const mode = status.mode;
+  if (!mode) problems.push('no executive heard (is it running?)');
+  else if (mode.age_ms > EXECUTIVE_SILENT_MS) problems.push(`executive silent for ${(mode.age_ms / 1000).toFixed(1)} s`);
+  return problems;
+}
+function showReach(problems) {
+  const banner = $('reach');
+  banner.hidden = problems.length === 0;
+  banner.textContent = problems.length ? 'CANNOT REACH THE EXECUTIVE: ' + problems.join('; ') : '';
+}
+
 // --- Status.
 function renderStatus(status) {
+  showReach(reachProblems(status));
   state.status = status;
   const mode = status.mode;
   $('mode-name').textContent = mode ? mode.name : 'unknown (no executive)';
@@ -213,8 +233,8 @@ function renderStatus(status) {
   $('fruit-s-apple').textContent = fmt(fruit.rates.seconds_per_apple, 2);
   $('fruit-s-attempt').textContent = fmt(fruit.rates.seconds_per_attempt, 2);
   $('processes').innerHTML = status.processes.map((p) =>
-    `<tr class="${p.age_ms > 2000 ? 'stale' : ''}"><td>${p.name}</td><td>${p.state}</td><td>${p.pid}</td>` +
-    `<td>${p.restarts}</td><td>${p.rate_hz.toFixed(1)}</td><td>${p.detail} ${p.value}</td><td>${(p.age_ms / 1000).toFixed(1)} s</td></tr>`).join('');
+    `<tr class="${p.state === 'failed' ? 'failed' : p.age_ms > 2000 ? 'stale' : ''}"><td>${p.name}</td><td>${p.state === 'failed' ? 'FAILED (not critical: the stack goes on)' : p.state}</td><td>${p.pid}</td>` +
+    `<td>${p.restarts}</td><td>${p.rate_hz.toFixed(1)}</td><td>${p.detail} ${p.value}</td><td>${p.device_error ?? '-'}</td><td>${(p.age_ms / 1000).toFixed(1)} s</td></tr>`).join('');
   const recorder = status.recorder;
   $('recorder').textContent = recorder
     ? `${recorder.state}, ${recorder.messages} messages, ${recorder.detail} ${recorder.value} (file and size: see \`harvest rec info\`)`
@@ -238,6 +258,7 @@ async function statusLoop() {
       renderStatus(await response.json());
     } catch (error) {
       $('mode-name').textContent = 'console unreachable';
+      showReach([`the console does not answer (${error})`]);
     }
     await sleep(200);
   }
@@ -251,8 +272,9 @@ async function sendCommand(command, quiet) {
     const response = await fetch('/api/command', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body });
     answer = await response.json();
   } catch (error) {
-    answer = { accepted: false, reason: 'console unreachable: ' + error };
+    answer = { accepted: false, unreachable: true, reason: 'console unreachable: ' + error };
   }
+  if (answer.unreachable) showReach([answer.reason]);
   if (!quiet || !answer.accepted) {
     const element = $('last-answer');
     element.textContent = `${command.command}: ${answer.accepted ? 'accepted' : 'REFUSED'}: ${answer.reason}`;
@@ -293,6 +315,7 @@ function wire() {
   });
   $('btn-estop').addEventListener('click', () => {
     if (state.offsetNs !== null) window.consoleStats.estopClickNs = monoNowNs();
+    // Sent with whatever token is typed, or none: the executive takes a stop from anyone.
     state.token = $('token').value.trim() || state.token;
     sendCommand({ command: 'estop' });
   });

@@ -2,6 +2,9 @@
 //! (`bench ipc ...` and the hidden `bench-peer ...`), so the benchmark can spawn itself as the
 //! peer in tests before (and independently of) the `harvest` CLI.
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 use clap::{Parser, Subcommand};
 use harvest_bench::{BenchIpcArgs, BenchPeerArgs, run_bench_ipc, run_bench_peer};
 use std::process::ExitCode;

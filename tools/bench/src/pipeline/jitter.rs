@@ -1,7 +1,7 @@
 //! Period jitter of a 200 Hz control loop (an arm, the vacuum supervisor) from consecutive
 //! publish stamps of one channel.
 //!
-//! The arm process runs its control loop at 200 Hz (paper 003: 5 ms control period) and
+//! The arm process runs its control loop at 200 Hz ([dual-arm sec. 2.2]: 5 ms control period) and
 //! publishes `armN/command` and `armN/state` once per cycle. The period of cycle k is
 //! `publish_ns[k] - publish_ns[k-1]` for consecutive `msg_seq` (a gap, i.e. a message the bench
 //! did not see, breaks the pair); its deviation is `|period - 5 ms|`.

@@ -164,6 +164,20 @@ mod tests {
             .collect();
         assert_eq!(arms.len(), 2);
         assert!(!commands.contains(&"recorder"));
+        // No executive: the nodes that obey the operator are told so, else they hold.
+        assert!(!commands.contains(&"executive"));
+        for process in launch
+            .processes
+            .iter()
+            .filter(|p| p.command == "arm" || p.command == "vacuum")
+        {
+            assert!(
+                process.args.iter().any(|a| a == "--without-operator"),
+                "{}: {:?}",
+                process.name,
+                process.args
+            );
+        }
     }
 
     #[test]

@@ -4,7 +4,10 @@
 //! bytes in every field are a message a buggy or hostile writer could send.
 
 use harvest_ipc::catalogue::{HARVEST_EVENTS, OPERATOR_COMMAND, PROCESS_HEALTH};
-use harvest_ipc::payloads::{HarvestEvent, OperatorCommand, ProcessHealth, ProcessRunState};
+use harvest_ipc::payloads::{
+    DeviceErrorCode, HarvestEvent, OperatorCommand, OperatorCommandCode, ProcessHealth,
+    ProcessRunState,
+};
 use harvest_ipc::wire_code::WireCode;
 use harvest_ipc::{Context, FixedString, MonotonicClock, Payload, Publisher};
 use rand::rngs::SmallRng;
@@ -44,14 +47,21 @@ impl BadInputWriters {
         }
     }
 
-    /// Random bytes in every field of an operator command.
+    /// Random bytes in every field of an operator command, except that the code is never the
+    /// emergency stop's: a stop needs no token, so random bytes that happen to spell it stop
+    /// the robot (as they should), which is not the refusal this input is meant to provoke.
     pub fn garbage_operator_command(&mut self, rng: &mut SmallRng) -> Result<String, String> {
         let stamp_ns = rng.random();
         send(
             &mut self.operator,
             "operator/command",
             stamp_ns,
-            |command| fill_random(command, rng),
+            |command| {
+                fill_random(command, rng);
+                if command.code == OperatorCommandCode::EmergencyStop as u16 {
+                    command.code = UNKNOWN_COMMAND_CODE;
+                }
+            },
             "random bytes on operator/command".to_owned(),
         )
     }
@@ -116,7 +126,8 @@ impl BadInputWriters {
                 beat.process_name = FixedString::new(process);
                 beat.pid = wrong_pid;
                 beat.run_state = WireCode::new(ProcessRunState::Degraded);
-                beat._reserved = [0; 3];
+                beat.last_device_error = WireCode::new(DeviceErrorCode::Fault);
+                beat._reserved = [0; 2];
                 beat.main_channel_count = u64::MAX;
                 beat.detail_value = u64::MAX;
                 beat.detail = FixedString::new("spoofed by the soak");

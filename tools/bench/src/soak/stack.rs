@@ -210,7 +210,7 @@ impl SoakStack {
         }
     }
 
-    /// SIGTERM to the supervisor, waits for it (SIGKILL after [`STOP_GRACE`]); returns its exit
+    /// SIGTERM to the supervisor, waits for it (SIGKILL after `STOP_GRACE`); returns its exit
     /// status (None if it could not be waited for).
     pub fn stop(&mut self) -> Option<ExitStatus> {
         if let Some(status) = self.reaped {

@@ -1,6 +1,6 @@
 //! Rendering of one calibration view as the colour camera images it: the checkerboard hanging in
 //! the air in front of a cluttered background. The image side of the target-based calibration
-//! (LiDAR-camera paper, section II-C-1) then finds the board's corners in these pixels
+//! ([fusion sec. II-C-1]) then finds the board's corners in these pixels
 //! ([`crate::lidar::image_corners`]) instead of being handed their true projections.
 //!
 //! The picture is formed the way a camera forms it:

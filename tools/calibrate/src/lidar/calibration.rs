@@ -1,4 +1,4 @@
-//! Target-based LiDAR-camera extrinsic calibration (LiDAR-camera paper, section II-C-1) and its
+//! Target-based LiDAR-camera extrinsic calibration ([fusion sec. II-C-1]) and its
 //! Table-I-style report.
 //!
 //! Per view: the checkerboard's inner corners detected in the image (pixels,

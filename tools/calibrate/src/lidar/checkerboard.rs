@@ -1,4 +1,4 @@
-//! The calibration target of the target-based method (LiDAR-camera paper, section III-C): a
+//! The calibration target of the target-based method ([fusion sec. III-C]): a
 //! checkerboard of 7 x 5 inner corners and 5 cm squares, printed on white paper with a white
 //! border, hung in the air with its lower edge level.
 //!

@@ -1,4 +1,4 @@
-//! Checkerboard corners in a LiDAR point cloud (LiDAR-camera paper, section II-C-1, eq. 4-5).
+//! Checkerboard corners in a LiDAR point cloud ([fusion sec. II-C-1, eq. 4-5]).
 //!
 //! The paper (after ACSC) finds the corners by fitting a template of the board to the points:
 //! the pose of the template that maximizes the agreement of the points with it, where a point

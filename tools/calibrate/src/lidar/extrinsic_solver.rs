@@ -1,5 +1,5 @@
 //! The extrinsic `T_L^C` (camera_from_lidar) that minimizes the reprojection error of matched
-//! LiDAR points and image pixels (LiDAR-camera paper, eq. 3):
+//! LiDAR points and image pixels ([fusion eq. 3]):
 //! `min sum_i || p_uv,i - pi(K T_L^C L_p_i) ||^2`, by Levenberg-Marquardt from an initial guess
 //! (the CAD transform).
 //!

@@ -1,5 +1,5 @@
 //! Checkerboard inner corners found in a grey image: the image side of the target-based
-//! LiDAR-camera calibration (LiDAR-camera paper, section II-C-1, "checkerboard corners found in
+//! LiDAR-camera calibration ([fusion sec. II-C-1], "checkerboard corners found in
 //! the image and in the point cloud"; the cloud side is [`crate::lidar::cloud_corners`]).
 //!
 //! The detector sees only the pixels and the board's corner counts, never a pose:

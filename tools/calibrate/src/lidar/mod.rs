@@ -1,5 +1,5 @@
-//! `harvest calibrate lidar-camera`: the target-based LiDAR-camera extrinsic calibration of the
-//! LiDAR-camera fusion paper (section II-C-1, eq. 3-5) with its Table-I-style report.
+//! `harvest calibrate lidar-camera`: the target-based LiDAR-camera extrinsic calibration of
+//! [fusion sec. II-C-1, eq. 3-5] with its Table-I-style report.
 //!
 //! - [`checkerboard`], [`board_image`], [`image_corners`]: the board, its rendered views and the
 //!   corners found in them; [`cloud_corners`]: the board's corners fitted in the cloud;

@@ -4,6 +4,9 @@
 //!
 //! `cargo run -p harvest-eval --release --bin cycle_report`
 
+#![forbid(unsafe_code)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
+
 use harvest_eval::cycle_model::{CycleEpisode, FailureRates, fig12, run_episode, single_vs_dual};
 use harvest_vacuum::policy::{PolicyKind, new_policy};
 

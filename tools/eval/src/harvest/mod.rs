@@ -1,6 +1,6 @@
 //! `harvest eval harvest`: the harvesting logic of the arm and vacuum processes run in one
 //! process on a simulated clock against the simulated robot, scored against the simulator's
-//! ground truth (paper 003, sections 3.2-3.3 and 4.2: Fig. 12 cycle times, Table 2 success
+//! ground truth ([dual-arm sec. 3.2-3.3 and 4.2]: Fig. 12 cycle times, Table 2 success
 //! counts, single- vs dual-arm cycle time per attempt).
 //!
 //! The nodes are the processes' own logic ([`harvest_arm::node::ArmNode`] for each arm,

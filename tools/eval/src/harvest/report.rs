@@ -1,7 +1,7 @@
 //! Summaries of harvesting episodes, the report of `harvest eval harvest`, and the entry point
 //! [`run_eval_harvest`].
 //!
-//! Definitions (paper 003, section 4.2 and Table 2):
+//! Definitions ([dual-arm sec. 4.2, Table 2]):
 //! - an *attempt* is one target taken by an arm (or dispatched and never taken), until the arm
 //!   is idle again;
 //! - *attempted apples* are the true apples at least one attempt aimed at; *harvested* ones

@@ -1,6 +1,6 @@
 //! One harvesting episode, in process, on a simulated clock.
 //!
-//! Per 5 ms control period (200 Hz, section 2.2 of paper 003), in this order:
+//! Per 5 ms control period (200 Hz, [dual-arm sec. 2.2]), in this order:
 //! 1. a detection set is captured from the world when due and delivered after the perception
 //!    latency ([`crate::harvest::detections`]);
 //! 2. the devices are read through their traits: both arms' encoders (`ArmServos::feedback`),
@@ -271,7 +271,7 @@ impl Episode {
             }),
         )?;
         let rng = SmallRng::seed_from_u64(config.seed ^ DETECTION_STREAM);
-        Ok(Self {
+        let mut episode = Self {
             recorder: Recorder::new(config.keep_events),
             safety: config.check_safety.then(SafetyTrace::default),
             config,
@@ -293,7 +293,15 @@ impl Episode {
             last_replan_ns: 0,
             last_attempt_end_ns: 0,
             estop: None,
-        })
+        };
+        // No executive runs here: said explicitly, as the launch files without one do (a row
+        // episode obeys the stop cycle's mode instead, [`Episode::obey`]).
+        episode.obey(harvest_robot_model::obedience(
+            None,
+            harvest_robot_model::ModeSource::WithoutOperator,
+            EPOCH_NS,
+        ));
+        Ok(episode)
     }
 
     /// Simulated time since the episode started, s, of the stack-clock stamp `now_ns`.
@@ -327,9 +335,15 @@ impl Episode {
         self.pending_sets.push_back((deliver_ns, set));
     }
 
-    /// Holds the dispatch of new targets per arm (see `VacuumNode::hold_dispatch`).
-    pub fn hold_dispatch(&mut self, held: [bool; 2]) {
-        self.vacuum.hold_dispatch(held);
+    /// Applies what the operator's mode allows
+    /// ([`harvest_robot_model::obedience`](mod@harvest_robot_model::obedience)) as the processes
+    /// do: the vacuum supervisor dispatches no new target to a held arm, and a held arm takes up
+    /// none.
+    pub fn obey(&mut self, rule: harvest_robot_model::Obedience) {
+        self.vacuum.hold_dispatch(rule.targets_held);
+        for (arm, held) in self.arms.iter_mut().zip(rule.targets_held) {
+            arm.hold_targets(held);
+        }
     }
 
     /// One control period at `now_ns` (= [`Episode::now_ns`]); advances the robot and the

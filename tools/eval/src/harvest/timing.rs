@@ -1,6 +1,6 @@
 //! Hardware timing profiles of the simulated robot.
 //!
-//! Fig. 12 of paper 003 rests on phase times averaged in the field: one arm movement (approach
+//! [dual-arm Fig. 12] rests on phase times averaged in the field: one arm movement (approach
 //! or retract) `M` of about 2.0 s and attach + release `A + R` of about 0.5 s together
 //! (derivation in `processes/arm/CONTROLLER.md` and `processes/vacuum/POLICY.md`: baseline
 //! `2M + A + R = 4.5 s`, 2023 `A + M + R = 2.5 s`). Two things make the full loop differ from

@@ -1,4 +1,4 @@
-//! Localisation accuracy of a calibrated ALACS, measured the way paper 000 does in section 5.2
+//! Localisation accuracy of a calibrated ALACS, measured the way [alacs sec. 5.2] does
 //! (Figure 7), on rendered images instead of a checkerboard.
 //!
 //! For each slide position `d` (paper: 0, 5, 10, 15, 20 cm) and each target depth between 0.6

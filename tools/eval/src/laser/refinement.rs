@@ -1,5 +1,5 @@
 //! `harvest eval laser`: what the ALACS scan adds to the ToF camera's apple localisation, on
-//! simulated orchards (paper 000, section 3: the RGB-D camera gives a rough location, the laser
+//! simulated orchards ([alacs sec. 3]: the RGB-D camera gives a rough location, the laser
 //! scan refines it).
 //!
 //! Per seeded world of the scenario:

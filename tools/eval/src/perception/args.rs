@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use harvest_perception::depth_source::DepthSource;
+use harvest_perception::detector::DetectorKind;
 use harvest_perception::estimator::EstimatorKind;
 
 /// Arguments of `harvest eval perception`.
@@ -40,6 +41,14 @@ pub struct EvalPerceptionArgs {
     /// LiDAR integration per frame for `lidar-fused`, seconds (the LiDAR launch profile's).
     #[arg(long, default_value_t = 1.0)]
     pub lidar_integration_s: f64,
+    /// Detector: `color-segmentation` (default) or `onnx` (with `--model`), the same choice as
+    /// `harvest perception --detector`.
+    #[arg(long)]
+    pub detector: Option<DetectorKind>,
+    /// The ONNX model of the `onnx` detector (YOLOv8/YOLO11 detect or segment export; CPU
+    /// provider, default thresholds; see domain/perception/src/detector/onnx/config.rs).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
     /// Repeated localizations per distance of the Table-III comparison (LiDAR-fused versus ToF
     /// at 0.5, 1.2 and 1.8 m), printed when `lidar-fused` is a depth source; 0 leaves it out.
     #[arg(long, default_value_t = 20)]

@@ -41,6 +41,9 @@ pub enum EvalError {
         estimator: &'static str,
         source: Box<PerceptionSetupError>,
     },
+    /// `--detector` / `--model` do not fit together, or the detector cannot start.
+    #[error("detector: {0}")]
+    Detector(String),
     /// The simulated LiDAR could not be set up.
     #[error("simulated LiDAR: {source}")]
     Lidar {

@@ -31,6 +31,8 @@ pub const TARGET_RECALL_HALF_VISIBLE: f64 = 0.9;
 /// The whole evaluation.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PerceptionReport {
+    /// The detector evaluated (`color_segmentation` or `onnx`).
+    pub detector: &'static str,
     /// Seed of the first frame's world (frame i uses seed + i).
     pub seed: u64,
     pub frames_per_scenario: u32,

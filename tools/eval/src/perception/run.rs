@@ -7,6 +7,7 @@ use harvest_ipc::payloads::AppleDetections;
 use harvest_perception::PerceptionConfig;
 use harvest_perception::calibration::{Calibration, CameraCalibration};
 use harvest_perception::depth_source::DepthSource;
+use harvest_perception::detector::{DetectorConfig, make_detector};
 use harvest_perception::estimator::EstimatorKind;
 use harvest_perception::node::PerceptionNode;
 use harvest_sim::process::load_scenario;
@@ -90,6 +91,10 @@ pub fn evaluate(args: &EvalPerceptionArgs) -> Result<PerceptionReport, EvalError
             reason: "name at least one scenario preset or file",
         });
     }
+    let mut detector = DetectorConfig::default();
+    detector
+        .override_with(args.detector, args.model.as_deref())
+        .map_err(EvalError::Detector)?;
     let rule = MatchRule::default();
     let mut scenarios = Vec::new();
     for name in &args.scenario {
@@ -105,6 +110,7 @@ pub fn evaluate(args: &EvalPerceptionArgs) -> Result<PerceptionReport, EvalError
             empty_frames,
             rule,
             lidar_integration_s: args.lidar_integration_s,
+            detector: &detector,
         };
         scenarios.push(run.evaluate(&variants)?);
     }
@@ -127,6 +133,7 @@ pub fn evaluate(args: &EvalPerceptionArgs) -> Result<PerceptionReport, EvalError
             None
         };
     Ok(PerceptionReport {
+        detector: detector.kind_name(),
         seed: args.seed,
         frames_per_scenario: args.frames,
         empty_frames_per_scenario: empty_frames,
@@ -170,6 +177,7 @@ const FUSION_TIMING_RUNS: usize = 30;
 /// The evaluation of one scenario.
 struct ScenarioRun<'a> {
     name: &'a str,
+    detector: &'a DetectorConfig,
     scenario: &'a Scenario,
     seed: u64,
     frames: u32,
@@ -231,12 +239,16 @@ impl ScenarioRun<'_> {
                 let mut config = PerceptionConfig::default();
                 config.estimator.kind = kind;
                 config.depth_source = depth_source;
-                Variant {
-                    node: PerceptionNode::new(config, calibration),
+                config.detector = self.detector.clone();
+                // Built here so a model that cannot be loaded stops the evaluation at once.
+                let detector = make_detector(&config.detector)
+                    .map_err(|error| EvalError::Detector(error.to_string()))?;
+                Ok(Variant {
+                    node: PerceptionNode::with_detector(config, calibration, detector),
                     record: EstimatorRecords::new(kind, depth_source),
-                }
+                })
             })
-            .collect();
+            .collect::<Result<_, EvalError>>()?;
         let mut lidar = if variants
             .iter()
             .any(|v| v.record.depth_source == DepthSource::LidarFused)

@@ -1,4 +1,5 @@
-//! The report as Markdown tables (what `harvest eval perception` prints; pasted into the README).
+//! The report as Markdown tables (what `harvest eval perception` prints; pasted into
+//! docs/evaluation.md).
 
 use std::fmt::Write;
 
@@ -40,11 +41,12 @@ pub fn render_tables(report: &PerceptionReport) -> String {
     // Writing into a String cannot fail.
     let _ = writeln!(
         out,
-        "Perception evaluation: {} frames per scenario (worlds seed {}..{}), {} frames without \
+        "Perception evaluation ({} detector): {} frames per scenario (worlds seed {}..{}), {} frames without \
          apples. A reported apple matches a true apple when its box holds >= {:.0} % of \
          min(box area, apple's visible pixels) of that apple and its centre is within {} true \
          radii; pairs are assigned one to one by increasing 3D distance. \"Found in 2D\" drops the 3D \
          condition (the detector alone). Errors are Euclidean distances in the robot frame.\n",
+        report.detector,
         report.frames_per_scenario,
         report.seed,
         report.seed + u64::from(report.frames_per_scenario.max(1)) - 1,

@@ -1,5 +1,5 @@
 //! Per-frame ground truth of the apples: where each one is, how much of it the colour camera
-//! sees, and which failure conditions of the field evaluation (paper 003, Table 3) apply to it.
+//! sees, and which failure conditions of the field evaluation ([dual-arm Table 3]) apply to it.
 //!
 //! Visibility is measured, not assumed: `visible_px` counts the colour-image pixels the
 //! simulator's label render assigns to the apple (leaves, wood, other apples and the image border

@@ -1,5 +1,5 @@
 //! `harvest eval row`: orchard rows worked stop by stop under a simulated clock, with
-//! perception in the loop (paper 003, sections 2.2, 4.1-4.3; issue 17 item 4).
+//! perception in the loop ([dual-arm sec. 2.2, 4.1-4.3]).
 //!
 //! The stop-and-go sequencer is the executive's own ([`harvest_field::StopCycle`], with
 //! [`harvest_field::choose_offsets`] choosing the platform offsets); the harvesting is

@@ -6,7 +6,7 @@
 //!   *per apple* harvested / attempted apples (Table 2's);
 //! - *cycle time per attempt* is the time the stops spent harvesting (from the first fresh
 //!   set after positioning to the stop done) over the attempts, the field's "average cycle time
-//!   per attempt" (paper 003, section 4.2: dual 5.97 s, single 8.29 s); the same with the
+//!   per attempt" ([dual-arm sec. 4.2]: dual 5.97 s, single 8.29 s); the same with the
 //!   whole row (travel, parking, positioning, settling) is printed beside it;
 //! - *positioning ratio*: apples in reach (ground truth, at the start of each stop's harvest)
 //!   with the chosen platform offsets over those in reach with the platform at its fixed
@@ -43,10 +43,10 @@ const ROW_PRESETS: [(&str, &str); 2] = [
     ),
 ];
 
-/// Paper 003, Table 2: (orchard, attempted, success, 1st attempt, >= 2 attempts).
+/// Per orchard, [dual-arm Table 2]: (orchard, attempted, success, 1st attempt, >= 2 attempts).
 pub const PAPER_TABLE_2: [(u32, u32, u32, u32, u32); 2] =
     [(1, 322, 260, 222, 38), (2, 285, 227, 201, 26)];
-/// Paper 003, section 4.2: cycle time per attempt, dual and single arm, s.
+/// Field cycle time per attempt of [dual-arm sec. 4.2], dual and single arm, s.
 pub const PAPER_CYCLE_PER_ATTEMPT_S: (f64, f64) = (5.97, 8.29);
 
 /// Loads a row by preset name or file path.
@@ -63,7 +63,7 @@ pub fn load_row(name: &str) -> Result<RowScenario, RowEvalError> {
     }
 }
 
-/// The figures a row run and a sum of runs share; a sum of runs adds them ([`RowCounts::add`]).
+/// The figures a row run and a sum of runs share; a sum of runs adds them (`RowCounts::add`).
 #[derive(Debug, Clone, PartialEq, Default, Serialize)]
 pub struct RowCounts {
     pub apples_on_row: usize,
@@ -416,7 +416,7 @@ impl RowEvalReport {
         }
         let _ = writeln!(
             out,
-            "\nTable 2 (structure of paper 003's), summed over rows and seeds"
+            "\nTable 2 (structure of [dual-arm Table 2]), summed over rows and seeds"
         );
         let _ = writeln!(
             out,
@@ -501,8 +501,8 @@ impl RowEvalReport {
         );
         let _ = writeln!(
             out,
-            "\nTable 3 (categories of paper 003's) over the failed attempts; perception causes \
-             from the target apple's flags (several may apply, as in the paper)"
+            "\nTable 3 (categories of [dual-arm Table 3]) over the failed attempts; perception \
+             causes from the target apple's flags (several may apply, as in the paper)"
         );
         let mut header = format!("  {:<14}", "");
         for cause in Table3Cause::ALL {

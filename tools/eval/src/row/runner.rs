@@ -27,7 +27,9 @@ use harvest_field::{
     StopReport,
 };
 use harvest_ipc::payloads::ArmPhase as PhaseCode;
+use harvest_ipc::payloads::{OperatorModeCode, OperatorModeState};
 use harvest_robot_model::params::ArmParams;
+use harvest_robot_model::{ModeSource, obedience};
 use harvest_sim::World;
 use harvest_sim::platform_device::{PlatformDeviceConfig, PlatformStages};
 use harvest_sim::robot::{SimRobot, SimRobotConfig};
@@ -332,8 +334,13 @@ pub fn run_row(config: &RowRunConfig) -> Result<RowOutcome, RowEvalError> {
         }
 
         // 3.-4. Hold while repositioning; the harvest.
-        let hold = cycle.holds_approaches();
-        episode.hold_dispatch([hold, hold || config.arms < 2]);
+        let mode = OperatorModeState {
+            mode: OperatorModeCode::Harvesting as u8,
+            arms_enabled: [1, u8::from(config.arms >= 2)],
+            field_hold: u8::from(cycle.holds_approaches()),
+            ..OperatorModeState::default()
+        };
+        episode.obey(obedience(Some(&mode), ModeSource::Executive, now_ns));
         episode.tick(now_ns)?;
 
         // 5. The robot moves through the world.

@@ -1,6 +1,6 @@
 //! The ground truth of a row run (evaluation only): which apples the arms could reach at a stop,
 //! with the chosen platform offsets and with the platform at its fixed position, and the
-//! attribution of failed attempts to the categories of paper 003's Table 3.
+//! attribution of failed attempts to the categories of [dual-arm Table 3].
 //!
 //! Reach is the arm's own acceptance test ([`harvest_arm::node::pick_reachable`]: the picking
 //! point has an inverse-kinematics solution within the joint limits and, with the other arm
@@ -42,7 +42,7 @@ pub fn reachable_apples(
         .collect()
 }
 
-/// Table 3's categories (paper 003, section 4.3), plus what the paper does not list.
+/// Table 3's categories ([dual-arm sec. 4.3]), plus what the paper does not list.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Table3Cause {
