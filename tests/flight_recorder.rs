@@ -346,13 +346,13 @@ restart = "never"
 [[process]]
 name = "arm1"
 command = "arm"
-args = ["--id", "1"]
+args = ["--id", "1", "--without-operator"]
 restart = "never"
 
 [[process]]
 name = "arm2"
 command = "arm"
-args = ["--id", "2"]
+args = ["--id", "2", "--without-operator"]
 restart = "never"
 
 [[process]]
@@ -369,7 +369,7 @@ restart = "never"
 [[process]]
 name = "vacuum"
 command = "vacuum"
-args = ["--policy", "2024", "--arms", "2"]
+args = ["--policy", "2024", "--arms", "2", "--without-operator"]
 restart = "never"
 
 [[process]]
