@@ -310,3 +310,126 @@ fn a_mark_files_a_clip_of_the_window_around_it() {
     );
     let _ = leftover_files(&domain);
 }
+
+/// The `ideal` preset with a few apples and every seal failing: the first attempts fail.
+fn failing_orchard(apples: u32) -> String {
+    let ideal = include_str!("../sim/scenarios/ideal.toml");
+    assert!(
+        ideal.contains("count = 16") && ideal.contains("seal_failure = 0.0"),
+        "the ideal preset changed"
+    );
+    ideal
+        .replace("count = 16", &format!("count = {apples}"))
+        .replace("seal_failure = 0.0", "seal_failure = 1.0")
+}
+
+#[test]
+fn a_failed_pick_files_a_clip_without_gaps_around_the_failure() {
+    let _stack = one_stack_at_a_time();
+    let domain = unique_domain("flightfail");
+    let dir = TempDir::new("flightfail");
+    let scenario = dir.write("failing.toml", &failing_orchard(3));
+    let recordings = dir.0.join("rec");
+    let launch = format!(
+        r#"
+[stack]
+hang_timeout_ms = 5000
+shutdown_grace_ms = 5000
+startup_grace_ms = 15000
+
+[[process]]
+name = "sim"
+command = "sim"
+args = ["--scenario", "{scenario}", "--seed", "1", "--camera-rate-hz", "10"]
+restart = "never"
+
+[[process]]
+name = "arm1"
+command = "arm"
+args = ["--id", "1", "--without-operator"]
+restart = "never"
+
+[[process]]
+name = "arm2"
+command = "arm"
+args = ["--id", "2", "--without-operator"]
+restart = "never"
+
+[[process]]
+name = "camera"
+command = "camera"
+restart = "never"
+
+[[process]]
+name = "perception"
+command = "perception"
+args = ["--calibration", "{calibration}"]
+restart = "never"
+
+[[process]]
+name = "vacuum"
+command = "vacuum"
+args = ["--policy", "2024", "--arms", "2", "--without-operator"]
+restart = "never"
+
+[[process]]
+name = "recorder"
+command = "recorder"
+args = ["--output-dir", "{recordings}", "--no-foxglove", "--calibration", "{calibration}", "--flight-ring-size", "512MiB", "--clip-before", "3s", "--clip-after", "2s"]
+restart = "never"
+"#,
+        scenario = scenario.display(),
+        calibration = SIM_CAMERA_CALIBRATION,
+        recordings = recordings.display(),
+    );
+    let launch_file = dir.write("launch.toml", &launch);
+    let (status, stdout, stderr) = run_harvest(
+        &domain,
+        &[
+            "up",
+            "--launch",
+            launch_file.to_str().expect("utf-8"),
+            "--duration",
+            "45s",
+        ],
+        Duration::from_secs(120),
+    );
+    assert!(status.success(), "harvest up failed:\n{stdout}\n{stderr}");
+    let clips = clips_in(&recordings.join("clips"));
+    let failed: Vec<&PathBuf> = clips
+        .iter()
+        .filter(|path| path.to_string_lossy().contains("failed_attempt"))
+        .collect();
+    assert!(
+        !failed.is_empty(),
+        "no clip for a failed attempt: {clips:?}\n{stdout}\n{stderr}"
+    );
+    let read = python_read(failed[0]);
+    assert!(
+        read["metadata"]["harvest.clip"]["triggers"]
+            .as_str()
+            .is_some_and(|t| t.starts_with("failed_attempt")),
+        "{}",
+        read["metadata"]
+    );
+    let event = &read["json"][0];
+    assert_eq!(event["kind"], "failed_attempt");
+    // The frames around the failure: the window's camera frames without a sequence gap, and
+    // the failure's own message in the clip.
+    let camera = &read["topics"]["camera/rgbd"];
+    let frames = u64s(&camera["sequences"]);
+    assert!(frames.len() >= 30, "5 s at 10 Hz: {} frames", frames.len());
+    assert_no_gaps("camera/rgbd", &frames);
+    assert_no_gaps(
+        "arm1/state",
+        &u64s(&read["topics"]["arm1/state"]["sequences"]),
+    );
+    assert!(
+        read["topics"]["harvest/events"]["log_times"]
+            .as_array()
+            .is_some_and(|times| !times.is_empty()),
+        "the harvest events of the window"
+    );
+    assert!(read["metadata"]["harvest.calibration"]["text"].is_string());
+    let _ = leftover_files(&domain);
+}
