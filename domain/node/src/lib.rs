@@ -14,7 +14,7 @@
 //!    are) and is counted (a streak as long as the node's limit ends the run, so the
 //!    supervisor restarts the process);
 //! 3. the operator's mode is read and turned into what the node may do by the one rule
-//!    ([`harvest_robot_model::obedience`]: no mode heard means hold unless the node was told
+//!    ([`harvest_robot_model::obedience`](mod@harvest_robot_model::obedience): no mode heard means hold unless the node was told
 //!    it runs without an operator);
 //! 4. the declared inputs are read, the node steps, and its device commands are written unless
 //!    step 1 or 2 stopped or held the devices (a refused write means hold);

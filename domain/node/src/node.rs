@@ -20,7 +20,7 @@ pub struct NodeTick {
     pub emergency_stop: bool,
     /// The device read failed this tick (the devices are in their safe state; no readings).
     pub device_fault: bool,
-    /// What the operator's mode allows ([`harvest_robot_model::obedience`]).
+    /// What the operator's mode allows ([`harvest_robot_model::obedience`](mod@harvest_robot_model::obedience)).
     pub obedience: Obedience,
 }
 

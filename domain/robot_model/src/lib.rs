@@ -2,7 +2,7 @@
 //! simulator share about the robot ([dual-arm sec. 2.2]): which arm, the picking phases the
 //! coordination reasons about, the failure kinds, the Table 1 parameters with the joint limits,
 //! eq. 1-2 kinematics (forward, inverse, Jacobian), the swept-tube clearance between the arms,
-//! and the one rule by which every node obeys the operator's mode ([`obedience`]).
+//! and the one rule by which every node obeys the operator's mode ([`obedience`](mod@obedience)).
 //!
 //! Pure: no transport, no clock, no simulator.
 

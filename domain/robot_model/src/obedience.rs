@@ -1,5 +1,5 @@
 //! The one rule by which a node obeys the operator's mode (`operator/mode`, published by the
-//! executive): the arms, the vacuum supervisor and the evaluations all call [`obedience`]
+//! executive): the arms, the vacuum supervisor and the evaluations all call [`obedience`](fn@obedience)
 //! (the operator crate decides the mode; this crate sits under every node that obeys it).
 //!
 //! - New targets go out (vacuum supervisor) and are taken up (arm) only while the mode is

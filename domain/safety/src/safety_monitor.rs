@@ -298,7 +298,7 @@ impl SafetyMonitor {
                 ..
             } => {
                 if let Some((stop_ns, _, motion_reported)) = self.stop.as_mut()
-                    && stamp_ns > *stop_ns + self.config.control_period_ns
+                    && stamp_ns > stop_ns.saturating_add(self.config.control_period_ns)
                     && !motion_reported[arm.index()]
                 {
                     motion_reported[arm.index()] = true;
@@ -356,7 +356,7 @@ impl SafetyMonitor {
         let period = self.config.control_period_ns;
         for arm in ArmId::ALL {
             if let Some((failure_ns, kind)) = self.pending_failure[arm.index()] {
-                let deadline_ns = failure_ns + period;
+                let deadline_ns = failure_ns.saturating_add(period);
                 if now_ns > deadline_ns {
                     self.violations.push(Violation::FailureNotClosed {
                         arm,
@@ -369,7 +369,7 @@ impl SafetyMonitor {
             }
         }
         if let Some((stop_ns, _, _)) = self.stop
-            && now_ns > stop_ns + period
+            && now_ns > stop_ns.saturating_add(period)
         {
             for arm in ArmId::ALL {
                 if self.open[arm.index()] {
@@ -379,7 +379,7 @@ impl SafetyMonitor {
         }
         if let Some((since_ns, reported)) = self.unsealed_pair_since
             && !reported
-            && now_ns > since_ns + period
+            && now_ns > since_ns.saturating_add(period)
         {
             self.violations.push(Violation::BothOpenUnsealed {
                 since_ns,

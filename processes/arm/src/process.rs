@@ -7,7 +7,7 @@
 //! (engaged: the servos brake before anything else); the encoders through [`ArmServos`] (a
 //! failed read brakes too; the node still steps, without fresh feedback, so that a stop reaches
 //! the picking cycle); `operator/mode` by the stack's one rule
-//! ([`harvest_robot_model::obedience`], `field_hold` included; no mode heard means hold unless
+//! ([`harvest_robot_model::obedience`](mod@harvest_robot_model::obedience), `field_hold` included; no mode heard means hold unless
 //! `--without-operator`); this arm's target, `vacuum/state`, its `vacuum/valve_grant` answers,
 //! the other arm's state and target and its `armN/manual` orders; `ArmNode::step`; the servo
 //! order written unless the arm was braked (a refused set-point brakes instead); then

@@ -8,7 +8,7 @@
 //! (engaged: `close_all` before anything else, repeated each tick until the board takes it);
 //! the board through [`ValveBoard`] (valve states, the three pressures; a failed read leaves
 //! the valves as they are, so a carried apple is not dropped); `operator/mode` by the stack's
-//! one rule ([`harvest_robot_model::obedience`]: targets only while harvesting, outside the
+//! one rule ([`harvest_robot_model::obedience`](mod@harvest_robot_model::obedience): targets only while harvesting, outside the
 //! row's field hold, to enabled arms; no mode heard means hold unless `--without-operator`);
 //! the newest detection set, both arms' states and their standing valve requests;
 //! `VacuumNode::step` with the reachability from the arm kinematics
