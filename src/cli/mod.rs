@@ -129,6 +129,9 @@ enum BenchCommand {
     /// The Livox Mid-70 driver (`harvest lidar --device livox`) against the fake device on
     /// loopback: rate, lost packets, CPU, latency, silence report and reconnection.
     LidarLivox(harvest_bench::BenchLidarLivoxArgs),
+    /// The recorder's camera video: H.264 encoding ms per 1920x1080 frame on one core, decoding,
+    /// bytes per frame, and the depth image's lossless PNG.
+    Video(harvest_bench::BenchVideoArgs),
 }
 
 #[cfg(feature = "sim-tools")]
@@ -237,6 +240,11 @@ impl Cli {
             Command::Bench(BenchCommand::Ipc(args)) => {
                 let report = harvest_bench::run_bench_ipc(&args).context("ipc benchmark")?;
                 print!("{}", report.table());
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Video(args)) => {
+                harvest_bench::run_bench_video(&args).context("video benchmark")?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]

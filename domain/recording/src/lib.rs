@@ -15,6 +15,8 @@
 #![forbid(unsafe_code)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod annexb;
+pub mod camera_record;
 pub mod clip_list;
 pub mod export;
 pub mod flight_ring;
@@ -38,4 +40,5 @@ pub mod time_base;
 pub mod time_window;
 pub mod topic_filter;
 pub mod units;
+pub mod video_codec;
 pub mod wall_clock;

@@ -11,13 +11,16 @@
 //! heartbeats would make a live supervisor believe long-gone processes are alive.
 
 use crate::keyboard::{Key, Keyboard};
-use harvest_ipc::catalogue::{self, PROCESS_HEALTH};
+use crate::video_replay::{CameraOutcome, CameraReplay};
+use harvest_ipc::catalogue::{self, CAMERA_RGBD, PROCESS_HEALTH};
 use harvest_ipc::{Channel, ChannelVisitor, Context, Domain, Payload, Publisher};
+use harvest_recording::camera_record::{DEPTH_TOPIC, VIDEO_TOPIC};
 use harvest_recording::foxglove_export::FoxgloveWriter;
 use harvest_recording::recorded_events::EVENTS_TOPIC;
 use harvest_recording::recording_file::ReadError;
 use harvest_recording::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
 use harvest_recording::schema::schema_name;
+use harvest_recording::time_base::FileTimeBase;
 use harvest_recording::time_window::{absolute_window, recording_start_ns};
 use harvest_recording::topic_filter::TopicFilter;
 use harvest_recording::units::parse_duration;
@@ -109,6 +112,11 @@ pub struct ReplayReport {
     /// Messages of the recorder's events channel (triggers and marks found in the replayed
     /// channels themselves), not replayed.
     pub recorded_events: u64,
+    /// `camera/rgbd` frames made from the continuous record's video and depth (also counted
+    /// in `published` under `camera/rgbd`).
+    pub frames_from_video: u64,
+    /// Video messages that made no frame, by reason (entered before an IDR, no depth yet).
+    pub video_waiting: BTreeMap<String, u64>,
     pub loops: u32,
     /// Recorded time covered by the published messages (one pass), ns.
     pub recorded_span_ns: u64,
@@ -165,6 +173,16 @@ impl std::fmt::Display for ReplayReport {
                 "  {} message(s) of the recorder's events channel left out",
                 self.recorded_events
             )?;
+        }
+        if self.frames_from_video > 0 {
+            writeln!(
+                f,
+                "  {} camera/rgbd frame(s) decoded from {VIDEO_TOPIC} with {DEPTH_TOPIC}",
+                self.frames_from_video
+            )?;
+        }
+        for (reason, count) in &self.video_waiting {
+            writeln!(f, "  {count} video frame(s) gave no frame: {reason}")?;
         }
         for (file, reason) in &self.incomplete {
             writeln!(f, "  {}: {reason}", file.display())?;
@@ -293,12 +311,16 @@ pub fn run_replay_with(
     }
     let mut clock = ReplayClock::new(args.rate, args.fast, keyboard);
     let mut ports: BTreeMap<String, Option<Box<dyn ReplayPort>>> = BTreeMap::new();
+    // The camera rebuilt from video and depth (opened at the first such message).
+    let mut camera: Option<Result<CameraReplay, String>> = None;
     let mut report = ReplayReport {
         end: ReplayEnd::Finished,
         published: BTreeMap::new(),
         skipped: BTreeMap::new(),
         mapped_views: 0,
         recorded_events: 0,
+        frames_from_video: 0,
+        video_waiting: BTreeMap::new(),
         loops: 0,
         recorded_span_ns: 0,
         wall_time: Duration::ZERO,
@@ -309,16 +331,27 @@ pub fn run_replay_with(
         clock.restart();
         let mut first_ns: Option<u64> = None;
         let mut last_ns = 0;
+        if let Some(Ok(camera)) = camera.as_mut()
+            && let Err(reason) = camera.restart()
+        {
+            tracing::warn!(%reason, "cannot restart the video decoder");
+        }
         for file in &args.files {
             let mut stop: Option<ReplayEnd> = None;
+            let mut time_base = FileTimeBase::default();
             let outcome = scan_file(
                 file,
                 ScanOptions {
                     log_time_window: Some((from_ns, to_ns)),
                 },
                 |item| {
-                    let ScanItem::Message(message) = item else {
-                        return ControlFlow::Continue(());
+                    let message = match item {
+                        ScanItem::Message(message) => message,
+                        ScanItem::Metadata(record) => {
+                            time_base.observe(record);
+                            return ControlFlow::Continue(());
+                        }
+                        _ => return ControlFlow::Continue(()),
                     };
                     if message.log_time < from_ns || message.log_time > to_ns {
                         return ControlFlow::Continue(());
@@ -333,6 +366,62 @@ pub fn run_replay_with(
                     }
                     if topic == EVENTS_TOPIC {
                         report.recorded_events += 1;
+                        return ControlFlow::Continue(());
+                    }
+                    if topic == VIDEO_TOPIC || topic == DEPTH_TOPIC {
+                        // The camera's frames, as video and depth: replayed as camera/rgbd.
+                        let rgbd = CAMERA_RGBD.spec.topic;
+                        if !filter.matches_topic(rgbd) {
+                            return ControlFlow::Continue(());
+                        }
+                        let camera =
+                            match camera.get_or_insert_with(|| CameraReplay::open(&context)) {
+                                Ok(camera) => camera,
+                                Err(reason) => {
+                                    let entry = report
+                                        .skipped
+                                        .entry(topic.clone())
+                                        .or_insert_with(|| (0, reason.clone()));
+                                    entry.0 += 1;
+                                    return ControlFlow::Continue(());
+                                }
+                            };
+                        let is_video = topic == VIDEO_TOPIC;
+                        if is_video {
+                            let anchor = *first_ns.get_or_insert(message.log_time);
+                            last_ns = message.log_time;
+                            if let Some(end) =
+                                clock.wait_for(message.log_time.saturating_sub(anchor))
+                            {
+                                stop = Some(end);
+                                return ControlFlow::Break(());
+                            }
+                        }
+                        let outcome = if is_video {
+                            camera.video(message.data, &time_base)
+                        } else {
+                            camera.depth(message.data)
+                        };
+                        match outcome {
+                            Ok(CameraOutcome::Published) => {
+                                report.frames_from_video += 1;
+                                *report.published.entry(rgbd.to_owned()).or_insert(0) += 1;
+                            }
+                            Ok(CameraOutcome::DepthTaken) => {}
+                            Ok(CameraOutcome::Waiting(reason)) => {
+                                *report.video_waiting.entry(reason.to_owned()).or_insert(0) += 1;
+                            }
+                            Err(reason) => {
+                                let entry = report
+                                    .skipped
+                                    .entry(topic.clone())
+                                    .or_insert_with(|| (0, reason.clone()));
+                                if entry.0 == 0 {
+                                    tracing::warn!(topic = %topic, %reason, "message not replayed");
+                                }
+                                entry.0 += 1;
+                            }
+                        }
                         return ControlFlow::Continue(());
                     }
                     let port = ports.entry(topic.clone()).or_insert_with(|| {

@@ -14,6 +14,8 @@
 //!   in a running stack and the arm control loop's jitter ([`pipeline`]).
 //! - [`run_bench_detector`] / [`BenchDetectorArgs`]: `harvest bench detector`, perception's
 //!   detectors' latency per frame (ONNX models beside the colour segmentation) ([`detector`]).
+//! - [`run_bench_video`] / [`BenchVideoArgs`]: `harvest bench video`, the recorder's camera
+//!   video per 1080p frame on one core, its bytes, and the depth PNG ([`video`]).
 //! - [`run_bench_lidar_livox`] / [`BenchLidarLivoxArgs`]: `harvest bench lidar-livox`, the
 //!   Livox Mid-70 driver against the fake device on loopback ([`lidar_livox`]).
 //! - [`run_soak`] / [`SoakArgs`]: `harvest soak`, the stack for a long time under kills,
@@ -43,6 +45,7 @@ pub mod socket_io;
 pub mod stats;
 pub mod svg;
 pub mod transport;
+pub mod video;
 pub mod watchdog;
 
 pub use bench_payload::BenchPayload;
@@ -58,3 +61,4 @@ pub use run::run_bench_ipc;
 pub use sender_write::SenderWrite;
 pub use soak::{SoakArgs, SoakReport, run_soak};
 pub use svg::render_svg;
+pub use video::{BenchVideoArgs, VideoBenchReport, run_bench_video};
