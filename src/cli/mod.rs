@@ -129,6 +129,10 @@ enum BenchCommand {
     /// The Livox Mid-70 driver (`harvest lidar --device livox`) against the fake device on
     /// loopback: rate, lost packets, CPU, latency, silence report and reconnection.
     LidarLivox(harvest_bench::BenchLidarLivoxArgs),
+    /// The operator console (`harvest console`) in a running stack: CPU per push viewer,
+    /// capture to the image in Chromium, e-stop click to both arms braked under load (viewers
+    /// and half-open connections), memory with viewers coming and going.
+    Console(harvest_bench::BenchConsoleArgs),
 }
 
 #[cfg(feature = "sim-tools")]
@@ -250,6 +254,12 @@ impl Cli {
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Console(args)) => {
+                let report =
+                    harvest_bench::run_bench_console(&args).context("console benchmark")?;
+                print!("{}", report.render());
+                Ok(ExitCode::SUCCESS)
+            }
             Command::Bench(BenchCommand::Pipeline(args)) => {
                 let report = harvest_bench::run_bench_pipeline(&args, &domain)
                     .context("pipeline benchmark")?;
