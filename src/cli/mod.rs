@@ -132,6 +132,10 @@ enum BenchCommand {
     /// The recorder's camera video: H.264 encoding ms per 1920x1080 frame on one core, decoding,
     /// bytes per frame, and the depth image's lossless PNG.
     Video(harvest_bench::BenchVideoArgs),
+    /// The operator console (`harvest console`) in a running stack: CPU per push viewer,
+    /// capture to the image in Chromium, e-stop click to both arms braked under load (viewers
+    /// and half-open connections), memory with viewers coming and going.
+    Console(harvest_bench::BenchConsoleArgs),
 }
 
 #[cfg(feature = "sim-tools")]
@@ -258,6 +262,12 @@ impl Cli {
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Console(args)) => {
+                let report =
+                    harvest_bench::run_bench_console(&args).context("console benchmark")?;
+                print!("{}", report.render());
+                Ok(ExitCode::SUCCESS)
+            }
             Command::Bench(BenchCommand::Pipeline(args)) => {
                 let report = harvest_bench::run_bench_pipeline(&args, &domain)
                     .context("pipeline benchmark")?;

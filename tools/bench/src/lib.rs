@@ -18,6 +18,9 @@
 //!   video per 1080p frame on one core, its bytes, and the depth PNG ([`video`]).
 //! - [`run_bench_lidar_livox`] / [`BenchLidarLivoxArgs`]: `harvest bench lidar-livox`, the
 //!   Livox Mid-70 driver against the fake device on loopback ([`lidar_livox`]).
+//! - [`run_bench_console`] / [`BenchConsoleArgs`]: `harvest bench console`, the operator
+//!   console's cost per viewer, capture-to-browser latency in Chromium, e-stop click to arms
+//!   braked under load, memory with viewers coming and going ([`console`]).
 //! - [`run_soak`] / [`SoakArgs`]: `harvest soak`, the stack for a long time under kills,
 //!   operator commands and bad inputs, with memory, descriptors and shared memory sampled
 //!   ([`soak`]).
@@ -28,6 +31,7 @@ pub mod affinity;
 pub mod bench_payload;
 pub mod case;
 pub mod child_stop;
+pub mod console;
 pub mod control;
 pub mod detector;
 pub mod error;
@@ -37,6 +41,7 @@ pub mod options;
 pub mod payload_case;
 pub mod peer;
 pub mod pipeline;
+pub mod proc_cpu;
 pub mod report;
 pub mod run;
 pub mod sender_write;
@@ -49,6 +54,7 @@ pub mod video;
 pub mod watchdog;
 
 pub use bench_payload::BenchPayload;
+pub use console::{BenchConsoleArgs, ConsoleReport, run_bench_console};
 pub use detector::{BenchDetectorArgs, run_bench_detector};
 pub use error::BenchError;
 pub use lidar_livox::{BenchLidarLivoxArgs, LidarLivoxReport, run_bench_lidar_livox};
