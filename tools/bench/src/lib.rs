@@ -16,6 +16,9 @@
 //!   detectors' latency per frame (ONNX models beside the colour segmentation) ([`detector`]).
 //! - [`run_bench_lidar_livox`] / [`BenchLidarLivoxArgs`]: `harvest bench lidar-livox`, the
 //!   Livox Mid-70 driver against the fake device on loopback ([`lidar_livox`]).
+//! - [`run_bench_remote`] / [`BenchRemoteArgs`]: `harvest bench remote`, the Zenoh link with
+//!   several robots and one station: camera latency and bandwidth, command round trip, the
+//!   station's CPU per robot ([`remote`]).
 //! - [`run_soak`] / [`SoakArgs`]: `harvest soak`, the stack for a long time under kills,
 //!   operator commands and bad inputs, with memory, descriptors and shared memory sampled
 //!   ([`soak`]).
@@ -35,6 +38,7 @@ pub mod options;
 pub mod payload_case;
 pub mod peer;
 pub mod pipeline;
+pub mod remote;
 pub mod report;
 pub mod run;
 pub mod sender_write;
@@ -53,6 +57,9 @@ pub use options::{BenchIpcArgs, BenchPeerArgs, PEER_SUBCOMMAND, Transport, WakeM
 pub use payload_case::PayloadCase;
 pub use peer::run_bench_peer;
 pub use pipeline::{BenchPipelineArgs, PipelineComparison, PipelineReport, run_bench_pipeline};
+pub use remote::{
+    BenchRemoteArgs, BenchRemoteStationArgs, run_bench_remote, run_bench_remote_station,
+};
 pub use report::BenchReport;
 pub use run::run_bench_ipc;
 pub use sender_write::SenderWrite;
