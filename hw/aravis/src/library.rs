@@ -131,12 +131,18 @@ impl Aravis {
     /// Opens [`LIBRARY`] and resolves every function this crate uses. Fails with the library's
     /// name (and the package that provides it) when it is not installed.
     pub fn load() -> Result<Self, AravisError> {
+        Self::load_named(LIBRARY)
+    }
+
+    /// [`Self::load`] from the library file `name` (a path, or a name the dynamic loader
+    /// searches for), which must be an Aravis 0.8 build.
+    pub fn load_named(name: &'static str) -> Result<Self, AravisError> {
         // SAFETY: loading libaravis runs its and GLib's initialisers, which have no
         // preconditions on the calling program (no other copy of Aravis is linked into
         // harvest).
-        let library = unsafe { libloading::Library::new(LIBRARY) }.map_err(|error| {
+        let library = unsafe { libloading::Library::new(name) }.map_err(|error| {
             AravisError::NotInstalled {
-                library: LIBRARY,
+                library: name,
                 detail: error.to_string(),
             }
         })?;

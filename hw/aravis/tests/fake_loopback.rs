@@ -103,3 +103,18 @@ fn no_camera_at_an_address_is_an_error_not_a_hang() {
         "{error}"
     );
 }
+
+#[test]
+fn a_missing_library_is_named_with_the_package_to_install() {
+    let error = Aravis::load_named("libaravis-0.8-not-installed.so.0").unwrap_err();
+    let message = error.to_string();
+    assert!(
+        matches!(error, AravisError::NotInstalled { .. }),
+        "{message}"
+    );
+    assert!(
+        message.contains("libaravis-0.8-not-installed.so.0")
+            && message.contains("apt-get install libaravis-0.8-0"),
+        "{message}"
+    );
+}
