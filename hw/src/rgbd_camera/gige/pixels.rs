@@ -135,6 +135,53 @@ pub fn to_rgb(
     Ok(())
 }
 
+/// The inverse direction, for fake cameras: samples `rgb` (RGB8, `width` x `height`) into
+/// `out` in `format` (Mono8: the Rec. 601 luma; Bayer: each site's own colour; RGB8: copied).
+pub fn from_rgb(
+    format: PixelFormat,
+    width: usize,
+    height: usize,
+    rgb: &[u8],
+    out: &mut [u8],
+) -> Result<(), SizeError> {
+    let expected = width * height * format.bytes_per_pixel();
+    let rgb_expected = width * height * 3;
+    if out.len() != expected || rgb.len() != rgb_expected {
+        return Err(SizeError {
+            format,
+            width,
+            height,
+            expected,
+            actual: out.len(),
+            rgb_expected,
+            rgb_actual: rgb.len(),
+        });
+    }
+    match (format, format.red_site()) {
+        (PixelFormat::RGB8, _) => out.copy_from_slice(rgb),
+        (_, Some((red_x, red_y))) => {
+            for (index, sample) in out.iter_mut().enumerate() {
+                let (x, y) = (index % width, index / width);
+                let channel = match (y % 2 == red_y, x % 2 == red_x) {
+                    (true, true) => 0,
+                    (false, false) => 2,
+                    _ => 1,
+                };
+                *sample = rgb[index * 3 + channel];
+            }
+        }
+        _ => {
+            for (sample, pixel) in out.iter_mut().zip(rgb.chunks_exact(3)) {
+                let luma = 299 * u32::from(pixel[0])
+                    + 587 * u32::from(pixel[1])
+                    + 114 * u32::from(pixel[2]);
+                *sample = ((luma + 500) / 1000) as u8;
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Mirrors an index one step outside `0..len` back inside (`-1 -> 1`, `len -> len - 2`).
 #[inline]
 fn mirror(index: isize, len: usize) -> usize {
@@ -215,20 +262,9 @@ fn demosaic_bilinear(
 mod tests {
     use super::*;
 
-    /// Samples an RGB image into a Bayer mosaic of `format`.
     fn mosaic(format: PixelFormat, width: usize, height: usize, rgb: &[u8]) -> Vec<u8> {
-        let (red_x, red_y) = format.red_site().expect("bayer");
-        let mut raw = vec![0; width * height];
-        for y in 0..height {
-            for x in 0..width {
-                let channel = match (y % 2 == red_y, x % 2 == red_x) {
-                    (true, true) => 0,
-                    (false, false) => 2,
-                    _ => 1,
-                };
-                raw[y * width + x] = rgb[(y * width + x) * 3 + channel];
-            }
-        }
+        let mut raw = vec![0; width * height * format.bytes_per_pixel()];
+        from_rgb(format, width, height, rgb, &mut raw).expect("sizes fit");
         raw
     }
 
@@ -280,6 +316,9 @@ mod tests {
         let source: Vec<u8> = (0..12).collect();
         to_rgb(PixelFormat::RGB8, 2, 2, &source, &mut rgb).expect("fits");
         assert_eq!(rgb, source);
+        let mut grey = [0u8; 4];
+        from_rgb(PixelFormat::Mono8, 2, 2, &[90; 12], &mut grey).expect("fits");
+        assert_eq!(grey, [90; 4]);
         assert!(to_rgb(PixelFormat::Mono8, 2, 2, &[1, 2, 3], &mut rgb).is_err());
         assert!(to_rgb(PixelFormat::BayerRG8, 1, 4, &[1, 2, 3, 4], &mut rgb[..12]).is_err());
     }
