@@ -64,6 +64,10 @@ enum Command {
     #[cfg(feature = "sim-tools")]
     #[command(subcommand)]
     Eval(EvalCommand),
+    /// Training data rendered by the simulator with exact labels.
+    #[cfg(feature = "sim-tools")]
+    #[command(subcommand)]
+    Dataset(DatasetCommand),
     /// Laser process: answers scan requests with the ALACS unit.
     Laser(harvest_laser_process::LaserArgs),
     /// LiDAR process: integrated point clouds of the solid-state LiDAR -> lidar/points.
@@ -159,6 +163,14 @@ enum BenchCommand {
 
 #[cfg(feature = "sim-tools")]
 #[derive(Debug, Subcommand)]
+enum DatasetCommand {
+    /// Domain-randomised colour frames resampled as the ONNX detector sees them, with YOLO
+    /// labels and per-apple visibility (for tools/detector_training/).
+    Detector(harvest_eval::detector_dataset::DetectorDatasetArgs),
+}
+
+#[cfg(feature = "sim-tools")]
+#[derive(Debug, Subcommand)]
 enum EvalCommand {
     /// Detection precision/recall, 3D error and processing time per estimator, on rendered frames.
     Perception(harvest_eval::EvalPerceptionArgs),
@@ -204,6 +216,8 @@ impl Cli {
             Command::Bench(_) => "bench",
             #[cfg(feature = "sim-tools")]
             Command::Eval(_) => "eval",
+            #[cfg(feature = "sim-tools")]
+            Command::Dataset(_) => "dataset",
             #[cfg(feature = "sim-tools")]
             Command::Soak(_) => "soak",
             Command::Recorder(_) => "recorder",
@@ -325,6 +339,19 @@ impl Cli {
             Command::Laser(args) => {
                 harvest_laser_process::process::run(&args, &domain, process_name)
                     .with_context(|| stack_process_context("laser process", &domain))?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Dataset(DatasetCommand::Detector(args)) => {
+                let summary = harvest_eval::detector_dataset::write_dataset(&args)
+                    .with_context(|| format!("detector data set in {}", args.out.display()))?;
+                println!(
+                    "{} images, {} labelled apples, {} barely visible (listed, not labelled) in {}",
+                    summary.images,
+                    summary.labelled_apples,
+                    summary.ignored_apples,
+                    args.out.display()
+                );
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
