@@ -196,7 +196,7 @@ args = ["--listen", "127.0.0.1:{port}", "--max-watchers", "{share}"]
     // The share is full: one more watcher is refused.
     assert_eq!(
         open_live(Ipv4Addr::new(127, 0, 2, 2), port, 998, None).err(),
-        Some(503),
+        Some(LiveError::Refused(503)),
         "a watcher beyond the share was admitted"
     );
 
