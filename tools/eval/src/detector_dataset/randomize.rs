@@ -10,9 +10,12 @@ use serde::Serialize;
 
 use harvest_sim::Scenario;
 
+/// A variety: name, blush colour, ground colour (RGB) and the blush fraction range.
+type Variety = (&'static str, [u8; 3], [u8; 3], [f64; 2]);
+
 /// Apple varieties' skin colours: blush and ground colour (RGB) and the blush fraction range.
 /// Red, striped, yellow and green cultivars, so the model learns shape and shading, not one hue.
-const VARIETIES: [(&str, [u8; 3], [u8; 3], [f64; 2]); 7] = [
+const VARIETIES: [Variety; 7] = [
     ("gala", [186, 46, 34], [216, 190, 80], [0.5, 0.85]),
     ("fuji", [168, 42, 56], [204, 196, 104], [0.6, 0.95]),
     ("red_delicious", [120, 18, 30], [150, 60, 40], [0.8, 1.0]),
