@@ -7,10 +7,10 @@ DATASET_DIR is written by `harvest dataset detector` (images at the 640 input's 
 labels, index.jsonl with every visible apple). See tools/detector_training/README.md for the
 exact commands, the tools and why.
 
-The model ("apple-net"): a small fully convolutional network with one stride-8 head, about
-75k parameters, ReLU activations.
-    3 -> 16 (3x3, /2) -> 32 (3x3, /2) -> 32 (3x3) -> 48 (3x3, /8) -> three residual 3x3 blocks
-    (dilation 1, 2, 4: a receptive field of about 100 input pixels, several apple diameters)
+The model ("apple-net"): a small fully convolutional network with one stride-8 head, 43k
+parameters, ReLU activations.
+    3 -> 8 (3x3, /2) -> 16 (3x3, /4) -> 32 (3x3, /8) -> four residual 3x3 blocks of 32 channels
+    (dilation 1, 2, 4, 1: a receptive field of about 100 input pixels, several apple diameters)
     -> 1x1 head: 4 box distances (left, top, right, bottom from the cell centre,
     exp(.) * 8 px) and 1 apple score (sigmoid).
 The export appends the anchors of strides 16 and 32 with zero scores so the output is the
@@ -152,7 +152,10 @@ def load_dataset(data_dirs, limit):
     for data_dir in data_dirs:
         with open(os.path.join(data_dir, "index.jsonl")) as index:
             for line in index:
-                entry = json.loads(line)
+                try:
+                    entry = json.loads(line)
+                except json.JSONDecodeError:
+                    break  # a data set still being written: its complete lines only
                 entry["image"] = os.path.join(data_dir, entry["image"])
                 entries.append(entry)
     if limit:
@@ -363,6 +366,7 @@ def main():
     parser.add_argument("--minutes", type=float, default=0.0,
                         help="choose --steps to fill this wall time (measured over the first 20 steps)")
     parser.add_argument("--checkpoint", default="", help="save the weights here (npz) as it goes")
+    parser.add_argument("--init", default="", help="start from these weights (a --checkpoint file)")
     args = parser.parse_args()
 
     rng = np.random.default_rng(args.seed)
@@ -374,6 +378,10 @@ def main():
           flush=True)
 
     params = init_params(jax.random.PRNGKey(args.seed))
+    if args.init:
+        saved = np.load(args.init)
+        params = {k: {n: jnp.asarray(saved[f"{k}.{n}"]) for n in layer} for k, layer in params.items()}
+        print(f"weights from {args.init}", flush=True)
     count = sum(int(np.prod(p.shape)) for layer in params.values() for p in layer.values())
     print(f"{count} parameters", flush=True)
     optimizer = optax.chain(
