@@ -146,8 +146,10 @@ mod tests {
             ..EmergencyStop::default()
         };
         builder.on_estop(&stop);
-        let mut health = ProcessHealth::default();
-        health.process_name = FixedString::new("lidar");
+        let mut health = ProcessHealth {
+            process_name: FixedString::new("lidar"),
+            ..ProcessHealth::default()
+        };
         health.run_state.set(ProcessRunState::Failed);
         builder.on_health(&health);
         mode.emergency_stop_engaged = 1;

@@ -23,7 +23,6 @@ use std::time::{Duration, Instant};
 use harvest_ipc::catalogue::{ARM_STATE, CAMERA_RGBD};
 use harvest_ipc::duration::parse_duration;
 use harvest_ipc::payloads::ArmPhase;
-use harvest_ipc::payloads::rgbd_frame::RGB_WIDTH_PX;
 use harvest_ipc::{Context, MonotonicClock, ScratchDomain};
 use harvest_operator::ControlToken;
 use harvest_operator::token::write_token_file;

@@ -120,7 +120,12 @@ impl HalfOpen {
                                 Some(stream) => {
                                     let mut buffer = [0u8; 256];
                                     match stream.read(&mut buffer) {
-                                        Ok(_) => true,
+                                        // Closed (0 bytes) or answered by the server (a
+                                        // timeout's reply before it closes): done either way.
+                                        Ok(bytes_read) => {
+                                            tracing::trace!(bytes_read, "half-open slot ended");
+                                            true
+                                        }
                                         Err(error) => {
                                             error.kind() != std::io::ErrorKind::WouldBlock
                                         }

@@ -531,7 +531,7 @@ fn memory_run(
         state ^= state << 13;
         state ^= state >> 7;
         state ^= state << 17;
-        let open = viewers.is_empty() || (viewers.len() < args.viewers && state % 2 == 0);
+        let open = viewers.is_empty() || (viewers.len() < args.viewers && state.is_multiple_of(2));
         if open {
             // Each from an address of its own within the per-address bounds.
             viewers.push(
