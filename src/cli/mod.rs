@@ -64,6 +64,10 @@ enum Command {
     #[cfg(feature = "sim-tools")]
     #[command(subcommand)]
     Eval(EvalCommand),
+    /// Training data rendered by the simulator with exact labels.
+    #[cfg(feature = "sim-tools")]
+    #[command(subcommand)]
+    Dataset(DatasetCommand),
     /// Laser process: answers scan requests with the ALACS unit.
     Laser(harvest_laser_process::LaserArgs),
     /// LiDAR process: integrated point clouds of the solid-state LiDAR -> lidar/points.
@@ -141,6 +145,13 @@ enum BenchCommand {
     /// The Livox Mid-70 driver (`harvest lidar --device livox`) against the fake device on
     /// loopback: rate, lost packets, CPU, latency, silence report and reconnection.
     LidarLivox(harvest_bench::BenchLidarLivoxArgs),
+    /// The recorder's camera video: H.264 encoding ms per 1920x1080 frame on one core, decoding,
+    /// bytes per frame, and the depth image's lossless PNG.
+    Video(harvest_bench::BenchVideoArgs),
+    /// The operator console (`harvest console`) in a running stack: CPU per push viewer,
+    /// capture to the image in Chromium, e-stop click to both arms braked under load (viewers
+    /// and half-open connections), memory with viewers coming and going.
+    Console(harvest_bench::BenchConsoleArgs),
     /// The remote link with several robots (replayed domains) and one station: camera capture
     /// to the station's screen, bandwidth per robot, command round trip, the station's CPU
     /// per robot.
@@ -148,6 +159,14 @@ enum BenchCommand {
     /// The station of `harvest bench remote` (started by it).
     #[command(hide = true)]
     RemoteStation(harvest_bench::BenchRemoteStationArgs),
+}
+
+#[cfg(feature = "sim-tools")]
+#[derive(Debug, Subcommand)]
+enum DatasetCommand {
+    /// Domain-randomised colour frames resampled as the ONNX detector sees them, with YOLO
+    /// labels and per-apple visibility (for tools/detector_training/).
+    Detector(harvest_eval::detector_dataset::DetectorDatasetArgs),
 }
 
 #[cfg(feature = "sim-tools")]
@@ -197,6 +216,8 @@ impl Cli {
             Command::Bench(_) => "bench",
             #[cfg(feature = "sim-tools")]
             Command::Eval(_) => "eval",
+            #[cfg(feature = "sim-tools")]
+            Command::Dataset(_) => "dataset",
             #[cfg(feature = "sim-tools")]
             Command::Soak(_) => "soak",
             Command::Recorder(_) => "recorder",
@@ -261,6 +282,11 @@ impl Cli {
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Video(args)) => {
+                harvest_bench::run_bench_video(&args).context("video benchmark")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::Detector(args)) => {
                 harvest_bench::run_bench_detector(&args).context("detector benchmark")?;
                 Ok(ExitCode::SUCCESS)
@@ -268,6 +294,13 @@ impl Cli {
             #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::LidarLivox(args)) => {
                 harvest_bench::run_bench_lidar_livox(&args).context("lidar-livox benchmark")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Console(args)) => {
+                let report =
+                    harvest_bench::run_bench_console(&args).context("console benchmark")?;
+                print!("{}", report.render());
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
@@ -306,6 +339,19 @@ impl Cli {
             Command::Laser(args) => {
                 harvest_laser_process::process::run(&args, &domain, process_name)
                     .with_context(|| stack_process_context("laser process", &domain))?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Dataset(DatasetCommand::Detector(args)) => {
+                let summary = harvest_eval::detector_dataset::write_dataset(&args)
+                    .with_context(|| format!("detector data set in {}", args.out.display()))?;
+                println!(
+                    "{} images, {} labelled apples, {} barely visible (listed, not labelled) in {}",
+                    summary.images,
+                    summary.labelled_apples,
+                    summary.ignored_apples,
+                    args.out.display()
+                );
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
