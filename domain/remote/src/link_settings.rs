@@ -363,8 +363,10 @@ fn access_control(access: &AccessSettings, key_root: &str) -> Value {
                 "key_exprs": commands,
             },
             {
+                // Operators must also learn that the command queryables exist: without their
+                // declaration a station never sends the query.
                 "id": "command-out",
-                "messages": ["reply"],
+                "messages": ["reply", "declare_queryable"],
                 "flows": ["egress"],
                 "permission": "allow",
                 "key_exprs": commands,
