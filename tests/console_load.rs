@@ -172,10 +172,12 @@ args = ["--listen", "127.0.0.1:{port}", "--max-watchers", "{share}"]
             }
         })
     };
+    // The status carries the session id as text (a u64 does not fit a JSON number exactly).
+    let session_text = session.to_string();
     wait_until(
         "the console knowing the controlling session",
         Duration::from_secs(10),
-        || status(port).is_some_and(|s| s["mode"]["controlling_session"] == session.to_string()),
+        || status(port).is_some_and(|s| s["mode"]["controlling_session"] == session_text.as_str()),
     );
 
     // The watchers fill their share: 20 pages and a slow reader (a 4 KiB receive buffer it
@@ -217,7 +219,7 @@ args = ["--listen", "127.0.0.1:{port}", "--max-watchers", "{share}"]
     poster.join().expect("poster");
     // Heartbeats over the push connection from now on; the answers prove the path works.
     let mut next_id = 1u64;
-    let mut heartbeat = |operator: &mut LiveClient, next_id: &mut u64| {
+    let heartbeat = |operator: &mut LiveClient, next_id: &mut u64| {
         operator
             .send(
                 &json!({"op": "command", "id": *next_id, "token": token, "session": session,
@@ -324,7 +326,7 @@ watchers + a slow reader, {HALF_OPEN} half-open connections)",
     // The half-open connections: those beyond the address's bound refused at once (503), the
     // others closed by the header timeout.
     let mut refused = 0;
-    let mut closed = vec![false; HALF_OPEN];
+    let mut closed = [false; HALF_OPEN];
     wait_until(
         "every half-open connection answered or closed",
         Duration::from_secs(30),

@@ -168,7 +168,7 @@ impl Robot {
                     })
                     .expect("arm state");
                 }
-                if tick % 5 == 0 {
+                if tick.is_multiple_of(5) {
                     frames
                         .publish_with(now_ns, |frame| {
                             for (i, px) in frame.rgb.chunks_exact_mut(3).enumerate().step_by(7) {

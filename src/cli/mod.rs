@@ -544,5 +544,5 @@ fn ctl_remote(
         },
     };
     let timeout = std::time::Duration::from_millis(args.timeout_ms);
-    Ok(station_ctl::run(robot, link, ask, token, timeout).context("harvest ctl --remote")?)
+    station_ctl::run(robot, link, ask, token, timeout).context("harvest ctl --remote")
 }

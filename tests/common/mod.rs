@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 pub mod stack;
 pub mod webdriver;
 
+#[allow(unused_imports)]
 pub use stack::*;
 
 pub const HARVEST: &str = env!("CARGO_BIN_EXE_harvest");

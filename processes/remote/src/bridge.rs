@@ -321,7 +321,7 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
             }
             // The summary is rebuilt every tenth tick (10 Hz): it changes with events and modes.
             ticks += 1;
-            let line = (ticks % 10 == 0).then(|| summary.summary());
+            let line = ticks.is_multiple_of(10).then(|| summary.summary());
             if let Some(line) = line
                 && summary_beat.due(&line, now_ns)
             {
