@@ -64,7 +64,7 @@ pub enum AnnexBError {
 pub fn nal_units(stream: &[u8]) -> Result<Vec<&[u8]>, AnnexBError> {
     let starts = start_codes(stream);
     match starts.first() {
-        Some(&(position, _)) if position == 0 => {}
+        Some(&(0, _)) => {}
         _ => return Err(AnnexBError::NoStartCode),
     }
     let mut units = Vec::with_capacity(starts.len());

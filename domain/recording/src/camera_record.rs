@@ -354,7 +354,7 @@ mod tests {
             *depth = if index % 97 == 0 {
                 0
             } else {
-                (600 + (index % 640) as u16 / 3 + seed).min(u16::MAX)
+                600 + (index % 640) as u16 / 3 + seed
             };
         }
         for (index, byte) in frame.rgb.iter_mut().enumerate() {

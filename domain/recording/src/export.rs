@@ -65,7 +65,7 @@ pub struct ExportReport {
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
     /// Neither `--png` nor `--foxglove` was given.
-    #[error("nothing to export: give --png DIR and/or --foxglove OUT.mcap")]
+    #[error("nothing to export: give --png DIR, --foxglove OUT.mcap and/or --ros2 OUT")]
     NothingRequested,
     /// The output would overwrite the input.
     #[error("the export {0} would overwrite its input")]

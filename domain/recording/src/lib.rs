@@ -9,7 +9,7 @@
 //!
 //! Writing: [`segment_writer`]; [`seal`] ends a file whose writing failed. Reading damaged files as far as they are valid: [`scan`],
 //! [`recording_file`]; [`recover`] rewrites what is valid. Tools' back ends: [`rec_info`],
-//! [`rec_cat`], [`export`] (JSON, PNG, Foxglove). Users: the recorder process, `harvest rec`,
+//! [`rec_cat`], [`export`] (JSON, PNG, Foxglove), [`ros2_export`] (rosbag2). Users: the recorder process, `harvest rec`,
 //! `harvest replay` and `harvest monitor --recording`.
 
 #![forbid(unsafe_code)]
@@ -32,6 +32,7 @@ pub mod record_lengths;
 pub mod recorded_events;
 pub mod recording_file;
 pub mod recover;
+pub mod ros2_export;
 pub mod scan;
 pub mod schema;
 pub mod seal;

@@ -7,10 +7,14 @@
 //! ones. The replay clock sleeps until each message's due time: `wall_start + (log_time -
 //! first_log_time) / rate`, shifted by the time spent paused.
 //!
+//! With `--ros2 --map MAP.toml` the files are a ROS 2 bag (a rosbag2 directory or its MCAP
+//! files), mapped into the stack's channels by [`crate::ros2_input`] at the same timing.
+//!
 //! Heartbeats (`system/health`) are not replayed unless `--with-health` is given: recorded
 //! heartbeats would make a live supervisor believe long-gone processes are alive.
 
 use crate::keyboard::{Key, Keyboard};
+use crate::ros2_input::{Ros2Input, Ros2InputError, bag_files, check_bag_topics, read_map};
 use crate::video_replay::{CameraOutcome, CameraReplay};
 use harvest_ipc::catalogue::{self, CAMERA_RGBD, PROCESS_HEALTH};
 use harvest_ipc::{Channel, ChannelVisitor, Context, Domain, Payload, Publisher};
@@ -66,6 +70,13 @@ pub struct ReplayArgs {
     /// what they have not read (a sample is gone once its publisher closes).
     #[arg(long, default_value = "500ms", value_parser = parse_duration)]
     pub linger: Duration,
+    /// FILE is a ROS 2 bag (a rosbag2 directory, MCAP storage, or its .mcap file), mapped into
+    /// the stack's channels as `--map` says.
+    #[arg(long, requires = "map")]
+    pub ros2: bool,
+    /// The map of a ROS 2 bag's topics onto the stack's channels (docs/ros2/map.example.toml).
+    #[arg(long, value_name = "MAP.toml", requires = "ros2")]
+    pub map: Option<PathBuf>,
 }
 
 impl ReplayArgs {
@@ -83,6 +94,8 @@ impl ReplayArgs {
             with_health: false,
             no_keyboard: true,
             linger: Duration::from_millis(500),
+            ros2: false,
+            map: None,
         }
     }
 }
@@ -124,6 +137,15 @@ pub struct ReplayReport {
     pub wall_time: Duration,
     /// Files that could not be read to their end, with the reason.
     pub incomplete: Vec<(PathBuf, String)>,
+    /// A ROS 2 bag's replay: frames assembled (and images dropped), clouds published.
+    pub ros2: Option<Ros2Summary>,
+}
+
+/// What a ROS 2 bag's replay published on the stack's channels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Ros2Summary {
+    pub frames: harvest_ros2_mapping::frame_assembler::AssemblyCounts,
+    pub clouds: u64,
 }
 
 impl ReplayReport {
@@ -187,6 +209,18 @@ impl std::fmt::Display for ReplayReport {
         for (file, reason) in &self.incomplete {
             writeln!(f, "  {}: {reason}", file.display())?;
         }
+        if let Some(ros2) = &self.ros2 {
+            let counts = &ros2.frames;
+            writeln!(
+                f,
+                "  ROS 2 bag: {} camera frame(s) and {} cloud(s) published; unpaired {} colour, {} depth image(s); {} pair(s) before the camera models",
+                counts.frames,
+                ros2.clouds,
+                counts.unpaired_color,
+                counts.unpaired_depth,
+                counts.before_camera_info
+            )?;
+        }
         Ok(())
     }
 }
@@ -207,6 +241,15 @@ pub enum ReplayError {
     /// The SIGINT/SIGTERM handler could not be installed.
     #[error("installing the signal handler: {0}")]
     Signal(std::io::Error),
+    /// A ROS 2 bag or its map cannot be used, or one of its messages is refused.
+    #[error("ROS 2 bag: {0}")]
+    Ros2(String),
+}
+
+impl From<Ros2InputError> for ReplayError {
+    fn from(error: Ros2InputError) -> Self {
+        Self::Ros2(error.to_string())
+    }
 }
 
 /// A publisher that takes encoded messages of one payload type.
@@ -292,7 +335,20 @@ pub fn run_replay_with(
         exclude.push(PROCESS_HEALTH.spec.topic.to_owned());
     }
     let filter = TopicFilter::patterns(&args.include, &exclude);
-    let start_ns = match args.files.first() {
+    let files = if args.ros2 {
+        bag_files(&args.files).map_err(ReplayError::Ros2)?
+    } else {
+        args.files.clone()
+    };
+    let map = match (&args.map, args.ros2) {
+        (Some(path), true) => {
+            let map = read_map(path).map_err(ReplayError::Ros2)?;
+            check_bag_topics(&map, &files).map_err(ReplayError::Ros2)?;
+            Some(map)
+        }
+        _ => None,
+    };
+    let start_ns = match files.first() {
         Some(first) => recording_start_ns(first)?.unwrap_or(0),
         None => 0,
     };
@@ -301,6 +357,13 @@ pub fn run_replay_with(
         .map(|duration| args.start_offset.unwrap_or_default() + duration);
     let (from_ns, to_ns) = absolute_window(start_ns, args.start_offset, end_offset);
     let context = Context::new(domain, "replay")?;
+    let mut ros2 = match map {
+        Some(map) => Some(
+            Ros2Input::open(map, &context).map_err(|error| ReplayError::Ros2(error.to_string()))?,
+        ),
+        None => None,
+    };
+    let mut fatal: Option<ReplayError> = None;
     let keyboard = if args.no_keyboard {
         None
     } else {
@@ -325,6 +388,7 @@ pub fn run_replay_with(
         recorded_span_ns: 0,
         wall_time: Duration::ZERO,
         incomplete: Vec::new(),
+        ros2: None,
     };
     'passes: loop {
         report.loops += 1;
@@ -336,7 +400,7 @@ pub fn run_replay_with(
         {
             tracing::warn!(%reason, "cannot restart the video decoder");
         }
-        for file in &args.files {
+        for file in &files {
             let mut stop: Option<ReplayEnd> = None;
             let mut time_base = FileTimeBase::default();
             let outcome = scan_file(
@@ -373,6 +437,43 @@ pub fn run_replay_with(
                     if topic == EVENTS_TOPIC {
                         report.recorded_events += 1;
                         return ControlFlow::Continue(());
+                    }
+                    if let Some(input) = ros2.as_mut() {
+                        if !input.uses(topic) {
+                            report
+                                .skipped
+                                .entry(topic.clone())
+                                .or_insert_with(|| (0, "not in the map file".to_owned()))
+                                .0 += 1;
+                            return ControlFlow::Continue(());
+                        }
+                        let anchor = *first_ns.get_or_insert(message.log_time);
+                        last_ns = message.log_time;
+                        if let Some(end) = clock.wait_for(message.log_time.saturating_sub(anchor)) {
+                            stop = Some(end);
+                            return ControlFlow::Break(());
+                        }
+                        let type_name = message
+                            .channel
+                            .schema
+                            .as_ref()
+                            .map(|schema| schema.name.as_str())
+                            .unwrap_or("");
+                        return match input.handle(
+                            topic,
+                            type_name,
+                            &message.channel.message_encoding,
+                            message.data,
+                        ) {
+                            Ok(()) => {
+                                *report.published.entry(topic.clone()).or_insert(0) += 1;
+                                ControlFlow::Continue(())
+                            }
+                            Err(error) => {
+                                fatal = Some(error.into());
+                                ControlFlow::Break(())
+                            }
+                        };
                     }
                     if topic == VIDEO_TOPIC || topic == DEPTH_TOPIC {
                         // The camera's frames, as video and depth: replayed as camera/rgbd.
@@ -471,6 +572,9 @@ pub fn run_replay_with(
                     ControlFlow::Continue(())
                 },
             )?;
+            if let Some(error) = fatal.take() {
+                return Err(error);
+            }
             if let ScanEnd::Truncated { reason, .. } = &outcome.end
                 && report.loops == 1
             {
@@ -496,6 +600,10 @@ pub fn run_replay_with(
         }
     }
     report.wall_time = clock.active_time();
+    report.ros2 = ros2.as_ref().map(|input| Ros2Summary {
+        frames: input.frame_counts().unwrap_or_default(),
+        clouds: input.clouds_published,
+    });
     if report.end != ReplayEnd::Signal {
         before_close(&report);
     }
