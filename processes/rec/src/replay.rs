@@ -421,7 +421,13 @@ pub fn run_replay_with(
                         return ControlFlow::Continue(());
                     }
                     let topic = &message.channel.topic;
-                    if !filter.matches_topic(topic) {
+                    // The camera's video and depth are selected as the frames they become.
+                    let selected_as = if topic == VIDEO_TOPIC || topic == DEPTH_TOPIC {
+                        CAMERA_RGBD.spec.topic
+                    } else {
+                        topic.as_str()
+                    };
+                    if !filter.matches_topic(selected_as) {
                         return ControlFlow::Continue(());
                     }
                     if FoxgloveWriter::is_mapped_output(topic, &message.channel.message_encoding) {
@@ -472,9 +478,6 @@ pub fn run_replay_with(
                     if topic == VIDEO_TOPIC || topic == DEPTH_TOPIC {
                         // The camera's frames, as video and depth: replayed as camera/rgbd.
                         let rgbd = CAMERA_RGBD.spec.topic;
-                        if !filter.matches_topic(rgbd) {
-                            return ControlFlow::Continue(());
-                        }
                         let camera =
                             match camera.get_or_insert_with(|| CameraReplay::open(&context)) {
                                 Ok(camera) => camera,

@@ -325,7 +325,12 @@ fn the_camera_is_recorded_as_h264_that_ffmpeg_decodes_and_replay_turns_back_into
     let file = recorded.file.clone();
     let (release, released) = std::sync::mpsc::channel::<()>();
     let replay = std::thread::spawn(move || {
-        run_replay_with(&ReplayArgs::for_files(vec![file]), &domain, |_| {
+        // Selected by the topic the frames are replayed on, as a user would.
+        let args = ReplayArgs {
+            include: vec!["camera/rgbd".to_owned()],
+            ..ReplayArgs::for_files(vec![file])
+        };
+        run_replay_with(&args, &domain, |_| {
             let _ = released.recv();
         })
         .expect("replay")
