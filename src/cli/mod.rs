@@ -107,7 +107,7 @@ enum Command {
         #[command(flatten)]
         args: harvest_executive::ctl::CtlArgs,
     },
-    /// Remote link (on the robot): chosen channels to Zenoh under harvest/v1/<robot>/..., at
+    /// Remote link (on the robot): chosen channels to Zenoh under `harvest/v1/<robot>/...`, at
     /// their rates and priorities; operator commands from the station answered by the
     /// executive. Off the network unless given --listen/--connect or --link FILE.
     Remote(harvest_remote_process::RemoteArgs),

@@ -5,9 +5,9 @@
 //!   at its pace (the e-stop and the mode at once on change, every harvest event, the newest
 //!   detections at <= 10 Hz, the newest arm and vacuum states at 20 Hz sampled on the tick, the
 //!   fleet summary and the on-change channels again on their slow beat); sends the heartbeat;
-//! - the **camera thread** ([`crate::camera_thread`]): a downscaled JPEG at <= 2 Hz while a
+//! - the **camera thread** (`camera_thread.rs`): a downscaled JPEG at <= 2 Hz while a
 //!   subscriber matches, nothing otherwise;
-//! - two **command lanes** ([`crate::command_lane`]): the command key and the e-stop key, each
+//! - two **command lanes** (`command_lane.rs`): the command key and the e-stop key, each
 //!   a queryable, a thread and its own `operator/command` publisher.
 //!
 //! Every Zenoh publisher drops on congestion; the bridge reads the stack's channels like any

@@ -2,8 +2,8 @@
 //!
 //! On the robot, `harvest remote` ([`bridge`]) publishes the channels of
 //! `harvest_remote::channel_policy` under `harvest/v1/<robot>/...` at their rates and
-//! priorities, the camera only while someone watches ([`camera_thread`]), and answers operator
-//! commands on two lanes ([`command_lane`]) with the executive's own answer.
+//! priorities, the camera only while someone watches (`camera_thread.rs`), and answers operator
+//! commands on two lanes (`command_lane.rs`) with the executive's own answer.
 //!
 //! On the station, `harvest ctl --remote ROBOT ...` ([`station_ctl`]) and `harvest fleet`
 //! ([`fleet`]: every robot seen, one line each, in a browser).

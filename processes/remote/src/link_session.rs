@@ -15,7 +15,7 @@ use crate::error::RemoteError;
 /// The link options both sides share on the command line.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct LinkArgs {
-    /// The link's settings (TOML: listen/connect endpoints, [tls], [auth], [access]; see
+    /// The link's settings (TOML: listen/connect endpoints, `[tls]`, `[auth]`, `[access]`; see
     /// docs/operating.md).
     #[arg(long = "link", value_name = "FILE", global = true)]
     pub link_file: Option<PathBuf>,

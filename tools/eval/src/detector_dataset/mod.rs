@@ -1,7 +1,7 @@
 //! `harvest dataset detector`: a training set for a learned apple detector, rendered by the
 //! simulator with exact labels.
 //!
-//! Each world is a domain-randomised copy of a scenario ([`randomize`]) rendered by the
+//! Each world is a domain-randomised copy of a scenario ([`randomize`](mod@randomize)) rendered by the
 //! simulator's ToF camera renderer at 1920x1080. The colour frame is written as the ONNX
 //! detector sees it: resampled by perception's own letterbox ([`Letterbox::fill_input`]) to the
 //! model's input scale, without the grey padding (640x360 for a 640 input), so training and
