@@ -209,6 +209,10 @@ restart = "on-failure"
         || camera_hash(&browser).0 >= 3,
     );
     let (views, first_hash) = camera_hash(&browser);
+    println!(
+        "page errors so far: {}",
+        browser.execute("return window.consoleStats.errors;", json!([]))
+    );
     wait_until("the camera image changing", Duration::from_secs(30), || {
         let (now_views, hash) = camera_hash(&browser);
         now_views > views && hash != first_hash

@@ -5,7 +5,7 @@
 //! operator's page, which is admitted beyond the watchers' share because it controls:
 //! - every watcher gets the status and camera views pushed;
 //! - the controlling page's e-stop (sent without a token over its push connection) engages
-//!   the stop and both arms brake (on the arms' command channels);
+//!   the stop and both arms stop (on the arms' state channels);
 //! - the half-open connections beyond the address's bound are refused at once, the others
 //!   closed by the header timeout; the slow reader is dropped.
 //!
@@ -19,7 +19,8 @@ use common::{
     TempDir, leftover_files, one_stack_at_a_time, spawn_harvest, unique_domain, wait_with_watchdog,
 };
 use harvest_bench::console::live::{Live, LiveClient, LiveError, connect_from, open_live};
-use harvest_ipc::catalogue::{ARM_COMMAND, EMERGENCY_STOP};
+use harvest_ipc::catalogue::{ARM_STATE, EMERGENCY_STOP};
+use harvest_ipc::payloads::ArmPhase;
 use harvest_ipc::{Context, Domain, MonotonicClock};
 use serde_json::{Value, json};
 use std::io::{Read, Write};
@@ -147,10 +148,10 @@ args = ["--listen", "127.0.0.1:{port}", "--max-watchers", "{share}"]
     let ipc_domain = Domain::new(&domain).expect("domain");
     let context = Context::new(&ipc_domain, "console-load-test").expect("context");
     let estop_in = context.subscriber(EMERGENCY_STOP).expect("estop");
-    let commands_in = [0, 1].map(|i| {
+    let states_in = [0, 1].map(|i| {
         context
-            .subscriber_with_buffer(ARM_COMMAND[i], 256)
-            .expect("arm command")
+            .subscriber_with_buffer(ARM_STATE[i], 256)
+            .expect("arm state")
     });
 
     // The operator takes control with a plain POST and keeps it with heartbeats (the
@@ -263,8 +264,14 @@ args = ["--listen", "127.0.0.1:{port}", "--max-watchers", "{share}"]
     );
 
     // The e-stop, without a token, over the controlling page's push connection.
-    for subscriber in &commands_in {
-        while let Ok(Some(_)) = subscriber.receive() {}
+    for subscriber in &states_in {
+        while let Ok(Some(state)) = subscriber.receive() {
+            assert_ne!(
+                state.phase,
+                ArmPhase::Stopped,
+                "an arm stopped before the e-stop"
+            );
+        }
     }
     let sent_ns = MonotonicClock::read_ns();
     let estop_id = 1_000_000;
@@ -278,19 +285,16 @@ args = ["--listen", "127.0.0.1:{port}", "--max-watchers", "{share}"]
     let mut engaged = false;
     let mut estop_answer = None;
     wait_until(
-        "the e-stop engaged and both arms braked",
+        "the e-stop engaged and both arms stopped",
         Duration::from_secs(10),
         || {
             while let Ok(Some(sample)) = estop_in.receive() {
                 engaged |= sample.engaged == 1;
             }
-            for (i, subscriber) in commands_in.iter().enumerate() {
-                while let Ok(Some(command)) = subscriber.receive() {
-                    if command.hold == 1
-                        && braked_ns[i].is_none()
-                        && command.header.capture_ns >= sent_ns
-                    {
-                        braked_ns[i] = Some(command.header.capture_ns);
+            for (i, subscriber) in states_in.iter().enumerate() {
+                while let Ok(Some(state)) = subscriber.receive() {
+                    if state.phase == ArmPhase::Stopped && braked_ns[i].is_none() {
+                        braked_ns[i] = Some(state.header.capture_ns);
                     }
                 }
             }
@@ -317,7 +321,7 @@ args = ["--listen", "127.0.0.1:{port}", "--max-watchers", "{share}"]
     let estop_answer = estop_answer.expect("answer");
     assert_eq!(estop_answer["accepted"], true, "{estop_answer}");
     println!(
-        "console under load: e-stop sent to arm 1 braked {:.1} ms, arm 2 {:.1} ms ({WATCHERS} \
+        "console under load: e-stop sent to arm 1 stopped {:.1} ms, arm 2 {:.1} ms ({WATCHERS} \
 watchers + a slow reader, {HALF_OPEN} half-open connections)",
         (braked_ns[0].unwrap_or(0) as f64 - sent_ns as f64) / 1e6,
         (braked_ns[1].unwrap_or(0) as f64 - sent_ns as f64) / 1e6,
@@ -386,7 +390,7 @@ watchers + a slow reader, {HALF_OPEN} half-open connections)",
         watcher.join().expect("watcher");
     }
     drop(operator);
-    drop((estop_in, commands_in));
+    drop((estop_in, states_in));
     drop(context);
     nix::sys::signal::kill(
         nix::unistd::Pid::from_raw(stack.id() as i32),

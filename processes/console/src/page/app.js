@@ -23,7 +23,7 @@ const state = {
   liveProblem: null,
 };
 // Read by the browser test and by anyone curious (devtools).
-window.consoleStats = { views: 0, latenciesMs: [], estopClickNs: null, answers: [], statuses: 0, liveOpens: 0 };
+window.consoleStats = { views: 0, latenciesMs: [], estopClickNs: null, answers: [], statuses: 0, liveOpens: 0, errors: [] };
 
 const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 const fmt = (value, digits) => (value === null || value === undefined ? '-' : Number(value).toFixed(digits));
@@ -65,31 +65,39 @@ function onView(buffer) {
 async function showViews() {
   views.decoding = true;
   const img = $('camera');
-  while (views.waiting) {
-    const { header, blob } = views.waiting;
-    views.waiting = null;
-    const url = URL.createObjectURL(blob);
-    img.src = url;
-    try {
-      await img.decode();
-    } catch (error) {
-      continue;
-    }
-    if (views.previousUrl) URL.revokeObjectURL(views.previousUrl);
-    views.previousUrl = url;
-    if (header.view_seq !== state.viewSeq) {
-      state.viewSeq = header.view_seq;
-      window.consoleStats.views += 1;
-      if (state.offsetNs !== null) {
-        const latencies = window.consoleStats.latenciesMs;
-        latencies.push((monoNowNs() - header.capture_ns) / 1e6);
-        if (latencies.length > 5000) latencies.shift();
+  try {
+    while (views.waiting) {
+      const { header, blob } = views.waiting;
+      views.waiting = null;
+      const url = URL.createObjectURL(blob);
+      img.src = url;
+      try {
+        await img.decode();
+      } catch (error) {
+        URL.revokeObjectURL(url);
+        continue;
       }
-      $('view-info').textContent = `view ${header.view_seq}, frame ${header.frame_seq}`;
+      if (views.previousUrl) URL.revokeObjectURL(views.previousUrl);
+      views.previousUrl = url;
+      if (header.view_seq !== state.viewSeq) {
+        state.viewSeq = header.view_seq;
+        window.consoleStats.views += 1;
+        if (state.offsetNs !== null) {
+          const latencies = window.consoleStats.latenciesMs;
+          latencies.push((monoNowNs() - header.capture_ns) / 1e6);
+          if (latencies.length > 5000) latencies.shift();
+        }
+        $('view-info').textContent = `view ${header.view_seq}, frame ${header.frame_seq}`;
+      }
+      try {
+        drawOverlay();
+      } catch (error) {
+        window.consoleStats.errors.push(String(error));
+      }
     }
-    drawOverlay();
+  } finally {
+    views.decoding = false;
   }
-  views.decoding = false;
 }
 
 // --- The push connection.
@@ -113,7 +121,11 @@ function connectLive() {
     const message = JSON.parse(event.data);
     if (message.type === 'status') {
       window.consoleStats.statuses += 1;
-      renderStatus(message);
+      try {
+        renderStatus(message);
+      } catch (error) {
+        window.consoleStats.errors.push(String(error));
+      }
     } else if (message.type === 'answer') {
       const waiting = state.pending.get(message.id);
       if (waiting) {

@@ -8,9 +8,10 @@
 //!   figure (the camera's capture stamp to the decoded image, on the stack clock estimated
 //!   over the push connection), p50 and p99, on a quiet console and under load (the viewers
 //!   and the half-open connections);
-//! - **e-stop click to both arms braked** under load: the page's button clicked in Chromium,
-//!   to the first held command of each arm on `armN/command` (the page notes the click on the
-//!   stack clock); each click released and harvesting restarted before the next; median;
+//! - **e-stop click to both arms stopped** under load: the page's button clicked in Chromium,
+//!   to the first `armN/state` saying `Stopped` (stamped in the arm's tick that brakes; the page
+//!   notes the click on the stack clock); each click released and harvesting restarted before
+//!   the next; median;
 //! - **memory**: the console's private resident memory (`RssAnon`) sampled over a run with
 //!   viewers coming and going.
 
@@ -23,7 +24,8 @@ use std::net::Ipv4Addr;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use harvest_ipc::catalogue::{ARM_COMMAND, PROCESS_HEALTH};
+use harvest_ipc::catalogue::{ARM_STATE, PROCESS_HEALTH};
+use harvest_ipc::payloads::ArmPhase;
 use harvest_ipc::{Context, Domain, Subscriber};
 use serde::Serialize;
 use serde_json::{Value, json};
@@ -129,10 +131,10 @@ pub struct ConsoleReport {
     /// Slope of the console's CPU per viewer, percent of one core.
     pub cpu_per_viewer_percent: f64,
     pub latency: Vec<LatencyFigures>,
-    /// E-stop click to arm 1 and arm 2 braked, ms, per click.
+    /// E-stop click to arm 1 and arm 2 stopped, ms, per click.
     pub estop_ms: Vec<[f64; 2]>,
     /// The median of the later arm of each click, ms.
-    pub estop_both_braked_p50_ms: f64,
+    pub estop_both_stopped_p50_ms: f64,
     pub memory: Option<MemoryFigures>,
     pub viewers: usize,
     pub half_open: usize,
@@ -160,13 +162,13 @@ impl ConsoleReport {
         }
         for (k, [arm1, arm2]) in self.estop_ms.iter().enumerate() {
             text.push_str(&format!(
-                "  e-stop click {} to braked: arm 1 {arm1:.1} ms, arm 2 {arm2:.1} ms\n",
+                "  e-stop click {} to stopped: arm 1 {arm1:.1} ms, arm 2 {arm2:.1} ms\n",
                 k + 1
             ));
         }
         text.push_str(&format!(
-            "  e-stop click to both arms braked, p50: {:.1} ms ({} viewers, {} half-open)\n",
-            self.estop_both_braked_p50_ms, self.viewers, self.half_open
+            "  e-stop click to both arms stopped, p50: {:.1} ms ({} viewers, {} half-open)\n",
+            self.estop_both_stopped_p50_ms, self.viewers, self.half_open
         ));
         if let Some(memory) = &self.memory {
             text.push_str(&format!(
@@ -287,24 +289,22 @@ fn post_command(port: u16, token: &str, command: &str) -> Result<Value, ConsoleB
     serde_json::from_slice(&answer).map_err(|e| failed(format!("answer to {command}: {e}")))
 }
 
-/// Newest `hold` of each arm's commands, and the first held command's stamp at or after
-/// `since_ns`.
+/// Whether each arm last said it was stopped, and the first stopped state's stamp since the
+/// watch was reset.
 struct ArmWatch {
-    commands: [Subscriber<harvest_ipc::payloads::ArmCommand>; 2],
-    hold: [Option<bool>; 2],
-    braked_ns: [Option<u64>; 2],
+    states: [Subscriber<harvest_ipc::payloads::ArmState>; 2],
+    stopped: [Option<bool>; 2],
+    stopped_ns: [Option<u64>; 2],
 }
 
 impl ArmWatch {
-    fn update(&mut self, since_ns: u64) {
-        for (i, subscriber) in self.commands.iter().enumerate() {
-            while let Ok(Some(command)) = subscriber.receive() {
-                self.hold[i] = Some(command.hold == 1);
-                if command.hold == 1
-                    && self.braked_ns[i].is_none()
-                    && command.header.capture_ns >= since_ns
-                {
-                    self.braked_ns[i] = Some(command.header.capture_ns);
+    fn update(&mut self) {
+        for (i, subscriber) in self.states.iter().enumerate() {
+            while let Ok(Some(state)) = subscriber.receive() {
+                let stopped = state.phase == ArmPhase::Stopped;
+                self.stopped[i] = Some(stopped);
+                if stopped && self.stopped_ns[i].is_none() {
+                    self.stopped_ns[i] = Some(state.header.capture_ns);
                 }
             }
         }
@@ -318,16 +318,16 @@ fn estop_click(
     port: u16,
     token: &str,
 ) -> Result<[f64; 2], ConsoleBenchError> {
-    // Harvesting, both arms tracking (not holding) before the click.
+    // Harvesting again, neither arm stopped, before the click.
     wait_for(
-        "both arms tracking before the click",
+        "both arms running before the click",
         Duration::from_secs(30),
         || {
-            arms.update(u64::MAX);
-            arms.hold == [Some(false), Some(false)]
+            arms.update();
+            arms.stopped == [Some(false), Some(false)]
         },
     )?;
-    arms.braked_ns = [None, None];
+    arms.stopped_ns = [None, None];
     let click_ns = page
         .evaluate(
             "window.consoleStats.estopClickNs = null; document.getElementById('btn-estop').click(); window.consoleStats.estopClickNs",
@@ -335,17 +335,16 @@ fn estop_click(
         .map_err(failed)?
         .as_f64()
         .ok_or_else(|| failed("the page has no clock estimate yet"))?;
-    let since_ns = click_ns.max(0.0) as u64;
     wait_for(
-        "both arms braked after the click",
+        "both arms stopped after the click",
         Duration::from_secs(10),
         || {
-            arms.update(since_ns.saturating_sub(50_000_000));
-            arms.braked_ns.iter().all(Option::is_some)
+            arms.update();
+            arms.stopped_ns.iter().all(Option::is_some)
         },
     )?;
     let ms = arms
-        .braked_ns
+        .stopped_ns
         .map(|ns| (ns.unwrap_or(0) as f64 - click_ns) / 1e6);
     let released = post_command(port, token, "release")?;
     if released["accepted"] != true {
@@ -423,12 +422,12 @@ fn measure(
     })?;
     let pid = pid.ok_or_else(|| failed("no console pid"))?;
     let mut arms = ArmWatch {
-        commands: [
-            context.subscriber_with_buffer(ARM_COMMAND[0], 256)?,
-            context.subscriber_with_buffer(ARM_COMMAND[1], 256)?,
+        states: [
+            context.subscriber_with_buffer(ARM_STATE[0], 256)?,
+            context.subscriber_with_buffer(ARM_STATE[1], 256)?,
         ],
-        hold: [None, None],
-        braked_ns: [None, None],
+        stopped: [None, None],
+        stopped_ns: [None, None],
     };
     let window = Duration::from_secs_f64(args.cpu_window_s);
 
@@ -489,7 +488,7 @@ fn measure(
         stack.check_running()?;
     }
     let mut later: Vec<f64> = estop_ms.iter().map(|[a, b]| a.max(*b)).collect();
-    let estop_both_braked_p50_ms = percentile(&mut later, 0.5);
+    let estop_both_stopped_p50_ms = percentile(&mut later, 0.5);
     half_open.stop();
     viewers.close();
 
@@ -504,7 +503,7 @@ fn measure(
         cpu_per_viewer_percent,
         latency,
         estop_ms,
-        estop_both_braked_p50_ms,
+        estop_both_stopped_p50_ms,
         memory,
         viewers: args.viewers,
         half_open: args.half_open,
