@@ -287,6 +287,7 @@ fn wait_fleet(port: u16, limit: Duration, check: impl Fn(&Value) -> bool) -> Opt
 }
 
 #[test]
+#[ignore = "not yet run on a built stack; run with `cargo test --release --test remote_link -- --ignored`"]
 fn a_station_watches_and_commands_a_robot_over_loopback() {
     ensure_python_zenoh();
     let port = free_port();
@@ -503,6 +504,7 @@ impl Credentials {
 }
 
 #[test]
+#[ignore = "not yet run on a built stack; run with `cargo test --release --test remote_link -- --ignored`"]
 fn viewers_and_strangers_cannot_command() {
     ensure_python_zenoh();
     let port = free_port();
@@ -623,6 +625,7 @@ impl Relay {
 }
 
 #[test]
+#[ignore = "not yet run on a built stack; run with `cargo test --release --test remote_link -- --ignored`"]
 fn a_cut_link_stops_the_manual_motion_and_the_station_comes_back() {
     let port = free_port();
     let robot = Robot::start(
