@@ -151,7 +151,9 @@ impl InboundGate {
             .to_command()
             .map_err(|e| InboundRefusal::Malformed(e.to_string()))?;
         if request.session == 0 {
-            return Err(InboundRefusal::Malformed("session 0".to_owned()));
+            return Err(InboundRefusal::Malformed(
+                "`session` is 0, which names no client".to_owned(),
+            ));
         }
         if command != Command::EmergencyStop && !self.bucket.take(now_ns) {
             return Err(InboundRefusal::RateLimited);
