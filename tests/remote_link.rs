@@ -113,6 +113,10 @@ fn remote_ctl(station_domain: &str, link: &[&str], args: &[&str]) -> Output {
 /// states (both arms idle at their drop-off pose, 50 Hz) and camera frames (10 Hz) into the
 /// robot's domain.
 struct Robot {
+    /// `safety/emergency_stop`, subscribed before anything could engage the stop.
+    stops: harvest_ipc::Subscriber<harvest_ipc::payloads::EmergencyStop>,
+    estop_engaged: std::cell::Cell<bool>,
+    _observer: Context,
     domain: common::TestDomain,
     token_file: PathBuf,
     executive: Option<Drained>,
@@ -182,7 +186,12 @@ impl Robot {
                 std::thread::sleep(Duration::from_millis(20));
             }
         });
+        let observer = Context::new(domain.domain(), "test-estop").expect("context");
+        let stops = observer.subscriber(EMERGENCY_STOP).expect("estop");
         Self {
+            stops,
+            estop_engaged: std::cell::Cell::new(false),
+            _observer: observer,
             domain,
             token_file,
             executive: Some(executive),
@@ -221,19 +230,24 @@ impl Robot {
         last
     }
 
-    fn estop_engaged(&self) -> bool {
-        let context = self.context();
-        let stops = context.subscriber(EMERGENCY_STOP).expect("estop");
-        let deadline = Instant::now() + Duration::from_secs(2);
-        while Instant::now() < deadline {
-            if let Some(stop) = stops.receive_latest().expect("receive") {
-                return stop.engaged != 0;
+    /// The robot's e-stop as the executive last published it on `safety/emergency_stop`,
+    /// waiting up to `limit` for it to be `engaged`. Read from the subscriber made at the start:
+    /// the executive sends a stop message once, when it engages or releases, and iceoryx2 gives
+    /// a subscriber made later the last message only when the publisher sends again.
+    fn estop_within(&self, limit: Duration, engaged: bool) -> bool {
+        let deadline = Instant::now() + limit;
+        loop {
+            while let Some(stop) = self.stops.receive().expect("receive") {
+                self.estop_engaged.set(stop.engaged != 0);
             }
-            let _ = stops
+            if self.estop_engaged.get() == engaged || Instant::now() >= deadline {
+                return self.estop_engaged.get();
+            }
+            let _ = self
+                .stops
                 .listener()
                 .timed_wait(|_| {}, Duration::from_millis(100));
         }
-        false
     }
 
     fn stop(mut self) -> String {
@@ -365,7 +379,7 @@ fn a_station_watches_and_commands_a_robot_over_loopback() {
     let estop = remote_ctl(&station, &link, &["estop"]);
     assert!(estop.status.success(), "{}", text(&estop));
     assert!(
-        robot.estop_engaged(),
+        robot.estop_within(Duration::from_secs(3), true),
         "the e-stop from the station engaged the robot's stop"
     );
     let token_file = robot.token_file.display().to_string();
@@ -563,11 +577,17 @@ fn viewers_and_strangers_cannot_command() {
         Some(0),
         "{query}"
     );
-    assert!(!robot.estop_engaged(), "no stop reached the robot");
+    assert!(
+        !robot.estop_within(Duration::ZERO, true),
+        "no stop reached the robot"
+    );
     // The operator can.
     let output = remote_ctl(&station, &["--link", &credentials.file("op")], &["estop"]);
     assert!(output.status.success(), "{}", text(&output));
-    assert!(robot.estop_engaged());
+    assert!(
+        robot.estop_within(Duration::from_secs(3), true),
+        "the operator's stop engaged the robot's stop"
+    );
     robot.stop();
 }
 
@@ -670,14 +690,15 @@ fn a_cut_link_stops_the_manual_motion_and_the_station_comes_back() {
     .stdin(Stdio::null())
     .stdout(Stdio::piped())
     .stderr(Stdio::piped());
-    let jog = jog.spawn().expect("jog");
+    let mut jog = jog.spawn().expect("jog");
     let manual = robot.wait_mode(Duration::from_secs(15), |m| {
         m.mode == OperatorModeCode::Manual as u8
     });
-    assert!(
-        manual.is_some_and(|m| m.mode == OperatorModeCode::Manual as u8),
-        "manual mode: {manual:?}"
-    );
+    if !manual.is_some_and(|m| m.mode == OperatorModeCode::Manual as u8) {
+        let _ = jog.kill();
+        let output = jog.wait_with_output().expect("jog output");
+        panic!("manual mode: {manual:?}; the jog: {}", text(&output));
+    }
 
     // Cut for 10 s: the executive stops the motion within its heartbeat timeout.
     let cut_at = Instant::now();

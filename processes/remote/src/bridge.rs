@@ -4,7 +4,9 @@
 //!   channels and on a 10 ms tick; sends each channel of `harvest_remote::channel_policy::OUTBOUND`
 //!   at its pace (the e-stop and the mode at once on change, every harvest event, the newest
 //!   detections at <= 10 Hz, the newest arm and vacuum states at 20 Hz sampled on the tick, the
-//!   fleet summary and the on-change channels again on their slow beat); sends the heartbeat;
+//!   fleet summary and the on-change channels again on their slow beat); until a stop message
+//!   is heard, the e-stop as the mode carries it (the executive sends no stop message at a
+//!   start where the stop is not engaged); sends the heartbeat;
 //! - the **camera thread** (`camera_thread.rs`): a downscaled JPEG at <= 2 Hz while a
 //!   subscriber matches, nothing otherwise;
 //! - two **command lanes** (`command_lane.rs`): the command key and the e-stop key, each
@@ -30,7 +32,8 @@ use harvest_remote::camera_image::CameraImageSettings;
 use harvest_remote::channel_policy::{OUTBOUND, Outbound, SLOW_BEAT_MS, policy};
 use harvest_remote::fleet_summary::{FleetSummary, SummaryBuilder};
 use harvest_remote::state_encoding::{
-    HealthContent, ModeContent, estop_content, health_content, json_bytes, mode_content,
+    HealthContent, ModeContent, estop_content, estop_from_mode, health_content, json_bytes,
+    mode_content,
 };
 use harvest_remote::{ChangeBeat, InboundGate, LinkSettings, RateGate, RobotKeys, RobotName};
 use tracing::{info, warn};
@@ -193,6 +196,7 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
     let mut last_mode_json: Option<Vec<u8>> = None;
     let mut estop_beat = ChangeBeat::<(u8, String)>::new(beat_ns);
     let mut last_estop_json: Option<Vec<u8>> = None;
+    let mut estop_heard = false;
     let mut health_beats: HashMap<String, (ChangeBeat<HealthContent>, Vec<u8>)> = HashMap::new();
     let mut summary_beat = ChangeBeat::<FleetSummary>::new(beat_ns);
     let mut summary = SummaryBuilder::new(
@@ -209,6 +213,7 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
         let now_ns = MonotonicClock::read_ns();
         // The stop first.
         estop_in.try_drain(|stop| -> Result<(), RemoteError> {
+            estop_heard = true;
             summary.on_estop(stop);
             let json = json_bytes(stop);
             if estop_beat.due(&estop_content(stop), now_ns) {
@@ -231,6 +236,21 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
                 sent += 1;
             }
             last_mode_json = Some(json);
+            // No stop message heard yet: the stop as the mode carries it.
+            if !estop_heard {
+                let stop = estop_from_mode(mode);
+                let json = json_bytes(&stop);
+                if estop_beat.due(&estop_content(&stop), now_ns) {
+                    put(
+                        &publishers,
+                        Outbound::EmergencyStop,
+                        json.clone(),
+                        &mut failed,
+                    );
+                    sent += 1;
+                }
+                last_estop_json = Some(json);
+            }
             Ok(())
         })?;
         health_in.try_drain(|beat| -> Result<(), RemoteError> {

@@ -3,7 +3,9 @@
 //! 2 no answer), and the same rules: the control token goes with every command but the
 //! e-stop (which goes on its own key and needs none), a manual move is accompanied by a
 //! heartbeat every 100 ms until its planned time is over, so the executive stops the motion
-//! within 500 ms when this station is lost. `status` reads the robot's summary and mode.
+//! within 500 ms when this station is lost; a heartbeat without an answer ends the command
+//! with the no-answer code (the link is lost, the robot has stopped the motion). `status`
+//! reads the robot's summary and mode.
 //!
 //! The station's session id is the same for every run by one user for one robot, so commands
 //! given one after the other belong to one session (as with `harvest ctl`).
@@ -256,11 +258,22 @@ pub fn run(
         let mut moving_seen = false;
         while Instant::now() < until {
             std::thread::sleep(HEARTBEAT_PERIOD);
-            if let Some(beat) = station.send(Command::Heartbeat, token.as_ref(), timeout)?
-                && !beat.accepted
-            {
-                print_reply("heartbeat", &beat);
-                return Ok(ExitCode::from(EXIT_REFUSED));
+            match station.send(Command::Heartbeat, token.as_ref(), timeout)? {
+                Some(beat) if !beat.accepted => {
+                    print_reply("heartbeat", &beat);
+                    return Ok(ExitCode::from(EXIT_REFUSED));
+                }
+                Some(_) => {}
+                // The robot has not heard this station for longer than its heartbeat timeout:
+                // it has stopped the motion, and accompanying it further means nothing.
+                None => {
+                    eprintln!(
+                        "{}: the heartbeat got no answer within {} ms: link lost; the robot stops a manual motion after 500 ms without heartbeats",
+                        command.name(),
+                        timeout.as_millis()
+                    );
+                    return Ok(ExitCode::from(EXIT_NO_ANSWER));
+                }
             }
             if platform {
                 while let Ok(Some(sample)) = mode.try_recv() {
