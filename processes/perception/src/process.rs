@@ -22,6 +22,10 @@
 //! (if any) is fused into the process's depth image ([`FusedDepth`]) with the frame's geometry,
 //! and the frame is localized from that image. The extrinsic is `--lidar-extrinsic FILE` (written
 //! by `harvest calibrate lidar-camera --output`); it is required, as the camera calibration is.
+//!
+//! Colour-only frames (a GigE Vision camera, no ToF depth) need the fused source: before its
+//! first cloud they are refused (warned once, counted as rejected, health degraded); with the
+//! ToF source the process stops at the first such frame, saying why.
 
 use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, alacs_camera_intrinsics};
 use harvest_ipc::catalogue::{
@@ -41,7 +45,7 @@ use harvest_perception::detector::{Detector, DetectorKind, make_detector};
 use harvest_perception::estimator::EstimatorKind;
 use harvest_perception::frame_freshness::FreshnessTracker;
 use harvest_perception::node::PerceptionNode;
-use harvest_perception::pipeline::PerceptionConfig;
+use harvest_perception::pipeline::{PerceptionConfig, PerceptionSetupError};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -107,6 +111,9 @@ pub enum PerceptionProcessError {
     /// The detector cannot start (e.g. the ONNX model or runtime; named in the message).
     #[error(transparent)]
     Detector(#[from] harvest_perception::pipeline::PerceptionSetupError),
+    /// The frames are colour only and no LiDAR depth is configured: nothing to localize from.
+    #[error("{0}")]
+    NoDepthSource(#[source] harvest_perception::pipeline::PerceptionSetupError),
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
@@ -205,6 +212,7 @@ pub fn run_until(
     let heartbeat = waiter.attach_interval(HEARTBEAT_PERIOD)?;
     let mut freshness = FreshnessTracker::default();
     let mut apples_published = 0u64;
+    let mut warned_no_depth = false;
     tracing::info!(
         detector = detector_name,
         estimator = config.estimator.kind.name(),
@@ -272,6 +280,21 @@ pub fn run_until(
                         total_us = stats.timings.total_us,
                         "frame processed"
                     ),
+                    // Colour-only frames with the ToF depth source: never any depth to use.
+                    Err(error @ PerceptionSetupError::NoDepthSource { .. })
+                        if fused_depth.is_none() =>
+                    {
+                        return Err(PerceptionProcessError::NoDepthSource(error));
+                    }
+                    // Colour-only frames before the first fused cloud.
+                    Err(error @ PerceptionSetupError::NoDepthSource { .. }) => {
+                        if !warned_no_depth {
+                            tracing::warn!(%error, "frame refused: no depth yet");
+                            warned_no_depth = true;
+                        } else {
+                            tracing::debug!(%error, "frame refused: no depth yet");
+                        }
+                    }
                     Err(error) => {
                         tracing::warn!(%error, "frame rejected: camera parameters unusable")
                     }
