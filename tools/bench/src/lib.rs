@@ -16,6 +16,8 @@
 //!   detectors' latency per frame (ONNX models beside the colour segmentation) ([`detector`]).
 //! - [`run_bench_lidar_livox`] / [`BenchLidarLivoxArgs`]: `harvest bench lidar-livox`, the
 //!   Livox Mid-70 driver against the fake device on loopback ([`lidar_livox`]).
+//! - [`run_bench_camera_gige`] / [`BenchCameraGigeArgs`]: `harvest bench camera-gige`, the
+//!   GigE Vision camera driver against Aravis's fake camera on loopback ([`camera_gige`]).
 //! - [`run_soak`] / [`SoakArgs`]: `harvest soak`, the stack for a long time under kills,
 //!   operator commands and bad inputs, with memory, descriptors and shared memory sampled
 //!   ([`soak`]).
@@ -27,7 +29,9 @@ pub mod bench_payload;
 pub mod case;
 pub mod child_stop;
 pub mod control;
+pub mod camera_gige;
 pub mod detector;
+pub mod driver_child;
 pub mod error;
 pub mod lidar_livox;
 pub mod message;
@@ -46,6 +50,7 @@ pub mod transport;
 pub mod watchdog;
 
 pub use bench_payload::BenchPayload;
+pub use camera_gige::{BenchCameraGigeArgs, CameraGigeReport, run_bench_camera_gige};
 pub use detector::{BenchDetectorArgs, run_bench_detector};
 pub use error::BenchError;
 pub use lidar_livox::{BenchLidarLivoxArgs, LidarLivoxReport, run_bench_lidar_livox};
