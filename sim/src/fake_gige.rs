@@ -94,7 +94,9 @@ fn fill_from_render(render: &[u8], converted: &mut Converted, image: &mut FakeIm
                 region[(y * width + x) * 3..][..3].copy_from_slice(&render[source..source + 3]);
             }
         }
-        converted.bytes.resize(width * height * format.bytes_per_pixel(), 0);
+        converted
+            .bytes
+            .resize(width * height * format.bytes_per_pixel(), 0);
         if let Err(error) = from_rgb(format, width, height, &region, &mut converted.bytes) {
             tracing::warn!(%error, "fake camera frame left as it was");
             return;
@@ -159,7 +161,10 @@ mod tests {
         assert_eq!(config.problem(), None);
         let scenario = Scenario::preset("default").expect("scenario");
         let lens = scenario.camera.color_intrinsics();
-        assert_eq!((config.intrinsics.width_px, config.intrinsics.height_px), (1920, 1080));
+        assert_eq!(
+            (config.intrinsics.width_px, config.intrinsics.height_px),
+            (1920, 1080)
+        );
         for (name, ours, theirs) in [
             ("fx", config.intrinsics.fx_px, lens.fx_px),
             ("fy", config.intrinsics.fy_px, lens.fy_px),
@@ -187,7 +192,10 @@ mod tests {
         };
         fill_from_render(&render, &mut converted, &mut image);
         assert_eq!(&data[..12], &render[..12]);
-        assert_eq!(&data[12..], &render[RGB_WIDTH_PX * 3..RGB_WIDTH_PX * 3 + 12]);
+        assert_eq!(
+            &data[12..],
+            &render[RGB_WIDTH_PX * 3..RGB_WIDTH_PX * 3 + 12]
+        );
         assert_eq!(converted.key, Some((PixelFormat::RGB8.code(), 4, 2)));
     }
 }

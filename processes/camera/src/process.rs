@@ -1,23 +1,33 @@
-//! `harvest camera`: device -> `camera/rgbd`.
+//! `harvest camera`: camera device -> `camera/rgbd`.
 //!
-//! The loop blocks in the device's capture call (the device paces it; a timeout only serves the
-//! heartbeat and shutdown), writes each frame straight into a loaned sample and sends it.
+//! The camera is a [`Source`] node on the runtime ([`run_on_wake`], [`Wake::Device`]): the
+//! device paces it; each tick's capture blocks in the driver (event-driven; a timeout only
+//! serves the heartbeat and shutdown) and writes the frame straight into a loaned
+//! `camera/rgbd` sample, which the runtime sends. More than [`MAX_FAILURES_IN_A_ROW`] failed
+//! captures in a row end the process (the supervisor restarts it); each is reported by kind.
 //!
 //! Devices: the simulated ToF camera (`--device sim`) or a GigE Vision colour camera through
-//! Aravis (`--device gige --config FILE [--camera-id ID]`; frames colour only, depth from the
-//! LiDAR). The heartbeat's detail is the first of the link's losses that is not zero (lost
-//! frames, missing packets, resent packets), else the device errors in a row.
+//! Aravis (`--device gige --config FILE [--camera-id ID]`; its frames are colour only, the depth
+//! comes from the LiDAR). The heartbeat's detail is the capture failures in a row while they
+//! last, else the first of the link's losses that is not zero (lost frames, missing packets,
+//! resent packets).
 
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use harvest_hw::AnyDeviceError;
+use harvest_hw::rgbd_camera::RgbdCamera;
 use harvest_hw::rgbd_camera::gige::{GigeCamera, GigeConfig};
 use harvest_hw::rgbd_camera::sim::SimRgbdCamera;
-use harvest_hw::rgbd_camera::{CameraHealth, RgbdCamera};
-use harvest_hw::{AnyDeviceError, DeviceError};
 use harvest_ipc::catalogue::CAMERA_RGBD;
-use harvest_ipc::payloads::ProcessRunState;
-use harvest_ipc::config_file::read_toml;
-use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD, HealthReporter};
-use std::path::PathBuf;
-use std::time::Instant;
+use harvest_ipc::config_file::{ConfigFileError, read_toml};
+use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD};
+use harvest_node::{RunnerConfig, Source};
+use harvest_robot_model::ModeSource;
+use harvest_runtime::{RunError, Wake, WakeOptions, run_on_wake};
+
+/// Captures failing in a row after which the process stops (and is restarted).
+pub const MAX_FAILURES_IN_A_ROW: u32 = 10;
 
 /// Which camera device to drive (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -36,7 +46,7 @@ pub struct CameraArgs {
     #[arg(long, default_value_t = 30.0)]
     pub rate_hz: f64,
     /// GigE camera settings (TOML: pixel format, frame rate, exposure, packet size, the lens's
-    /// intrinsics; see processes/camera/config/gige_fake.toml), required with `--device gige`.
+    /// intrinsics; `sim/gige_camera.toml` is an example), required with `--device gige`.
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// The GigE camera to open (Aravis device id, serial number or IP address); overrides the
@@ -50,22 +60,25 @@ pub enum CameraError {
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
-    /// The camera driver failed (opening it, or too many captures in a row); the source keeps the
-    /// driver's error kind.
+    /// The camera driver could not be opened; the source keeps the driver's error kind.
     #[error("camera device: {0}")]
     Device(#[source] AnyDeviceError),
-    #[error("installing signal handler: {0}")]
-    Signal(#[from] std::io::Error),
-    /// The `--config` file cannot be used, or is missing.
+    /// The `--config` file cannot be read or parsed (the error names the file, line and key).
+    #[error(transparent)]
+    ConfigFile(#[from] ConfigFileError),
+    /// `--config` is missing, or the file's settings are unusable (named with the file, key and
+    /// value).
     #[error("{0}")]
     Config(String),
+    /// The run ended on an error (transport, too many failed captures in a row).
+    #[error(transparent)]
+    Run(#[from] RunError),
 }
 
 harvest_ipc::from_ipc_errors!(CameraError);
 
 /// Runs the camera process until SIGINT/SIGTERM.
 pub fn run(args: &CameraArgs, domain: &Domain, process_name: &str) -> Result<(), CameraError> {
-    harvest_ipc::termination::install_handler()?;
     let context = Context::new(domain, process_name)?;
     match args.device {
         CameraDevice::Sim => {
@@ -80,78 +93,55 @@ pub fn run(args: &CameraArgs, domain: &Domain, process_name: &str) -> Result<(),
                         .to_owned(),
                 )
             })?;
-            let config: GigeConfig = read_toml(path, "GigE camera config")
-                .map_err(|error| CameraError::Config(error.to_string()))?;
-            if let Some(problem) = config.problem() {
-                return Err(CameraError::Config(format!("{}: {problem}", path.display())));
-            }
-            let camera = GigeCamera::open(&config, args.camera_id.as_deref())
+            let camera = GigeCamera::open(&read_gige_config(path)?, args.camera_id.as_deref())
                 .map_err(|error| CameraError::Device(AnyDeviceError::new(error)))?;
             stream(&context, camera, args)
         }
     }
 }
 
-/// The heartbeat's detail: the first non-zero loss of the link, else the errors in a row.
-fn health_detail(link: &CameraHealth, consecutive_errors: u32) -> (&'static str, u64) {
-    [
-        ("lost_frames", link.lost_frames),
-        ("missing_packets", link.missing_packets),
-        ("resent_packets", link.resent_packets),
-    ]
-    .into_iter()
-    .find(|&(_, count)| count > 0)
-    .unwrap_or(("device_errors", u64::from(consecutive_errors)))
+/// The GigE camera's settings from `path`: TOML with unknown keys refused (the parser's error
+/// names the file, line and key), then the values checked (the error names the file, key and
+/// value).
+pub fn read_gige_config(path: &Path) -> Result<GigeConfig, CameraError> {
+    let config: GigeConfig = read_toml(path, "GigE camera config")?;
+    match config.problem() {
+        Some(problem) => Err(CameraError::Config(format!(
+            "GigE camera config {}: {problem}",
+            path.display()
+        ))),
+        None => Ok(config),
+    }
 }
 
-fn stream<C: RgbdCamera>(
+/// Streams `camera` on `camera/rgbd` until SIGINT/SIGTERM or an error.
+pub fn stream<C: RgbdCamera>(
     context: &Context,
-    mut camera: C,
+    camera: C,
     args: &CameraArgs,
 ) -> Result<(), CameraError> {
-    let mut frames = context.publisher(CAMERA_RGBD)?;
-    let mut health = HealthReporter::new(context)?;
-    let timeout = HEARTBEAT_PERIOD / 2;
-    let mut next_heartbeat = Instant::now();
-    let mut loan = None;
-    let mut consecutive_errors = 0u32;
+    let timeout: Duration = HEARTBEAT_PERIOD / 2;
+    let source = Source::new(
+        "camera",
+        CAMERA_RGBD,
+        camera,
+        timeout,
+        MAX_FAILURES_IN_A_ROW,
+    );
+    let options = WakeOptions {
+        wake: Wake::Device,
+        runner: RunnerConfig {
+            max_read_failures: MAX_FAILURES_IN_A_ROW,
+            mode_source: ModeSource::WithoutOperator,
+        },
+        obeys: false,
+        stop: None,
+    };
     tracing::info!(rate_hz = args.rate_hz, device = ?args.device, "camera streaming");
-    while !harvest_ipc::termination::requested() {
-        let mut frame = match loan.take() {
-            Some(frame) => frame,
-            None => frames.loan()?,
-        };
-        match camera.capture_into(&mut frame, timeout) {
-            Ok(true) => {
-                consecutive_errors = 0;
-                let msg_seq = frames.send(frame)?;
-                tracing::trace!(msg_seq, "frame published");
-            }
-            Ok(false) => loan = Some(frame),
-            Err(error) => {
-                consecutive_errors += 1;
-                let kind = error.kind();
-                tracing::warn!(%error, %kind, "capture failed");
-                health.note_device_error(kind.into());
-                if consecutive_errors > 10 {
-                    return Err(CameraError::Device(AnyDeviceError::new(error)));
-                }
-                loan = Some(frame);
-            }
-        }
-        if Instant::now() >= next_heartbeat {
-            next_heartbeat += HEARTBEAT_PERIOD;
-            let state = if consecutive_errors > 0 {
-                ProcessRunState::Degraded
-            } else if frames.last_seq() == 0 {
-                ProcessRunState::Starting
-            } else {
-                ProcessRunState::Running
-            };
-            let (detail, value) = health_detail(&camera.health(), consecutive_errors);
-            health.report(state, frames.last_seq(), detail, value)?;
-        }
-    }
-    tracing::info!(frames = frames.last_seq(), link = ?camera.health(), "camera stopped");
+    let finished = run_on_wake(context, source, (), options)?;
+    let source = finished.runner.node();
+    let (sent, link) = (source.counts().sent, source.device().health());
+    finished.result?;
+    tracing::info!(frames = sent, ?link, "camera stopped");
     Ok(())
 }

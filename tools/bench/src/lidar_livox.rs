@@ -100,7 +100,7 @@ pub struct LidarLivoxReport {
 
 /// User + system CPU time of `pid`, seconds.
 fn cpu_time_s(pid: u32) -> Result<f64, LidarLivoxBenchError> {
-    crate::driver_child::cpu_time_s(pid).map_err(LidarLivoxBenchError::Failed)
+    crate::proc_cpu::cpu_time_s(pid).map_err(LidarLivoxBenchError::Failed)
 }
 
 /// Runs the benchmark and prints its report.
