@@ -108,7 +108,7 @@ fn harvest_camera_publishes_the_fake_gige_cameras_frames_as_colour_only() {
             if beat.process_name.as_str() == "camera"
                 && matches!(beat.run_state.get(), Ok(ProcessRunState::Running))
             {
-                break 'beat beat;
+                break 'beat *beat;
             }
         }
         assert!(Instant::now() < deadline, "no running camera heartbeat");

@@ -47,7 +47,7 @@ fn start(
             DepthSource::LidarFused => Some(sim_file("lidar_extrinsic.toml")),
         },
     };
-    let (domain, stop) = (domain.clone(), Arc::clone(stop));
+    let (domain, stop) = (harvest_ipc::Domain::clone(domain), Arc::clone(stop));
     std::thread::spawn(move || {
         run_until(&args, &domain, "perception", None, &stop).map_err(|error| error.to_string())
     })
