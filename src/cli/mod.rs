@@ -145,6 +145,10 @@ enum BenchCommand {
     /// The Livox Mid-70 driver (`harvest lidar --device livox`) against the fake device on
     /// loopback: rate, lost packets, CPU, latency, silence report and reconnection.
     LidarLivox(harvest_bench::BenchLidarLivoxArgs),
+    /// The GigE Vision camera driver (`harvest camera --device gige`) against Aravis's fake
+    /// camera on loopback: frame rate, lost frames, camera timestamp -> `camera/rgbd` latency,
+    /// CPU.
+    CameraGige(harvest_bench::BenchCameraGigeArgs),
     /// The recorder's camera video: H.264 encoding ms per 1920x1080 frame on one core, decoding,
     /// bytes per frame, and the depth image's lossless PNG.
     Video(harvest_bench::BenchVideoArgs),
@@ -289,6 +293,11 @@ impl Cli {
             #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::Detector(args)) => {
                 harvest_bench::run_bench_detector(&args).context("detector benchmark")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::CameraGige(args)) => {
+                harvest_bench::run_bench_camera_gige(&args).context("camera-gige benchmark")?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
