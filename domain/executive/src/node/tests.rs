@@ -117,12 +117,10 @@ impl Bench {
     /// Publishes both arms' states and runs until `t_ms`.
     fn run_to(&mut self, t_ms: u64) {
         let now_ns = self.schedule.now_ns();
-        for arm in 0..2 {
+        for (arm, channel) in ARM_STATE.into_iter().enumerate() {
             let mut state = arm_state(arm);
             state.header.capture_ns = now_ns;
-            self.schedule
-                .bus_mut()
-                .publish(ARM_STATE[arm], state, now_ns);
+            self.schedule.bus_mut().publish(channel, state, now_ns);
         }
         self.schedule.run_until(t_ms * MS).expect("run");
     }
