@@ -1,7 +1,8 @@
 //! The operator console in a real browser against a real stack: Debian's chromium, driven by
 //! chromedriver over WebDriver (both installed by `.ci/run`; nothing downloads a browser). The
-//! stack runs in a private domain; what the page shows and what the clicks do are checked on
-//! the channels. Also prints the console's figures for docs/benchmarks.md (CPU share of one core
+//! stack runs in a private domain; what the page shows (pushed over its one push connection,
+//! nothing polled) and what the clicks do (commands, the e-stop, an operator mark) are checked
+//! on the channels. Also prints the console's figures for docs/benchmarks.md (CPU share of one core
 //! at the default view rate, capture-to-browser latency of the camera view, e-stop click to arms
 //! braked); nothing is asserted about them.
 
@@ -12,8 +13,8 @@ use common::{
     TempDir, leftover_files, one_stack_at_a_time, spawn_harvest, unique_domain, wait_with_watchdog,
 };
 use harvest_ipc::catalogue::{
-    ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MODE, PROCESS_HEALTH,
-    VACUUM_STATE,
+    ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MARK, OPERATOR_MODE,
+    PROCESS_HEALTH, VACUUM_STATE,
 };
 use harvest_ipc::payloads::{ArmPhase, HarvestEventKind, OperatorModeCode};
 use harvest_ipc::{Context, Domain, MonotonicClock, Subscriber};
@@ -184,6 +185,9 @@ restart = "on-failure"
     let health_in = context
         .subscriber_with_buffer(PROCESS_HEALTH, 256)
         .expect("health");
+    let marks_in = context
+        .subscriber_with_buffer(OPERATOR_MARK, 16)
+        .expect("marks");
     let mut mode = None;
     let mut arms = [None, None];
     let mut vacuum = None;
@@ -209,6 +213,42 @@ restart = "on-failure"
         let (now_views, hash) = camera_hash(&browser);
         now_views > views && hash != first_hash
     });
+    // Pushed, not polled: the status and the views came over the page's one push connection,
+    // and the page fetched nothing from the API.
+    let pushed = browser.execute(
+        "return [window.consoleStats.liveOpens, window.consoleStats.statuses,
+                 performance.getEntriesByType('resource').filter(e => e.name.includes('/api/')).map(e => e.name)];",
+        json!([]),
+    );
+    assert_eq!(pushed[0], json!(1), "one push connection: {pushed}");
+    assert!(
+        pushed[1].as_u64().unwrap_or(0) > 0,
+        "no status pushed: {pushed}"
+    );
+    assert_eq!(pushed[2], json!([]), "the page polled the API: {pushed}");
+
+    // The mark button: an operator mark on operator/mark, from the console, with the text.
+    browser.type_into("#mark-text", "apple 7 dropped at the bin");
+    browser.click("#btn-mark");
+    let mut mark = None;
+    wait_until("the mark on operator/mark", Duration::from_secs(10), || {
+        while let Ok(Some(sample)) = marks_in.receive() {
+            mark = Some(*sample);
+        }
+        mark.is_some()
+    });
+    let mark: harvest_ipc::payloads::OperatorMark = mark.expect("mark");
+    assert_eq!(mark.text.as_str(), "apple 7 dropped at the bin");
+    assert!(
+        mark.source.as_str().starts_with("console "),
+        "{:?}",
+        mark.source.as_str()
+    );
+    wait_until(
+        "the mark's answer on the page",
+        Duration::from_secs(5),
+        || page_text(&browser, "mark-answer").starts_with("marked"),
+    );
 
     // Status values match the channels.
     wait_until(
@@ -500,6 +540,7 @@ braked {:.1} ms, arm 2 {:.1} ms",
         estop_in,
         events_in,
         health_in,
+        marks_in,
     ));
     drop(context);
     assert_eq!(leftover_files(&domain), "");

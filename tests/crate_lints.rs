@@ -13,11 +13,22 @@ const FORBID_UNSAFE: &str = "#![forbid(unsafe_code)]";
 const DENY_MISSING_DOCS: &str = "#![deny(missing_docs)]";
 
 /// Packages whose library needs `unsafe` (shared-memory payloads and signal handlers, the child
-/// set-up between fork and exec, foreign transports of the benchmarks); every block is explained
+/// set-up between fork and exec, foreign transports of the benchmarks, the Aravis library
+/// loaded at run time); every block is explained
 /// by a `// SAFETY:` comment (`clippy::undocumented_unsafe_blocks` is denied workspace-wide).
-const UNSAFE_LIBRARIES: [&str; 3] = ["harvest-ipc", "harvest-supervisor", "harvest-bench"];
+const UNSAFE_LIBRARIES: [&str; 4] = [
+    "harvest-ipc",
+    "harvest-supervisor",
+    "harvest-bench",
+    "harvest-aravis",
+];
 /// Packages whose public items and fields are all documented.
-const DOCUMENTED: [&str; 3] = ["harvest-ipc", "harvest-ipc-derive", "harvest-hw"];
+const DOCUMENTED: [&str; 4] = [
+    "harvest-ipc",
+    "harvest-ipc-derive",
+    "harvest-hw",
+    "harvest-aravis",
+];
 /// Test code: may unwrap.
 const TEST_SUPPORT: &str = "harvest-test-support";
 

@@ -93,11 +93,11 @@ command = "arm"
 args = ["--id", "1"]
 restart = "never"
 
-# Uncompressed frames fill the small disk within seconds; 1 s between checks of the free space.
+# Uncompressed raw frames fill the small disk within seconds; 1 s between checks of the free space.
 [[process]]
 name = "recorder"
 command = "recorder"
-args = ["--output-dir", "{output_dir}", "--compression", "none", "--chunk-size", "1MiB",
+args = ["--output-dir", "{output_dir}", "--camera", "raw", "--compression", "none", "--chunk-size", "1MiB",
         "--split-size", "0", "--max-total-size", "0", "--retry-interval", "1s"]
 restart = "never"
 "#,

@@ -57,21 +57,6 @@ print(json.dumps(out))
     serde_json::from_slice(&output.stdout).expect("JSON")
 }
 
-fn ensure_python_mcap() {
-    let available = || {
-        Command::new("python3")
-            .args(["-c", "import mcap, lz4"])
-            .status()
-            .is_ok_and(|status| status.success())
-    };
-    if !available() {
-        let _ = Command::new("python3")
-            .args(["-m", "pip", "install", "--quiet", "mcap", "lz4"])
-            .status();
-    }
-    assert!(available(), "python3 with `mcap` and `lz4` is required");
-}
-
 fn now_unix_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -113,22 +98,6 @@ fn assert_no_gaps(topic: &str, sequences: &[u64]) {
 }
 
 /// Private (anonymous) resident memory of a process, bytes.
-fn rss_anon_bytes(pid: u32) -> u64 {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("status");
-    status
-        .lines()
-        .find_map(|line| line.strip_prefix("RssAnon:"))
-        .and_then(|rest| {
-            rest.trim()
-                .trim_end_matches("kB")
-                .trim()
-                .parse::<u64>()
-                .ok()
-        })
-        .expect("RssAnon")
-        * 1024
-}
-
 const RING_MIB: u64 = 256;
 const QUEUE_MIB: u64 = 64;
 
@@ -311,76 +280,26 @@ fn a_mark_files_a_clip_of_the_window_around_it() {
     let _ = leftover_files(&domain);
 }
 
-/// The `ideal` preset with a few apples and every seal failing: the first attempts fail.
-fn failing_orchard(apples: u32) -> String {
-    let ideal = include_str!("../sim/scenarios/ideal.toml");
-    assert!(
-        ideal.contains("count = 16") && ideal.contains("seal_failure = 0.0"),
-        "the ideal preset changed"
-    );
-    ideal
-        .replace("count = 16", &format!("count = {apples}"))
-        .replace("seal_failure = 0.0", "seal_failure = 1.0")
-}
-
 #[test]
 fn a_failed_pick_files_a_clip_without_gaps_around_the_failure() {
     let _stack = one_stack_at_a_time();
     let domain = unique_domain("flightfail");
     let dir = TempDir::new("flightfail");
-    let scenario = dir.write("failing.toml", &failing_orchard(3));
+    let scenario = dir.write("failing.toml", &ideal_orchard(3, 1.0));
     let recordings = dir.0.join("rec");
-    let launch = format!(
-        r#"
-[stack]
-hang_timeout_ms = 5000
-shutdown_grace_ms = 5000
-startup_grace_ms = 15000
-
-[[process]]
-name = "sim"
-command = "sim"
-args = ["--scenario", "{scenario}", "--seed", "1", "--camera-rate-hz", "10"]
-restart = "never"
-
-[[process]]
-name = "arm1"
-command = "arm"
-args = ["--id", "1", "--without-operator"]
-restart = "never"
-
-[[process]]
-name = "arm2"
-command = "arm"
-args = ["--id", "2", "--without-operator"]
-restart = "never"
-
-[[process]]
-name = "camera"
-command = "camera"
-restart = "never"
-
-[[process]]
-name = "perception"
-command = "perception"
-args = ["--calibration", "{calibration}"]
-restart = "never"
-
-[[process]]
-name = "vacuum"
-command = "vacuum"
-args = ["--policy", "2024", "--arms", "2", "--without-operator"]
-restart = "never"
-
+    let launch = picking_launch(
+        &scenario.display().to_string(),
+        true,
+        &format!(
+            r#"
 [[process]]
 name = "recorder"
 command = "recorder"
-args = ["--output-dir", "{recordings}", "--no-foxglove", "--calibration", "{calibration}", "--flight-ring-size", "512MiB", "--clip-before", "3s", "--clip-after", "2s"]
+args = ["--output-dir", "{recordings}", "--no-foxglove", "--calibration", "{SIM_CAMERA_CALIBRATION}", "--flight-ring-size", "512MiB", "--clip-before", "3s", "--clip-after", "2s"]
 restart = "never"
 "#,
-        scenario = scenario.display(),
-        calibration = SIM_CAMERA_CALIBRATION,
-        recordings = recordings.display(),
+            recordings = recordings.display(),
+        ),
     );
     let launch_file = dir.write("launch.toml", &launch);
     let (status, stdout, stderr) = run_harvest(

@@ -19,76 +19,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-/// The `ideal` preset with `apples` apples: a grid, no occlusion, no failures.
-fn small_orchard(apples: u32) -> String {
-    let ideal = include_str!("../sim/scenarios/ideal.toml");
-    assert!(ideal.contains("count = 16"), "the ideal preset changed");
-    ideal.replace("count = 16", &format!("count = {apples}"))
-}
-
-fn launch(scenario: &str, with_vision: bool) -> String {
-    let mut text = format!(
-        r#"
-[stack]
-hang_timeout_ms = 5000
-shutdown_grace_ms = 3000
-startup_grace_ms = 15000
-
-[[process]]
-name = "sim"
-command = "sim"
-args = ["--scenario", "{scenario}", "--seed", "1", "--camera-rate-hz", "10"]
-restart = "never"
-
-[[process]]
-name = "arm1"
-command = "arm"
-args = ["--id", "1", "--without-operator"]
-restart = "never"
-
-[[process]]
-name = "arm2"
-command = "arm"
-args = ["--id", "2", "--without-operator"]
-restart = "never"
-"#
-    );
-    if with_vision {
-        text.push_str(
-            r#"
-[[process]]
-name = "camera"
-command = "camera"
-restart = "never"
-
-[[process]]
-name = "perception"
-command = "perception"
-args = ["--calibration", "SIM_CAMERA_CALIBRATION"]
-restart = "never"
-
-[[process]]
-name = "vacuum"
-command = "vacuum"
-args = ["--policy", "2024", "--arms", "2", "--without-operator"]
-restart = "never"
-"#
-            .replace("SIM_CAMERA_CALIBRATION", SIM_CAMERA_CALIBRATION)
-            .as_str(),
-        );
-    }
-    text
-}
-
 #[test]
 fn harvest_up_picks_a_small_orchard_and_summarizes_it() {
     let _stack = one_stack_at_a_time();
     let domain = unique_domain("harvest");
     let dir = TempDir::new("harvest");
-    let scenario = dir.write("few.toml", &small_orchard(4));
+    let scenario = dir.write("few.toml", &ideal_orchard(4, 0.0));
     let launch_file = dir.write(
         "launch.toml",
-        &launch(&scenario.display().to_string(), true),
+        &picking_launch(&scenario.display().to_string(), true, ""),
     );
 
     // Ground truth, read while the stack runs: the apples the simulator put on the module.
@@ -174,8 +113,8 @@ fn a_non_critical_process_failing_for_good_does_not_end_the_harvest() {
     let _stack = one_stack_at_a_time();
     let domain = unique_domain("noncrit");
     let dir = TempDir::new("noncrit");
-    let scenario = dir.write("few.toml", &small_orchard(2));
-    let mut text = launch(&scenario.display().to_string(), true);
+    let scenario = dir.write("few.toml", &ideal_orchard(2, 0.0));
+    let mut text = picking_launch(&scenario.display().to_string(), true, "");
     text.push_str(&format!(
         r#"
 [[process]]
@@ -293,10 +232,10 @@ fn bad_targets_are_rejected_with_a_reason_and_the_arm_holds() {
     let _stack = one_stack_at_a_time();
     let domain = unique_domain("badtarget");
     let dir = TempDir::new("badtarget");
-    let scenario = dir.write("few.toml", &small_orchard(2));
+    let scenario = dir.write("few.toml", &ideal_orchard(2, 0.0));
     let launch_file = dir.write(
         "launch.toml",
-        &launch(&scenario.display().to_string(), false),
+        &picking_launch(&scenario.display().to_string(), false, ""),
     );
     let child = Drained::spawn(
         &domain,

@@ -7,6 +7,7 @@
 
 pub mod alacs;
 pub mod arm_servos;
+pub mod clock_mapping;
 #[cfg(any(test, feature = "testing"))]
 pub mod conformance;
 pub mod error_kind;

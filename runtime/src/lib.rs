@@ -1,23 +1,31 @@
-//! harvest-runtime: [`run_node`] runs a [`harvest_node::Node`] as a process on the iceoryx2
-//! channels of the catalogue.
+//! harvest-runtime: runs a [`harvest_node::Node`] as a process on the iceoryx2 channels of the
+//! catalogue.
 //!
 //! What it adds to the tick of [`harvest_node::Runner`] (read the stop, make safe, read the
 //! devices, obey the mode, read the inputs, step, write, publish): the ports, opened from the
-//! node's declared inputs and outputs ([`IpcTransport`]); the periodic control loop on a kernel
-//! timer ([`harvest_ipc::control_loop`]: no sleeps, tick-to-tick intervals and deadline misses
-//! measured); the heartbeat on `system/health` (run state degraded while a device exchange
-//! fails, the period's p99 and the deadline misses); and the end of the run on SIGINT/SIGTERM or
-//! an error, always with the devices in their safe state first.
+//! node's declared inputs and outputs ([`IpcTransport`]; large messages read and written in
+//! place in shared memory, [`harvest_node::in_place`]); the wake-up, never a sleep or a poll:
+//! [`run_node`] ticks on a kernel periodic timer ([`harvest_ipc::control_loop`]: tick-to-tick
+//! intervals and deadline misses measured), [`run_on_wake`] on an input's iceoryx2 event
+//! ([`Wake::Input`]: a wait set) or back to back on a device that paces the node
+//! ([`Wake::Device`]: the step blocks in the driver's event-driven capture, bounded); the
+//! heartbeat on `system/health` (run state degraded while a device exchange fails, the
+//! period's p99 and the deadline misses, or what the node says, [`Node::health`]); and the
+//! end of the run on SIGINT/SIGTERM or an error, always with the devices in their safe state
+//! first.
 
 #![forbid(unsafe_code)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+mod in_place;
 mod transport;
+mod wake;
 
 pub use transport::IpcTransport;
+pub use wake::{Wake, WakeOptions, run_on_wake};
 
 use harvest_hw::AnyDeviceError;
-use harvest_ipc::control_loop::{Wake, run_control_loop};
+use harvest_ipc::control_loop::{Wake as TimerWake, run_control_loop};
 use harvest_ipc::error::IpcError;
 use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
 use harvest_ipc::{Context, Flow, HealthReporter, MonotonicClock};
@@ -43,6 +51,12 @@ pub enum RunError {
     /// The node failed for good.
     #[error("{node}: {message}")]
     Node { node: String, message: String },
+    /// [`Wake::Input`] names a channel the node does not read.
+    #[error("{node}: woken by {topic}, which is not one of its inputs")]
+    NoSuchInput { node: String, topic: &'static str },
+    /// The SIGINT/SIGTERM handler could not be installed.
+    #[error("installing the signal handler: {0}")]
+    Signal(#[from] std::io::Error),
     /// The devices failed to answer too many times in a row.
     #[error("{node}: {failures} device reads failed in a row: {error}")]
     Device {
@@ -77,11 +91,12 @@ impl<N: std::error::Error> From<TickError<IpcError, N>> for RunError {
     }
 }
 
-/// A run that ended: the period statistics and the runner (the node and its devices, for the
-/// caller's last log line), or the error that ended it.
-pub struct Finished<N: Node> {
+/// A run that ended: its summary (the period statistics of a periodic run, the ticks of a
+/// woken one) and the runner (the node and its devices, for the caller's last log line), or
+/// the error that ended it.
+pub struct Finished<N: Node, S = PeriodSummary> {
     pub runner: Runner<N>,
-    pub result: Result<PeriodSummary, RunError>,
+    pub result: Result<S, RunError>,
 }
 
 /// Runs `node` with its `devices` every `options.period_ns` until SIGINT/SIGTERM or an error
@@ -104,14 +119,8 @@ pub fn run_node<N: Node>(
     );
     let result = run_control_loop(options.period_ns, |wake| -> Result<Flow, RunError> {
         match wake {
-            Wake::Tick { now_ns } => runner.tick(&mut transport, now_ns)?,
-            Wake::Heartbeat { period } => {
-                let progress = runner.node().progress().unwrap_or(runner.ticks());
-                if let Some(kind) = runner.last_device_error() {
-                    health.note_device_error(kind.into());
-                }
-                health.report_control_loop(runner.run_state(), progress, &period)?;
-            }
+            TimerWake::Tick { now_ns } => runner.tick(&mut transport, now_ns)?,
+            TimerWake::Heartbeat { period } => heartbeat(&mut health, &mut runner, Some(&period))?,
         }
         Ok(Flow::Continue)
     });
@@ -119,4 +128,27 @@ pub fn run_node<N: Node>(
         tracing::warn!(%error, "last messages not sent");
     }
     Ok(Finished { runner, result })
+}
+
+/// One heartbeat: what the node says ([`Node::health`]) or the runner's run state, with the
+/// period's p99 and deadline misses for a periodic run (`period`) or the ticks so far.
+pub(crate) fn heartbeat<N: Node>(
+    health: &mut HealthReporter,
+    runner: &mut Runner<N>,
+    period: Option<&PeriodSummary>,
+) -> Result<(), IpcError> {
+    let progress = runner.node().progress().unwrap_or(runner.ticks());
+    if let Some(kind) = runner.last_device_error() {
+        health.note_device_error(kind.into());
+    }
+    let said = runner.node_mut().health();
+    if let Some(kind) = said.and_then(|said| said.device_error) {
+        health.note_device_error(kind.into());
+    }
+    match (said, period) {
+        (Some(said), _) => health.report(said.state, progress, said.detail, said.value)?,
+        (None, Some(period)) => health.report_control_loop(runner.run_state(), progress, period)?,
+        (None, None) => health.report(runner.run_state(), progress, "ticks", runner.ticks())?,
+    }
+    Ok(())
 }

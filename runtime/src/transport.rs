@@ -1,27 +1,59 @@
 //! [`IpcTransport`]: a node's declared inputs and outputs as iceoryx2 ports.
 
 use std::any::Any;
+use std::rc::Rc;
 
 use harvest_ipc::catalogue::{Channel, EMERGENCY_STOP, OPERATOR_MODE};
-use harvest_ipc::error::{IpcError, ReceiveError};
+use harvest_ipc::error::{IpcError, ReceiveError, WaitError};
 use harvest_ipc::payload::Payload;
 use harvest_ipc::payloads::{EmergencyStop, OperatorModeState};
-use harvest_ipc::{Context, Publisher, Subscriber};
+use harvest_ipc::{Context, Ipc, Publisher, Subscriber, WaitSetGuard, Waiter};
+use harvest_node::in_place::{LatestInPlace, Loaned};
 use harvest_node::ports::{Drain, Latest, Out};
 use harvest_node::{InputVisitor, Inputs, OutputVisitor, Outputs, Transport};
 
-/// The ports of one node: the stop and the mode (every node's), then one subscriber per
-/// declared input and one publisher per declared output, in the order the node visits them.
+use crate::in_place::{HeldSample, LoanHolder};
+
+/// A subscriber of any payload: what the transport reads through and what a wait set can
+/// wake on.
+pub(crate) trait InputPort: Any {
+    fn topic(&self) -> &'static str;
+    fn as_any(&self) -> &dyn Any;
+    /// Wakes `waiter` when a sample arrives on this port's channel.
+    fn attach<'a>(&'a self, waiter: &'a Waiter) -> Result<WaitSetGuard<'a, 'a, Ipc>, WaitError>;
+}
+
+impl<T: Payload + 'static> InputPort for Subscriber<T> {
+    fn topic(&self) -> &'static str {
+        self.channel().spec.topic
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+
+    fn attach<'a>(&'a self, waiter: &'a Waiter) -> Result<WaitSetGuard<'a, 'a, Ipc>, WaitError> {
+        waiter.attach_listener(self.listener())
+    }
+}
+
+/// Stands for an output whose publisher lives in its slot's holder (a [`Loaned`] slot).
+struct HeldBySlot;
+
+/// The ports of one node: the stop and the mode (when the node obeys them), then one
+/// subscriber per declared input and one publisher per declared output, in the order the
+/// node visits them.
 pub struct IpcTransport {
-    emergency_stop: Subscriber<EmergencyStop>,
-    operator_mode: Subscriber<OperatorModeState>,
-    inputs: Vec<Box<dyn Any>>,
+    emergency_stop: Option<Subscriber<EmergencyStop>>,
+    operator_mode: Option<Subscriber<OperatorModeState>>,
+    inputs: Vec<Rc<dyn InputPort>>,
     outputs: Vec<Box<dyn Any>>,
 }
 
 impl std::fmt::Debug for IpcTransport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("IpcTransport")
+            .field("obeys", &self.emergency_stop.is_some())
             .field("inputs", &self.inputs.len())
             .field("outputs", &self.outputs.len())
             .finish()
@@ -30,7 +62,7 @@ impl std::fmt::Debug for IpcTransport {
 
 struct OpenInputs<'a> {
     context: &'a Context,
-    ports: Vec<Box<dyn Any>>,
+    ports: Vec<Rc<dyn InputPort>>,
 }
 
 impl InputVisitor for OpenInputs<'_> {
@@ -41,7 +73,7 @@ impl InputVisitor for OpenInputs<'_> {
         channel: Channel<T>,
         _: &mut Latest<T>,
     ) -> Result<(), IpcError> {
-        self.ports.push(Box::new(self.context.subscriber(channel)?));
+        self.ports.push(Rc::new(self.context.subscriber(channel)?));
         Ok(())
     }
 
@@ -50,7 +82,17 @@ impl InputVisitor for OpenInputs<'_> {
         channel: Channel<T>,
         _: &mut Drain<T>,
     ) -> Result<(), IpcError> {
-        self.ports.push(Box::new(self.context.subscriber(channel)?));
+        self.ports.push(Rc::new(self.context.subscriber(channel)?));
+        Ok(())
+    }
+
+    fn latest_in_place<T: Payload + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        slot: &mut LatestInPlace<T>,
+    ) -> Result<(), IpcError> {
+        self.ports.push(Rc::new(self.context.subscriber(channel)?));
+        slot.attach(Box::new(HeldSample::<T> { sample: None }));
         Ok(())
     }
 }
@@ -71,29 +113,44 @@ impl OutputVisitor for OpenOutputs<'_> {
         self.ports.push(Box::new(self.context.publisher(channel)?));
         Ok(())
     }
+
+    fn loaned<T: Payload + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        slot: &mut Loaned<T>,
+    ) -> Result<(), IpcError> {
+        slot.attach(Box::new(LoanHolder {
+            publisher: self.context.publisher(channel)?,
+            loan: None,
+            error: None,
+        }));
+        self.ports.push(Box::new(HeldBySlot));
+        Ok(())
+    }
 }
 
-/// The port a slot was opened with (same visiting order, so same type).
-fn port<P: 'static, T: Payload>(
-    ports: &mut [Box<dyn Any>],
+fn out_of_order<T: Payload>(channel: Channel<T>) -> IpcError {
+    IpcError::Receive(ReceiveError {
+        topic: channel.spec.topic,
+        reason: "the node visited its slots in another order than when its ports were opened"
+            .to_owned(),
+    })
+}
+
+/// The subscriber an input slot was opened with (same visiting order, so same type).
+fn subscriber<T: Payload + 'static>(
+    ports: &[Rc<dyn InputPort>],
     index: usize,
     channel: Channel<T>,
-) -> Result<&mut P, IpcError> {
+) -> Result<&Subscriber<T>, IpcError> {
     ports
-        .get_mut(index)
-        .and_then(|port| port.downcast_mut::<P>())
-        .ok_or_else(|| {
-            IpcError::Receive(ReceiveError {
-                topic: channel.spec.topic,
-                reason: "the node visited its slots in another order than when its ports \
-                         were opened"
-                    .to_owned(),
-            })
-        })
+        .get(index)
+        .and_then(|port| port.as_any().downcast_ref::<Subscriber<T>>())
+        .ok_or_else(|| out_of_order(channel))
 }
 
 struct Fill<'a> {
-    ports: &'a mut [Box<dyn Any>],
+    ports: &'a [Rc<dyn InputPort>],
     index: usize,
 }
 
@@ -105,7 +162,7 @@ impl InputVisitor for Fill<'_> {
         channel: Channel<T>,
         slot: &mut Latest<T>,
     ) -> Result<(), IpcError> {
-        let subscriber: &mut Subscriber<T> = port(self.ports, self.index, channel)?;
+        let subscriber = subscriber(self.ports, self.index, channel)?;
         self.index += 1;
         slot.begin();
         if let Some(sample) = subscriber.receive_latest()? {
@@ -119,10 +176,26 @@ impl InputVisitor for Fill<'_> {
         channel: Channel<T>,
         slot: &mut Drain<T>,
     ) -> Result<(), IpcError> {
-        let subscriber: &mut Subscriber<T> = port(self.ports, self.index, channel)?;
+        let subscriber = subscriber(self.ports, self.index, channel)?;
         self.index += 1;
         slot.begin();
         subscriber.drain(|sample| slot.push(*sample))?;
+        Ok(())
+    }
+
+    fn latest_in_place<T: Payload + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        slot: &mut LatestInPlace<T>,
+    ) -> Result<(), IpcError> {
+        let subscriber = subscriber(self.ports, self.index, channel)?;
+        self.index += 1;
+        let held = slot
+            .holder_mut::<HeldSample<T>>()
+            .ok_or_else(|| out_of_order(channel))?;
+        // The previous tick's sample goes back first: at most one is held between ticks.
+        held.sample = None;
+        held.sample = subscriber.receive_latest()?;
         Ok(())
     }
 }
@@ -140,19 +213,48 @@ impl OutputVisitor for Send<'_> {
         channel: Channel<T>,
         slot: &mut Out<T>,
     ) -> Result<(), IpcError> {
-        let publisher: &mut Publisher<T> = port(self.ports, self.index, channel)?;
+        let publisher = self
+            .ports
+            .get_mut(self.index)
+            .and_then(|port| port.downcast_mut::<Publisher<T>>())
+            .ok_or_else(|| out_of_order(channel))?;
         self.index += 1;
         slot.flush(|value| publisher.publish(value).map(|_| ()))?;
+        Ok(())
+    }
+
+    fn loaned<T: Payload + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        slot: &mut Loaned<T>,
+    ) -> Result<(), IpcError> {
+        self.index += 1;
+        let (send, holder) = slot.take_send::<LoanHolder<T>>();
+        let holder = holder.ok_or_else(|| out_of_order(channel))?;
+        holder.flush(send)?;
         Ok(())
     }
 }
 
 impl IpcTransport {
-    /// Opens the ports a node's slots declare (each slot visited once).
+    /// Opens the ports a node's slots declare (each slot visited once), with the stop and the
+    /// mode every node that drives actuators obeys.
     pub fn open<I: Inputs, O: Outputs>(
         context: &Context,
         input_slots: &mut I,
         output_slots: &mut O,
+    ) -> Result<Self, IpcError> {
+        Self::open_with(context, input_slots, output_slots, true)
+    }
+
+    /// [`Self::open`]; `obeys`: whether the node reads the stop and the mode (a node that
+    /// drives no actuator, such as a sensor or perception, does not take a reader's place on
+    /// those channels, and the runner sees neither: never stopped, never held).
+    pub fn open_with<I: Inputs, O: Outputs>(
+        context: &Context,
+        input_slots: &mut I,
+        output_slots: &mut O,
+        obeys: bool,
     ) -> Result<Self, IpcError> {
         let mut inputs = OpenInputs {
             context,
@@ -164,12 +266,28 @@ impl IpcTransport {
             ports: Vec::new(),
         };
         output_slots.visit(&mut outputs)?;
+        let (emergency_stop, operator_mode) = if obeys {
+            (
+                Some(context.subscriber(EMERGENCY_STOP)?),
+                Some(context.subscriber(OPERATOR_MODE)?),
+            )
+        } else {
+            (None, None)
+        };
         Ok(Self {
-            emergency_stop: context.subscriber(EMERGENCY_STOP)?,
-            operator_mode: context.subscriber(OPERATOR_MODE)?,
+            emergency_stop,
+            operator_mode,
             inputs: inputs.ports,
             outputs: outputs.ports,
         })
+    }
+
+    /// The subscriber of a declared input, by topic (to wake on its events).
+    pub(crate) fn input_port(&self, topic: &str) -> Option<Rc<dyn InputPort>> {
+        self.inputs
+            .iter()
+            .find(|port| port.topic() == topic)
+            .cloned()
     }
 }
 
@@ -177,19 +295,22 @@ impl Transport for IpcTransport {
     type Error = IpcError;
 
     fn emergency_stop(&mut self) -> Result<Option<bool>, IpcError> {
-        Ok(self
-            .emergency_stop
-            .receive_latest()?
-            .map(|stop| stop.engaged != 0))
+        let Some(stop) = &self.emergency_stop else {
+            return Ok(None);
+        };
+        Ok(stop.receive_latest()?.map(|stop| stop.engaged != 0))
     }
 
     fn operator_mode(&mut self) -> Result<Option<OperatorModeState>, IpcError> {
-        Ok(self.operator_mode.receive_latest()?.map(|mode| *mode))
+        let Some(mode) = &self.operator_mode else {
+            return Ok(None);
+        };
+        Ok(mode.receive_latest()?.map(|mode| *mode))
     }
 
     fn read_inputs<I: Inputs>(&mut self, inputs: &mut I) -> Result<(), IpcError> {
         inputs.visit(&mut Fill {
-            ports: &mut self.inputs,
+            ports: &self.inputs,
             index: 0,
         })
     }

@@ -64,6 +64,10 @@ enum Command {
     #[cfg(feature = "sim-tools")]
     #[command(subcommand)]
     Eval(EvalCommand),
+    /// Training data rendered by the simulator with exact labels.
+    #[cfg(feature = "sim-tools")]
+    #[command(subcommand)]
+    Dataset(DatasetCommand),
     /// Laser process: answers scan requests with the ALACS unit.
     Laser(harvest_laser_process::LaserArgs),
     /// LiDAR process: integrated point clouds of the solid-state LiDAR -> lidar/points.
@@ -97,7 +101,19 @@ enum Command {
     Executive(harvest_executive::ExecutiveArgs),
     /// Operator commands from the terminal: status, start, pause, resume, stop, estop,
     /// release, home, arm N enable|disable, jog, drop-off, platform, mark.
-    Ctl(harvest_executive::ctl::CtlArgs),
+    Ctl {
+        #[command(flatten)]
+        link: harvest_remote_process::link_session::LinkArgs,
+        #[command(flatten)]
+        args: harvest_executive::ctl::CtlArgs,
+    },
+    /// Remote link (on the robot): chosen channels to Zenoh under harvest/v1/<robot>/..., at
+    /// their rates and priorities; operator commands from the station answered by the
+    /// executive. Off the network unless given --listen/--connect or --link FILE.
+    Remote(harvest_remote_process::RemoteArgs),
+    /// Fleet page (on the station): every robot seen on the link with its mode, e-stop,
+    /// harvest and alarms (http://127.0.0.1:8090 by default).
+    Fleet(harvest_remote_process::fleet::FleetArgs),
     /// Operator console: the robot's camera view, status and control panels in a browser
     /// (http://127.0.0.1:8080 by default).
     Console(harvest_console::ConsoleArgs),
@@ -129,6 +145,28 @@ enum BenchCommand {
     /// The Livox Mid-70 driver (`harvest lidar --device livox`) against the fake device on
     /// loopback: rate, lost packets, CPU, latency, silence report and reconnection.
     LidarLivox(harvest_bench::BenchLidarLivoxArgs),
+    /// The recorder's camera video: H.264 encoding ms per 1920x1080 frame on one core, decoding,
+    /// bytes per frame, and the depth image's lossless PNG.
+    Video(harvest_bench::BenchVideoArgs),
+    /// The operator console (`harvest console`) in a running stack: CPU per push viewer,
+    /// capture to the image in Chromium, e-stop click to both arms braked under load (viewers
+    /// and half-open connections), memory with viewers coming and going.
+    Console(harvest_bench::BenchConsoleArgs),
+    /// The remote link with several robots (replayed domains) and one station: camera capture
+    /// to the station's screen, bandwidth per robot, command round trip, the station's CPU
+    /// per robot.
+    Remote(harvest_bench::BenchRemoteArgs),
+    /// The station of `harvest bench remote` (started by it).
+    #[command(hide = true)]
+    RemoteStation(harvest_bench::BenchRemoteStationArgs),
+}
+
+#[cfg(feature = "sim-tools")]
+#[derive(Debug, Subcommand)]
+enum DatasetCommand {
+    /// Domain-randomised colour frames resampled as the ONNX detector sees them, with YOLO
+    /// labels and per-apple visibility (for tools/detector_training/).
+    Detector(harvest_eval::detector_dataset::DetectorDatasetArgs),
 }
 
 #[cfg(feature = "sim-tools")]
@@ -179,6 +217,8 @@ impl Cli {
             #[cfg(feature = "sim-tools")]
             Command::Eval(_) => "eval",
             #[cfg(feature = "sim-tools")]
+            Command::Dataset(_) => "dataset",
+            #[cfg(feature = "sim-tools")]
             Command::Soak(_) => "soak",
             Command::Recorder(_) => "recorder",
             Command::Foxglove(_) => "foxglove",
@@ -192,7 +232,9 @@ impl Cli {
             Command::Monitor(_) => "monitor",
             Command::Channels => "channels",
             Command::Executive(_) => "executive",
-            Command::Ctl(_) => "ctl",
+            Command::Ctl { .. } => "ctl",
+            Command::Remote(_) => "remote",
+            Command::Fleet(_) => "fleet",
             Command::Console(_) => "console",
         }
         .to_owned()
@@ -240,6 +282,11 @@ impl Cli {
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Video(args)) => {
+                harvest_bench::run_bench_video(&args).context("video benchmark")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::Detector(args)) => {
                 harvest_bench::run_bench_detector(&args).context("detector benchmark")?;
                 Ok(ExitCode::SUCCESS)
@@ -247,6 +294,24 @@ impl Cli {
             #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::LidarLivox(args)) => {
                 harvest_bench::run_bench_lidar_livox(&args).context("lidar-livox benchmark")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Console(args)) => {
+                let report =
+                    harvest_bench::run_bench_console(&args).context("console benchmark")?;
+                print!("{}", report.render());
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::Remote(args)) => {
+                harvest_bench::run_bench_remote(&args).context("remote benchmark")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::RemoteStation(args)) => {
+                harvest_bench::run_bench_remote_station(&args)
+                    .context("remote benchmark station")?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
@@ -274,6 +339,19 @@ impl Cli {
             Command::Laser(args) => {
                 harvest_laser_process::process::run(&args, &domain, process_name)
                     .with_context(|| stack_process_context("laser process", &domain))?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Dataset(DatasetCommand::Detector(args)) => {
+                let summary = harvest_eval::detector_dataset::write_dataset(&args)
+                    .with_context(|| format!("detector data set in {}", args.out.display()))?;
+                println!(
+                    "{} images, {} labelled apples, {} barely visible (listed, not labelled) in {}",
+                    summary.images,
+                    summary.labelled_apples,
+                    summary.ignored_apples,
+                    args.out.display()
+                );
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
@@ -348,8 +426,18 @@ impl Cli {
                 harvest_executive::run(&args, &domain, process_name).context("executive")?;
                 Ok(ExitCode::SUCCESS)
             }
-            Command::Ctl(args) => {
-                Ok(harvest_executive::ctl::run(&args, &domain).context("harvest ctl")?)
+            Command::Ctl { link, args } => match &args.remote {
+                Some(robot) => ctl_remote(&args, &link, robot),
+                None => Ok(harvest_executive::ctl::run(&args, &domain).context("harvest ctl")?),
+            },
+            Command::Remote(args) => {
+                harvest_remote_process::run(&args, &domain, process_name)
+                    .with_context(|| stack_process_context("remote link", &domain))?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Fleet(args) => {
+                harvest_remote_process::fleet::run(&args).context("fleet page")?;
+                Ok(ExitCode::SUCCESS)
             }
             Command::Console(args) => {
                 harvest_console::run(&args, &domain, process_name).context("console")?;
@@ -421,4 +509,40 @@ fn clean(domain: &Domain, check: bool) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `harvest ctl --remote ROBOT ...`: the same commands over the link.
+fn ctl_remote(
+    args: &harvest_executive::ctl::CtlArgs,
+    link: &harvest_remote_process::link_session::LinkArgs,
+    robot: &str,
+) -> Result<ExitCode> {
+    use harvest_executive::ctl::{CtlCommand, control_token};
+    use harvest_remote_process::station_ctl::{self, Ask};
+    let robot = harvest_remote::RobotName::parse(robot)?;
+    let ask = match &args.command {
+        CtlCommand::Status { json } => Ask::Status { json: *json },
+        CtlCommand::Mark { .. } => {
+            anyhow::bail!("`mark` is kept on the robot: run `harvest ctl mark` there")
+        }
+        other => Ask::Command(
+            other
+                .to_command()
+                .context("a command that is not an operator command")?,
+        ),
+    };
+    let token = match ask {
+        Ask::Status { .. } => None,
+        Ask::Command(command) => match control_token(args, robot.as_str()) {
+            Ok(token) => Some(token),
+            // A stop needs no authority: without a (valid) token it is sent without one.
+            Err(error) if command == harvest_operator::Command::EmergencyStop => {
+                eprintln!("estop: no control token ({error}); sent without it (a stop needs none)");
+                None
+            }
+            Err(error) => return Err(error.into()),
+        },
+    };
+    let timeout = std::time::Duration::from_millis(args.timeout_ms);
+    Ok(station_ctl::run(robot, link, ask, token, timeout).context("harvest ctl --remote")?)
 }

@@ -8,7 +8,10 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+pub mod stack;
 pub mod webdriver;
+
+pub use stack::*;
 
 pub const HARVEST: &str = env!("CARGO_BIN_EXE_harvest");
 

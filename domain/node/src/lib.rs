@@ -31,14 +31,18 @@
 #![forbid(unsafe_code)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod in_place;
 pub mod in_process;
 pub mod node;
 pub mod ports;
+pub mod source;
 pub mod tick;
 pub mod transport;
 
+pub use in_place::{LatestInPlace, Loaned, SampleHolder};
 pub use in_process::{Bus, Schedule};
-pub use node::{Applied, Devices, Node, NodeTick};
+pub use node::{Applied, Devices, Node, NodeHealth, NodeTick};
 pub use ports::{Drain, Latest, Out};
+pub use source::{Capture, Source, SourceCounts, SourceError};
 pub use tick::{Runner, RunnerConfig, TickError};
 pub use transport::{InputVisitor, Inputs, OutputVisitor, Outputs, Transport};

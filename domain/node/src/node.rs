@@ -6,6 +6,8 @@
 //! `step` and `finish` do no I/O, read no clock (the time is [`NodeTick::now_ns`]) and, after
 //! the first ticks, allocate nothing.
 
+use harvest_hw::ErrorKind;
+use harvest_ipc::payloads::ProcessRunState;
 use harvest_robot_model::Obedience;
 
 /// What the runner tells the node about this tick.
@@ -22,6 +24,18 @@ pub struct NodeTick {
     pub device_fault: bool,
     /// What the operator's mode allows ([`harvest_robot_model::obedience`](mod@harvest_robot_model::obedience)).
     pub obedience: Obedience,
+}
+
+/// What a node's heartbeat says, when the node knows better than the runner (a node that
+/// owns a device driver itself, a node whose main figure is not its period).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NodeHealth {
+    pub state: ProcessRunState,
+    /// The one figure worth showing, and its value (e.g. `frame_age_ns`).
+    pub detail: &'static str,
+    pub value: u64,
+    /// The kind of a device error met since the previous heartbeat.
+    pub device_error: Option<ErrorKind>,
 }
 
 /// What became of the node's device commands this tick.
@@ -86,6 +100,12 @@ pub trait Node {
     /// What the heartbeat counts as the node's progress (its main channel's messages); `None`:
     /// the ticks.
     fn progress(&self) -> Option<u64> {
+        None
+    }
+
+    /// What the heartbeat says (asked once per heartbeat); `None`: the runner's run state
+    /// (degraded while a device exchange fails) and figure.
+    fn health(&mut self) -> Option<NodeHealth> {
         None
     }
 

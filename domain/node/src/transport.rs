@@ -6,6 +6,7 @@ use harvest_ipc::catalogue::Channel;
 use harvest_ipc::payload::Payload;
 use harvest_ipc::payloads::OperatorModeState;
 
+use crate::in_place::{LatestInPlace, Loaned};
 use crate::ports::{Drain, Latest, Out};
 
 /// Sees each input slot of a node with its channel.
@@ -23,6 +24,16 @@ pub trait InputVisitor {
         channel: Channel<T>,
         slot: &mut Drain<T>,
     ) -> Result<(), Self::Error>;
+    /// A channel of large messages read as its newest sample, in place (see
+    /// [`crate::in_place`]). Default, for a backend without shared memory: the slot stays
+    /// empty.
+    fn latest_in_place<T: Payload + 'static>(
+        &mut self,
+        _channel: Channel<T>,
+        _slot: &mut LatestInPlace<T>,
+    ) -> Result<(), Self::Error> {
+        Ok(())
+    }
 }
 
 /// Sees each output slot of a node with its channel.
@@ -33,6 +44,17 @@ pub trait OutputVisitor {
         channel: Channel<T>,
         slot: &mut Out<T>,
     ) -> Result<(), Self::Error>;
+    /// A channel of large messages written in place into a loaned sample (see
+    /// [`crate::in_place`]). Default, for a backend without shared memory: nothing to lend,
+    /// nothing sent.
+    fn loaned<T: Payload + 'static>(
+        &mut self,
+        _channel: Channel<T>,
+        slot: &mut Loaned<T>,
+    ) -> Result<(), Self::Error> {
+        let _ = slot.take_send::<()>();
+        Ok(())
+    }
 }
 
 /// A node's input struct: visits every slot, always in the same order.

@@ -2,13 +2,13 @@
 //! "joint": "theta", "delta": 0.05}`), turned into a [`Command`]. A request the console cannot
 //! turn into a command is refused by the console itself, with the words of [`RequestError`].
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::command::{Command, JointName};
 
-/// One request as posted.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+/// One request as posted (and as the remote link's station sends it inside its request).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CommandRequest {
     /// The command's name (`start`, `pause`, ..., as [`Command::name`] spells it).

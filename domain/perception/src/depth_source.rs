@@ -13,6 +13,12 @@
 //! cloud) are localized from the ToF depth and counted ([`FusedDepthCounters::tof_fallback_frames`]);
 //! their detections carry depth source code `Tof`, the fused ones `LidarFused` (the method code
 //! names the estimator in both).
+//!
+//! Frames from a colour-only camera (a GigE Vision camera: `RgbdFrameMeta::FLAG_COLOR_ONLY`) have
+//! no ToF depth: their depth grid is a pinhole view through the colour camera that the cloud is
+//! fused onto the same way, and until the first cloud they are refused
+//! ([`crate::pipeline::PerceptionSetupError::NoDepthSource`], counted in
+//! [`FusedDepthCounters::frames_without_depth`]).
 
 use crate::noise_model::DepthNoiseModel;
 use harvest_hw::lidar::LidarSpec;
@@ -89,6 +95,9 @@ pub struct FusedDepthCounters {
     pub clouds_rejected: u64,
     /// Frames localized from the ToF depth because no fused depth was available yet.
     pub tof_fallback_frames: u64,
+    /// Colour-only frames (no ToF depth to fall back on) that came before any fused depth:
+    /// perception refuses them.
+    pub frames_without_depth: u64,
 }
 
 /// The LiDAR-fused depth image, in the ToF depth image's geometry.
@@ -156,11 +165,16 @@ impl FusedDepth {
         Ok(stats)
     }
 
-    /// The fused depth image for a frame with geometry `meta`, or `None` (counted as a ToF
-    /// fallback frame) when no cloud has been fused for that geometry yet.
+    /// The fused depth image for a frame with geometry `meta`, or `None` when no cloud has
+    /// been fused for that geometry yet: counted as a ToF fallback frame, or, for a colour-only
+    /// frame (nothing to fall back on), as a frame without depth.
     pub fn depth_for(&mut self, meta: &RgbdFrameMeta) -> Option<&[u16]> {
         match &self.fusion {
             Some((built_for, _)) if self.valid && built_for == meta => Some(&self.depth_mm),
+            _ if meta.is_color_only() => {
+                self.counters.frames_without_depth += 1;
+                None
+            }
             _ => {
                 self.counters.tof_fallback_frames += 1;
                 None
@@ -310,5 +324,58 @@ mod tests {
                 .is_err()
         );
         assert_eq!(fused.counters().tof_fallback_frames, 1);
+    }
+
+    #[test]
+    fn a_colour_only_frame_is_refused_until_lidar_depth_is_fused_then_localized_from_it() {
+        let calibration = Calibration::parse(
+            include_str!("../../../sim/camera_calibration.toml"),
+            "sim/camera_calibration.toml",
+        )
+        .expect("calibration");
+        // A GigE camera's frame: the colour camera's view, its depth grid a pinhole through it.
+        let color = harvest_ipc::camera_model::CameraIntrinsics::tl460_rgb();
+        let cameras = CameraSetup {
+            color,
+            depth: harvest_hw::rgbd_camera::gige::fused_depth_grid(&color),
+            color_from_depth: RigidTransform::IDENTITY,
+            robot_from_camera: calibration.camera.robot_from_camera,
+        };
+        let mut frame = frame_without_tof_depth(&cameras);
+        frame.header.msg_seq = 7;
+        frame.meta.flags = RgbdFrameMeta::FLAG_COLOR_ONLY;
+        let camera_from_lidar = harvest_lidar::CAD_CAMERA_FROM_LIDAR;
+        let mut fused = FusedDepth::new(camera_from_lidar);
+        let mut node = PerceptionNode::new(PerceptionConfig::default(), calibration);
+        let mut out: Box<AppleDetections> = Box::default();
+
+        assert!(fused.depth_for(&frame.meta).is_none());
+        assert_eq!(fused.counters().frames_without_depth, 1);
+        assert_eq!(fused.counters().tof_fallback_frames, 0);
+        let refused = node
+            .process_with_depth(&frame, None, &mut out)
+            .expect_err("no depth source");
+        assert_eq!(
+            refused,
+            crate::pipeline::PerceptionSetupError::NoDepthSource { frame_seq: 7 }
+        );
+        assert!(refused.to_string().contains("lidar-fused"), "{refused}");
+        assert_eq!(node.frames_rejected(), 1);
+        assert!(out.apples.is_empty());
+
+        fused
+            .update(&frame.meta, &synthetic_cloud(&camera_from_lidar))
+            .expect("fuse");
+        let depth = fused.depth_for(&frame.meta).expect("fused depth");
+        node.process_with_depth(&frame, Some(depth), &mut out)
+            .expect("process");
+        assert_eq!(out.apples.len(), 1, "{:?}", out.apples);
+        let apple = *out.apples.iter().next().expect("one apple");
+        assert_eq!(apple.depth_source, DepthSourceCode::LidarFused);
+        let error_m = (0..3)
+            .map(|k| (apple.position_in_camera_m[k] - APPLE_CENTRE_M[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(error_m < 0.01, "error {error_m} m at {apple:?}");
     }
 }

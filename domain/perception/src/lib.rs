@@ -43,6 +43,7 @@ pub mod registration;
 pub mod scan_policy;
 pub mod stats;
 pub mod synthetic;
+pub mod task;
 pub mod timing;
 
 pub use camera_setup::CameraSetup;

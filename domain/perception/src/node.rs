@@ -125,7 +125,9 @@ impl PerceptionNode {
     /// image: the same layout (the frame's depth intrinsics, millimetres, 0 = no return), e.g.
     /// the LiDAR-fused depth of [`crate::depth_source::FusedDepth`]. Apples localized from an
     /// override are published with depth source `LidarFused` (laser-refined ones `LaserLine`).
-    /// An override of another size rejects the frame.
+    /// An override of another size rejects the frame, and so does a colour-only frame
+    /// (`RgbdFrameMeta::FLAG_COLOR_ONLY`) without an override: it has no depth of its own
+    /// ([`PerceptionSetupError::NoDepthSource`]).
     pub fn process_with_depth(
         &mut self,
         frame: &RgbdFrame,
@@ -138,6 +140,12 @@ impl PerceptionNode {
         out.apples.clear();
         self.refiner.clear_requests();
         self.frames_processed += 1;
+        if depth_mm_override.is_none() && frame.meta.is_color_only() {
+            self.frames_rejected += 1;
+            return Err(PerceptionSetupError::NoDepthSource {
+                frame_seq: frame.header.msg_seq,
+            });
+        }
         if let Some(depth) = depth_mm_override
             && depth.len() != frame.depth_mm.len()
         {

@@ -65,7 +65,7 @@ pub struct ExportReport {
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
     /// Neither `--png` nor `--foxglove` was given.
-    #[error("nothing to export: give --png DIR and/or --foxglove OUT.mcap")]
+    #[error("nothing to export: give --png DIR, --foxglove OUT.mcap and/or --ros2 OUT")]
     NothingRequested,
     /// The output would overwrite the input.
     #[error("the export {0} would overwrite its input")]
@@ -89,7 +89,20 @@ enum TopicDecoder {
     },
     /// A mapped channel the input already holds (made again at full rate).
     MappedOutput,
+    /// A channel in an encoding Foxglove reads (JSON, protobuf: the recorder's events, the
+    /// camera video), copied as it is.
+    AsIs,
     Skip,
+}
+
+/// True for a recorded channel that is not a catalogue payload but already in an encoding
+/// Foxglove displays (the recorder's `recorder/events` JSON, the `camera/video` protobuf).
+fn readable_as_is(channel: &mcap::Channel<'_>) -> bool {
+    matches!(channel.message_encoding.as_str(), "json" | "protobuf")
+        && channel
+            .schema
+            .as_ref()
+            .is_some_and(|schema| matches!(schema.encoding.as_str(), "jsonschema" | "protobuf"))
 }
 
 /// Exports `path` as `options` asks.
@@ -165,6 +178,13 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
                         ) {
                             return TopicDecoder::MappedOutput;
                         }
+                        if readable_as_is(channel) {
+                            return if foxglove.is_some() {
+                                TopicDecoder::AsIs
+                            } else {
+                                TopicDecoder::Skip
+                            };
+                        }
                         match json_decoder(schema) {
                             SchemaMatch::Known(decoder) if foxglove.is_some() => {
                                 TopicDecoder::Json {
@@ -184,6 +204,12 @@ pub fn export(path: &Path, options: &ExportOptions) -> Result<ExportReport, Expo
                     let (log_time, publish_time) = (message.log_time, message.publish_time);
                     match decoder {
                         TopicDecoder::MappedOutput => Ok(()),
+                        TopicDecoder::AsIs => match foxglove.as_mut() {
+                            Some(writer) => {
+                                writer.write_as_is(channel, log_time, publish_time, message.data)
+                            }
+                            None => Ok(()),
+                        },
                         TopicDecoder::Skip => {
                             if let Some((count, _)) = report.skipped.get_mut(&channel.topic) {
                                 *count += 1;

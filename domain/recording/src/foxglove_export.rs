@@ -7,6 +7,8 @@
 //! - every catalogue message also keeps its JSON view on its own topic (`message_encoding =
 //!   json`, schema inferred), so every field stays plottable; frames' JSON views are their
 //!   metadata only.
+//! - channels already in an encoding Foxglove reads (the recorder's `recorder/events` JSON, the
+//!   continuous record's `camera/video` H.264) are copied as they are.
 //!
 //! Stamps are converted to UTC with the recording's `harvest.clock` record when it has one; the
 //! camera's mounting comes from its `harvest.calibration` record.
@@ -208,6 +210,47 @@ impl FoxgloveWriter {
         };
         self.output.buffer.clear();
         serde_json::to_writer(&mut self.output.buffer, value).map_err(|error| error.to_string())?;
+        let (log_time_ns, publish_time_ns) = (self.stamp(log_time_ns), self.stamp(publish_time_ns));
+        self.output.write(id, log_time_ns, publish_time_ns)
+    }
+
+    /// Copies a message of a channel Foxglove reads as it is (JSON or protobuf with its schema:
+    /// the recorder's events, the camera video), its log and publish times on the output's UTC
+    /// time base.
+    pub fn write_as_is(
+        &mut self,
+        channel: &mcap::Channel<'_>,
+        log_time_ns: u64,
+        publish_time_ns: u64,
+        data: &[u8],
+    ) -> Result<(), String> {
+        let id = match self.output.channels.get(&channel.topic) {
+            Some(id) => *id,
+            None => {
+                let schema_id = match &channel.schema {
+                    Some(schema) => self
+                        .output
+                        .writer
+                        .add_schema(&schema.name, &schema.encoding, &schema.data)
+                        .map_err(mcap_text)?,
+                    None => 0,
+                };
+                let id = self
+                    .output
+                    .writer
+                    .add_channel(
+                        schema_id,
+                        &channel.topic,
+                        &channel.message_encoding,
+                        &channel.metadata,
+                    )
+                    .map_err(mcap_text)?;
+                self.output.channels.insert(channel.topic.clone(), id);
+                id
+            }
+        };
+        self.output.buffer.clear();
+        self.output.buffer.extend_from_slice(data);
         let (log_time_ns, publish_time_ns) = (self.stamp(log_time_ns), self.stamp(publish_time_ns));
         self.output.write(id, log_time_ns, publish_time_ns)
     }

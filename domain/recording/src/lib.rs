@@ -9,12 +9,14 @@
 //!
 //! Writing: [`segment_writer`]; [`seal`] ends a file whose writing failed. Reading damaged files as far as they are valid: [`scan`],
 //! [`recording_file`]; [`recover`] rewrites what is valid. Tools' back ends: [`rec_info`],
-//! [`rec_cat`], [`export`] (JSON, PNG, Foxglove). Users: the recorder process, `harvest rec`,
+//! [`rec_cat`], [`export`] (JSON, PNG, Foxglove), [`ros2_export`] (rosbag2). Users: the recorder process, `harvest rec`,
 //! `harvest replay` and `harvest monitor --recording`.
 
 #![forbid(unsafe_code)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod annexb;
+pub mod camera_record;
 pub mod clip_list;
 pub mod export;
 pub mod flight_ring;
@@ -30,6 +32,7 @@ pub mod record_lengths;
 pub mod recorded_events;
 pub mod recording_file;
 pub mod recover;
+pub mod ros2_export;
 pub mod scan;
 pub mod schema;
 pub mod seal;
@@ -38,4 +41,5 @@ pub mod time_base;
 pub mod time_window;
 pub mod topic_filter;
 pub mod units;
+pub mod video_codec;
 pub mod wall_clock;

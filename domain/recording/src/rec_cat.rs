@@ -5,6 +5,7 @@
 //! payload's `to_json` view. Messages of unknown schemas or of another payload version are
 //! skipped with one warning per topic.
 
+use crate::camera_record::camera_json;
 use crate::foxglove_export::FoxgloveWriter;
 use crate::payload_codec::{JsonDecoder, SchemaMatch, json_decoder};
 use crate::recorded_events::EVENTS_TOPIC;
@@ -94,7 +95,9 @@ pub fn cat(path: &Path, options: &CatOptions, out: &mut dyn Write) -> Result<Cat
             // The recorder's events channel (JSON) prints as it is.
             let json_value = (channel.topic == EVENTS_TOPIC && channel.message_encoding == "json")
                 .then(|| serde_json::from_slice::<serde_json::Value>(message.data).ok())
-                .flatten();
+                .flatten()
+                // The continuous record's camera video and depth: a summary of each.
+                .or_else(|| camera_json(&channel.topic, message.data));
             let decoder = decoders.entry(channel.id).or_insert_with(|| match &json_value {
             Some(_) => None,
             None => match json_decoder(schema) {

@@ -5,6 +5,10 @@
 //!   declares them (the TL460's 1920x1080 / 640x480 by default), consistent with the buffers,
 //!   and a registration that is a rigid transform between sensors a few centimetres apart;
 //! - depth pixels are 0 (no return) or within the working range widened by the spec's noise;
+//!   a colour-only camera (a GigE Vision camera: [`CameraConformanceConfig::color_only`]) says
+//!   so in every frame (`RgbdFrameMeta::FLAG_COLOR_ONLY`) and leaves every depth pixel 0, and a
+//!   ToF camera never sets that flag;
+//! - the colour image has content (not one value everywhere);
 //! - capture stamps strictly increase from frame to frame;
 //! - a camera that delivers nothing returns `Ok(false)` at its timeout and leaves the caller's
 //!   buffer untouched.
@@ -46,6 +50,8 @@ pub struct CameraConformanceConfig {
     pub capture_timeout: Duration,
     /// Capture timeout used on the silent camera.
     pub silent_timeout: Duration,
+    /// The camera has no depth sensor: frames are flagged colour only and carry no depth.
+    pub color_only: bool,
 }
 
 impl CameraConformanceConfig {
@@ -66,6 +72,20 @@ impl CameraConformanceConfig {
             frames: 4,
             capture_timeout: Duration::from_secs(10),
             silent_timeout: Duration::from_millis(100),
+            color_only: false,
+        }
+    }
+
+    /// A colour-only camera with the declared colour intrinsics: its depth grid is the one
+    /// perception lays the LiDAR's depth on ([`crate::rgbd_camera::gige::fused_depth_grid`]),
+    /// registered by the identity.
+    pub fn color_only(rgb_intrinsics: CameraIntrinsics) -> Self {
+        Self {
+            rgb_intrinsics,
+            depth_intrinsics: crate::rgbd_camera::gige::fused_depth_grid(&rgb_intrinsics),
+            max_baseline_m: 0.0,
+            color_only: true,
+            ..Self::tl460()
         }
     }
 }
@@ -182,6 +202,20 @@ fn check_geometry<C: RgbdCamera>(
             ));
         }
     }
+    if meta.is_color_only() != config.color_only {
+        return Err(violated(
+            CHECK,
+            format!(
+                "frame flagged colour only: {}, the camera is declared {}",
+                meta.is_color_only(),
+                if config.color_only {
+                    "colour only"
+                } else {
+                    "with depth"
+                }
+            ),
+        ));
+    }
     intrinsics_sane("colour", &meta.rgb_intrinsics, RGB_WIDTH_PX, RGB_HEIGHT_PX)
         .and_then(|()| {
             intrinsics_sane(
@@ -215,6 +249,33 @@ fn check_stream<C: RgbdCamera>(
             ));
         }
         last_stamp_ns = Some(stamp_ns);
+        if frame.rgb.iter().all(|&byte| byte == frame.rgb[0]) {
+            return Err(violated(
+                CHECK,
+                format!(
+                    "frame {index}: the colour image is {} everywhere",
+                    frame.rgb[0]
+                ),
+            ));
+        }
+        if config.color_only {
+            if !frame.meta.is_color_only() {
+                return Err(violated(
+                    CHECK,
+                    format!("frame {index} of a colour-only camera is not flagged so"),
+                ));
+            }
+            if let Some(pixel) = frame.depth_mm.iter().position(|&depth_mm| depth_mm != 0) {
+                return Err(violated(
+                    CHECK,
+                    format!(
+                        "frame {index} of a colour-only camera has depth {} mm at pixel {pixel}",
+                        frame.depth_mm[pixel]
+                    ),
+                ));
+            }
+            continue;
+        }
         let mut returns = 0usize;
         for (pixel, &depth_mm) in frame.depth_mm.iter().enumerate() {
             if depth_mm == 0 {
@@ -344,6 +405,7 @@ mod tests {
             if self.flaw == Flaw::WrongIntrinsics {
                 frame.meta.rgb_intrinsics = CameraIntrinsics::tl460_depth();
             }
+            frame.rgb[1] = 9;
             frame.depth_mm.fill(1500);
             frame.depth_mm[0] = 0;
             if self.flaw == Flaw::DepthTooClose {
@@ -387,6 +449,25 @@ mod tests {
         );
         assert_eq!(failed_check(Flaw::WrongIntrinsics), "geometry_as_declared");
         assert_eq!(failed_check(Flaw::WritesOnTimeout), "timeout_without_frame");
+    }
+
+    #[test]
+    fn a_tof_camera_declared_colour_only_fails_the_geometry_check() {
+        let camera = |silent| FakeCamera {
+            silent,
+            stamp_ns: 0,
+            flaw: Flaw::None,
+        };
+        let mut config = CameraConformanceConfig::color_only(CameraIntrinsics::tl460_rgb());
+        config.depth_intrinsics = CameraIntrinsics::tl460_depth();
+        config.max_baseline_m = 0.1;
+        match conformance_suite(&config, || camera(false), || camera(true)) {
+            Err(ConformanceError::Violated { check, detail }) => {
+                assert_eq!(check, "geometry_as_declared");
+                assert!(detail.contains("colour only"), "{detail}");
+            }
+            other => panic!("expected a violation, got {other:?}"),
+        }
     }
 
     #[test]

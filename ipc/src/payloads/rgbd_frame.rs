@@ -36,13 +36,24 @@ pub struct RgbdFrameMeta {
     pub color_from_depth: RigidTransform,
     /// Exposure time of the colour image, microseconds.
     pub exposure_us: u32,
-    /// Bit 0: the driver saw saturated (over-exposed) regions.
+    /// Bit 0: the driver saw saturated (over-exposed) regions. Bit 1: the frame is colour only
+    /// ([`Self::FLAG_COLOR_ONLY`]).
     pub flags: u32,
 }
 
 impl RgbdFrameMeta {
     /// Bit of [`Self::flags`]: saturated regions were seen.
     pub const FLAG_OVER_EXPOSED: u32 = 1;
+    /// Bit of [`Self::flags`]: the frame is colour only (a camera without a depth sensor, e.g. a
+    /// GigE Vision camera). `depth_mm` holds no measurement (all 0, which must not be read as
+    /// "no return"); `depth_intrinsics` is the grid on which a depth image from another sensor
+    /// (the LiDAR) is laid, and `color_from_depth` maps that grid's frame to the colour camera's.
+    pub const FLAG_COLOR_ONLY: u32 = 2;
+
+    /// Whether the frame carries no depth measurement of its own ([`Self::FLAG_COLOR_ONLY`]).
+    pub fn is_color_only(&self) -> bool {
+        self.flags & Self::FLAG_COLOR_ONLY != 0
+    }
 }
 
 impl Default for RgbdFrameMeta {

@@ -1,15 +1,23 @@
-//! `harvest camera`: device -> `camera/rgbd`.
+//! `harvest camera`: camera device -> `camera/rgbd`.
 //!
-//! The loop blocks in the device's capture call (the device paces it; a timeout only serves the
-//! heartbeat and shutdown), writes each frame straight into a loaned sample and sends it.
+//! The camera is a [`Source`] node on the runtime ([`run_on_wake`], [`Wake::Device`]): the
+//! device paces it; each tick's capture blocks in the driver (event-driven; a timeout only
+//! serves the heartbeat and shutdown) and writes the frame straight into a loaned
+//! `camera/rgbd` sample, which the runtime sends. More than [`MAX_FAILURES_IN_A_ROW`] failed
+//! captures in a row end the process (the supervisor restarts it); each is reported by kind.
 
-use harvest_hw::rgbd_camera::RgbdCamera;
+use std::time::Duration;
+
+use harvest_hw::AnyDeviceError;
 use harvest_hw::rgbd_camera::sim::SimRgbdCamera;
-use harvest_hw::{AnyDeviceError, DeviceError};
 use harvest_ipc::catalogue::CAMERA_RGBD;
-use harvest_ipc::payloads::ProcessRunState;
-use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD, HealthReporter};
-use std::time::Instant;
+use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD};
+use harvest_node::{Capture, RunnerConfig, Source};
+use harvest_robot_model::ModeSource;
+use harvest_runtime::{RunError, Wake, WakeOptions, run_on_wake};
+
+/// Captures failing in a row after which the process stops (and is restarted).
+pub const MAX_FAILURES_IN_A_ROW: u32 = 10;
 
 /// Which camera device to drive (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -32,19 +40,18 @@ pub enum CameraError {
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
-    /// The camera driver failed (opening it, or too many captures in a row); the source keeps the
-    /// driver's error kind.
+    /// The camera driver could not be opened; the source keeps the driver's error kind.
     #[error("camera device: {0}")]
     Device(#[source] AnyDeviceError),
-    #[error("installing signal handler: {0}")]
-    Signal(#[from] std::io::Error),
+    /// The run ended on an error (transport, too many failed captures in a row).
+    #[error(transparent)]
+    Run(#[from] RunError),
 }
 
 harvest_ipc::from_ipc_errors!(CameraError);
 
 /// Runs the camera process until SIGINT/SIGTERM.
 pub fn run(args: &CameraArgs, domain: &Domain, process_name: &str) -> Result<(), CameraError> {
-    harvest_ipc::termination::install_handler()?;
     let context = Context::new(domain, process_name)?;
     let camera = match args.device {
         CameraDevice::Sim => SimRgbdCamera::connect(&context)
@@ -53,58 +60,33 @@ pub fn run(args: &CameraArgs, domain: &Domain, process_name: &str) -> Result<(),
     stream(&context, camera, args)
 }
 
-fn stream<C: RgbdCamera>(
+/// Streams `camera` on `camera/rgbd` until SIGINT/SIGTERM or an error.
+pub fn stream<C: Capture<harvest_ipc::payloads::RgbdFrame>>(
     context: &Context,
-    mut camera: C,
+    camera: C,
     args: &CameraArgs,
 ) -> Result<(), CameraError> {
-    let mut frames = context.publisher(CAMERA_RGBD)?;
-    let mut health = HealthReporter::new(context)?;
-    let timeout = HEARTBEAT_PERIOD / 2;
-    let mut next_heartbeat = Instant::now();
-    let mut loan = None;
-    let mut consecutive_errors = 0u32;
+    let timeout: Duration = HEARTBEAT_PERIOD / 2;
+    let source = Source::new(
+        "camera",
+        CAMERA_RGBD,
+        camera,
+        timeout,
+        MAX_FAILURES_IN_A_ROW,
+    );
+    let options = WakeOptions {
+        wake: Wake::Device,
+        runner: RunnerConfig {
+            max_read_failures: MAX_FAILURES_IN_A_ROW,
+            mode_source: ModeSource::WithoutOperator,
+        },
+        obeys: false,
+        stop: None,
+    };
     tracing::info!(rate_hz = args.rate_hz, device = ?args.device, "camera streaming");
-    while !harvest_ipc::termination::requested() {
-        let mut frame = match loan.take() {
-            Some(frame) => frame,
-            None => frames.loan()?,
-        };
-        match camera.capture_into(&mut frame, timeout) {
-            Ok(true) => {
-                consecutive_errors = 0;
-                let msg_seq = frames.send(frame)?;
-                tracing::trace!(msg_seq, "frame published");
-            }
-            Ok(false) => loan = Some(frame),
-            Err(error) => {
-                consecutive_errors += 1;
-                let kind = error.kind();
-                tracing::warn!(%error, %kind, "capture failed");
-                health.note_device_error(kind.into());
-                if consecutive_errors > 10 {
-                    return Err(CameraError::Device(AnyDeviceError::new(error)));
-                }
-                loan = Some(frame);
-            }
-        }
-        if Instant::now() >= next_heartbeat {
-            next_heartbeat += HEARTBEAT_PERIOD;
-            let state = if consecutive_errors > 0 {
-                ProcessRunState::Degraded
-            } else if frames.last_seq() == 0 {
-                ProcessRunState::Starting
-            } else {
-                ProcessRunState::Running
-            };
-            health.report(
-                state,
-                frames.last_seq(),
-                "device_errors",
-                u64::from(consecutive_errors),
-            )?;
-        }
-    }
-    tracing::info!(frames = frames.last_seq(), "camera stopped");
+    let finished = run_on_wake(context, source, (), options)?;
+    let sent = finished.runner.node().counts().sent;
+    finished.result?;
+    tracing::info!(frames = sent, "camera stopped");
     Ok(())
 }

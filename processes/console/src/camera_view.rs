@@ -5,9 +5,12 @@
 //! arrives); a timer at the view rate catches a frame whose event came too early. The camera never waits for it: the channel drops the oldest frame for a subscriber
 //! that is behind (safe overflow), and this subscriber keeps a one-frame buffer.
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
+
+use bytes::Bytes;
+use tokio::sync::watch;
 
 use harvest_ipc::catalogue::CAMERA_RGBD;
 use harvest_ipc::payloads::rgbd_frame::{RGB_HEIGHT_PX, RGB_WIDTH_PX};
@@ -20,7 +23,8 @@ use crate::error::ConsoleError;
 /// One encoded view.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EncodedFrame {
-    pub jpeg: Arc<[u8]>,
+    /// The view as it is pushed to the pages ([`push_message`]): the header, then the JPEG.
+    pub message: Bytes,
     /// Counts views encoded by this console (1, 2, ...).
     pub view_seq: u64,
     /// The camera frame's `msg_seq` and `capture_ns`.
@@ -32,49 +36,93 @@ pub struct EncodedFrame {
     pub height_px: u32,
     /// Camera pixels per view pixel.
     pub scale: u32,
+    /// Where the JPEG starts in `message`.
+    jpeg_offset: usize,
 }
 
-/// The newest view, shared with the HTTP threads.
-#[derive(Debug, Default)]
+impl EncodedFrame {
+    /// Builds the frame around `jpeg` (one copy, into the pushed message).
+    pub fn new(
+        jpeg: &[u8],
+        view_seq: u64,
+        frame_seq: u64,
+        capture_ns: u64,
+        encoded_ns: u64,
+        (width_px, height_px): (u32, u32),
+        scale: u32,
+    ) -> Self {
+        let header = serde_json::json!({
+            "view_seq": view_seq,
+            "frame_seq": frame_seq,
+            "capture_ns": capture_ns,
+            "encoded_ns": encoded_ns,
+            "width_px": width_px,
+            "height_px": height_px,
+            "scale": scale,
+        })
+        .to_string();
+        let (message, jpeg_offset) = push_message(header.as_bytes(), jpeg);
+        Self {
+            message,
+            view_seq,
+            frame_seq,
+            capture_ns,
+            encoded_ns,
+            width_px,
+            height_px,
+            scale,
+            jpeg_offset,
+        }
+    }
+
+    /// The JPEG (shares the message's bytes).
+    pub fn jpeg(&self) -> Bytes {
+        self.message.slice(self.jpeg_offset..)
+    }
+}
+
+/// A pushed view: the header's length (u32, little-endian), the header (JSON), the JPEG.
+/// Returns the message and where the JPEG starts.
+pub fn push_message(header: &[u8], jpeg: &[u8]) -> (Bytes, usize) {
+    let mut message = Vec::with_capacity(4 + header.len() + jpeg.len());
+    message.extend_from_slice(&(header.len() as u32).to_le_bytes());
+    message.extend_from_slice(header);
+    let offset = message.len();
+    message.extend_from_slice(jpeg);
+    (Bytes::from(message), offset)
+}
+
+/// The newest view, shared with the server: each page's push connection watches it and
+/// sends the newest one when it can (a slow page skips views; nothing queues).
+#[derive(Debug)]
 pub struct CameraView {
-    latest: Mutex<Option<Arc<EncodedFrame>>>,
-    fresh: Condvar,
+    latest: watch::Sender<Option<Arc<EncodedFrame>>>,
     /// Time spent downscaling and encoding, ns (for the status panel).
     pub work_ns: AtomicU64,
+}
+
+impl Default for CameraView {
+    fn default() -> Self {
+        Self {
+            latest: watch::Sender::new(None),
+            work_ns: AtomicU64::new(0),
+        }
+    }
 }
 
 impl CameraView {
     /// The newest view.
     pub fn latest(&self) -> Option<Arc<EncodedFrame>> {
-        self.latest
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner())
-            .clone()
+        self.latest.borrow().clone()
     }
 
-    /// A view newer than `after_seq`, waiting up to `timeout`; else the newest (or none).
-    pub fn wait_newer(&self, after_seq: u64, timeout: Duration) -> Option<Arc<EncodedFrame>> {
-        let guard = self
-            .latest
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
-        let (guard, _) = self
-            .fresh
-            .wait_timeout_while(guard, timeout, |latest| {
-                latest
-                    .as_ref()
-                    .is_none_or(|frame| frame.view_seq <= after_seq)
-            })
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
-        guard.clone()
+    /// A receiver that sees each newer view (only the newest one when several came in between).
+    pub fn subscribe(&self) -> watch::Receiver<Option<Arc<EncodedFrame>>> {
+        self.latest.subscribe()
     }
 
     fn publish(&self, frame: EncodedFrame) {
-        *self
-            .latest
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner()) = Some(Arc::new(frame));
-        self.fresh.notify_all();
+        self.latest.send_replace(Some(Arc::new(frame)));
     }
 }
 
@@ -172,16 +220,15 @@ pub fn run_camera_view(
             view.work_ns
                 .fetch_add(encoded_ns.saturating_sub(started_ns), Ordering::Relaxed);
             view_seq += 1;
-            view.publish(EncodedFrame {
-                jpeg: Arc::from(jpeg.as_slice()),
+            view.publish(EncodedFrame::new(
+                &jpeg,
                 view_seq,
-                frame_seq: id.0,
-                capture_ns: id.1,
+                id.0,
+                id.1,
                 encoded_ns,
-                width_px: width as u32,
-                height_px: height as u32,
-                scale: scale as u32,
-            });
+                (width as u32, height as u32),
+                scale as u32,
+            ));
             tracing::trace!(view_seq, bytes = jpeg.len(), "camera view encoded");
             Ok(Flow::Continue)
         })
@@ -213,33 +260,30 @@ mod tests {
     }
 
     #[test]
-    fn a_view_encodes_as_jpeg_and_waiters_see_the_newer_one() {
+    fn a_view_encodes_as_jpeg_and_watchers_see_only_the_newest() {
         let rgb = vec![128u8; 64 * 32 * 3];
         let mut jpeg = Vec::new();
         encode_jpeg(&rgb, 64, 32, 70, &mut jpeg).expect("encode");
         assert_eq!(&jpeg[..2], &[0xff, 0xd8]);
         let view = CameraView::default();
-        assert!(view.wait_newer(0, Duration::from_millis(1)).is_none());
-        view.publish(EncodedFrame {
-            jpeg: Arc::from(jpeg.as_slice()),
-            view_seq: 1,
-            frame_seq: 7,
-            capture_ns: 9,
-            encoded_ns: 10,
-            width_px: 64,
-            height_px: 32,
-            scale: 1,
-        });
-        assert_eq!(
-            view.wait_newer(0, Duration::from_millis(1))
-                .map(|f| f.view_seq),
-            Some(1)
-        );
-        // Nothing newer than 1: the wait times out and returns the newest.
-        assert_eq!(
-            view.wait_newer(1, Duration::from_millis(5))
-                .map(|f| f.view_seq),
-            Some(1)
-        );
+        let mut watcher = view.subscribe();
+        assert!(view.latest().is_none());
+        for seq in 1..=3 {
+            view.publish(EncodedFrame::new(&jpeg, seq, 7 + seq, 9, 10, (64, 32), 1));
+        }
+        // Three views published, one change seen: the newest.
+        assert!(watcher.has_changed().expect("open"));
+        let seen = watcher.borrow_and_update().clone().expect("a view");
+        assert_eq!(seen.view_seq, 3);
+        assert!(!watcher.has_changed().expect("open"));
+        // The pushed message: header length, JSON header, the JPEG.
+        let message = &seen.message;
+        let length = u32::from_le_bytes(message[..4].try_into().expect("4 bytes")) as usize;
+        let header: serde_json::Value =
+            serde_json::from_slice(&message[4..4 + length]).expect("json header");
+        assert_eq!(header["view_seq"], 3);
+        assert_eq!(header["frame_seq"], 10);
+        assert_eq!(&message[4 + length..], &jpeg[..]);
+        assert_eq!(&seen.jpeg()[..], &jpeg[..]);
     }
 }

@@ -18,6 +18,7 @@ use harvest_ipc::operator_client::OperatorClient;
 use harvest_ipc::payloads::{OperatorAck, OperatorCommand};
 use harvest_ipc::{Context, Domain};
 use serde_json::{Value, json};
+use tokio::sync::oneshot;
 
 use crate::error::ConsoleError;
 
@@ -58,7 +59,7 @@ impl LaneState {
 
 struct Job {
     message: OperatorCommand,
-    reply: mpsc::Sender<LaneAnswer>,
+    reply: oneshot::Sender<LaneAnswer>,
 }
 
 /// One lane (module docs).
@@ -101,19 +102,17 @@ impl Lane {
         ))
     }
 
-    /// Hands `message` to the lane; the answer comes on the returned receiver.
-    pub fn submit(&self, message: OperatorCommand) -> mpsc::Receiver<LaneAnswer> {
-        let (reply, answer) = mpsc::channel();
+    /// Hands `message` to the lane; the answer comes on the returned receiver (awaited by the
+    /// server's tasks; the lane's thread does the blocking wait).
+    pub fn submit(&self, message: OperatorCommand) -> oneshot::Receiver<LaneAnswer> {
+        let (reply, answer) = oneshot::channel();
         let sent = self
             .jobs
             .lock()
             .unwrap_or_else(|p| p.into_inner())
-            .send(Job {
-                message,
-                reply: reply.clone(),
-            });
-        if sent.is_err() {
-            let _ = reply.send(LaneAnswer::Unreachable(format!(
+            .send(Job { message, reply });
+        if let Err(mpsc::SendError(job)) = sent {
+            let _ = job.reply.send(LaneAnswer::Unreachable(format!(
                 "the console's {} lane has ended",
                 self.name
             )));

@@ -41,6 +41,11 @@ pub struct CtlArgs {
     /// How long to wait for the executive's answer, ms.
     #[arg(long, global = true, default_value_t = 2000)]
     pub timeout_ms: u64,
+    /// Command ROBOT over the Zenoh link (`harvest remote` on the robot) instead of the stack
+    /// of this machine's domain; the token file then defaults to `<ROBOT>.token` in the token
+    /// directory. With `--link FILE`, `--connect ENDPOINT` (default `tcp/127.0.0.1:7447`).
+    #[arg(long, global = true, value_name = "ROBOT")]
+    pub remote: Option<String>,
     #[command(subcommand)]
     pub command: CtlCommand,
 }
@@ -153,7 +158,8 @@ const HEARTBEAT_PERIOD: Duration = Duration::from_millis(100);
 const PLATFORM_MAX_WAIT: Duration = Duration::from_secs(60);
 
 impl CtlCommand {
-    fn to_command(&self) -> Option<Command> {
+    /// The operator command, `None` for `status` and `mark` (no command).
+    pub fn to_command(&self) -> Option<Command> {
         Some(match *self {
             Self::Status { .. } | Self::Mark { .. } => return None,
             Self::Start => Command::Start,
@@ -197,15 +203,16 @@ fn client_label() -> String {
     format!("ctl {user}")
 }
 
-/// The control token: `--token`, else the token file.
-fn control_token(args: &CtlArgs, domain: &Domain) -> Result<ControlToken, TokenError> {
+/// The control token: `--token`, else the token file (default: `token_name`'s, the domain's
+/// or, with `--remote`, the robot's).
+pub fn control_token(args: &CtlArgs, token_name: &str) -> Result<ControlToken, TokenError> {
     match &args.token {
         Some(text) => ControlToken::parse(text, "--token"),
         None => {
             let path = args
                 .token_file
                 .clone()
-                .unwrap_or_else(|| token_path(domain.name()));
+                .unwrap_or_else(|| token_path(token_name));
             read_token_file(&path)
         }
     }
@@ -222,7 +229,7 @@ pub fn run(args: &CtlArgs, domain: &Domain) -> Result<ExitCode, CtlError> {
             _ => Ok(ExitCode::SUCCESS),
         };
     };
-    let token = match (control_token(args, domain), command) {
+    let token = match (control_token(args, domain.name()), command) {
         (Ok(token), _) => token.as_str().to_owned(),
         // A stop needs no authority: without a (valid) token it is sent without one.
         (Err(error), Command::EmergencyStop) => {

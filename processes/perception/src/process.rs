@@ -1,49 +1,44 @@
 //! `harvest perception`: `camera/rgbd` -> `perception/apples`.
 //!
-//! Event-driven: the wait set wakes on each frame; the frame is read in place in shared memory
-//! and the detections are written in place into a loaned sample. Only the newest frame is
-//! processed when several are queued: a slow detector (a learned model on a CPU) costs skipped
-//! frames, never a queue. Each processed frame's age (capture to start of processing) and the
-//! camera frames skipped before it are tracked ([`FreshnessTracker`]): per frame at TRACE, the
-//! last age in the heartbeat (`frame_age_ns`), the totals when the process stops.
+//! [`PerceptionTask`] (`harvest_perception::task`: the per-frame work, the newest frame only,
+//! read and written in place) on the runtime, woken by each frame's event on `camera/rgbd`
+//! ([`Wake::Input`]). This file wires the arguments into it.
 //!
 //! Detector (`[detector]` in the config, or `--detector` / `--model`): built before the process
 //! joins the channels, so a model that cannot be loaded, or fits no known layout, stops the
 //! process at start with the reason.
 //!
-//! Laser refinement (`[laser]` in the config): before each frame every `laser/scan_result`
-//! that has arrived is taken (never waited for); after it, the scans the frame asked for are
-//! published on `laser/scan_request`. With `--laser-calibration FILE` (the ALACS unit's
-//! calibration) only apples in the laser's reach are asked for
+//! Laser refinement (`[laser]` in the config): with `--laser-calibration FILE` (the ALACS
+//! unit's calibration) only apples in the laser's reach are asked for
 //! ([`harvest_laser::reach::LaserReach`], the same check the laser process makes).
 //!
 //! Depth source (`depth_source` in the config, or `--depth-source`): with `lidar_fused` the
-//! process also subscribes to `lidar/points`; before each frame the newest cloud that has arrived
-//! (if any) is fused into the process's depth image ([`FusedDepth`]) with the frame's geometry,
-//! and the frame is localized from that image. The extrinsic is `--lidar-extrinsic FILE` (written
-//! by `harvest calibrate lidar-camera --output`); it is required, as the camera calibration is.
+//! process also reads `lidar/points` and localizes from the fused depth image ([`FusedDepth`]).
+//! The extrinsic is `--lidar-extrinsic FILE` (written by `harvest calibrate lidar-camera
+//! --output`); it is required, as the camera calibration is.
+//!
+//! The heartbeat's figure is the age of the last frame worked on (`frame_age_ns`); the frames
+//! skipped and the largest age are logged when the process stops.
 
 use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, alacs_camera_intrinsics};
-use harvest_ipc::catalogue::{
-    CAMERA_RGBD, LASER_SCAN_REQUEST, LASER_SCAN_RESULT, LIDAR_POINTS, PERCEPTION_APPLES,
-};
-use harvest_ipc::payloads::ProcessRunState;
-use harvest_ipc::{
-    Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
-};
+use harvest_ipc::catalogue::CAMERA_RGBD;
+use harvest_ipc::{Context, Domain};
 use harvest_laser::calibration::read_extrinsics;
 use harvest_laser::{LaserReach, ScanConfig};
 use harvest_lidar::ExtrinsicFile;
+use harvest_node::RunnerConfig;
 use harvest_perception::calibration::Calibration;
 use harvest_perception::config_file::{ConfigFileError, read_config};
 use harvest_perception::depth_source::{DepthSource, FusedDepth};
 use harvest_perception::detector::{Detector, DetectorKind, make_detector};
 use harvest_perception::estimator::EstimatorKind;
-use harvest_perception::frame_freshness::FreshnessTracker;
 use harvest_perception::node::PerceptionNode;
 use harvest_perception::pipeline::PerceptionConfig;
+use harvest_perception::task::PerceptionTask;
+use harvest_robot_model::ModeSource;
+use harvest_runtime::{RunError, Wake, WakeOptions, run_on_wake};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct PerceptionArgs {
@@ -110,6 +105,9 @@ pub enum PerceptionProcessError {
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
+    /// The run ended on an error (transport, wait set).
+    #[error(transparent)]
+    Run(#[from] RunError),
 }
 
 harvest_ipc::from_ipc_errors!(PerceptionProcessError);
@@ -124,7 +122,7 @@ pub fn run(
 }
 
 /// [`run`] with `detector` in place of the configured one (when given) that also stops once
-/// `stop` is set (checked at each heartbeat, so within [`HEARTBEAT_PERIOD`]).
+/// `stop` is set (checked at each heartbeat, so within [`harvest_ipc::HEARTBEAT_PERIOD`]).
 pub fn run_until(
     args: &PerceptionArgs,
     domain: &Domain,
@@ -161,7 +159,7 @@ pub fn run_until(
     if let Some(source) = args.depth_source {
         config.depth_source = source;
     }
-    let mut fused_depth = match config.depth_source {
+    let fused_depth = match config.depth_source {
         DepthSource::Tof => None,
         DepthSource::LidarFused => {
             let extrinsic_path =
@@ -191,20 +189,6 @@ pub fn run_until(
     }
 
     let context = Context::new(domain, process_name)?;
-    let frames = context.subscriber(CAMERA_RGBD)?;
-    let mut detections = context.publisher(PERCEPTION_APPLES)?;
-    let scan_results = context.subscriber(LASER_SCAN_RESULT)?;
-    let mut scan_requests = context.publisher(LASER_SCAN_REQUEST)?;
-    let clouds = match fused_depth {
-        Some(_) => Some(context.subscriber(LIDAR_POINTS)?),
-        None => None,
-    };
-    let mut health = HealthReporter::new(&context)?;
-    let waiter = Waiter::new()?;
-    let frame_guard = waiter.attach_listener(frames.listener())?;
-    let heartbeat = waiter.attach_interval(HEARTBEAT_PERIOD)?;
-    let mut freshness = FreshnessTracker::default();
-    let mut apples_published = 0u64;
     tracing::info!(
         detector = detector_name,
         estimator = config.estimator.kind.name(),
@@ -213,102 +197,35 @@ pub fn run_until(
         extrinsic = ?args.lidar_extrinsic,
         "perception running"
     );
-    waiter
-        .run(|attachment| -> Result<Flow, PerceptionProcessError> {
-            if attachment.has_event_from(&frame_guard)
-                && let Some(frame) = frames.receive_latest()?
-            {
-                while let Some(result) = scan_results.receive()? {
-                    let outcome = node.handle_scan_result(&result);
-                    tracing::debug!(
-                        request_seq = result.request_seq,
-                        apple_id = result.apple_id,
-                        ?outcome,
-                        "laser scan result"
-                    );
-                }
-                let fresh = freshness.start_frame(
-                    frame.header.msg_seq,
-                    frame.header.capture_ns,
-                    MonotonicClock::read_ns(),
-                );
-                if let (Some(fused), Some(clouds)) = (fused_depth.as_mut(), clouds.as_ref())
-                    && let Some(cloud) = clouds.receive_latest()?
-                {
-                    match fused.update(&frame.meta, cloud.valid_points()) {
-                        Ok(stats) => tracing::debug!(
-                            cloud_seq = cloud.header.msg_seq,
-                            ?stats,
-                            "lidar cloud fused"
-                        ),
-                        Err(error) => tracing::warn!(
-                            cloud_seq = cloud.header.msg_seq,
-                            %error,
-                            "lidar cloud not fused; the previous fused depth stays in use"
-                        ),
-                    }
-                }
-                let depth_override = fused_depth
-                    .as_mut()
-                    .and_then(|fused| fused.depth_for(&frame.meta));
-                let mut out = detections.loan()?;
-                let result = node.process_with_depth(&frame, depth_override, &mut out);
-                let out_seq = frame.header.msg_seq;
-                out.header.capture_ns = frame.header.capture_ns;
-                let count = out.apples.len();
-                drop(frame);
-                detections.send(out)?;
-                apples_published += count as u64;
-                for request in node.scan_requests() {
-                    scan_requests.publish(request)?;
-                }
-                match result {
-                    Ok(stats) => tracing::trace!(
-                        frame_seq = out_seq,
-                        apples = count,
-                        frame_age_ns = fresh.age_ns,
-                        frames_skipped = fresh.skipped,
-                        detect_us = stats.timings.detect_us,
-                        total_us = stats.timings.total_us,
-                        "frame processed"
-                    ),
-                    Err(error) => {
-                        tracing::warn!(%error, "frame rejected: camera parameters unusable")
-                    }
-                }
-            }
-            if attachment.has_event_from(&heartbeat) {
-                let state = if node.frames_rejected() > 0
-                    && node.frames_rejected() == node.frames_processed()
-                {
-                    ProcessRunState::Degraded
-                } else {
-                    ProcessRunState::Running
-                };
-                health.report(
-                    state,
-                    frames.received_count(),
-                    "frame_age_ns",
-                    freshness.totals().last.age_ns,
-                )?;
-                if stop.load(Ordering::Relaxed) {
-                    return Ok(Flow::Stop);
-                }
-            }
-            Ok(Flow::Continue)
-        })
-        .map_err(harvest_ipc::RunError::flatten)?;
-    let totals = freshness.totals();
+    let options = WakeOptions {
+        wake: Wake::Input {
+            topic: CAMERA_RGBD.spec.topic,
+        },
+        runner: RunnerConfig {
+            max_read_failures: 1,
+            mode_source: ModeSource::WithoutOperator,
+        },
+        obeys: false,
+        stop: Some(stop),
+    };
+    let finished = run_on_wake(
+        &context,
+        PerceptionTask::new(node, fused_depth),
+        (),
+        options,
+    )?;
+    let task = finished.runner.node();
+    let totals = task.freshness();
     tracing::info!(
-        frames = node.frames_processed(),
-        rejected = node.frames_rejected(),
+        frames = task.node().frames_processed(),
+        rejected = task.node().frames_rejected(),
         frames_skipped = totals.skipped,
         max_frame_age_ns = totals.max_age_ns,
-        dropped_by_channel = frames.dropped_count(),
-        apples = apples_published,
-        laser = ?node.laser_refiner().stats(),
-        fused_depth = ?fused_depth.as_ref().map(FusedDepth::counters),
+        apples = task.apples_published(),
+        laser = ?task.node().laser_refiner().stats(),
+        fused_depth = ?task.fused_depth().map(FusedDepth::counters),
         "perception stopped"
     );
+    finished.result?;
     Ok(())
 }

@@ -7,6 +7,7 @@ use harvest_recording::metadata;
 use harvest_recording::rec_cat::{CatError, CatOptions, cat};
 use harvest_recording::rec_info::{InfoError, info};
 use harvest_recording::recover::{RecoverError, recover};
+use harvest_recording::ros2_export::{Ros2ExportError, export_ros2};
 use harvest_recording::units::parse_duration;
 use std::io::Write;
 use std::path::PathBuf;
@@ -46,6 +47,10 @@ pub enum RecCommand {
         /// transforms, plots, event log (every message mapped, not only the viewing rate).
         #[arg(long, value_name = "OUT.mcap")]
         foxglove: Option<PathBuf>,
+        /// Write a rosbag2 bag (directory OUT: metadata.yaml and an MCAP file, CDR) with
+        /// standard ROS 2 types: images, camera info, detections, joint states, point clouds.
+        #[arg(long, value_name = "OUT")]
+        ros2: Option<PathBuf>,
         /// Integer factor the exported camera images are downscaled by; the default is the live
         /// view's (960x540); 1 exports full-size 1920x1080 images (about 3x the file size).
         #[arg(long, default_value_t = ImageSettings::VIEWING.scale)]
@@ -89,6 +94,8 @@ pub enum RecError {
     Export(#[from] ExportError),
     #[error(transparent)]
     Recover(#[from] RecoverError),
+    #[error(transparent)]
+    Ros2Export(#[from] Ros2ExportError),
     /// The clip directory cannot be read.
     #[error("cannot list the clips in {dir}: {source}")]
     Clips {
@@ -154,12 +161,36 @@ pub fn run_rec(command: &RecCommand) -> Result<(), RecError> {
             file,
             png,
             foxglove,
+            ros2,
             image_scale,
             jpeg_quality,
             topics,
             start,
             end,
         } => {
+            if let Some(out) = ros2 {
+                let report = export_ros2(file, out, topics, *start, *end)?;
+                let mut out_lock = stdout.lock();
+                writeln!(
+                    out_lock,
+                    "{} message(s) written to the ROS 2 bag {}",
+                    report.messages(),
+                    out.display()
+                )
+                .map_err(RecError::Stdout)?;
+                for (topic, count) in &report.written {
+                    writeln!(out_lock, "  {topic:<28} {count:>8}").map_err(RecError::Stdout)?;
+                }
+                for (topic, (count, reason)) in &report.skipped {
+                    eprintln!("rec export --ros2: skipped {count} message(s) of {topic}: {reason}");
+                }
+                if let Some(reason) = &report.incomplete {
+                    eprintln!("rec export --ros2: {}: {reason}", file.display());
+                }
+                if png.is_none() && foxglove.is_none() {
+                    return Ok(());
+                }
+            }
             let options = ExportOptions {
                 png_dir: png.clone(),
                 foxglove: foxglove.clone(),

@@ -7,17 +7,24 @@
 //! ones. The replay clock sleeps until each message's due time: `wall_start + (log_time -
 //! first_log_time) / rate`, shifted by the time spent paused.
 //!
+//! With `--ros2 --map MAP.toml` the files are a ROS 2 bag (a rosbag2 directory or its MCAP
+//! files), mapped into the stack's channels by [`crate::ros2_input`] at the same timing.
+//!
 //! Heartbeats (`system/health`) are not replayed unless `--with-health` is given: recorded
 //! heartbeats would make a live supervisor believe long-gone processes are alive.
 
 use crate::keyboard::{Key, Keyboard};
-use harvest_ipc::catalogue::{self, PROCESS_HEALTH};
+use crate::ros2_input::{Ros2Input, Ros2InputError, bag_files, check_bag_topics, read_map};
+use crate::video_replay::{CameraOutcome, CameraReplay};
+use harvest_ipc::catalogue::{self, CAMERA_RGBD, PROCESS_HEALTH};
 use harvest_ipc::{Channel, ChannelVisitor, Context, Domain, Payload, Publisher};
+use harvest_recording::camera_record::{DEPTH_TOPIC, VIDEO_TOPIC};
 use harvest_recording::foxglove_export::FoxgloveWriter;
 use harvest_recording::recorded_events::EVENTS_TOPIC;
 use harvest_recording::recording_file::ReadError;
 use harvest_recording::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
 use harvest_recording::schema::schema_name;
+use harvest_recording::time_base::FileTimeBase;
 use harvest_recording::time_window::{absolute_window, recording_start_ns};
 use harvest_recording::topic_filter::TopicFilter;
 use harvest_recording::units::parse_duration;
@@ -63,6 +70,13 @@ pub struct ReplayArgs {
     /// what they have not read (a sample is gone once its publisher closes).
     #[arg(long, default_value = "500ms", value_parser = parse_duration)]
     pub linger: Duration,
+    /// FILE is a ROS 2 bag (a rosbag2 directory, MCAP storage, or its .mcap file), mapped into
+    /// the stack's channels as `--map` says.
+    #[arg(long, requires = "map")]
+    pub ros2: bool,
+    /// The map of a ROS 2 bag's topics onto the stack's channels (docs/ros2/map.example.toml).
+    #[arg(long, value_name = "MAP.toml", requires = "ros2")]
+    pub map: Option<PathBuf>,
 }
 
 impl ReplayArgs {
@@ -80,6 +94,8 @@ impl ReplayArgs {
             with_health: false,
             no_keyboard: true,
             linger: Duration::from_millis(500),
+            ros2: false,
+            map: None,
         }
     }
 }
@@ -109,6 +125,11 @@ pub struct ReplayReport {
     /// Messages of the recorder's events channel (triggers and marks found in the replayed
     /// channels themselves), not replayed.
     pub recorded_events: u64,
+    /// `camera/rgbd` frames made from the continuous record's video and depth (also counted
+    /// in `published` under `camera/rgbd`).
+    pub frames_from_video: u64,
+    /// Video messages that made no frame, by reason (entered before an IDR, no depth yet).
+    pub video_waiting: BTreeMap<String, u64>,
     pub loops: u32,
     /// Recorded time covered by the published messages (one pass), ns.
     pub recorded_span_ns: u64,
@@ -116,6 +137,15 @@ pub struct ReplayReport {
     pub wall_time: Duration,
     /// Files that could not be read to their end, with the reason.
     pub incomplete: Vec<(PathBuf, String)>,
+    /// A ROS 2 bag's replay: frames assembled (and images dropped), clouds published.
+    pub ros2: Option<Ros2Summary>,
+}
+
+/// What a ROS 2 bag's replay published on the stack's channels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Ros2Summary {
+    pub frames: harvest_ros2_mapping::frame_assembler::AssemblyCounts,
+    pub clouds: u64,
 }
 
 impl ReplayReport {
@@ -166,8 +196,30 @@ impl std::fmt::Display for ReplayReport {
                 self.recorded_events
             )?;
         }
+        if self.frames_from_video > 0 {
+            writeln!(
+                f,
+                "  {} camera/rgbd frame(s) decoded from {VIDEO_TOPIC} with {DEPTH_TOPIC}",
+                self.frames_from_video
+            )?;
+        }
+        for (reason, count) in &self.video_waiting {
+            writeln!(f, "  {count} video frame(s) gave no frame: {reason}")?;
+        }
         for (file, reason) in &self.incomplete {
             writeln!(f, "  {}: {reason}", file.display())?;
+        }
+        if let Some(ros2) = &self.ros2 {
+            let counts = &ros2.frames;
+            writeln!(
+                f,
+                "  ROS 2 bag: {} camera frame(s) and {} cloud(s) published; unpaired {} colour, {} depth image(s); {} pair(s) before the camera models",
+                counts.frames,
+                ros2.clouds,
+                counts.unpaired_color,
+                counts.unpaired_depth,
+                counts.before_camera_info
+            )?;
         }
         Ok(())
     }
@@ -189,6 +241,15 @@ pub enum ReplayError {
     /// The SIGINT/SIGTERM handler could not be installed.
     #[error("installing the signal handler: {0}")]
     Signal(std::io::Error),
+    /// A ROS 2 bag or its map cannot be used, or one of its messages is refused.
+    #[error("ROS 2 bag: {0}")]
+    Ros2(String),
+}
+
+impl From<Ros2InputError> for ReplayError {
+    fn from(error: Ros2InputError) -> Self {
+        Self::Ros2(error.to_string())
+    }
 }
 
 /// A publisher that takes encoded messages of one payload type.
@@ -274,7 +335,20 @@ pub fn run_replay_with(
         exclude.push(PROCESS_HEALTH.spec.topic.to_owned());
     }
     let filter = TopicFilter::patterns(&args.include, &exclude);
-    let start_ns = match args.files.first() {
+    let files = if args.ros2 {
+        bag_files(&args.files).map_err(ReplayError::Ros2)?
+    } else {
+        args.files.clone()
+    };
+    let map = match (&args.map, args.ros2) {
+        (Some(path), true) => {
+            let map = read_map(path).map_err(ReplayError::Ros2)?;
+            check_bag_topics(&map, &files).map_err(ReplayError::Ros2)?;
+            Some(map)
+        }
+        _ => None,
+    };
+    let start_ns = match files.first() {
         Some(first) => recording_start_ns(first)?.unwrap_or(0),
         None => 0,
     };
@@ -283,6 +357,13 @@ pub fn run_replay_with(
         .map(|duration| args.start_offset.unwrap_or_default() + duration);
     let (from_ns, to_ns) = absolute_window(start_ns, args.start_offset, end_offset);
     let context = Context::new(domain, "replay")?;
+    let mut ros2 = match map {
+        Some(map) => Some(
+            Ros2Input::open(map, &context).map_err(|error| ReplayError::Ros2(error.to_string()))?,
+        ),
+        None => None,
+    };
+    let mut fatal: Option<ReplayError> = None;
     let keyboard = if args.no_keyboard {
         None
     } else {
@@ -293,32 +374,48 @@ pub fn run_replay_with(
     }
     let mut clock = ReplayClock::new(args.rate, args.fast, keyboard);
     let mut ports: BTreeMap<String, Option<Box<dyn ReplayPort>>> = BTreeMap::new();
+    // The camera rebuilt from video and depth (opened at the first such message).
+    let mut camera: Option<Result<CameraReplay, String>> = None;
     let mut report = ReplayReport {
         end: ReplayEnd::Finished,
         published: BTreeMap::new(),
         skipped: BTreeMap::new(),
         mapped_views: 0,
         recorded_events: 0,
+        frames_from_video: 0,
+        video_waiting: BTreeMap::new(),
         loops: 0,
         recorded_span_ns: 0,
         wall_time: Duration::ZERO,
         incomplete: Vec::new(),
+        ros2: None,
     };
     'passes: loop {
         report.loops += 1;
         clock.restart();
         let mut first_ns: Option<u64> = None;
         let mut last_ns = 0;
-        for file in &args.files {
+        if let Some(Ok(camera)) = camera.as_mut()
+            && let Err(reason) = camera.restart()
+        {
+            tracing::warn!(%reason, "cannot restart the video decoder");
+        }
+        for file in &files {
             let mut stop: Option<ReplayEnd> = None;
+            let mut time_base = FileTimeBase::default();
             let outcome = scan_file(
                 file,
                 ScanOptions {
                     log_time_window: Some((from_ns, to_ns)),
                 },
                 |item| {
-                    let ScanItem::Message(message) = item else {
-                        return ControlFlow::Continue(());
+                    let message = match item {
+                        ScanItem::Message(message) => message,
+                        ScanItem::Metadata(record) => {
+                            time_base.observe(record);
+                            return ControlFlow::Continue(());
+                        }
+                        _ => return ControlFlow::Continue(()),
                     };
                     if message.log_time < from_ns || message.log_time > to_ns {
                         return ControlFlow::Continue(());
@@ -333,6 +430,99 @@ pub fn run_replay_with(
                     }
                     if topic == EVENTS_TOPIC {
                         report.recorded_events += 1;
+                        return ControlFlow::Continue(());
+                    }
+                    if let Some(input) = ros2.as_mut() {
+                        if !input.uses(topic) {
+                            report
+                                .skipped
+                                .entry(topic.clone())
+                                .or_insert_with(|| (0, "not in the map file".to_owned()))
+                                .0 += 1;
+                            return ControlFlow::Continue(());
+                        }
+                        let anchor = *first_ns.get_or_insert(message.log_time);
+                        last_ns = message.log_time;
+                        if let Some(end) = clock.wait_for(message.log_time.saturating_sub(anchor)) {
+                            stop = Some(end);
+                            return ControlFlow::Break(());
+                        }
+                        let type_name = message
+                            .channel
+                            .schema
+                            .as_ref()
+                            .map(|schema| schema.name.as_str())
+                            .unwrap_or("");
+                        return match input.handle(
+                            topic,
+                            type_name,
+                            &message.channel.message_encoding,
+                            message.data,
+                        ) {
+                            Ok(()) => {
+                                *report.published.entry(topic.clone()).or_insert(0) += 1;
+                                ControlFlow::Continue(())
+                            }
+                            Err(error) => {
+                                fatal = Some(error.into());
+                                ControlFlow::Break(())
+                            }
+                        };
+                    }
+                    if topic == VIDEO_TOPIC || topic == DEPTH_TOPIC {
+                        // The camera's frames, as video and depth: replayed as camera/rgbd.
+                        let rgbd = CAMERA_RGBD.spec.topic;
+                        if !filter.matches_topic(rgbd) {
+                            return ControlFlow::Continue(());
+                        }
+                        let camera =
+                            match camera.get_or_insert_with(|| CameraReplay::open(&context)) {
+                                Ok(camera) => camera,
+                                Err(reason) => {
+                                    let entry = report
+                                        .skipped
+                                        .entry(topic.clone())
+                                        .or_insert_with(|| (0, reason.clone()));
+                                    entry.0 += 1;
+                                    return ControlFlow::Continue(());
+                                }
+                            };
+                        let is_video = topic == VIDEO_TOPIC;
+                        if is_video {
+                            let anchor = *first_ns.get_or_insert(message.log_time);
+                            last_ns = message.log_time;
+                            if let Some(end) =
+                                clock.wait_for(message.log_time.saturating_sub(anchor))
+                            {
+                                stop = Some(end);
+                                return ControlFlow::Break(());
+                            }
+                        }
+                        let outcome = if is_video {
+                            camera.video(message.data, &time_base)
+                        } else {
+                            camera.depth(message.data)
+                        };
+                        match outcome {
+                            Ok(CameraOutcome::Published) => {
+                                report.frames_from_video += 1;
+                                *report.published.entry(rgbd.to_owned()).or_insert(0) += 1;
+                            }
+                            Ok(CameraOutcome::DepthTaken) => {}
+                            Ok(CameraOutcome::Waiting(reason)) => {
+                                *report.video_waiting.entry(reason.to_owned()).or_insert(0) += 1;
+                            }
+                            Err(reason) => {
+                                let entry = report
+                                    .skipped
+                                    .entry(topic.clone())
+                                    .or_insert_with(|| (0, reason.clone()));
+                                if entry.0 == 0 {
+                                    tracing::warn!(topic = %topic, %reason, "message not replayed");
+                                }
+                                entry.0 += 1;
+                            }
+                        }
                         return ControlFlow::Continue(());
                     }
                     let port = ports.entry(topic.clone()).or_insert_with(|| {
@@ -379,6 +569,9 @@ pub fn run_replay_with(
                     ControlFlow::Continue(())
                 },
             )?;
+            if let Some(error) = fatal.take() {
+                return Err(error);
+            }
             if let ScanEnd::Truncated { reason, .. } = &outcome.end
                 && report.loops == 1
             {
@@ -404,6 +597,10 @@ pub fn run_replay_with(
         }
     }
     report.wall_time = clock.active_time();
+    report.ros2 = ros2.as_ref().map(|input| Ros2Summary {
+        frames: input.frame_counts().unwrap_or_default(),
+        clouds: input.clouds_published,
+    });
     if report.end != ReplayEnd::Signal {
         before_close(&report);
     }

@@ -18,6 +18,7 @@
 //! out and counted instead), and the clip writer's queue is bounded too.
 
 use crate::clip_writer::{ClipCommand, ClipReport, ClipSettings, ClipWriterHandle};
+use crate::shared_queue::{self, QueueReceiver, QueueSender, Weighed};
 use crate::writer_thread::{Enqueuer, MessageBytes, QueuedMessage, wall_clock_ns};
 use harvest_ipc::MonotonicClock;
 use harvest_recording::flight_ring::{FlightRing, RingCounts, RingRecord};
@@ -27,8 +28,7 @@ use harvest_recording::wall_clock::{ClockPair, format_utc_compact, format_utc_is
 use mcap::records::Metadata;
 use std::collections::BTreeMap;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender};
+use std::sync::mpsc::RecvTimeoutError;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -64,6 +64,12 @@ struct FlightInput {
     data: MessageBytes,
 }
 
+impl Weighed for FlightInput {
+    fn bytes(&self) -> usize {
+        self.data.len()
+    }
+}
+
 /// What the flight recorder did.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FlightReport {
@@ -80,9 +86,7 @@ pub struct FlightReport {
 
 /// The receiving side's handle on the flight thread.
 pub struct FlightFeed {
-    inputs: SyncSender<FlightInput>,
-    pending_bytes: Arc<AtomicUsize>,
-    dropped_behind: u64,
+    inputs: QueueSender<FlightInput>,
     thread: JoinHandle<FlightReport>,
 }
 
@@ -122,8 +126,7 @@ impl FlightFeed {
             session_clock,
             log_time_offset_ns,
         )?;
-        let (inputs, receiver) = mpsc::sync_channel(MAX_PENDING_MESSAGES);
-        let pending_bytes = Arc::new(AtomicUsize::new(0));
+        let (inputs, receiver) = shared_queue::bounded(MAX_PENDING_MESSAGES, MAX_PENDING_BYTES);
         let state = FlightState {
             report: FlightReport {
                 ring_capacity_bytes: ring.capacity_bytes(),
@@ -137,22 +140,16 @@ impl FlightFeed {
             live_sequence: 0,
             log_time_offset_ns,
             clip: None,
-            pending_bytes: pending_bytes.clone(),
         };
         let thread = std::thread::Builder::new()
             .name("recorder-flight".to_owned())
             .spawn(move || state.run(receiver))?;
-        Ok(Self {
-            inputs,
-            pending_bytes,
-            dropped_behind: 0,
-            thread,
-        })
+        Ok(Self { inputs, thread })
     }
 
     /// True while a message of about `size_bytes` fits in the queue.
     pub fn has_room(&self, size_bytes: usize) -> bool {
-        self.pending_bytes.load(Ordering::Relaxed) + size_bytes <= MAX_PENDING_BYTES
+        self.inputs.has_room(size_bytes)
     }
 
     /// Offers one encoded message of catalogue topic `index` (stack-clock times); left out of
@@ -166,42 +163,30 @@ impl FlightFeed {
         publish_time_ns: u64,
         data: &MessageBytes,
     ) {
-        if !self.has_room(data.len()) {
-            self.dropped_behind += 1;
-            return;
-        }
-        self.pending_bytes.fetch_add(data.len(), Ordering::Relaxed);
-        let input = FlightInput {
+        self.inputs.offer(FlightInput {
             topic_index: u32::try_from(index).unwrap_or(u32::MAX),
             topic,
             sequence,
             log_time_ns,
             publish_time_ns,
             data: Arc::clone(data),
-        };
-        if let Err(error) = self.inputs.try_send(input) {
-            let input = match error {
-                mpsc::TrySendError::Full(input) | mpsc::TrySendError::Disconnected(input) => input,
-            };
-            self.pending_bytes
-                .fetch_sub(input.data.len(), Ordering::Relaxed);
-            self.dropped_behind += 1;
-        }
+        });
     }
 
     /// Messages left out because the thread was behind (so far).
     pub fn dropped_behind(&self) -> u64 {
-        self.dropped_behind
+        self.inputs.dropped()
     }
 
     /// Closes an open clip with what it has, waits for the clip writer, stops the thread.
     pub fn finish(self) -> FlightReport {
+        let dropped_behind = self.inputs.dropped();
         drop(self.inputs);
         let mut report = self.thread.join().unwrap_or_else(|_| {
             tracing::error!("the recorder's flight thread panicked");
             FlightReport::default()
         });
-        report.dropped_behind += self.dropped_behind;
+        report.dropped_behind += dropped_behind;
         report
     }
 }
@@ -226,15 +211,14 @@ struct FlightState {
     live_sequence: u32,
     log_time_offset_ns: i64,
     clip: Option<OpenClip>,
-    pending_bytes: Arc<AtomicUsize>,
     report: FlightReport,
 }
 
 impl FlightState {
-    fn run(mut self, inputs: Receiver<FlightInput>) -> FlightReport {
+    fn run(mut self, inputs: QueueReceiver<FlightInput>) -> FlightReport {
         loop {
             let received = match self.clip.as_ref() {
-                None => inputs.recv().map_err(|_| RecvTimeoutError::Disconnected),
+                None => inputs.recv().ok_or(RecvTimeoutError::Disconnected),
                 Some(clip) => {
                     let due_ns = clip.end_ns.saturating_add(CLOSE_GRACE.as_nanos() as u64);
                     let now_ns = MonotonicClock::read_ns();
@@ -246,11 +230,7 @@ impl FlightState {
                 }
             };
             match received {
-                Ok(input) => {
-                    self.pending_bytes
-                        .fetch_sub(input.data.len(), Ordering::Relaxed);
-                    self.on_message(input);
-                }
+                Ok(input) => self.on_message(input),
                 Err(RecvTimeoutError::Timeout) => self.close_clip(),
                 Err(RecvTimeoutError::Disconnected) => break,
             }
@@ -411,12 +391,11 @@ impl FlightState {
     /// Writes the event into the continuous record's events channel.
     fn live_event(&mut self, event: &RecordedEvent) {
         self.live_sequence = self.live_sequence.wrapping_add(1);
-        let log_time_ns = wall_clock_ns(event.stamp_ns, self.log_time_offset_ns);
         let message = QueuedMessage {
             topic: self.live.index,
             sequence: self.live_sequence,
-            log_time_ns,
-            publish_time_ns: log_time_ns,
+            log_time_ns: event.stamp_ns,
+            publish_time_ns: event.stamp_ns,
             data: Arc::new(event.to_json()),
         };
         if !self.live.enqueuer.try_enqueue(message) {

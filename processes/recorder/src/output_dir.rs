@@ -113,6 +113,39 @@ pub fn enforce_size_bound(
     Ok(removed)
 }
 
+/// Removes the `<prefix>-*.mcap` files in `dir` last written more than `max_age` before `now`,
+/// except `keep` (the segment being written). Returns the removed files.
+pub fn enforce_age_bound(
+    dir: &Path,
+    prefix: &str,
+    max_age: std::time::Duration,
+    now: SystemTime,
+    keep: Option<&Path>,
+) -> io::Result<Vec<SegmentFile>> {
+    let Some(oldest_kept) = now.checked_sub(max_age) else {
+        return Ok(Vec::new());
+    };
+    let mut removed = Vec::new();
+    for file in list_segments(dir, prefix)? {
+        if file.modified >= oldest_kept {
+            break;
+        }
+        if keep.is_some_and(|keep| keep == file.path) {
+            continue;
+        }
+        match std::fs::remove_file(&file.path) {
+            Ok(()) => {
+                tracing::info!(path = %file.path.display(), max_age_s = max_age.as_secs(), "age bound: removed recording");
+                removed.push(file);
+            }
+            Err(error) => {
+                tracing::warn!(path = %file.path.display(), %error, "age bound: cannot remove recording");
+            }
+        }
+    }
+    Ok(removed)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -164,6 +197,31 @@ mod tests {
         );
         assert!(dir.join("rec-a.mcap").exists());
         assert!(dir.join("export.mcap").exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn age_bound_removes_only_old_segments() {
+        let dir = scratch_dir("age");
+        let (old, _) = create_segment(&dir, "rec", "d", "20250101T000000Z", 0).expect("old");
+        let (new, _) = create_segment(&dir, "rec", "d", "20250101T000000Z", 1).expect("new");
+        std::fs::write(dir.join("other.mcap"), b"x").expect("other");
+        let now = SystemTime::now();
+        let hour = std::time::Duration::from_secs(3600);
+        std::fs::File::options()
+            .write(true)
+            .open(&old)
+            .expect("open")
+            .set_modified(now - 3 * hour)
+            .expect("age");
+        let removed = enforce_age_bound(&dir, "rec", 2 * hour, now, None).expect("bound");
+        assert_eq!(removed.len(), 1);
+        assert_eq!(removed[0].path, old);
+        assert!(new.exists() && !old.exists() && dir.join("other.mcap").exists());
+        // The segment being written stays whatever its age.
+        let removed =
+            enforce_age_bound(&dir, "rec", hour, now + 3 * hour, Some(&new)).expect("bound");
+        assert!(removed.is_empty() && new.exists());
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -9,6 +9,7 @@
 use crate::clip_writer::ClipSettings;
 use crate::flight_thread::{FlightFeed, FlightSettings, LiveEvents};
 use crate::tap::{Tap, TapCounts, TypedTap};
+use crate::video_thread::{VideoChannels, VideoFeed, VideoFeedSettings, VideoReport};
 use crate::view_thread::{self, ViewFeed};
 use crate::writer_thread::{OutputSettings, WriteError, WriterHandle, log_time_offset_ns};
 use harvest_foxglove_mapping::Mounting;
@@ -19,6 +20,7 @@ use harvest_ipc::{
     Channel, ChannelVisitor, Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, Payload,
     RunEnd, RunError, Waiter,
 };
+use harvest_recording::camera_record::{DEPTH_TOPIC, VIDEO_TOPIC, depth_channel, video_channel};
 use harvest_recording::flight_ring::RECORD_HEADER_BYTES;
 use harvest_recording::metadata;
 use harvest_recording::recorded_events::events_channel;
@@ -26,6 +28,7 @@ use harvest_recording::schema::{TopicInfo, catalogue_topics, layer_name};
 use harvest_recording::segment_writer::{ChunkCompression, ChunkSettings};
 use harvest_recording::topic_filter::TopicFilter;
 use harvest_recording::units::{format_bytes, parse_duration, parse_size_bytes};
+use harvest_recording::video_codec::VideoSettings;
 use harvest_recording::wall_clock::{ClockPair, format_utc_iso};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -59,9 +62,10 @@ pub struct RecorderArgs {
     /// File name prefix; the size bound only counts and removes `<prefix>-*.mcap` files.
     #[arg(long, default_value = "harvest")]
     pub prefix: String,
-    /// Chunk compression. LZ4 by default: it keeps up with 30 Hz frames (205 MB/s) on two
-    /// cores, zstd level 1 (about 170 MB/s there) does not for long.
-    #[arg(long, default_value = "lz4")]
+    /// Chunk compression. zstd by default: with the camera recorded as video the continuous
+    /// record's channels are small. With `--camera raw` use lz4 (zstd level 1, about 170 MB/s
+    /// here, does not keep up with 30 Hz raw frames for long; lz4 does).
+    #[arg(long, default_value = "zstd")]
     pub compression: ChunkCompression,
     /// Compression level (default: zstd 1, lz4 0 = fast default).
     #[arg(long)]
@@ -85,6 +89,25 @@ pub struct RecorderArgs {
     /// are removed first when a segment starts (0: unbounded).
     #[arg(long, default_value = "20GiB", value_parser = parse_size_bytes)]
     pub max_total_size: u64,
+    /// Bound on the age of `<prefix>-*.mcap` files in the output directory: when a segment
+    /// starts, those last written longer ago are removed (e.g. 168h; none: no age bound).
+    #[arg(long, value_parser = parse_duration)]
+    pub max_age: Option<Duration>,
+    /// How the camera (`camera/rgbd`) goes into the continuous record: `video` (H.264 on
+    /// `camera/video` at `--video-rate`, depth on `camera/depth` at `--depth-rate`) or `raw`
+    /// (every frame as it is, 6.8 MB each). Clips always hold the raw frames.
+    #[arg(long, value_enum, default_value = "video")]
+    pub camera: CameraRecord,
+    /// Frames per second of the camera video.
+    #[arg(long, default_value_t = 10.0)]
+    pub video_rate: f64,
+    /// Target bit rate of the camera video, bits per second.
+    #[arg(long, default_value_t = 2_000_000)]
+    pub video_bitrate: u32,
+    /// Depth images per second in the continuous record (each one with the video frame of the
+    /// same capture; at most the video rate).
+    #[arg(long, default_value_t = 2.0)]
+    pub depth_rate: f64,
     /// Record only topics matching one of these globs (`*` matches across `/`); repeatable.
     #[arg(long = "include", value_name = "GLOB")]
     pub include: Vec<String>,
@@ -149,12 +172,21 @@ pub struct RecorderArgs {
     pub retry_interval: Duration,
 }
 
+/// How the camera goes into the continuous record.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CameraRecord {
+    /// H.264 video and depth at a reduced rate.
+    Video,
+    /// Every raw frame.
+    Raw,
+}
+
 impl Default for RecorderArgs {
     fn default() -> Self {
         Self {
             output_dir: PathBuf::from("recordings"),
             prefix: "harvest".to_owned(),
-            compression: ChunkCompression::Lz4,
+            compression: ChunkCompression::Zstd,
             compression_level: None,
             compression_threads: 1,
             chunk_size: 4 << 20,
@@ -162,6 +194,11 @@ impl Default for RecorderArgs {
             split_size: 1 << 30,
             split_duration: None,
             max_total_size: 20 << 30,
+            max_age: None,
+            camera: CameraRecord::Video,
+            video_rate: 10.0,
+            video_bitrate: 2_000_000,
+            depth_rate: 2.0,
             include: Vec::new(),
             exclude: Vec::new(),
             layers: vec![LayerArg::Stack],
@@ -248,6 +285,39 @@ impl RecorderArgs {
         })
     }
 
+    /// The camera video's settings (`None` with `--camera raw`), after checking the rates.
+    pub fn video_settings(&self) -> Result<Option<VideoFeedSettings>, RecorderError> {
+        if self.camera == CameraRecord::Raw {
+            return Ok(None);
+        }
+        if !(self.video_rate > 0.0 && self.video_rate <= 60.0) {
+            return Err(RecorderError::InvalidOption {
+                option: "--video-rate",
+                value: self.video_rate.to_string(),
+                reason: "must be in (0, 60] frames per second".to_owned(),
+            });
+        }
+        if !(self.depth_rate > 0.0 && self.depth_rate.is_finite()) {
+            return Err(RecorderError::InvalidOption {
+                option: "--depth-rate",
+                value: self.depth_rate.to_string(),
+                reason: "must be a positive number of images per second".to_owned(),
+            });
+        }
+        if self.video_bitrate < 100_000 {
+            return Err(RecorderError::InvalidOption {
+                option: "--video-bitrate",
+                value: self.video_bitrate.to_string(),
+                reason: "must be at least 100000 bits per second".to_owned(),
+            });
+        }
+        let depth_every = (self.video_rate / self.depth_rate).round().max(1.0) as u32;
+        Ok(Some(VideoFeedSettings {
+            video: VideoSettings::at_rate(self.video_rate, self.video_bitrate),
+            depth_every,
+        }))
+    }
+
     /// Output settings, after checking the options fit together.
     pub fn output_settings(&self, domain: &Domain) -> Result<OutputSettings, RecorderError> {
         let nonzero = |value: u64| (value > 0).then_some(value);
@@ -260,6 +330,7 @@ impl RecorderArgs {
             split_size_bytes: nonzero(self.split_size),
             split_duration: self.split_duration.filter(|duration| !duration.is_zero()),
             max_total_bytes: nonzero(self.max_total_size),
+            max_age: self.max_age.filter(|age| !age.is_zero()),
             queue_bytes: usize::try_from(self.queue_size).unwrap_or(usize::MAX),
             disk_full_retry: self.retry_interval,
         };
@@ -479,9 +550,25 @@ pub fn run_recorder_until(
     let started = ClockPair::now();
     let recording_fields =
         recording_fields(args, &settings, domain, process_name, &topics, started);
-    // The events channel first, then the mapped channels.
+    // The events channel first, then the camera's video and depth, then the mapped channels.
     let events_index = topics.len();
     let mut foreign = vec![events_channel()];
+    let camera_index = topics
+        .iter()
+        .position(|topic| topic.spec.topic == catalogue::CAMERA_RGBD.spec.topic);
+    let video = match (args.video_settings()?, camera_index) {
+        (Some(settings), Some(camera)) => {
+            let channels = VideoChannels {
+                camera,
+                video: topics.len() + foreign.len(),
+                depth: topics.len() + foreign.len() + 1,
+            };
+            foreign.extend([video_channel(), depth_channel()]);
+            Some((settings, channels))
+        }
+        _ => None,
+    };
+    let mapped_index = topics.len() + foreign.len();
     if !args.no_foxglove {
         foreign.extend(view_thread::foreign_channels());
     }
@@ -497,13 +584,20 @@ pub fn run_recorder_until(
     if !args.no_foxglove {
         let view = ViewFeed::spawn(
             &topics,
-            events_index + 1,
+            mapped_index,
             view_mounting(args),
             writer.enqueuer(),
             started,
         )
         .map_err(|error| RecorderError::Wait(format!("cannot start the view thread: {error}")))?;
         writer.attach_view(view);
+    }
+    if let Some((settings, channels)) = video {
+        let feed =
+            VideoFeed::spawn(settings, channels, writer.enqueuer(), started).map_err(|error| {
+                RecorderError::Wait(format!("cannot start the camera video: {error}"))
+            })?;
+        writer.attach_video(feed);
     }
     if let Some(flight_settings) = flight_settings {
         let flight = FlightFeed::spawn(
@@ -589,6 +683,23 @@ pub fn run_recorder_until(
             "flight recorder"
         );
     }
+    let video_report = writer.finish_video();
+    if let Some(video) = &video_report {
+        tracing::info!(
+            admitted = video.admitted,
+            encoded = video.encoded,
+            keyframes = video.keyframes,
+            depth = video.depth_encoded,
+            dropped_behind = video.dropped_behind,
+            dropped_by_queue = video.dropped_by_queue,
+            failed = video.failed,
+            encode_ms_mean = video.encode_ms_mean(),
+            encode_ms_max = video.encode_ms_max,
+            video_bytes = video.video_bytes,
+            depth_bytes = video.depth_bytes,
+            "camera video"
+        );
+    }
     if let Some(view) = writer.finish_view() {
         tracing::info!(
             admitted = view.admitted,
@@ -599,7 +710,10 @@ pub fn run_recorder_until(
             "mapped Foxglove channels"
         );
     }
-    let drops = drops_record(&taps, &unopened);
+    let mut drops = drops_record(&taps, &unopened);
+    if let Some(video) = &video_report {
+        drops.metadata.extend(video_drop_entries(video));
+    }
     let _ = health.report(
         ProcessRunState::Stopping,
         heartbeat.received(&taps),
@@ -896,6 +1010,42 @@ fn drops_record(
     }
 }
 
+/// The camera video's counts in the `harvest.drops` record.
+fn video_drop_entries(video: &VideoReport) -> BTreeMap<String, String> {
+    BTreeMap::from([
+        (
+            format!("{VIDEO_TOPIC}.admitted"),
+            video.admitted.to_string(),
+        ),
+        (format!("{VIDEO_TOPIC}.encoded"), video.encoded.to_string()),
+        (
+            format!("{VIDEO_TOPIC}.keyframes"),
+            video.keyframes.to_string(),
+        ),
+        (
+            format!("{VIDEO_TOPIC}.dropped_behind"),
+            video.dropped_behind.to_string(),
+        ),
+        (
+            format!("{VIDEO_TOPIC}.dropped_queue"),
+            video.dropped_by_queue.to_string(),
+        ),
+        (format!("{VIDEO_TOPIC}.failed"), video.failed.to_string()),
+        (
+            format!("{VIDEO_TOPIC}.encode_ms_mean"),
+            format!("{:.2}", video.encode_ms_mean()),
+        ),
+        (
+            format!("{VIDEO_TOPIC}.encode_ms_max"),
+            format!("{:.2}", video.encode_ms_max),
+        ),
+        (
+            format!("{DEPTH_TOPIC}.encoded"),
+            video.depth_encoded.to_string(),
+        ),
+    ])
+}
+
 fn recording_fields(
     args: &RecorderArgs,
     settings: &OutputSettings,
@@ -944,6 +1094,16 @@ fn recording_fields(
         (
             "chunk_interval_ms".to_owned(),
             settings.chunk_interval.as_millis().to_string(),
+        ),
+        (
+            "camera".to_owned(),
+            match args.camera {
+                CameraRecord::Video => format!(
+                    "video: {VIDEO_TOPIC} H.264 at {} Hz, {} bit/s; {DEPTH_TOPIC} at {} Hz",
+                    args.video_rate, args.video_bitrate, args.depth_rate
+                ),
+                CameraRecord::Raw => "raw".to_owned(),
+            },
         ),
         ("include".to_owned(), args.include.join(",")),
         ("exclude".to_owned(), args.exclude.join(",")),

@@ -1,6 +1,6 @@
 //! A tap on one catalogue channel: a subscriber with the channel's largest buffer whose
 //! samples are stamped on receipt, encoded with `Payload::encode` (the one copy out of shared
-//! memory) and queued for the writer; the view thread shares that buffer.
+//! memory) and queued for the writer; the view, video and flight threads share that buffer.
 
 use crate::writer_thread::{QueuedMessage, WriterHandle};
 use harvest_ipc::error::{OpenChannelError, ReceiveError};
@@ -84,11 +84,16 @@ impl<T: Payload> Tap for TypedTap<T> {
             let log_time_ns = MonotonicClock::read_ns();
             received += 1;
             let size_hint = std::mem::size_of::<T>();
-            // The flight recorder takes the message even when the disk queue is full (and the
-            // other way round): each drops on its own.
-            let live_room = writer.has_room(size_hint);
-            if !live_room && !writer.flight_has_room(size_hint) {
-                self.dropped_by_queue.set(self.dropped_by_queue.get() + 1);
+            // The continuous record (raw, or the camera as video), the mapped view and the
+            // flight recorder each take the message or drop it on their own: none waits for
+            // another.
+            let raw = writer.records_raw(self.topic_index);
+            let queue_room = writer.has_room(size_hint);
+            let video_due = writer.video_due(self.topic_index, log_time_ns);
+            if !queue_room && !video_due && !writer.flight_has_room(size_hint) {
+                if raw {
+                    self.dropped_by_queue.set(self.dropped_by_queue.get() + 1);
+                }
                 continue;
             }
             let mut data = writer.take_buffer(size_hint);
@@ -111,12 +116,21 @@ impl<T: Payload> Tap for TypedTap<T> {
                 header.publish_ns,
                 &data,
             );
-            if !live_room {
-                self.dropped_by_queue.set(self.dropped_by_queue.get() + 1);
+            if video_due {
+                writer.offer_video(log_time_ns, &data);
+            }
+            if !queue_room {
+                if raw {
+                    self.dropped_by_queue.set(self.dropped_by_queue.get() + 1);
+                }
                 writer.release(data);
                 continue;
             }
             writer.offer_view(self.topic_index, self.topic(), log_time_ns, &data);
+            if !raw {
+                writer.release(data);
+                continue;
+            }
             let message = QueuedMessage {
                 topic: self.topic_index,
                 sequence,

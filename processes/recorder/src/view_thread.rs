@@ -8,10 +8,12 @@
 //! bytes too: at most two camera frames) as a shared handle on the writer's buffer, not a copy
 //! ([`MessageBytes`]), decoded, mapped (the camera image downscaled and
 //! JPEG-encoded) and queued for the writer like any message. When this thread falls behind, its
-//! input is dropped and counted: the raw channels never wait for the view. Mapped messages carry
-//! the raw message's log time and their stamps on the session's wall-clock time base (the
-//! writer shifts the raw channels' log times by the same offset), so both share one timeline.
+//! input is dropped and counted: the raw channels never wait for the view. Mapped messages are
+//! queued with the raw message's log time on the stack clock (the writer shifts every log time
+//! by the session's offset) and carry their stamps on the session's wall-clock time base, so
+//! both share one timeline.
 
+use crate::shared_queue::{self, QueueReceiver, QueueSender, Weighed};
 use crate::writer_thread::{Enqueuer, MessageBytes, QueuedMessage};
 use harvest_foxglove_mapping::encoded::is_mapped;
 use harvest_foxglove_mapping::topics::{self, MappedSink, Topic, TopicDescription, encode_into};
@@ -23,8 +25,6 @@ use harvest_recording::segment_writer::ForeignChannel;
 use harvest_recording::wall_clock::ClockPair;
 use std::collections::BTreeMap;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc::{self, Receiver, SyncSender};
 use std::thread::JoinHandle;
 
 /// Encoded input bytes that may wait for the view thread (two 6.8 MB frames).
@@ -65,6 +65,12 @@ struct ViewInput {
     data: MessageBytes,
 }
 
+impl Weighed for ViewInput {
+    fn bytes(&self) -> usize {
+        self.data.len()
+    }
+}
+
 /// What the view thread did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ViewReport {
@@ -82,12 +88,10 @@ pub struct ViewReport {
 
 /// The receiving side's handle on the view thread.
 pub struct ViewFeed {
-    inputs: SyncSender<ViewInput>,
-    pending_bytes: Arc<AtomicUsize>,
+    inputs: QueueSender<ViewInput>,
     /// Topic index -> the channel's viewing-rate limit (mapped channels only).
     limits: BTreeMap<usize, RateLimit>,
     admitted: u64,
-    dropped_behind: u64,
     thread: JoinHandle<ViewReport>,
 }
 
@@ -114,25 +118,22 @@ impl ViewFeed {
             .enumerate()
             .map(|(position, topic)| (topic.name, first_index + position))
             .collect();
-        let (inputs, receiver) = mpsc::sync_channel(MAX_PENDING_MESSAGES);
-        let pending_bytes = Arc::new(AtomicUsize::new(0));
-        let thread_pending = pending_bytes.clone();
+        let (inputs, receiver) = shared_queue::bounded(MAX_PENDING_MESSAGES, MAX_PENDING_BYTES);
         let sink = RecordingSink {
             enqueuer,
             positions,
             sequences: BTreeMap::new(),
             report: ViewReport::default(),
             buffer: Vec::new(),
+            input_log_time_ns: 0,
         };
         let thread = std::thread::Builder::new()
             .name("recorder-view".to_owned())
-            .spawn(move || run(receiver, thread_pending, mounting, time, sink))?;
+            .spawn(move || run(receiver, mounting, time, sink))?;
         Ok(Self {
             inputs,
-            pending_bytes,
             limits,
             admitted: 0,
-            dropped_behind: 0,
             thread,
         })
     }
@@ -153,35 +154,23 @@ impl ViewFeed {
             return;
         }
         self.admitted += 1;
-        if self.pending_bytes.load(Ordering::Relaxed) + data.len() > MAX_PENDING_BYTES {
-            self.dropped_behind += 1;
-            return;
-        }
-        self.pending_bytes.fetch_add(data.len(), Ordering::Relaxed);
-        let input = ViewInput {
+        self.inputs.offer(ViewInput {
             topic,
             log_time_ns,
             data: Arc::clone(data),
-        };
-        if let Err(error) = self.inputs.try_send(input) {
-            let input = match error {
-                mpsc::TrySendError::Full(input) | mpsc::TrySendError::Disconnected(input) => input,
-            };
-            self.pending_bytes
-                .fetch_sub(input.data.len(), Ordering::Relaxed);
-            self.dropped_behind += 1;
-        }
+        });
     }
 
     /// Maps what is still queued and stops the thread.
     pub fn finish(self) -> ViewReport {
+        let dropped_behind = self.inputs.dropped();
         drop(self.inputs);
         let mut report = self.thread.join().unwrap_or_else(|_| {
             tracing::error!("the recorder's view thread panicked; mapped channels are incomplete");
             ViewReport::default()
         });
         report.admitted = self.admitted;
-        report.dropped_behind = self.dropped_behind;
+        report.dropped_behind = dropped_behind;
         report
     }
 }
@@ -194,6 +183,9 @@ struct RecordingSink {
     sequences: BTreeMap<usize, u32>,
     report: ViewReport,
     buffer: Vec<u8>,
+    /// Stack-clock log time of the raw message being mapped: the log time of what it maps to
+    /// (the mapper's own log times are already on the wall clock).
+    input_log_time_ns: u64,
 }
 
 impl MappedSink for RecordingSink {
@@ -202,7 +194,7 @@ impl MappedSink for RecordingSink {
     fn write<M: foxglove::Encode>(
         &mut self,
         topic: Topic<M>,
-        log_time_ns: u64,
+        _wall_log_time_ns: u64,
         message: &M,
     ) -> Result<(), Self::Error> {
         let Some(&index) = self.positions.get(topic.name) else {
@@ -217,8 +209,8 @@ impl MappedSink for RecordingSink {
         let queued = QueuedMessage {
             topic: index,
             sequence: *sequence,
-            log_time_ns,
-            publish_time_ns: log_time_ns,
+            log_time_ns: self.input_log_time_ns,
+            publish_time_ns: self.input_log_time_ns,
             data: Arc::new(std::mem::take(&mut self.buffer)),
         };
         if self.enqueuer.try_enqueue(queued) {
@@ -231,16 +223,15 @@ impl MappedSink for RecordingSink {
 }
 
 fn run(
-    inputs: Receiver<ViewInput>,
-    pending_bytes: Arc<AtomicUsize>,
+    inputs: QueueReceiver<ViewInput>,
     mounting: Mounting,
     time: TimeBase,
     mut sink: RecordingSink,
 ) -> ViewReport {
     let mut mapper = EncodedMapper::new(time, ImageSettings::VIEWING, mounting);
     let mut warned = false;
-    while let Ok(input) = inputs.recv() {
-        pending_bytes.fetch_sub(input.data.len(), Ordering::Relaxed);
+    while let Some(input) = inputs.recv() {
+        sink.input_log_time_ns = input.log_time_ns;
         if let Err(error) = mapper.map(input.topic, &input.data, input.log_time_ns, &mut sink) {
             sink.report.failed += 1;
             if !std::mem::replace(&mut warned, true) {

@@ -23,7 +23,8 @@
 
 use crate::disk_space::{OutOfSpace, SpaceReservation, free_bytes_in};
 use crate::flight_thread::{FlightFeed, FlightReport};
-use crate::output_dir::{create_segment, enforce_size_bound};
+use crate::output_dir::{create_segment, enforce_age_bound, enforce_size_bound};
+use crate::video_thread::{VideoFeed, VideoReport};
 use crate::view_thread::{ViewFeed, ViewReport};
 use harvest_recording::mcap_error::{is_disk_full, is_out_of_space, mcap_error_text};
 use harvest_recording::metadata;
@@ -59,6 +60,8 @@ pub struct OutputSettings {
     pub split_duration: Option<Duration>,
     /// Keep the prefix's files in `dir` under this total (oldest removed first).
     pub max_total_bytes: Option<u64>,
+    /// Remove the prefix's files in `dir` last written longer ago than this.
+    pub max_age: Option<Duration>,
     /// Encoded bytes allowed in flight between the receiving and the writer thread.
     pub queue_bytes: usize,
     /// While the disk is full, how often the free space is checked to resume recording.
@@ -81,10 +84,10 @@ pub struct QueuedMessage {
     pub topic: usize,
     /// `msg_seq` of the header (MCAP stores 32 bits: wraps after 4e9 messages).
     pub sequence: u32,
-    /// Receive time on the stack clock (catalogue topics; the writer adds the session's
-    /// log-time offset), or the file's log time already (foreign channels).
+    /// Receive time on the stack clock, for every channel (the catalogue's and the foreign
+    /// ones): the writer adds the session's log-time offset, in one place.
     pub log_time_ns: u64,
-    /// `header.publish_ns` (same time base as `log_time_ns`).
+    /// `header.publish_ns` on the stack clock (shifted by the writer like `log_time_ns`).
     pub publish_time_ns: u64,
     pub data: MessageBytes,
 }
@@ -157,6 +160,9 @@ pub struct WriterHandle {
     view: Option<ViewFeed>,
     /// The flight recorder's thread, when it runs.
     flight: Option<FlightFeed>,
+    /// The camera's video thread, when the continuous record holds the camera as video (its
+    /// raw frames then stay out of the continuous record).
+    video: Option<VideoFeed>,
 }
 
 /// Buffers at least this big are pooled as "large" (frames); smaller ones as "small".
@@ -241,7 +247,41 @@ impl WriterHandle {
             thread,
             view: None,
             flight: None,
+            video: None,
         })
+    }
+
+    /// Records the camera as video from now on (its raw frames leave the continuous record).
+    pub fn attach_video(&mut self, video: VideoFeed) {
+        self.video = Some(video);
+    }
+
+    /// False for the catalogue topic whose raw messages stay out of the continuous record (the
+    /// camera, while it is recorded as video).
+    pub fn records_raw(&self, index: usize) -> bool {
+        self.video
+            .as_ref()
+            .is_none_or(|video| !video.is_camera(index))
+    }
+
+    /// True when topic `index` is the camera and a frame received at `log_time_ns` is due for
+    /// the video (takes the rate's slot).
+    pub fn video_due(&mut self, index: usize, log_time_ns: u64) -> bool {
+        self.video
+            .as_mut()
+            .is_some_and(|video| video.due(index, log_time_ns))
+    }
+
+    /// Hands a due camera frame to the video thread (shared, not copied).
+    pub fn offer_video(&mut self, log_time_ns: u64, data: &MessageBytes) {
+        if let Some(video) = self.video.as_mut() {
+            video.offer(log_time_ns, data);
+        }
+    }
+
+    /// Stops the video thread once it has encoded what it holds (before [`Self::finish`]).
+    pub fn finish_video(&mut self) -> Option<VideoReport> {
+        self.video.take().map(VideoFeed::finish)
     }
 
     /// Hands every message offered with [`Self::offer_flight`] to the flight recorder.
@@ -402,6 +442,7 @@ impl WriterHandle {
     /// Writes `trailing` metadata, finishes the open segment and waits for the thread.
     pub fn finish(mut self, trailing: Vec<Metadata>) -> Result<WriterReport, WriteError> {
         let _ = self.finish_view();
+        let _ = self.finish_video();
         let _ = self.finish_flight();
         let _ = self.commands.send(Command::Finish(trailing));
         drop(self.commands);
@@ -486,8 +527,8 @@ struct WriterState {
     recording_fields: BTreeMap<String, String>,
     session_records: Vec<Metadata>,
     session_utc: String,
-    /// Added to the stack-clock stamps of catalogue messages to make the file's log and
-    /// publish times (Unix-epoch ns; one offset for the whole session, so segments line up).
+    /// Added to the stack-clock stamps of every message to make the file's log and publish
+    /// times (Unix-epoch ns; one offset for the whole session, so segments line up).
     log_time_offset_ns: i64,
     segment_index: u32,
     current: Option<OpenSegment>,
@@ -796,6 +837,23 @@ impl WriterState {
                 }
             }
         }
+        if let Some(max_age) = self.settings.max_age {
+            match enforce_age_bound(
+                &dir,
+                &self.settings.prefix,
+                max_age,
+                std::time::SystemTime::now(),
+                Some(&path),
+            ) {
+                Ok(removed) => self
+                    .report
+                    .removed_files
+                    .extend(removed.into_iter().map(|f| f.path)),
+                Err(error) => {
+                    tracing::warn!(dir = %dir.display(), %error, "cannot apply the age bound")
+                }
+            }
+        }
         Ok(())
     }
 
@@ -909,8 +967,8 @@ impl WriterState {
                 message.topic,
                 foreign,
                 message.sequence,
-                message.log_time_ns,
-                message.publish_time_ns,
+                wall_clock_ns(message.log_time_ns, offset_ns),
+                wall_clock_ns(message.publish_time_ns, offset_ns),
                 &message.data,
             ),
             (None, None) => Ok(()),

@@ -3,6 +3,7 @@
 use clap::{CommandFactory, Parser, Subcommand};
 use harvest_rec::{RecCommand, ReplayArgs};
 use harvest_recorder::RecorderArgs;
+use harvest_recorder::recorder::CameraRecord;
 use harvest_recorder::recorder::LayerArg;
 use harvest_recording::segment_writer::ChunkCompression;
 use std::time::Duration;
@@ -40,18 +41,29 @@ fn recorder_defaults_and_options() {
     let Command::Recorder(args) = parse("recorder") else {
         panic!("recorder")
     };
-    assert_eq!(args.compression, ChunkCompression::Lz4);
+    assert_eq!(args.compression, ChunkCompression::Zstd);
+    assert_eq!(args.camera, CameraRecord::Video);
+    assert_eq!(args.video_rate, 10.0);
+    assert_eq!(args.depth_rate, 2.0);
+    assert_eq!(args.max_age, None);
     assert_eq!(args.layers, vec![LayerArg::Stack]);
     assert_eq!(args.output_dir, std::path::PathBuf::from("recordings"));
     assert_eq!(args.split_size, 1 << 30);
     let line = "recorder --compression zstd --compression-level 3 --chunk-size 8MiB --split-size 2GB \
 --split-duration 5m --max-total-size 100GiB --include arm* --include camera/* --exclude */command \
 --layer stack --layer hardware --launch-file launch.toml --calibration cal.toml --scenario dense \
---note operator=ana --output-dir /data/rec";
+--note operator=ana --output-dir /data/rec --camera raw --max-age 168h --video-rate 5 \
+--video-bitrate 1000000 --depth-rate 1";
     let Command::Recorder(args) = parse(line) else {
         panic!("recorder")
     };
     assert_eq!(args.compression, ChunkCompression::Zstd);
+    assert_eq!(args.camera, CameraRecord::Raw);
+    assert_eq!(args.max_age, Some(Duration::from_secs(168 * 3600)));
+    assert_eq!(
+        (args.video_rate, args.video_bitrate, args.depth_rate),
+        (5.0, 1_000_000, 1.0)
+    );
     assert_eq!(args.compression_level, Some(3));
     assert_eq!(args.chunk_size, 8 << 20);
     assert_eq!(args.split_size, 2_000_000_000);

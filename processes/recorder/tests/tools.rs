@@ -173,16 +173,8 @@ fn info_cat_and_export_describe_the_recording() {
     )
     .expect("export");
     assert_eq!(report.png_frames, 2);
-    // The recorder's own events channel (JSON) is not carried into the Foxglove export yet;
-    // every stack channel is.
-    assert!(
-        report
-            .skipped
-            .keys()
-            .all(|topic| topic == "recorder/events"),
-        "{:?}",
-        report.skipped
-    );
+    // Every channel is carried into the Foxglove export, the recorder's events (JSON) too.
+    assert!(report.skipped.is_empty(), "{:?}", report.skipped);
     for index in 0..2u32 {
         let mut expected = zeroed_box::<RgbdFrame>();
         fill_frame(&mut expected, index);
@@ -253,6 +245,12 @@ print(json.dumps(out))
         arm["log_time"].as_u64().expect("log_time") > 1_600_000_000_000_000_000,
         "stamps converted to UTC"
     );
+    // The recorder's events channel, copied as it is (JSON with its schema).
+    let events = &read["topics"]["recorder/events"];
+    assert!(events["count"].as_u64().unwrap_or(0) >= 1, "{events}");
+    assert_eq!(events["encoding"], "json");
+    assert_eq!(events["schema_encoding"], "jsonschema");
+    assert!(events["first"]["kind"].is_string(), "{events}");
     let image = &read["topics"]["/camera/image"];
     assert_eq!(image["schema"], "foxglove.CompressedImage");
     assert_eq!(image["encoding"], "protobuf");

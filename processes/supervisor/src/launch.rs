@@ -65,11 +65,13 @@ pub const KNOWN_COMMANDS: &[&str] = &[
     "executive",
     "console",
     "foxglove",
+    // The link to the operator's station (Zenoh).
+    "remote",
 ];
 
 /// `harvest` subcommands that are not critical unless the launch file says `critical = true`
 /// (module docs): they only watch the robot or keep its record.
-pub const NON_CRITICAL_COMMANDS: &[&str] = &["console", "foxglove", "recorder"];
+pub const NON_CRITICAL_COMMANDS: &[&str] = &["console", "foxglove", "recorder", "remote"];
 
 /// Whether a process is critical when its launch entry has no `critical` key: every `harvest`
 /// subcommand but [`NON_CRITICAL_COMMANDS`], and every other program (`executable = ...`,

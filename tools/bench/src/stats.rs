@@ -19,7 +19,7 @@ pub fn latency_histogram() -> Result<Histogram<u64>, BenchError> {
 }
 
 /// One-way latency distribution of one run (or the per-field median of several).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct LatencySummary {
     pub samples: u64,
     pub p50_ns: u64,

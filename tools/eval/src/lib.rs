@@ -10,6 +10,8 @@
 //!   with perception on rendered frames in the loop, single vs dual arm (Tables 2 and 3).
 //! - [`laser`]: `harvest eval laser`, what the ALACS scan adds and the scan policy costs.
 //! - [`lidar`]: `harvest eval lidar`, fused versus ToF localization (Table III).
+//! - [`detector_dataset`]: `harvest dataset detector`, domain-randomised renders with exact
+//!   labels for training a learned detector (tools/detector_training/).
 //! - [`cycle_model`]: a discrete-event model of the picking timeline driven by the coordination
 //!   policies (Fig. 12, single vs. dual arm with injected failures), judged by the safety
 //!   monitor in its property tests; `cycle_report` prints its figures.
@@ -18,6 +20,7 @@
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod cycle_model;
+pub mod detector_dataset;
 pub mod harvest;
 pub mod laser;
 pub mod lidar;

@@ -41,4 +41,12 @@ pub enum PerceptionSetupError {
     /// A depth image given in place of the frame's has another size than the frame's.
     #[error("depth override holds {actual} pixels, the frame's depth image {expected}")]
     DepthOverrideSize { expected: usize, actual: usize },
+    /// The frame is colour only (its camera has no depth sensor) and no other depth was given:
+    /// nothing to localize from.
+    #[error(
+        "frame {frame_seq} is colour only (its camera has no depth sensor) and no LiDAR depth \
+         has been fused for it: perception needs depth_source = lidar_fused \
+         (--depth-source lidar-fused --lidar-extrinsic FILE) and clouds on lidar/points"
+    )]
+    NoDepthSource { frame_seq: u64 },
 }

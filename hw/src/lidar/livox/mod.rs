@@ -7,12 +7,13 @@
 //! - [`command`]: ports, command ids and payloads of discovery, handshake, heartbeat, sampling.
 //! - [`point_packet`]: point-data packets, data types 2 (extended Cartesian) and 4 (dual return).
 //! - [`error_code`]: the device's status word.
-//! - [`clock_mapping`]: device timestamps -> the stack's `CLOCK_MONOTONIC`.
+//! - [`clock_mapping`]: device timestamps -> the stack's `CLOCK_MONOTONIC` (shared with the
+//!   GigE camera: [`crate::clock_mapping`]).
 //! - [`config`]: how to reach the device.
 //! - [`session`]: the UDP session (discovery, handshake, heartbeat, sampling, silence).
 //! - [`driver`]: [`LivoxLidar`], the [`crate::lidar::Lidar`] implementation.
 
-pub mod clock_mapping;
+pub use crate::clock_mapping;
 pub mod command;
 pub mod config;
 pub mod crc;

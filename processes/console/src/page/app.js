@@ -1,5 +1,8 @@
-// The harvest console page: polls /api/status, streams /api/camera.jpg, posts commands to
-// /api/command. No framework, nothing loaded from elsewhere.
+// The harvest console page: one push connection (a WebSocket at /api/live) brings the status
+// and the camera views as they are made and carries the page's commands, marks and clock
+// readings; nothing is polled. Without a push connection (the console has no room for another
+// watcher, or it is being reconnected) commands and marks go as plain POSTs. No framework,
+// nothing loaded from elsewhere.
 'use strict';
 
 const $ = (id) => document.getElementById(id);
@@ -13,64 +16,129 @@ const state = {
   viewSeq: 0,
   status: null,
   pressures: [[], [], []],
+  live: null,
+  nextId: 1,
+  pending: new Map(),
+  clockSent: new Map(),
+  liveProblem: null,
 };
 // Read by the browser test and by anyone curious (devtools).
-window.consoleStats = { views: 0, latenciesMs: [], estopClickNs: null, answers: [] };
+window.consoleStats = { views: 0, latenciesMs: [], estopClickNs: null, answers: [], statuses: 0, liveOpens: 0 };
 
 const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 const fmt = (value, digits) => (value === null || value === undefined ? '-' : Number(value).toFixed(digits));
 
-// --- Clock: the stack clock (CLOCK_MONOTONIC) estimated from the page's clock.
-async function syncClock() {
-  const t0 = performance.now();
-  const response = await fetch('/api/clock', { cache: 'no-store' });
-  const body = await response.json();
+// --- Clock: the stack clock (CLOCK_MONOTONIC) estimated from the page's clock, from readings
+// asked over the push connection.
+function askClock() {
+  const live = state.live;
+  if (!live || live.readyState !== WebSocket.OPEN) return;
+  const id = state.nextId++;
+  state.clockSent.set(id, performance.now());
+  live.send(JSON.stringify({ op: 'clock', id }));
+}
+function onClock(message) {
+  const t0 = state.clockSent.get(message.id);
+  if (t0 === undefined) return;
+  state.clockSent.delete(message.id);
   const t1 = performance.now();
   const rtt = t1 - t0;
   // Keep the estimate of the fastest round trip (its midpoint is the tightest).
   if (rtt <= state.bestRttMs * 1.5 || state.offsetNs === null) {
     state.bestRttMs = Math.min(rtt, state.bestRttMs);
-    state.offsetNs = body.now_ns - ((t0 + t1) / 2) * 1e6;
+    state.offsetNs = message.now_ns - ((t0 + t1) / 2) * 1e6;
   }
 }
 function monoNowNs() {
   return performance.now() * 1e6 + state.offsetNs;
 }
 
-// --- Camera view.
-async function cameraLoop() {
+// --- Camera view: the newest pushed view is shown; a view that arrives while the previous one
+// is still being decoded replaces any other waiting one (a slow page skips views).
+const views = { waiting: null, decoding: false, previousUrl: null };
+function onView(buffer) {
+  const length = new DataView(buffer).getUint32(0, true);
+  const header = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 4, length)));
+  views.waiting = { header, blob: new Blob([new Uint8Array(buffer, 4 + length)], { type: 'image/jpeg' }) };
+  if (!views.decoding) showViews();
+}
+async function showViews() {
+  views.decoding = true;
   const img = $('camera');
-  let previousUrl = null;
-  for (;;) {
+  while (views.waiting) {
+    const { header, blob } = views.waiting;
+    views.waiting = null;
+    const url = URL.createObjectURL(blob);
+    img.src = url;
     try {
-      const response = await fetch('/api/camera.jpg?after=' + state.viewSeq, { cache: 'no-store' });
-      if (response.status !== 200) {
-        await sleep(500);
-        continue;
-      }
-      const seq = Number(response.headers.get('X-View-Seq'));
-      const captureNs = Number(response.headers.get('X-Capture-Ns'));
-      const blob = await response.blob();
-      const url = URL.createObjectURL(blob);
-      img.src = url;
       await img.decode();
-      if (previousUrl) URL.revokeObjectURL(previousUrl);
-      previousUrl = url;
-      if (seq !== state.viewSeq) {
-        state.viewSeq = seq;
-        window.consoleStats.views += 1;
-        if (state.offsetNs !== null) {
-          const latencies = window.consoleStats.latenciesMs;
-          latencies.push((monoNowNs() - captureNs) / 1e6);
-          if (latencies.length > 5000) latencies.shift();
-        }
-        $('view-info').textContent = `view ${seq}, frame ${response.headers.get('X-Frame-Seq')}`;
-      }
-      drawOverlay();
     } catch (error) {
-      await sleep(1000);
+      continue;
     }
+    if (views.previousUrl) URL.revokeObjectURL(views.previousUrl);
+    views.previousUrl = url;
+    if (header.view_seq !== state.viewSeq) {
+      state.viewSeq = header.view_seq;
+      window.consoleStats.views += 1;
+      if (state.offsetNs !== null) {
+        const latencies = window.consoleStats.latenciesMs;
+        latencies.push((monoNowNs() - header.capture_ns) / 1e6);
+        if (latencies.length > 5000) latencies.shift();
+      }
+      $('view-info').textContent = `view ${header.view_seq}, frame ${header.frame_seq}`;
+    }
+    drawOverlay();
   }
+  views.decoding = false;
+}
+
+// --- The push connection.
+function connectLive() {
+  const scheme = location.protocol === 'https:' ? 'wss' : 'ws';
+  const live = new WebSocket(`${scheme}://${location.host}/api/live?session=${state.session}`);
+  live.binaryType = 'arraybuffer';
+  state.live = live;
+  let opened = false;
+  live.onopen = () => {
+    opened = true;
+    state.liveProblem = null;
+    window.consoleStats.liveOpens += 1;
+    askClock();
+  };
+  live.onmessage = (event) => {
+    if (typeof event.data !== 'string') {
+      onView(event.data);
+      return;
+    }
+    const message = JSON.parse(event.data);
+    if (message.type === 'status') {
+      window.consoleStats.statuses += 1;
+      renderStatus(message);
+    } else if (message.type === 'answer') {
+      const waiting = state.pending.get(message.id);
+      if (waiting) {
+        state.pending.delete(message.id);
+        waiting(message);
+      }
+    } else if (message.type === 'clock') {
+      onClock(message);
+    }
+  };
+  live.onclose = async () => {
+    state.live = null;
+    // Commands still waiting for an answer over this connection: sent, answer lost.
+    for (const [id, waiting] of state.pending) {
+      waiting({ accepted: false, reason: 'the push connection closed before the answer came' });
+      state.pending.delete(id);
+    }
+    state.liveProblem = opened
+      ? 'the console connection was lost; reconnecting'
+      : 'the console has no room for another live view; the e-stop and commands still go through';
+    $('mode-name').textContent = opened ? 'reconnecting' : $('mode-name').textContent;
+    showReach(state.status ? reachProblems(state.status) : [state.liveProblem]);
+    await sleep(opened ? 500 : 5000);
+    connectLive();
+  };
 }
 
 function drawOverlay() {
@@ -173,6 +241,7 @@ function drawPressures() {
 const EXECUTIVE_SILENT_MS = 1000;
 function reachProblems(status) {
   const problems = [];
+  if (state.liveProblem) problems.push(state.liveProblem);
   const links = status.links || {};
   if (links.estop && !links.estop.ok) problems.push(`e-stop path down: ${links.estop.problem}`);
   if (links.commands && !links.commands.ok) problems.push(`command path down: ${links.commands.problem}`);
@@ -184,7 +253,7 @@ function reachProblems(status) {
 function showReach(problems) {
   const banner = $('reach');
   banner.hidden = problems.length === 0;
-  banner.textContent = problems.length ? 'CANNOT REACH THE EXECUTIVE: ' + problems.join('; ') : '';
+  banner.textContent = problems.length ? 'NOT LIVE OR CANNOT REACH THE EXECUTIVE: ' + problems.join('; ') : '';
 }
 
 // --- Status.
@@ -251,26 +320,26 @@ function renderStatus(status) {
   drawOverlay();
 }
 
-async function statusLoop() {
-  for (;;) {
-    try {
-      const response = await fetch('/api/status', { cache: 'no-store' });
-      renderStatus(await response.json());
-    } catch (error) {
-      $('mode-name').textContent = 'console unreachable';
-      showReach([`the console does not answer (${error})`]);
-    }
-    await sleep(200);
+// --- Commands.
+// Over the push connection when it is open (no new connection needed: a console full of
+// watchers cannot keep a command out), else as a POST.
+function request(op, fields, path) {
+  const live = state.live;
+  if (live && live.readyState === WebSocket.OPEN) {
+    const id = state.nextId++;
+    return new Promise((resolve) => {
+      state.pending.set(id, resolve);
+      live.send(JSON.stringify({ op, id, ...fields }));
+    });
   }
+  return fetch(path, { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(fields) })
+    .then((response) => response.json());
 }
 
-// --- Commands.
 async function sendCommand(command, quiet) {
-  const body = JSON.stringify({ token: state.token, session: state.session, command });
   let answer;
   try {
-    const response = await fetch('/api/command', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body });
-    answer = await response.json();
+    answer = await request('command', { token: state.token, session: state.session, command }, '/api/command');
   } catch (error) {
     answer = { accepted: false, unreachable: true, reason: 'console unreachable: ' + error };
   }
@@ -334,6 +403,19 @@ function wire() {
   });
   $('jog-plus').addEventListener('click', () => jog(1));
   $('jog-minus').addEventListener('click', () => jog(-1));
+  $('btn-mark').addEventListener('click', async () => {
+    let answer;
+    try {
+      answer = await request('mark', { text: $('mark-text').value }, '/api/mark');
+    } catch (error) {
+      answer = { accepted: false, reason: 'console unreachable: ' + error };
+    }
+    const element = $('mark-answer');
+    element.textContent = answer.accepted ? answer.reason : `mark REFUSED: ${answer.reason}`;
+    element.className = answer.accepted ? 'accepted' : 'refused';
+    window.consoleStats.answers.push({ command: 'mark', ...answer });
+    if (answer.accepted) $('mark-text').value = '';
+  });
   $('platform-move').addEventListener('click', () => sendCommand({
     command: 'platform',
     in_out_m: Number($('platform-in-out').value),
@@ -342,7 +424,6 @@ function wire() {
 }
 
 wire();
-syncClock().catch(() => {});
-setInterval(() => syncClock().catch(() => {}), 5000);
-statusLoop();
-cameraLoop();
+connectLive();
+// The clock estimate is refreshed every 5 s (this also tells the console the page is alive).
+setInterval(askClock, 5000);

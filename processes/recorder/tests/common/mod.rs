@@ -8,7 +8,9 @@ use harvest_ipc::catalogue::{ARM_STATE, CAMERA_RGBD, EMERGENCY_STOP, VACUUM_STAT
 use harvest_ipc::payloads::rgbd_frame::{DEPTH_PIXELS, RGB_BYTES};
 use harvest_ipc::payloads::{ArmPhase, ArmState, EmergencyStop, RgbdFrame, VacuumState};
 use harvest_ipc::{Context, Domain, FixedString, Header, Payload, Publisher, WireEnum};
+use harvest_recorder::recorder::CameraRecord;
 use harvest_recorder::{RecorderArgs, RecorderControl, RecorderError, RecordingReport};
+use harvest_recording::segment_writer::ChunkCompression;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Arc;
@@ -50,6 +52,10 @@ pub fn test_args(dir: &Path) -> RecorderArgs {
         chunk_interval: Duration::from_millis(20),
         retry_interval: Duration::from_millis(50),
         max_total_size: 0,
+        // These tests check the raw channels, the camera's frames included, as they were
+        // recorded (tests/video.rs covers the camera as video).
+        camera: CameraRecord::Raw,
+        compression: ChunkCompression::Lz4,
         ..RecorderArgs::default()
     }
 }
@@ -198,21 +204,27 @@ pub fn encoded<T: Payload>(value: &T) -> Vec<u8> {
 
 /// Makes sure the Python `mcap` package (the independent reader) is importable.
 pub fn ensure_python_mcap() {
-    let available = |_: ()| {
+    ensure_python("mcap, zstandard, lz4", &["mcap", "zstandard", "lz4"]);
+}
+
+/// Makes sure `python3` imports `modules`, installing `packages` with pip when it does not.
+pub fn ensure_python(modules: &str, packages: &[&str]) {
+    let available = || {
         Command::new("python3")
-            .args(["-c", "import mcap, zstandard, lz4"])
+            .args(["-c", &format!("import {modules}")])
             .status()
-            .map(|status| status.success())
-            .unwrap_or(false)
+            .is_ok_and(|status| status.success())
     };
-    if !available(()) {
+    if !available() {
         let _ = Command::new("python3")
-            .args(["-m", "pip", "install", "--quiet", "mcap"])
+            .args(["-m", "pip", "install", "--quiet"])
+            .args(packages)
             .status();
     }
     assert!(
-        available(()),
-        "python3 with the `mcap` package is required (python3 -m pip install mcap)"
+        available(),
+        "python3 with {modules} is required (pip install {})",
+        packages.join(" ")
     );
 }
 

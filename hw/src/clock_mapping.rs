@@ -1,26 +1,30 @@
-//! Device time -> the stack's clock (`CLOCK_MONOTONIC` nanoseconds, `harvest_ipc::clock`).
+//! Device time -> the stack's clock (`CLOCK_MONOTONIC` nanoseconds, `harvest_ipc::clock`), for
+//! devices that stamp their data with a clock of their own (the Livox Mid-70's point packets, a
+//! GigE Vision camera's frames).
 //!
-//! Every point packet carries the device time of its first firing; the firings are 10 us apart,
-//! so the packet's last firing happened at `first + (n - 1) * 10 us` of device time and the host
-//! receives the datagram a transport delay later. Each packet gives one sample of
-//! `offset = host_receive_ns - device_last_firing_ns`, which is the true clock offset plus a
-//! delay that is never negative. The estimate is the running minimum of the samples (the
-//! packets that crossed the link fastest), allowed to rise by [`DRIFT_ALLOWANCE_PPM`] of the
-//! host time elapsed so that it follows a device clock running slower than the host's; a
-//! device clock running faster pulls the minimum down by itself. A stamp is then
-//! `device_ns + offset`: device-accurate spacing between points, and an absolute error of the
-//! smallest transport delay seen (tens of microseconds on a direct link).
+//! Each datum gives one sample of `offset = host_receive_ns - device_ns`: the true clock offset
+//! plus a delay that is never negative. The estimate is the running minimum of the samples (the
+//! data that crossed the link fastest), allowed to rise by [`DRIFT_ALLOWANCE_PPM`] of the host
+//! time elapsed so that it follows a device clock running slower than the host's; a device
+//! clock running faster pulls the minimum down by itself. A stamp is then `device_ns + offset`:
+//! device-accurate spacing, and an absolute error of the smallest transport delay seen.
 //!
-//! The same estimator serves every timestamp type, because the stack's clock is never the
-//! device's epoch: without synchronisation (type 0) the device counts from its power-up on its
-//! own oscillator (tens of ppm off the host's, tracked by the minimum filter); with PTP (1), PPS
-//! (4) or GPS (3) the device counts the master's time, the offset is nearly constant and the
-//! estimate settles. What synchronisation adds is agreement between several devices disciplined
-//! by the same master, not a different mapping here.
+//! Livox Mid-70: every point packet carries the device time of its first firing; the firings
+//! are 10 us apart, so the sample pairs the packet's last firing (`first + (n - 1) * 10 us`)
+//! with the datagram's arrival; the error is tens of microseconds on a direct link. GigE
+//! Vision: the frame's timestamp (the camera's tick counter, in ns) pairs with the host time the
+//! frame's first packet arrived; the error is the camera's shortest readout-to-leader delay.
+//!
+//! The same estimator serves every synchronisation, because the stack's clock is never the
+//! device's epoch: without synchronisation (Livox type 0, a free-running camera) the device
+//! counts from its power-up on its own oscillator (tens of ppm off the host's, tracked by the
+//! minimum filter); with PTP, PPS or GPS the device counts the master's time, the offset is
+//! nearly constant and the estimate settles. What synchronisation adds is agreement between
+//! several devices disciplined by the same master, not a different mapping here.
 //!
 //! The estimate starts over ([`ClockMapping::resets`]) when the device's time runs backwards
 //! (a reboot, a PTP step back), jumps forwards by more than [`MAX_FORWARD_JUMP_NS`] beyond the
-//! host's elapsed time (a step, PPS realignment), or after [`MAX_SILENCE_NS`] without packets.
+//! host's elapsed time (a step, PPS realignment), or after [`MAX_SILENCE_NS`] without data.
 
 /// How fast the estimated offset may rise without a sample pinning it, parts per million of
 /// elapsed host time (above any oscillator's error; the error it adds between two fast packets
@@ -29,7 +33,7 @@ pub const DRIFT_ALLOWANCE_PPM: u64 = 200;
 /// A forward jump of the device time beyond the host's elapsed time by more than this restarts
 /// the estimate.
 pub const MAX_FORWARD_JUMP_NS: i64 = 50_000_000;
-/// Packets further apart than this in host time restart the estimate.
+/// Samples further apart than this in host time restart the estimate.
 pub const MAX_SILENCE_NS: u64 = 1_000_000_000;
 
 /// The running device -> host clock offset.
@@ -48,8 +52,8 @@ impl ClockMapping {
         Self::default()
     }
 
-    /// Takes one packet's sample (`device_ns`: its last firing's device time; `host_ns`: when the
-    /// host received it) and returns the current offset, host minus device, nanoseconds.
+    /// Takes one sample (`device_ns`: the datum's device time, e.g. a packet's last firing;
+    /// `host_ns`: when the host received it) and returns the current offset, host minus device, nanoseconds.
     pub fn observe(&mut self, device_ns: u64, host_ns: u64) -> i128 {
         let sample = i128::from(host_ns) - i128::from(device_ns);
         let estimate = match self.offset_ns {

@@ -1,0 +1,725 @@
+//! The remote link between two iceoryx2 domains on one machine, bridged over loopback TCP:
+//! the robot's domain runs a real `harvest executive` and `harvest remote`, with arm states and
+//! camera frames replayed into it by the test (as a recording would); the station's side runs
+//! `harvest ctl --remote`, `harvest fleet`, and the independent Python `eclipse-zenoh` client
+//! (pip) that decodes the payloads with none of our code. Also: commands from viewer and
+//! unauthenticated peers refused (Zenoh user/password and access control), and a network cut
+//! (a TCP relay the test breaks for 10 s) that stops the manual motion the station was
+//! driving, after which the station sees the robot's current state again.
+
+mod common;
+
+use std::io::{Read, Write};
+use std::net::{Shutdown, TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use common::{Drained, HARVEST, TempDir, run_dir, unique_domain};
+use harvest_ipc::catalogue::{ARM_STATE, CAMERA_RGBD, EMERGENCY_STOP, OPERATOR_MODE};
+use harvest_ipc::payloads::{ArmPhase, OperatorModeCode};
+use harvest_ipc::{Context, MonotonicClock};
+use harvest_operator::ControlToken;
+use harvest_operator::token::write_token_file;
+use serde_json::Value;
+
+const SCRIPTS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/remote");
+
+/// Makes sure the independent client is importable (installs it if not).
+fn ensure_python_zenoh() {
+    let importable = || {
+        Command::new("python3")
+            .args(["-c", "import zenoh"])
+            .status()
+            .is_ok_and(|status| status.success())
+    };
+    if !importable() {
+        let _ = Command::new("python3")
+            .args(["-m", "pip", "install", "--quiet", "eclipse-zenoh==1.10.2"])
+            .status();
+    }
+    assert!(
+        importable(),
+        "python3 with `eclipse-zenoh` is required (python3 -m pip install eclipse-zenoh==1.10.2)"
+    );
+}
+
+fn free_port() -> u16 {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+    listener.local_addr().expect("address").port()
+}
+
+fn text(output: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    )
+}
+
+/// Runs a command under a watchdog.
+fn run_with_watchdog(mut command: Command, limit: Duration) -> Output {
+    let mut child = command
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let deadline = Instant::now() + limit;
+    loop {
+        if child.try_wait().expect("try_wait").is_some() {
+            return child.wait_with_output().expect("output");
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let output = child.wait_with_output().expect("output");
+            panic!(
+                "watchdog: {command:?} ran over {limit:?}: {}",
+                text(&output)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// The Python station: `station_client.py <args>`, its JSON report.
+fn python_station(args: &[&str]) -> Value {
+    let mut command = Command::new("python3");
+    command
+        .arg(Path::new(SCRIPTS).join("station_client.py"))
+        .args(args);
+    let output = run_with_watchdog(command, Duration::from_secs(60));
+    assert!(output.status.success(), "python station: {}", text(&output));
+    serde_json::from_slice(&output.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&output)))
+}
+
+/// `harvest ctl --remote r1 <args>` from the station's domain.
+fn remote_ctl(station_domain: &str, link: &[&str], args: &[&str]) -> Output {
+    let mut command = Command::new(HARVEST);
+    command
+        .arg("ctl")
+        .args(["--remote", "r1", "--timeout-ms", "4000"])
+        .args(link)
+        .args(args)
+        .current_dir(run_dir(station_domain))
+        .env("HARVEST_DOMAIN", station_domain)
+        .env("RUST_LOG", "warn");
+    run_with_watchdog(command, Duration::from_secs(60))
+}
+
+/// The robot's side: a real executive and `harvest remote`, and a replay thread that feeds arm
+/// states (both arms idle at their drop-off pose, 50 Hz) and camera frames (10 Hz) into the
+/// robot's domain.
+struct Robot {
+    domain: common::TestDomain,
+    token_file: PathBuf,
+    executive: Option<Drained>,
+    remote: Option<Drained>,
+    replay_running: Arc<AtomicBool>,
+    replay: Option<std::thread::JoinHandle<()>>,
+    _dir: TempDir,
+}
+
+impl Robot {
+    fn start(tag: &str, remote_args: &[&str]) -> Self {
+        let domain = unique_domain(tag);
+        let dir = TempDir::new(tag);
+        let token = ControlToken::generate().expect("token");
+        let token_file = dir.0.join("r1.token");
+        write_token_file(&token_file, &token).expect("token file");
+        let token_path = token_file.display().to_string();
+        let executive = Drained::spawn(
+            &domain,
+            &[
+                "executive",
+                "--platform",
+                "none",
+                "--initial-mode",
+                "idle",
+                "--token-file",
+                &token_path,
+            ],
+        );
+        let mut args = vec!["remote", "--robot", "r1"];
+        args.extend_from_slice(remote_args);
+        let remote = Drained::spawn(&domain, &args);
+        let replay_running = Arc::new(AtomicBool::new(true));
+        let running = Arc::clone(&replay_running);
+        let replay_domain = domain.domain().clone();
+        let replay = std::thread::spawn(move || {
+            let context = Context::new(&replay_domain, "test-replay").expect("context");
+            let mut arms = [
+                context.publisher(ARM_STATE[0]).expect("arm1"),
+                context.publisher(ARM_STATE[1]).expect("arm2"),
+            ];
+            let mut frames = context.publisher(CAMERA_RGBD).expect("frames");
+            let mut tick = 0u64;
+            while running.load(Ordering::SeqCst) {
+                let now_ns = MonotonicClock::read_ns();
+                for (i, arm) in arms.iter_mut().enumerate() {
+                    let id = i as u8 + 1;
+                    arm.publish_with(now_ns, |state| {
+                        state.arm_id = id;
+                        state.phase.set(ArmPhase::Idle);
+                        state.joint_position = harvest_operator::motion_check::drop_off_pose(id);
+                        state.joint_velocity = [0.0; 4];
+                    })
+                    .expect("arm state");
+                }
+                if tick % 5 == 0 {
+                    frames
+                        .publish_with(now_ns, |frame| {
+                            for (i, px) in frame.rgb.chunks_exact_mut(3).enumerate().step_by(7) {
+                                px[0] = (i % 200) as u8;
+                                px[1] = (tick % 255) as u8;
+                            }
+                        })
+                        .expect("frame");
+                }
+                tick += 1;
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        });
+        Self {
+            domain,
+            token_file,
+            executive: Some(executive),
+            remote: Some(remote),
+            replay_running,
+            replay: Some(replay),
+            _dir: dir,
+        }
+    }
+
+    fn context(&self) -> Context {
+        Context::new(self.domain.domain(), "test-observer").expect("context")
+    }
+
+    /// Waits (bounded) until the robot's mode satisfies `check`; the last mode seen.
+    fn wait_mode(
+        &self,
+        limit: Duration,
+        check: impl Fn(&harvest_ipc::payloads::OperatorModeState) -> bool,
+    ) -> Option<harvest_ipc::payloads::OperatorModeState> {
+        let context = self.context();
+        let modes = context.subscriber(OPERATOR_MODE).expect("mode");
+        let deadline = Instant::now() + limit;
+        let mut last = None;
+        while Instant::now() < deadline {
+            while let Some(mode) = modes.receive().expect("receive") {
+                last = Some(*mode);
+                if check(&mode) {
+                    return last;
+                }
+            }
+            let _ = modes
+                .listener()
+                .timed_wait(|_| {}, Duration::from_millis(100));
+        }
+        last
+    }
+
+    fn estop_engaged(&self) -> bool {
+        let context = self.context();
+        let stops = context.subscriber(EMERGENCY_STOP).expect("estop");
+        let deadline = Instant::now() + Duration::from_secs(2);
+        while Instant::now() < deadline {
+            if let Some(stop) = stops.receive_latest().expect("receive") {
+                return stop.engaged != 0;
+            }
+            let _ = stops
+                .listener()
+                .timed_wait(|_| {}, Duration::from_millis(100));
+        }
+        false
+    }
+
+    fn stop(mut self) -> String {
+        self.replay_running.store(false, Ordering::SeqCst);
+        if let Some(replay) = self.replay.take() {
+            replay.join().expect("replay thread");
+        }
+        let mut logs = String::new();
+        for child in [self.remote.take(), self.executive.take()]
+            .into_iter()
+            .flatten()
+        {
+            let (_, _, stderr) = child.interrupt_and_wait(Duration::from_secs(15));
+            logs.push_str(&stderr);
+        }
+        logs
+    }
+}
+
+fn http_get(port: u16, path: &str) -> Option<String> {
+    let mut stream = TcpStream::connect(("127.0.0.1", port)).ok()?;
+    stream.set_read_timeout(Some(Duration::from_secs(5))).ok()?;
+    write!(
+        stream,
+        "GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"
+    )
+    .ok()?;
+    let mut response = String::new();
+    stream.read_to_string(&mut response).ok()?;
+    response
+        .split_once("\r\n\r\n")
+        .map(|(_, body)| body.to_owned())
+}
+
+/// `/api/fleet` of a fleet page, once it lists `r1` with a summary satisfying `check`.
+fn wait_fleet(port: u16, limit: Duration, check: impl Fn(&Value) -> bool) -> Option<Value> {
+    let deadline = Instant::now() + limit;
+    while Instant::now() < deadline {
+        if let Some(body) = http_get(port, "/api/fleet")
+            && let Ok(fleet) = serde_json::from_str::<Value>(&body)
+            && let Some(robot) = fleet["robots"]
+                .as_array()
+                .and_then(|robots| robots.iter().find(|r| r["robot"] == "r1"))
+            && check(robot)
+        {
+            return Some(robot.clone());
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    None
+}
+
+#[test]
+fn a_station_watches_and_commands_a_robot_over_loopback() {
+    ensure_python_zenoh();
+    let port = free_port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let robot = Robot::start(
+        "remote-link",
+        &[
+            "--listen",
+            &endpoint,
+            "--console-url",
+            "http://127.0.0.1:8080",
+        ],
+    );
+    let station = unique_domain("station");
+    let link = ["--connect", endpoint.as_str()];
+
+    // The independent station: 4 s of everything under harvest/v1/r1 (camera included, so the
+    // camera is matched and sent).
+    let report = python_station(&["watch", &endpoint, "r1", "4"]);
+    assert_eq!(report["robot_seen"], true, "{report}");
+    let rates = &report["rates_hz"];
+    let arm_hz = rates["state/arm1"].as_f64().unwrap_or(0.0);
+    assert!(
+        (10.0..=22.0).contains(&arm_hz),
+        "arm1 at {arm_hz} Hz: {report}"
+    );
+    assert_eq!(report["values"]["state/arm1"]["arm_id"], 1, "{report}");
+    assert_eq!(report["values"]["summary"]["mode"], "idle", "{report}");
+    assert_eq!(
+        report["values"]["summary"]["console_url"],
+        "http://127.0.0.1:8080"
+    );
+    assert_eq!(report["values"]["state/estop"]["engaged"], 0, "{report}");
+    let camera = &report["camera"];
+    let images = camera["images"].as_u64().unwrap_or(0);
+    assert!((2..=10).contains(&images), "camera images: {report}");
+    assert_eq!(
+        camera["jpeg_ok"], camera["images"],
+        "every image a whole JPEG"
+    );
+    let attachment = &camera["attachments"][0];
+    assert_eq!(attachment["width_px"], 480);
+    assert!(attachment["capture_ns"].as_u64().unwrap_or(0) > 0);
+    // Nothing else leaves: no raw frames, no arm commands.
+    let keys: Vec<&str> = report["counts"]
+        .as_object()
+        .expect("counts")
+        .keys()
+        .map(String::as_str)
+        .collect();
+    for key in &keys {
+        assert!(
+            [
+                "state/arm1",
+                "state/arm2",
+                "state/vacuum",
+                "state/mode",
+                "state/estop",
+                "state/health",
+                "summary",
+                "camera/jpeg",
+                "detections",
+                "events"
+            ]
+            .contains(key),
+            "unexpected key {key}"
+        );
+    }
+
+    // The station's ctl: status, an e-stop without a token, the release with it.
+    let status = remote_ctl(&station, &link, &["status", "--json"]);
+    assert!(status.status.success(), "{}", text(&status));
+    let value: Value = serde_json::from_slice(&status.stdout).expect("status json");
+    assert_eq!(value["summary"]["mode"], "idle");
+    let estop = remote_ctl(&station, &link, &["estop"]);
+    assert!(estop.status.success(), "{}", text(&estop));
+    assert!(
+        robot.estop_engaged(),
+        "the e-stop from the station engaged the robot's stop"
+    );
+    let token_file = robot.token_file.display().to_string();
+    let release = remote_ctl(&station, &link, &["--token-file", &token_file, "release"]);
+    assert!(release.status.success(), "{}", text(&release));
+    let wrong = remote_ctl(
+        &station,
+        &link,
+        &["--token", "00000000000000000000000000000000", "start"],
+    );
+    assert_eq!(wrong.status.code(), Some(1), "{}", text(&wrong));
+
+    // The Python station's queries: the executive's own answer, and the link's refusals.
+    let token = std::fs::read_to_string(&robot.token_file)
+        .expect("token")
+        .trim()
+        .to_owned();
+    let pause = format!(
+        r#"{{"session":77,"token":"{token}","client":"py","command":{{"command":"pause"}}}}"#
+    );
+    let answer = python_station(&["query", &endpoint, "harvest/v1/r1/command", &pause]);
+    let reply = &answer["answers"][0][0];
+    assert_eq!(reply["by"], "executive", "{answer}");
+    assert_eq!(reply["accepted"], false);
+    assert!(
+        reply["reason"]
+            .as_str()
+            .unwrap_or("")
+            .contains("not allowed while idle"),
+        "{answer}"
+    );
+    let oversized = python_station(&["query", &endpoint, "harvest/v1/r1/command", "@oversized"]);
+    assert_eq!(
+        oversized["answers"][0][0]["refusal"], "Oversized",
+        "{oversized}"
+    );
+    let malformed = python_station(&["query", &endpoint, "harvest/v1/r1/command", "{not json"]);
+    assert_eq!(
+        malformed["answers"][0][0]["refusal"], "Malformed",
+        "{malformed}"
+    );
+    let wildcard = python_station(&["query", &endpoint, "harvest/v1/r1/*", &pause]);
+    let replies = wildcard["answers"][0].as_array().expect("replies");
+    assert!(
+        !replies.is_empty() && replies.iter().all(|r| r["refusal"] == "UnknownKey"),
+        "{wildcard}"
+    );
+    let heartbeat = format!(
+        r#"{{"session":78,"token":"{token}","client":"py","command":{{"command":"heartbeat"}}}}"#
+    );
+    let burst = python_station(&[
+        "query",
+        &endpoint,
+        "harvest/v1/r1/command",
+        &heartbeat,
+        "--repeat",
+        "60",
+    ]);
+    let limited = burst["answers"]
+        .as_array()
+        .expect("answers")
+        .iter()
+        .filter(|a| a[0]["refusal"] == "RateLimited")
+        .count();
+    assert!(
+        limited > 0,
+        "a burst of 60 commands is cut by the rate limit: {burst}"
+    );
+
+    // The fleet page on the station lists the robot with its summary.
+    let http = free_port();
+    let http_address = format!("127.0.0.1:{http}");
+    let fleet = Drained::spawn(
+        &station,
+        &["fleet", "--http", &http_address, "--connect", &endpoint],
+    );
+    let line = wait_fleet(http, Duration::from_secs(15), |r| {
+        r["alive"] == true && r["summary"]["mode"] == "idle"
+    });
+    assert!(line.is_some(), "the fleet page lists r1");
+    let page = http_get(http, "/").expect("page");
+    assert!(page.contains("<title>harvest fleet</title>"));
+    let _ = fleet.interrupt_and_wait(Duration::from_secs(10));
+    let logs = robot.stop();
+    assert!(logs.contains("remote command refused"), "{logs}");
+}
+
+/// Writes the link files of a robot with an operator and a viewer, and of three stations.
+struct Credentials {
+    dir: TempDir,
+}
+
+impl Credentials {
+    fn new(port: u16) -> Self {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = TempDir::new("remote-auth");
+        let private = |name: &str, text: &str| {
+            let path = dir.write(name, text);
+            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).expect("chmod");
+            path.display().to_string()
+        };
+        let users = private("users.txt", "op:op-secret\nview:view-secret\n");
+        let op_password = private("op.password", "op-secret\n");
+        let view_password = private("view.password", "view-secret\n");
+        let wrong_password = private("wrong.password", "guess\n");
+        dir.write(
+            "robot.toml",
+            &format!(
+                "listen = [\"tcp/127.0.0.1:{port}\"]\n[auth]\ndictionary_file = \"{users}\"\n[access]\noperators = [\"op\"]\nviewers = [\"view\"]\n"
+            ),
+        );
+        for (name, user, password) in [
+            ("op", "op", &op_password),
+            ("view", "view", &view_password),
+            ("wrong", "op", &wrong_password),
+        ] {
+            dir.write(
+                &format!("{name}.toml"),
+                &format!("connect = [\"tcp/127.0.0.1:{port}\"]\n[auth]\nuser = \"{user}\"\npassword_file = \"{password}\"\n"),
+            );
+        }
+        dir.write(
+            "stranger.toml",
+            &format!("connect = [\"tcp/127.0.0.1:{port}\"]\n"),
+        );
+        Self { dir }
+    }
+
+    fn file(&self, name: &str) -> String {
+        self.dir
+            .0
+            .join(format!("{name}.toml"))
+            .display()
+            .to_string()
+    }
+}
+
+#[test]
+fn viewers_and_strangers_cannot_command() {
+    ensure_python_zenoh();
+    let port = free_port();
+    let credentials = Credentials::new(port);
+    let robot_link = credentials.file("robot");
+    let robot = Robot::start("remote-auth", &["--link", &robot_link]);
+    let station = unique_domain("station-auth");
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+
+    // The viewer watches (the Python client with the viewer's credentials)...
+    let watch = python_station(&[
+        "watch",
+        &endpoint,
+        "r1",
+        "2",
+        "--user",
+        "view",
+        "--password",
+        "view-secret",
+    ]);
+    assert_eq!(watch["robot_seen"], true, "{watch}");
+    assert_eq!(watch["values"]["summary"]["mode"], "idle", "{watch}");
+    // ... but cannot command, not even a stop; neither can a stranger or a wrong password.
+    for who in ["view", "stranger", "wrong"] {
+        let link = credentials.file(who);
+        for command in ["estop", "stop"] {
+            let output = remote_ctl(
+                &station,
+                &["--link", &link],
+                &[
+                    "--token-file",
+                    &robot.token_file.display().to_string(),
+                    command,
+                ],
+            );
+            assert_eq!(
+                output.status.code(),
+                Some(2),
+                "{who} {command}: {}",
+                text(&output)
+            );
+        }
+    }
+    let query = python_station(&[
+        "query",
+        &endpoint,
+        "harvest/v1/r1/estop",
+        "@empty",
+        "--user",
+        "view",
+        "--password",
+        "view-secret",
+    ]);
+    assert_eq!(
+        query["answers"][0].as_array().map(Vec::len),
+        Some(0),
+        "{query}"
+    );
+    assert!(!robot.estop_engaged(), "no stop reached the robot");
+    // The operator can.
+    let output = remote_ctl(&station, &["--link", &credentials.file("op")], &["estop"]);
+    assert!(output.status.success(), "{}", text(&output));
+    assert!(robot.estop_engaged());
+    robot.stop();
+}
+
+/// A TCP relay between the station and the robot that the test can cut.
+struct Relay {
+    port: u16,
+    cut: Arc<AtomicBool>,
+    streams: Arc<Mutex<Vec<TcpStream>>>,
+}
+
+impl Relay {
+    fn start(target_port: u16) -> Self {
+        let listener = TcpListener::bind("127.0.0.1:0").expect("bind relay");
+        let port = listener.local_addr().expect("address").port();
+        let cut = Arc::new(AtomicBool::new(false));
+        let streams = Arc::new(Mutex::new(Vec::<TcpStream>::new()));
+        let (accept_cut, accept_streams) = (Arc::clone(&cut), Arc::clone(&streams));
+        std::thread::spawn(move || {
+            for client in listener.incoming().flatten() {
+                if accept_cut.load(Ordering::SeqCst) {
+                    let _ = client.shutdown(Shutdown::Both);
+                    continue;
+                }
+                let Ok(server) = TcpStream::connect(("127.0.0.1", target_port)) else {
+                    continue;
+                };
+                let mut list = accept_streams.lock().expect("streams");
+                list.push(client.try_clone().expect("clone"));
+                list.push(server.try_clone().expect("clone"));
+                for (mut from, mut to) in [
+                    (
+                        client.try_clone().expect("clone"),
+                        server.try_clone().expect("clone"),
+                    ),
+                    (server, client.try_clone().expect("clone")),
+                ] {
+                    std::thread::spawn(move || {
+                        let _ = std::io::copy(&mut from, &mut to);
+                        let _ = to.shutdown(Shutdown::Both);
+                    });
+                }
+            }
+        });
+        Self { port, cut, streams }
+    }
+
+    fn set_cut(&self, cut: bool) {
+        self.cut.store(cut, Ordering::SeqCst);
+        if cut {
+            for stream in self.streams.lock().expect("streams").drain(..) {
+                let _ = stream.shutdown(Shutdown::Both);
+            }
+        }
+    }
+}
+
+#[test]
+fn a_cut_link_stops_the_manual_motion_and_the_station_comes_back() {
+    let port = free_port();
+    let robot = Robot::start(
+        "remote-cut",
+        &["--listen", &format!("tcp/127.0.0.1:{port}")],
+    );
+    let relay = Relay::start(port);
+    let through_relay = format!("tcp/127.0.0.1:{}", relay.port);
+    let station = unique_domain("station-cut");
+    let http = free_port();
+    let fleet = Drained::spawn(
+        &station,
+        &[
+            "fleet",
+            "--http",
+            &format!("127.0.0.1:{http}"),
+            "--connect",
+            &through_relay,
+        ],
+    );
+    assert!(
+        wait_fleet(http, Duration::from_secs(15), |r| r["alive"] == true
+            && r["summary"]["mode"] == "idle")
+        .is_some()
+    );
+
+    // The station takes manual control: a long jog, its heartbeat going through the relay.
+    let token_file = robot.token_file.display().to_string();
+    let mut jog = Command::new(HARVEST);
+    jog.args([
+        "ctl",
+        "--remote",
+        "r1",
+        "--connect",
+        &through_relay,
+        "--token-file",
+        &token_file,
+    ])
+    .args(["jog", "--arm", "1", "--joint", "phi", "--delta", "0.3"])
+    .current_dir(run_dir(&station))
+    .env("HARVEST_DOMAIN", &*station)
+    .stdin(Stdio::null())
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped());
+    let jog = jog.spawn().expect("jog");
+    let manual = robot.wait_mode(Duration::from_secs(15), |m| {
+        m.mode == OperatorModeCode::Manual as u8
+    });
+    assert!(
+        manual.is_some_and(|m| m.mode == OperatorModeCode::Manual as u8),
+        "manual mode: {manual:?}"
+    );
+
+    // Cut for 10 s: the executive stops the motion within its heartbeat timeout.
+    let cut_at = Instant::now();
+    relay.set_cut(true);
+    let stopped = robot.wait_mode(Duration::from_secs(5), |m| {
+        m.last_change_reason.as_str().contains("heartbeat")
+    });
+    let stopped_after = cut_at.elapsed();
+    assert!(
+        stopped.is_some_and(|m| m
+            .last_change_reason
+            .as_str()
+            .contains("manual motion stopped")),
+        "the motion stopped when the station was lost: {stopped:?}"
+    );
+    let jog_output = jog.wait_with_output().expect("jog output");
+    assert!(
+        !jog_output.status.success(),
+        "the jog's heartbeat failed: {}",
+        text(&jog_output)
+    );
+    // While cut, the robot's state changes: the e-stop engaged on the robot itself.
+    let local = Command::new(HARVEST)
+        .args(["ctl", "estop"])
+        .env("HARVEST_DOMAIN", &*robot.domain)
+        .env("RUST_LOG", "warn")
+        .stdin(Stdio::null())
+        .output()
+        .expect("local estop");
+    assert!(local.status.success(), "{}", text(&local));
+    let remaining = Duration::from_secs(10).saturating_sub(cut_at.elapsed());
+    std::thread::sleep(remaining);
+    relay.set_cut(false);
+    let restored_at = Instant::now();
+    let seen = wait_fleet(http, Duration::from_secs(20), |r| {
+        r["alive"] == true && r["summary"]["estop_engaged"] == true
+    });
+    let seen_after = restored_at.elapsed();
+    assert!(
+        seen.is_some(),
+        "the station sees the robot's current state after the cut"
+    );
+    eprintln!(
+        "motion stopped {stopped_after:?} after the cut; state seen {seen_after:?} after the link came back"
+    );
+    let _ = fleet.interrupt_and_wait(Duration::from_secs(10));
+    robot.stop();
+}
