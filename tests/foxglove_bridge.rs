@@ -377,25 +377,25 @@ fn default_stack_is_seen_live_and_recorded_by_independent_foxglove_clients() {
         ("/robot_model", "foxglove.SceneUpdate"),
         ("/vacuum", "harvest.VacuumView"),
         ("/events", "foxglove.Log"),
+        ("camera/video", "foxglove.CompressedVideo"),
     ] {
         assert_eq!(channels[topic]["schema_name"], schema, "{topic}");
         assert_eq!(channels[topic]["schema_encoding"], "protobuf", "{topic}");
         assert!(channels[topic]["count"].as_u64() > Some(0), "{topic}");
     }
-    for raw in [
-        "camera/rgbd",
-        "perception/apples",
-        "arm1/state",
-        "vacuum/state",
+    // The camera goes into the continuous record as H.264 video and PNG depth, not raw frames.
+    for (raw, encoding) in [
+        ("perception/apples", "bincode2-fixint-le"),
+        ("arm1/state", "bincode2-fixint-le"),
+        ("vacuum/state", "bincode2-fixint-le"),
+        ("camera/depth", "bincode2-fixint-le+png16"),
     ] {
-        assert_eq!(
-            channels[raw]["message_encoding"], "bincode2-fixint-le",
-            "{raw}"
-        );
+        assert_eq!(channels[raw]["message_encoding"], encoding, "{raw}");
         assert!(channels[raw]["count"].as_u64() > Some(0), "{raw}");
     }
+    assert_eq!(channels["camera/rgbd"], Value::Null);
     // Mapped at the viewing rate: at most about 10 images per second of frames.
-    let frames = channels["camera/rgbd"]["count"].as_u64().expect("frames");
+    let frames = channels["camera/video"]["count"].as_u64().expect("frames");
     let recorded_images = channels["/camera/image"]["count"].as_u64().expect("images");
     assert!(
         recorded_images <= frames,
