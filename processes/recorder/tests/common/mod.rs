@@ -14,7 +14,6 @@ use harvest_recording::segment_writer::ChunkCompression;
 #[allow(unused_imports)]
 pub use harvest_test_support::python::{ensure_python, ensure_python_mcap, python_json};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
