@@ -105,7 +105,7 @@ fn fill<T: Payload>(value: &mut T, seed: u64) {
         state ^= state >> 7;
         state ^= state << 17;
         // Mostly small values, so counts and lengths are often in range.
-        *byte = if state % 4 == 0 {
+        *byte = if state.is_multiple_of(4) {
             (state >> 32) as u8
         } else {
             (state >> 40) as u8 % 4
