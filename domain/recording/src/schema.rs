@@ -2,7 +2,7 @@
 //!
 //! - Schema name: `<TYPE_NAME>.v<VERSION>`, e.g. `harvest.RgbdFrame.v1`: a reader knows both the
 //!   type and the layout version without decoding anything.
-//! - Schema encoding and channel message encoding: [`codec::ENCODING`] (`bincode2-fixint-le`).
+//! - Schema encoding and channel message encoding: [`harvest_ipc::codec::ENCODING`] (`bincode2-fixint-le`).
 //! - Schema data: UTF-8 text generated from the payload type
 //!   ([`harvest_ipc::schema::schema_text`]): type, version, encoding and its rules, then every
 //!   field, nested struct and enum code with its documentation, so another tool can decode the
