@@ -95,7 +95,11 @@ enum Command {
     /// prints violations as found, exits non-zero if any.
     Monitor(harvest_monitor::MonitorArgs),
     /// List the channel catalogue.
-    Channels,
+    Channels {
+        /// Print the schema of this channel's payload instead, as recordings store it.
+        #[arg(long, value_name = "TOPIC")]
+        schema: Option<String>,
+    },
     /// Executive: the operator's mode machine, the emergency stop's one writer, manual moves,
     /// the platform.
     Executive(harvest_executive::ExecutiveArgs),
@@ -234,7 +238,7 @@ impl Cli {
             Command::BenchPeer(_) => "bench-peer",
             Command::Clean { .. } => "clean",
             Command::Monitor(_) => "monitor",
-            Command::Channels => "channels",
+            Command::Channels { .. } => "channels",
             Command::Executive(_) => "executive",
             Command::Ctl { .. } => "ctl",
             Command::Remote(_) => "remote",
@@ -452,7 +456,16 @@ impl Cli {
                 harvest_console::run(&args, &domain, process_name).context("console")?;
                 Ok(ExitCode::SUCCESS)
             }
-            Command::Channels => {
+            Command::Channels {
+                schema: Some(topic),
+            } => {
+                let text = harvest_ipc::schema::schema_of_topic(&topic).with_context(|| {
+                    format!("no channel {topic:?} in the catalogue (`harvest channels`)")
+                })?;
+                print!("{text}");
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Channels { schema: None } => {
                 for spec in harvest_ipc::catalogue::all_specs() {
                     println!(
                         "{:<24} {:<26} v{} {:?} buffer<= {:<3} writers<= {:<2} {}",
