@@ -8,10 +8,12 @@
 
 mod common;
 
-use common::webdriver::{Browser, free_port, http};
+use common::console::{control_token, wait_for_harvesting_console, wait_until};
+use common::webdriver::{Browser, free_port};
 use common::{
     TempDir, leftover_files, one_stack_at_a_time, spawn_harvest, unique_domain, wait_with_watchdog,
 };
+use harvest_bench::stats::percentile;
 use harvest_ipc::catalogue::{
     ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MARK, OPERATOR_MODE,
     PROCESS_HEALTH, VACUUM_STATE,
@@ -20,24 +22,6 @@ use harvest_ipc::payloads::{ArmPhase, HarvestEventKind, OperatorModeCode};
 use harvest_ipc::{Context, Domain, MonotonicClock, Subscriber};
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
-
-/// Calls `check` every 100 ms until it is true; fails naming `what` after `limit` (a watchdog,
-/// not a timing requirement).
-fn wait_until(what: &str, limit: Duration, mut check: impl FnMut() -> bool) {
-    let deadline = Instant::now() + limit;
-    while !check() {
-        assert!(
-            Instant::now() < deadline,
-            "watchdog: {what} not seen within {limit:?}"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
-}
-
-fn status(port: u16) -> Option<Value> {
-    let (code, body) = http(port, "GET", "/api/status", None).ok()?;
-    (code == 200).then(|| serde_json::from_slice(&body).ok())?
-}
 
 fn latest<T: harvest_ipc::Payload + Copy>(subscriber: &Subscriber<T>, slot: &mut Option<T>) {
     while let Ok(Some(sample)) = subscriber.receive() {
@@ -73,23 +57,6 @@ fn camera_hash(browser: &Browser) -> (u64, u64) {
         value[0].as_u64().unwrap_or(0),
         value[1].as_u64().unwrap_or(0),
     )
-}
-
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
-}
-
-/// utime + stime of `pid`, s.
-fn cpu_seconds(pid: u32) -> f64 {
-    let text = std::fs::read_to_string(format!("/proc/{pid}/stat")).expect("stat");
-    let after = &text[text.rfind(')').expect("comm") + 2..];
-    let fields: Vec<&str> = after.split_whitespace().collect();
-    let ticks: u64 =
-        fields[11].parse::<u64>().expect("utime") + fields[12].parse::<u64>().expect("stime");
-    ticks as f64 / 100.0
 }
 
 #[test]
@@ -147,26 +114,8 @@ restart = "on-failure"
         &domain,
         &["up", "--launch", launch.to_str().expect("utf-8")],
     );
-    let token_file = harvest_operator::token::token_path(&domain);
-    wait_until("the control token file", Duration::from_secs(20), || {
-        token_file.exists()
-    });
-    let token = harvest_operator::token::read_token_file(&token_file)
-        .expect("token file")
-        .as_str()
-        .to_owned();
-    wait_until(
-        "the console serving the mode, both arms and a camera view",
-        Duration::from_secs(120),
-        || {
-            status(port).is_some_and(|s| {
-                s["mode"]["name"] == "harvesting"
-                    && s["arms"][0].is_object()
-                    && s["arms"][1].is_object()
-                    && s["view"].is_object()
-            })
-        },
-    );
+    let token = control_token(&domain);
+    wait_for_harvesting_console(port);
 
     let ipc_domain = Domain::new(&domain).expect("domain");
     let context = Context::new(&ipc_domain, "console-test").expect("context");
@@ -475,6 +424,7 @@ restart = "on-failure"
         console_pid.is_some()
     });
     let console_pid = console_pid.expect("console pid");
+    let cpu_seconds = |pid| harvest_bench::proc_cpu::cpu_time_s(pid).expect("console CPU time");
     let cpu_before = cpu_seconds(console_pid);
     let views_before = camera_hash(&browser).0;
     std::thread::sleep(Duration::from_secs(10));
@@ -485,14 +435,17 @@ restart = "on-failure"
         .as_array()
         .map(|a| a.iter().filter_map(Value::as_f64).collect())
         .unwrap_or_default();
-    latencies.sort_by(f64::total_cmp);
+    let (p50_ms, p99_ms) = (
+        percentile(&mut latencies, 0.5),
+        percentile(&mut latencies, 0.99),
+    );
     println!(
         "console figures: CPU {:.1} % of one core at {view_rate_hz:.1} views/s shown; \
 capture-to-browser latency p50 {:.1} ms, p99 {:.1} ms over {} views; e-stop click to arm 1 \
 braked {:.1} ms, arm 2 {:.1} ms",
         cpu_share * 100.0,
-        percentile(&latencies, 0.5),
-        percentile(&latencies, 0.99),
+        p50_ms,
+        p99_ms,
         latencies.len(),
         click_to_brake_ms[0],
         click_to_brake_ms[1],
@@ -535,7 +488,10 @@ braked {:.1} ms, arm 2 {:.1} ms",
     let (exit, _stdout, stderr) = wait_with_watchdog(stack, Duration::from_secs(60));
     assert!(exit.success(), "harvest up failed: {stderr}");
     assert!(stderr.contains("control token: "), "{stderr}");
-    assert!(!token_file.exists(), "the token file outlived the stack");
+    assert!(
+        !harvest_operator::token::token_path(&domain).exists(),
+        "the token file outlived the stack"
+    );
     drop((
         mode_in,
         arms_in,

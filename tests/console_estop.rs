@@ -10,7 +10,8 @@
 
 mod common;
 
-use common::webdriver::{free_port, http};
+use common::console::{post_command, status, wait_until};
+use common::webdriver::free_port;
 use common::{HARVEST, TempDir, leftover_files, run_dir, unique_domain, wait_with_watchdog};
 use harvest_ipc::catalogue::{EMERGENCY_STOP, OPERATOR_COMMAND};
 use harvest_ipc::payloads::{EmergencyStop, OperatorCommand, OperatorCommandCode};
@@ -22,20 +23,7 @@ use nix::unistd::Pid;
 use serde_json::{Value, json};
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
-use std::time::{Duration, Instant};
-
-/// Calls `check` every 50 ms until it is true; fails naming `what` after `limit` (a watchdog,
-/// not a timing requirement).
-fn wait_until(what: &str, limit: Duration, mut check: impl FnMut() -> bool) {
-    let deadline = Instant::now() + limit;
-    while !check() {
-        assert!(
-            Instant::now() < deadline,
-            "watchdog: {what} not seen within {limit:?}"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
+use std::time::Duration;
 
 fn spawn(domain: &str, runtime: &std::path::Path, args: &[&str]) -> Child {
     Command::new(HARVEST)
@@ -51,18 +39,6 @@ fn spawn(domain: &str, runtime: &std::path::Path, args: &[&str]) -> Child {
         .expect("spawn harvest")
 }
 
-fn status(port: u16) -> Option<Value> {
-    let (code, body) = http(port, "GET", "/api/status", None).ok()?;
-    (code == 200).then(|| serde_json::from_slice(&body).ok())?
-}
-
-/// Posts one command as the page does; returns the HTTP status and the JSON answer.
-fn post(port: u16, token: &str, session: u64, command: Value) -> (u16, Value) {
-    let body = json!({"token": token, "session": session, "command": command}).to_string();
-    let (code, answer) = http(port, "POST", "/api/command", Some(&body)).expect("post");
-    (code, serde_json::from_slice(&answer).expect("json answer"))
-}
-
 /// Posts on a thread of its own; the answer comes on the receiver.
 fn post_in_background(
     port: u16,
@@ -73,7 +49,7 @@ fn post_in_background(
     let (done, answer) = mpsc::channel();
     let token = token.to_owned();
     std::thread::spawn(move || {
-        let _ = done.send(post(port, &token, session, command));
+        let _ = done.send(post_command(port, &token, session, command));
     });
     answer
 }
@@ -172,7 +148,7 @@ fn the_console_stop_needs_no_authority_and_never_waits_behind_another_command() 
         "{s}"
     );
     // A stop posted now is answered at once as unreachable (not left to time out).
-    let (code, answer) = post(port, "", 7, json!({"command": "estop"}));
+    let (code, answer) = post_command(port, "", 7, json!({"command": "estop"}));
     assert_eq!(code, 503, "{answer}");
     assert_eq!(answer["unreachable"], true, "{answer}");
     assert!(
@@ -200,13 +176,13 @@ fn the_console_stop_needs_no_authority_and_never_waits_behind_another_command() 
     );
 
     // A wrong token: the stop is taken all the same (and from a session that does not control).
-    let (code, answer) = post(port, "", 11, json!({"command": "heartbeat"}));
+    let (code, answer) = post_command(port, "", 11, json!({"command": "heartbeat"}));
     assert_eq!(
         (code, answer["accepted"].clone()),
         (200, json!(false)),
         "{answer}"
     );
-    let (code, answer) = post(port, WRONG_TOKEN, 12, json!({"command": "estop"}));
+    let (code, answer) = post_command(port, WRONG_TOKEN, 12, json!({"command": "estop"}));
     assert_eq!(code, 200, "{answer}");
     assert_eq!(answer["accepted"], true, "{answer}");
     wait_until(
@@ -216,7 +192,7 @@ fn the_console_stop_needs_no_authority_and_never_waits_behind_another_command() 
     );
     // The release with a wrong token (or none) is refused; the stop stays engaged.
     for bad in [WRONG_TOKEN, ""] {
-        let (code, answer) = post(port, bad, 12, json!({"command": "release"}));
+        let (code, answer) = post_command(port, bad, 12, json!({"command": "release"}));
         assert_eq!(code, 200, "{answer}");
         assert_eq!(answer["accepted"], false, "{answer}");
         assert!(
@@ -232,7 +208,7 @@ fn the_console_stop_needs_no_authority_and_never_waits_behind_another_command() 
         status(port).is_some_and(|s| s["mode"]["name"] == "estopped")
     });
     // With the token: released, idle.
-    let (_, answer) = post(port, &token, 1, json!({"command": "release"}));
+    let (_, answer) = post_command(port, &token, 1, json!({"command": "release"}));
     assert_eq!(answer["accepted"], true, "{answer}");
     assert_eq!(answer["mode"], "idle", "{answer}");
     wait_until("the stop released", Duration::from_secs(10), || {

@@ -14,11 +14,15 @@
 
 mod common;
 
-use common::webdriver::{free_port, http};
+use common::console::{
+    control_token, post_command, status, wait_for_harvesting_console, wait_until,
+};
+use common::webdriver::free_port;
 use common::{
     TempDir, leftover_files, one_stack_at_a_time, spawn_harvest, unique_domain, wait_with_watchdog,
 };
 use harvest_bench::console::live::{Live, LiveClient, LiveError, connect_from, open_live};
+use harvest_bench::console::watched_stack_launch;
 use harvest_ipc::catalogue::{ARM_STATE, EMERGENCY_STOP};
 use harvest_ipc::payloads::ArmPhase;
 use harvest_ipc::{Context, Domain, MonotonicClock};
@@ -33,30 +37,6 @@ const WATCHERS: usize = 20;
 const HALF_OPEN: usize = 50;
 /// The console's bound of connections per address in this test (the default).
 const PER_ADDRESS: usize = 32;
-
-/// Calls `check` every 50 ms until it is true; fails naming `what` after `limit` (a watchdog,
-/// not a timing requirement).
-fn wait_until(what: &str, limit: Duration, mut check: impl FnMut() -> bool) {
-    let deadline = Instant::now() + limit;
-    while !check() {
-        assert!(
-            Instant::now() < deadline,
-            "watchdog: {what} not seen within {limit:?}"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
-fn status(port: u16) -> Option<Value> {
-    let (code, body) = http(port, "GET", "/api/status", None).ok()?;
-    (code == 200).then(|| serde_json::from_slice(&body).ok())?
-}
-
-fn post_command(port: u16, token: &str, session: u64, command: Value) -> (u16, Value) {
-    let body = json!({"token": token, "session": session, "command": command}).to_string();
-    let (code, answer) = http(port, "POST", "/api/command", Some(&body)).expect("post");
-    (code, serde_json::from_slice(&answer).expect("json answer"))
-}
 
 /// What one watcher has received.
 #[derive(Debug, Default, Clone, Copy)]
@@ -90,61 +70,14 @@ fn the_operator_stops_the_arms_through_a_console_full_of_watchers() {
     let dir = TempDir::new("cload");
     let launch = dir.write(
         "console-load.toml",
-        &format!(
-            r#"
-[stack]
-startup_grace_ms = 15000
-[[process]]
-name = "sim"
-command = "sim"
-args = ["--scenario", "default", "--seed", "1", "--camera-rate-hz", "10"]
-[[process]]
-name = "camera"
-command = "camera"
-[[process]]
-name = "arm1"
-command = "arm"
-args = ["--id", "1"]
-[[process]]
-name = "arm2"
-command = "arm"
-args = ["--id", "2"]
-[[process]]
-name = "executive"
-command = "executive"
-args = ["--platform", "none", "--initial-mode", "harvesting"]
-[[process]]
-name = "console"
-command = "console"
-args = ["--listen", "127.0.0.1:{port}", "--max-watchers", "{share}"]
-"#,
-            share = WATCHERS + 1,
-        ),
+        &watched_stack_launch(port, 10.0, WATCHERS + 1),
     );
     let stack = spawn_harvest(
         &domain,
         &["up", "--launch", launch.to_str().expect("utf-8")],
     );
-    let token_file = harvest_operator::token::token_path(&domain);
-    wait_until("the control token file", Duration::from_secs(20), || {
-        token_file.exists()
-    });
-    let token = harvest_operator::token::read_token_file(&token_file)
-        .expect("token file")
-        .as_str()
-        .to_owned();
-    wait_until(
-        "the console serving the mode, both arms and a camera view",
-        Duration::from_secs(120),
-        || {
-            status(port).is_some_and(|s| {
-                s["mode"]["name"] == "harvesting"
-                    && s["arms"][0].is_object()
-                    && s["arms"][1].is_object()
-                    && s["view"].is_object()
-            })
-        },
-    );
+    let token = control_token(&domain);
+    wait_for_harvesting_console(port);
     let ipc_domain = Domain::new(&domain).expect("domain");
     let context = Context::new(&ipc_domain, "console-load-test").expect("context");
     let estop_in = context.subscriber(EMERGENCY_STOP).expect("estop");

@@ -172,18 +172,7 @@ with open(sys.argv[1], "rb") as f:
         out["metadata"].append(record.name)
 print(json.dumps(out))
 "#;
-    let output = Command::new("python3")
-        .args(["-c", SCRIPT])
-        .arg(path)
-        .output()
-        .expect("run python3");
-    assert!(
-        output.status.success(),
-        "the python mcap reader (python3 -m pip install mcap) failed on {}: {}",
-        path.display(),
-        String::from_utf8_lossy(&output.stderr)
-    );
-    serde_json::from_slice(&output.stdout).expect("python output is JSON")
+    python_json(SCRIPT, path)
 }
 
 #[test]
@@ -354,12 +343,7 @@ fn a_full_recording_disk_finishes_the_file_and_the_stack_goes_on() {
     assert!(stderr.contains("the recording disk is full"), "{stderr}");
 
     // Both segments were closed on a full disk, and both read back to their end.
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&disk.dir)
-        .expect("read the recording disk")
-        .filter_map(|entry| entry.ok().map(|entry| entry.path()))
-        .filter(|path| path.extension().is_some_and(|ext| ext == "mcap"))
-        .collect();
-    files.sort();
+    let files = mcap_files(&disk.dir);
     assert_eq!(files.len(), 2, "{files:?}\n{stderr}");
     for (index, file) in files.iter().enumerate() {
         let read = python_read(file);

@@ -19,35 +19,6 @@ use std::time::{Duration, Instant};
 
 const SCRIPTS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/foxglove");
 
-/// Makes sure the Python packages the clients use are importable (installs them if not).
-fn ensure_python_packages() {
-    let importable = || {
-        Command::new("python3")
-            .args(["-c", "import websockets, google.protobuf, mcap"])
-            .status()
-            .map(|status| status.success())
-            .unwrap_or(false)
-    };
-    if !importable() {
-        let _ = Command::new("python3")
-            .args([
-                "-m",
-                "pip",
-                "install",
-                "--quiet",
-                "websockets",
-                "protobuf",
-                "mcap",
-            ])
-            .status();
-    }
-    assert!(
-        importable(),
-        "python3 with `websockets`, `protobuf` and `mcap` is required \
-         (python3 -m pip install websockets protobuf mcap)"
-    );
-}
-
 /// A TCP port free right now on the loopback interface.
 fn free_port() -> u16 {
     let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
@@ -96,13 +67,7 @@ fn numbers(value: &Value) -> Vec<f64> {
 
 fn recording_of(domain: &str) -> PathBuf {
     let dir = run_dir(domain).join("recordings");
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .expect("recordings directory")
-        .flatten()
-        .map(|entry| entry.path())
-        .filter(|path| path.extension().is_some_and(|ext| ext == "mcap"))
-        .collect();
-    files.sort();
+    let mut files = mcap_files(&dir);
     // The default launch splits at 1 GiB: a fast machine fills more than one segment in the
     // test's run. Every segment carries every channel; the first one is read.
     assert!(!files.is_empty(), "no recording in {}", dir.display());
@@ -112,7 +77,10 @@ fn recording_of(domain: &str) -> PathBuf {
 #[test]
 fn default_stack_is_seen_live_and_recorded_by_independent_foxglove_clients() {
     let _stack = one_stack_at_a_time();
-    ensure_python_packages();
+    ensure_python(
+        "websockets, google.protobuf, mcap",
+        &["websockets", "protobuf", "mcap"],
+    );
     let domain = unique_domain("fox");
     let port = free_port();
     let stack = Command::new(HARVEST)

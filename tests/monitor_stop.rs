@@ -195,12 +195,7 @@ fn a_forbidden_valve_state_makes_the_monitor_stop_the_robot_and_the_summary_name
     );
 
     // The recorder kept it.
-    let files: Vec<_> = std::fs::read_dir(&recordings)
-        .expect("recordings dir")
-        .filter_map(Result::ok)
-        .map(|entry| entry.path())
-        .filter(|path| path.extension().is_some_and(|e| e == "mcap"))
-        .collect();
+    let files = mcap_files(&recordings);
     let mut recorded = 0;
     for file in &files {
         let (status, out, err) = run_harvest(

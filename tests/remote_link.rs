@@ -17,7 +17,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use common::{Drained, HARVEST, TempDir, run_dir, unique_domain};
+use common::{Drained, HARVEST, TempDir, ensure_python, run_dir, unique_domain};
 use harvest_ipc::catalogue::{ARM_STATE, CAMERA_RGBD, EMERGENCY_STOP, OPERATOR_MODE};
 use harvest_ipc::payloads::{ArmPhase, OperatorModeCode};
 use harvest_ipc::{Context, MonotonicClock};
@@ -26,25 +26,6 @@ use harvest_operator::token::write_token_file;
 use serde_json::Value;
 
 const SCRIPTS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/remote");
-
-/// Makes sure the independent client is importable (installs it if not).
-fn ensure_python_zenoh() {
-    let importable = || {
-        Command::new("python3")
-            .args(["-c", "import zenoh"])
-            .status()
-            .is_ok_and(|status| status.success())
-    };
-    if !importable() {
-        let _ = Command::new("python3")
-            .args(["-m", "pip", "install", "--quiet", "eclipse-zenoh==1.10.2"])
-            .status();
-    }
-    assert!(
-        importable(),
-        "python3 with `eclipse-zenoh` is required (python3 -m pip install eclipse-zenoh==1.10.2)"
-    );
-}
 
 fn free_port() -> u16 {
     let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
@@ -302,7 +283,7 @@ fn wait_fleet(port: u16, limit: Duration, check: impl Fn(&Value) -> bool) -> Opt
 
 #[test]
 fn a_station_watches_and_commands_a_robot_over_loopback() {
-    ensure_python_zenoh();
+    ensure_python("zenoh", &["eclipse-zenoh==1.10.2"]);
     let port = free_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let robot = Robot::start(
@@ -518,7 +499,7 @@ impl Credentials {
 
 #[test]
 fn viewers_and_strangers_cannot_command() {
-    ensure_python_zenoh();
+    ensure_python("zenoh", &["eclipse-zenoh==1.10.2"]);
     let port = free_port();
     let credentials = Credentials::new(port);
     let robot_link = credentials.file("robot");

@@ -6,17 +6,8 @@ mod common;
 
 use common::*;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
-
-fn mcap_files(dir: &Path) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map(|entries| entries.flatten().map(|e| e.path()).collect())
-        .unwrap_or_default();
-    files.retain(|p| p.extension().is_some_and(|e| e == "mcap"));
-    files.sort();
-    files
-}
 
 /// Detections per source frame (keyed by the frame's capture time), from `harvest rec cat`.
 fn detections_by_frame(file: &Path) -> BTreeMap<u64, serde_json::Value> {
@@ -107,20 +98,7 @@ fn replayed_frames_rerun_perception_deterministically() {
             record_dir.display()
         ),
     );
-    let domain = unique_domain("rec");
-    let (status, _, stderr) = run_harvest(
-        &domain,
-        &[
-            "up",
-            "--launch",
-            launch.to_str().expect("utf-8"),
-            "--duration",
-            "5s",
-        ],
-        Duration::from_secs(90),
-    );
-    assert!(status.success(), "{stderr}");
-    assert_eq!(leftover_files(&domain), "");
+    run_up_for("rec", &launch, "5s", Duration::from_secs(90));
     let recordings = mcap_files(&record_dir);
     assert_eq!(recordings.len(), 1, "{recordings:?}");
 

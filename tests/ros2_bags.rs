@@ -21,26 +21,6 @@ use std::time::Duration;
 
 const SCRIPTS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/ros2");
 
-/// Makes sure `rosbags` (with numpy) and Pillow are importable (installs them if not).
-fn ensure_python_packages() {
-    let importable = || {
-        Command::new("python3")
-            .args(["-c", "import rosbags.rosbag2, numpy, PIL"])
-            .status()
-            .map(|status| status.success())
-            .unwrap_or(false)
-    };
-    if !importable() {
-        let _ = Command::new("python3")
-            .args(["-m", "pip", "install", "--quiet", "rosbags", "pillow"])
-            .status();
-    }
-    assert!(
-        importable(),
-        "python3 with `rosbags` and `pillow` is required (python3 -m pip install rosbags pillow)"
-    );
-}
-
 /// Runs a script of tests/ros2 under a watchdog; returns its stdout parsed as JSON.
 fn run_python(script: &str, args: &[&Path]) -> Value {
     let child = Command::new("python3")
@@ -54,15 +34,6 @@ fn run_python(script: &str, args: &[&Path]) -> Value {
     assert!(status.success(), "{script} failed: {stderr}");
     serde_json::from_str(stdout.trim())
         .unwrap_or_else(|error| panic!("{script}: {error}: {stdout}"))
-}
-
-fn mcap_files(dir: &Path) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map(|entries| entries.flatten().map(|e| e.path()).collect())
-        .unwrap_or_default();
-    files.retain(|p| p.extension().is_some_and(|e| e == "mcap"));
-    files.sort();
-    files
 }
 
 fn harvest_ok(args: &[&str], what: &str) -> String {
@@ -148,10 +119,11 @@ fn position(apple: &Value) -> [f64; 3] {
 #[test]
 fn ros2_bags_drive_perception_and_exports_read_back() {
     let _stack = one_stack_at_a_time();
-    ensure_python_packages();
+    ensure_python("rosbags.rosbag2, numpy, PIL", &["rosbags", "pillow"]);
     let dir = TempDir::new("ros2");
 
-    // The simulator's renders, LiDAR clouds and arm states, recorded natively.
+    // The simulator's renders (raw frames: `--camera raw`), LiDAR clouds and arm states,
+    // recorded natively.
     let record_dir = dir.0.join("recorded");
     let launch = dir.write(
         "record.toml",
@@ -161,25 +133,12 @@ fn ros2_bags_drive_perception_and_exports_read_back() {
              [[process]]\nname = \"lidar\"\ncommand = \"lidar\"\nargs = [\"--integration-s\", \"1.0\"]\n\n\
              [[process]]\nname = \"arm1\"\ncommand = \"arm\"\nargs = [\"--id\", \"1\", \"--without-operator\"]\n\n\
              [[process]]\nname = \"arm2\"\ncommand = \"arm\"\nargs = [\"--id\", \"2\", \"--without-operator\"]\n\n\
-             [[process]]\nname = \"recorder\"\ncommand = \"recorder\"\nargs = [\"--output-dir\", \"{}\", \
+             [[process]]\nname = \"recorder\"\ncommand = \"recorder\"\nargs = [\"--output-dir\", \"{}\", \"--camera\", \"raw\", \
              \"--include\", \"camera/rgbd\", \"--include\", \"lidar/points\", \"--include\", \"arm*/state\"]\n",
             record_dir.display()
         ),
     );
-    let domain = unique_domain("ros2rec");
-    let (status, _, stderr) = run_harvest(
-        &domain,
-        &[
-            "up",
-            "--launch",
-            launch.to_str().expect("utf-8"),
-            "--duration",
-            "6s",
-        ],
-        Duration::from_secs(120),
-    );
-    assert!(status.success(), "{stderr}");
-    assert_eq!(leftover_files(&domain), "", "{stderr}");
+    run_up_for("ros2rec", &launch, "6s", Duration::from_secs(120));
     let recordings = mcap_files(&record_dir);
     assert_eq!(recordings.len(), 1, "{recordings:?}");
     let recording = &recordings[0];

@@ -8,28 +8,10 @@ use harvest_hw::lidar::livox::command::{
     CMD_CONTROL_SAMPLE, CMD_HANDSHAKE, CMD_HEARTBEAT, Handshake, HeartbeatAck,
 };
 use harvest_hw::lidar::livox::frame::{Frame, PacketType, encode_frame};
+use harvest_test_support::python::ensure_python;
 use std::io::Write;
 use std::net::Ipv4Addr;
 use std::process::{Command, Stdio};
-
-fn ensure_crcmod() {
-    let available = || {
-        Command::new("python3")
-            .args(["-c", "import crcmod"])
-            .status()
-            .map(|status| status.success())
-            .unwrap_or(false)
-    };
-    if !available() {
-        let _ = Command::new("python3")
-            .args(["-m", "pip", "install", "--quiet", "crcmod"])
-            .status();
-    }
-    assert!(
-        available(),
-        "python3 with the `crcmod` package is required (python3 -m pip install crcmod)"
-    );
-}
 
 const SCRIPT: &str = r#"
 import sys, crcmod
@@ -48,7 +30,7 @@ print(checked)
 
 #[test]
 fn frame_checksums_match_crcmod() {
-    ensure_crcmod();
+    ensure_python("crcmod", &["crcmod"]);
     let handshake = Handshake {
         host_ip: Ipv4Addr::new(192, 168, 1, 50),
         data_port: 56001,

@@ -98,6 +98,19 @@ impl<T: Copy + Default + ZeroCopySend + Serialize, const N: usize> Serialize for
     }
 }
 
+/// Written as a sequence: a u64 count, then the meaningful items (at most `N`).
+impl<T, const N: usize> crate::schema::Describe for BoundedVec<T, N>
+where
+    T: Copy + Default + ZeroCopySend + crate::schema::Describe,
+{
+    fn shape() -> crate::schema::Shape {
+        crate::schema::Shape::Sequence {
+            item: Box::new(T::shape()),
+            max_len: N,
+        }
+    }
+}
+
 impl<'de, T, const N: usize> Deserialize<'de> for BoundedVec<T, N>
 where
     T: Copy + Default + ZeroCopySend + Deserialize<'de>,

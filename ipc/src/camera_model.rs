@@ -13,7 +13,15 @@ use serde::{Deserialize, Serialize};
 /// Intrinsic parameters of one camera (or of the LiDAR-camera projection).
 #[repr(C)]
 #[derive(
-    Debug, Clone, Copy, PartialEq, ZeroCopySend, Serialize, Deserialize, crate::AnyBitPattern,
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+    crate::Describe,
 )]
 #[serde(deny_unknown_fields)]
 pub struct CameraIntrinsics {
@@ -170,7 +178,15 @@ impl CameraIntrinsics {
 /// A rigid transform `target_from_source`: rotation (row-major) then translation in metres.
 #[repr(C)]
 #[derive(
-    Debug, Clone, Copy, PartialEq, ZeroCopySend, Serialize, Deserialize, crate::AnyBitPattern,
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+    crate::Describe,
 )]
 #[serde(deny_unknown_fields)]
 pub struct RigidTransform {

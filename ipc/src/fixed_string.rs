@@ -77,6 +77,13 @@ impl<const N: usize> Serialize for FixedString<N> {
     }
 }
 
+/// Written as a string: a u64 byte count, then the UTF-8 bytes (at most `N`).
+impl<const N: usize> crate::schema::Describe for FixedString<N> {
+    fn shape() -> crate::schema::Shape {
+        crate::schema::Shape::Text { max_bytes: N }
+    }
+}
+
 impl<'de, const N: usize> Deserialize<'de> for FixedString<N> {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let text = String::deserialize(deserializer)?;

@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Describe,
 )]
 #[type_name("harvest.Header.v1")]
 pub struct Header {

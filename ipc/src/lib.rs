@@ -5,6 +5,7 @@
 //! - [`Context`], [`Publisher`], [`Subscriber`], [`Waiter`]: typed ports and the event loop.
 //! - [`clock`]: which clock stamps mean, and the clocks process logic is handed.
 //! - [`codec`]: the one encoding used by recordings and copying transports.
+//! - [`schema`]: each payload's schema, generated from its type, as recordings store it.
 //! - [`any_bit_pattern`], [`wire_code`]: the payload memory contract, checked at compile time, and
 //!   enums carried as typed codes.
 //! - [`termination`]: the one SIGINT/SIGTERM mechanism of every loop.
@@ -43,6 +44,7 @@ pub mod payloads;
 pub mod period_stats;
 pub mod periodic_timer;
 pub mod publisher;
+pub mod schema;
 pub mod scratch_domain;
 pub mod subscriber;
 pub mod termination;
@@ -66,8 +68,16 @@ pub use subscriber::{Received, Subscriber};
 pub use waiter::{Flow, RunEnd, RunError, Waiter};
 pub use wire_code::{UnknownCode, WireCode, WireEnum};
 
-/// `#[derive(AnyBitPattern)]` and `#[derive(WireEnum)]` (see the traits of the same names).
-pub use harvest_ipc_derive::{AnyBitPattern, WireEnum};
+/// `#[derive(AnyBitPattern)]`, `#[derive(Describe)]`, `#[derive(Payload)]` and
+/// `#[derive(WireEnum)]` (see the traits of the same names).
+pub use harvest_ipc_derive::{AnyBitPattern, Describe, Payload, WireEnum};
+pub use schema::Describe;
+
+/// What the derives' generated code names; not part of the API.
+#[doc(hidden)]
+pub mod __private {
+    pub use serde_json;
+}
 
 /// Re-exported so processes attach listeners and intervals without naming iceoryx2 paths.
 pub use iceoryx2::prelude::{WaitSetAttachmentId, WaitSetGuard};

@@ -3,6 +3,7 @@
 use crate::any_bit_pattern::AnyBitPattern;
 use crate::codec::CodecError;
 use crate::header::Header;
+use crate::schema::Describe;
 use iceoryx2::prelude::ZeroCopySend;
 
 /// A message type of the channel catalogue.
@@ -14,7 +15,14 @@ use iceoryx2::prelude::ZeroCopySend;
 /// the segment bytes are always initialized (zero-filled by the kernel when the segment is
 /// created, earlier samples afterwards), so large frames are written in place and never built on
 /// the stack or copied.
-pub trait Payload: AnyBitPattern + ZeroCopySend + std::fmt::Debug {
+///
+/// A payload is declared once, with `#[derive(Payload)]` beside iceoryx2's `ZeroCopySend` and
+/// its `#[type_name("harvest.ArmState.v2")]`: the derive takes [`Self::TYPE_NAME`] and
+/// [`Self::VERSION`] from that name, the schema from the fields ([`Describe`], rendered by
+/// [`crate::schema::schema_text`]), and encodes through serde and the [`crate::codec`] unless
+/// `#[payload(custom_codec)]` says the type implements [`CustomCodec`] (the large frames, which
+/// copy their pixel and point buffers without serde).
+pub trait Payload: AnyBitPattern + ZeroCopySend + Describe + std::fmt::Debug {
     /// Stable type name, e.g. `harvest.RgbdFrame`.
     const TYPE_NAME: &'static str;
     /// Layout version; bumped on any change of fields. With the type name it forms the iceoryx2
@@ -22,9 +30,6 @@ pub trait Payload: AnyBitPattern + ZeroCopySend + std::fmt::Debug {
     /// [`schema_name`]`(TYPE_NAME, VERSION)`, so a stale service of another version fails to
     /// open with a clear error.
     const VERSION: u32;
-    /// Field-by-field description of the encoded form (see [`crate::codec`]), stored as MCAP
-    /// schema data.
-    const SCHEMA: &'static str;
 
     /// The envelope every payload starts with.
     fn header(&self) -> &Header;
@@ -38,36 +43,23 @@ pub trait Payload: AnyBitPattern + ZeroCopySend + std::fmt::Debug {
     fn to_json(&self) -> serde_json::Value;
 }
 
-/// Implements [`Payload`] for a small `Copy` type that derives serde: encode/decode through the
-/// codec, JSON through serde_json.
-#[macro_export]
-macro_rules! serde_payload {
-    ($ty:ty, $name:literal, $version:literal, $schema:expr) => {
-        impl $crate::payload::Payload for $ty {
-            const TYPE_NAME: &'static str = $name;
-            const VERSION: u32 = $version;
-            const SCHEMA: &'static str = $schema;
+/// The encoding of a payload that does not go through serde as a whole (`#[payload(custom_codec)]`):
+/// the multi-megabyte frames, whose buffers are copied without serde and decoded in place. It
+/// must write what the type's [`Describe`] says (the catalogue's tests decode every payload by
+/// its schema alone).
+pub trait CustomCodec {
+    /// Appends the encoded message to `out`.
+    fn encode(&self, out: &mut Vec<u8>) -> Result<(), CodecError>;
+    /// Overwrites `dst` with the decoded message.
+    fn decode_into(bytes: &[u8], dst: &mut Self) -> Result<(), CodecError>;
+    /// A JSON view for humans (large buffers summarized).
+    fn to_json(&self) -> serde_json::Value;
+}
 
-            fn header(&self) -> &$crate::header::Header {
-                &self.header
-            }
-            fn header_mut(&mut self) -> &mut $crate::header::Header {
-                &mut self.header
-            }
-            fn encode(&self, out: &mut Vec<u8>) -> Result<(), $crate::codec::CodecError> {
-                $crate::codec::encode_into(self, out)
-            }
-            fn decode_into(bytes: &[u8], dst: &mut Self) -> Result<(), $crate::codec::CodecError> {
-                *dst = $crate::codec::decode_exact(bytes)?;
-                Ok(())
-            }
-            fn to_json(&self) -> serde_json::Value {
-                serde_json::to_value(self).unwrap_or_else(|error| {
-                    serde_json::json!({ "error": error.to_string() })
-                })
-            }
-        }
-    };
+/// The JSON view of a serde payload (what `#[derive(Payload)]` uses).
+pub fn serde_json_of<T: serde::Serialize>(value: &T) -> serde_json::Value {
+    serde_json::to_value(value)
+        .unwrap_or_else(|error| serde_json::json!({ "error": error.to_string() }))
 }
 
 /// The name under which a payload type and version is known to iceoryx2 (its `#[type_name]`)

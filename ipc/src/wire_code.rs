@@ -139,6 +139,13 @@ impl<E: WireEnum> Serialize for WireCode<E> {
     }
 }
 
+/// Written as the enum's code (`#[derive(WireEnum)]` describes the enum).
+impl<E: WireEnum + crate::schema::Describe> crate::schema::Describe for WireCode<E> {
+    fn shape() -> crate::schema::Shape {
+        E::shape()
+    }
+}
+
 impl<'de, E: WireEnum> Deserialize<'de> for WireCode<E> {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         u8::deserialize(deserializer).map(Self::from_raw)

@@ -14,6 +14,7 @@
 
 pub mod alacs;
 pub mod alacs_device;
+pub mod fake_gige;
 pub mod fake_mid70;
 pub mod ground_truth;
 pub mod lidar_device;

@@ -95,7 +95,11 @@ enum Command {
     /// prints violations as found, exits non-zero if any.
     Monitor(harvest_monitor::MonitorArgs),
     /// List the channel catalogue.
-    Channels,
+    Channels {
+        /// Print the schema of this channel's payload instead, as recordings store it.
+        #[arg(long, value_name = "TOPIC")]
+        schema: Option<String>,
+    },
     /// Executive: the operator's mode machine, the emergency stop's one writer, manual moves,
     /// the platform.
     Executive(harvest_executive::ExecutiveArgs),
@@ -145,6 +149,10 @@ enum BenchCommand {
     /// The Livox Mid-70 driver (`harvest lidar --device livox`) against the fake device on
     /// loopback: rate, lost packets, CPU, latency, silence report and reconnection.
     LidarLivox(harvest_bench::BenchLidarLivoxArgs),
+    /// The GigE Vision camera driver (`harvest camera --device gige`) against Aravis's fake
+    /// camera on loopback: frame rate, lost frames, camera timestamp -> `camera/rgbd` latency,
+    /// CPU.
+    CameraGige(harvest_bench::BenchCameraGigeArgs),
     /// The recorder's camera video: H.264 encoding ms per 1920x1080 frame on one core, decoding,
     /// bytes per frame, and the depth image's lossless PNG.
     Video(harvest_bench::BenchVideoArgs),
@@ -230,7 +238,7 @@ impl Cli {
             Command::BenchPeer(_) => "bench-peer",
             Command::Clean { .. } => "clean",
             Command::Monitor(_) => "monitor",
-            Command::Channels => "channels",
+            Command::Channels { .. } => "channels",
             Command::Executive(_) => "executive",
             Command::Ctl { .. } => "ctl",
             Command::Remote(_) => "remote",
@@ -289,6 +297,11 @@ impl Cli {
             #[cfg(feature = "sim-tools")]
             Command::Bench(BenchCommand::Detector(args)) => {
                 harvest_bench::run_bench_detector(&args).context("detector benchmark")?;
+                Ok(ExitCode::SUCCESS)
+            }
+            #[cfg(feature = "sim-tools")]
+            Command::Bench(BenchCommand::CameraGige(args)) => {
+                harvest_bench::run_bench_camera_gige(&args).context("camera-gige benchmark")?;
                 Ok(ExitCode::SUCCESS)
             }
             #[cfg(feature = "sim-tools")]
@@ -443,7 +456,16 @@ impl Cli {
                 harvest_console::run(&args, &domain, process_name).context("console")?;
                 Ok(ExitCode::SUCCESS)
             }
-            Command::Channels => {
+            Command::Channels {
+                schema: Some(topic),
+            } => {
+                let text = harvest_ipc::schema::schema_of_topic(&topic).with_context(|| {
+                    format!("no channel {topic:?} in the catalogue (`harvest channels`)")
+                })?;
+                print!("{text}");
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Channels { schema: None } => {
                 for spec in harvest_ipc::catalogue::all_specs() {
                     println!(
                         "{:<24} {:<26} v{} {:?} buffer<= {:<3} writers<= {:<2} {}",

@@ -8,6 +8,7 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+pub mod console;
 pub mod stack;
 pub mod webdriver;
 
@@ -269,6 +270,22 @@ pub fn children_of(parent: u32) -> Vec<u32> {
 /// Runs `harvest <args>` to completion under a watchdog.
 pub fn run_harvest(domain: &str, args: &[&str], limit: Duration) -> (ExitStatus, String, String) {
     wait_with_watchdog(spawn_harvest(domain, args), limit)
+}
+
+/// Runs `harvest up --launch <launch> --duration <duration>` in a fresh domain (`tag`) under a
+/// watchdog of `limit`; asserts a clean exit that leaves no iceoryx2 file behind; returns
+/// stderr (the supervisor's summary and the processes' logs).
+pub fn run_up_for(tag: &str, launch: &std::path::Path, duration: &str, limit: Duration) -> String {
+    let domain = unique_domain(tag);
+    let launch = launch.to_str().expect("launch path is UTF-8");
+    let (status, _, stderr) = run_harvest(
+        &domain,
+        &["up", "--launch", launch, "--duration", duration],
+        limit,
+    );
+    assert!(status.success(), "{stderr}");
+    assert_eq!(leftover_files(&domain), "", "{stderr}");
+    stderr
 }
 
 /// The domain's iceoryx2 files still present (must be none after a clean exit). Also removes

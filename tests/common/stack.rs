@@ -2,7 +2,9 @@
 //! Python readers they check files with, a process's private memory.
 
 use super::SIM_CAMERA_CALIBRATION;
-use std::process::Command;
+#[allow(unused_imports)]
+pub use harvest_test_support::python::{ensure_python, ensure_python_mcap, python_json};
+use std::path::{Path, PathBuf};
 
 /// The `ideal` preset (a grid, no occlusion) with `apples` apples and every seal failing with
 /// probability `seal_failure`.
@@ -76,32 +78,6 @@ restart = "never"
     text
 }
 
-/// Makes sure `python3` imports `modules`, installing `packages` with pip when it does not.
-pub fn ensure_python(modules: &str, packages: &[&str]) {
-    let available = || {
-        Command::new("python3")
-            .args(["-c", &format!("import {modules}")])
-            .status()
-            .is_ok_and(|status| status.success())
-    };
-    if !available() {
-        let _ = Command::new("python3")
-            .args(["-m", "pip", "install", "--quiet"])
-            .args(packages)
-            .status();
-    }
-    assert!(
-        available(),
-        "python3 with {modules} is required (pip install {})",
-        packages.join(" ")
-    );
-}
-
-/// The official Python MCAP reader with both chunk compressions the recorder writes.
-pub fn ensure_python_mcap() {
-    ensure_python("mcap, lz4, zstandard", &["mcap", "lz4", "zstandard"]);
-}
-
 /// Private memory of a process (`RssAnon`: heap, stacks), bytes.
 pub fn rss_anon_bytes(pid: u32) -> u64 {
     std::fs::read_to_string(format!("/proc/{pid}/status"))
@@ -117,4 +93,14 @@ pub fn rss_anon_bytes(pid: u32) -> u64 {
         })
         .expect("RssAnon")
         * 1024
+}
+
+/// The `.mcap` files in `dir`, sorted by name (none when `dir` does not exist).
+pub fn mcap_files(dir: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map(|entries| entries.flatten().map(|e| e.path()).collect())
+        .unwrap_or_default();
+    files.retain(|p| p.extension().is_some_and(|e| e == "mcap"));
+    files.sort();
+    files
 }

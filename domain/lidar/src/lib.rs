@@ -3,6 +3,8 @@
 //!
 //! - [`fusion`]: [fusion eq. 1-2], LiDAR points into the colour image: registered depth image,
 //!   colourised cloud, mask points.
+//! - [`capture`]: a LiDAR driver as the device of the `harvest lidar` source node, with its
+//!   heartbeat.
 //! - [`extrinsic_file`]: the calibrated `camera_from_lidar` as `harvest calibrate lidar-camera`
 //!   writes it (the calibration itself is in `harvest-calibrate`).
 //! - [`integration_window`]: how long returns are integrated into one cloud.
@@ -15,6 +17,7 @@
 #![forbid(unsafe_code)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod capture;
 pub mod extrinsic_file;
 pub mod fusion;
 pub mod integration_window;

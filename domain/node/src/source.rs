@@ -47,15 +47,20 @@ pub trait Capture<T> {
     /// The heartbeat's state, detail and value. Default: starting before the first message,
     /// degraded while captures fail (`device_errors`: the failures in a row), else running.
     fn health(&self, counts: &SourceCounts) -> (ProcessRunState, &'static str, u64) {
-        let state = if counts.failures_in_a_row > 0 {
-            ProcessRunState::Degraded
-        } else if counts.sent == 0 {
-            ProcessRunState::Starting
-        } else {
-            ProcessRunState::Running
-        };
-        (state, "device_errors", u64::from(counts.failures_in_a_row))
+        capture_health(counts)
     }
+}
+
+/// The default heartbeat of a capture device ([`Capture::health`]).
+pub fn capture_health(counts: &SourceCounts) -> (ProcessRunState, &'static str, u64) {
+    let state = if counts.failures_in_a_row > 0 {
+        ProcessRunState::Degraded
+    } else if counts.sent == 0 {
+        ProcessRunState::Starting
+    } else {
+        ProcessRunState::Running
+    };
+    (state, "device_errors", u64::from(counts.failures_in_a_row))
 }
 
 /// Every RGB-D camera captures frames.
@@ -64,6 +69,25 @@ impl<C: RgbdCamera> Capture<RgbdFrame> for C {
 
     fn capture_into(&mut self, out: &mut RgbdFrame, timeout: Duration) -> Result<bool, C::Error> {
         RgbdCamera::capture_into(self, out, timeout)
+    }
+
+    /// [`capture_health`], except that while captures succeed the detail is the first of the
+    /// link's losses that is not zero (`lost_frames`, `missing_packets`, `resent_packets`):
+    /// a camera on a network can lose frames without a capture ever failing.
+    fn health(&self, counts: &SourceCounts) -> (ProcessRunState, &'static str, u64) {
+        let default = capture_health(counts);
+        if counts.failures_in_a_row > 0 {
+            return default;
+        }
+        let link = RgbdCamera::health(self);
+        [
+            ("lost_frames", link.lost_frames),
+            ("missing_packets", link.missing_packets),
+            ("resent_packets", link.resent_packets),
+        ]
+        .into_iter()
+        .find(|&(_, count)| count > 0)
+        .map_or(default, |(detail, count)| (default.0, detail, count))
     }
 }
 

@@ -11,6 +11,12 @@
 //! `laser/scan_request`. With the LiDAR-fused depth source the newest `lidar/points` cloud
 //! (read in place) is fused with the frame's geometry and the frame is localized from the
 //! fused depth image.
+//!
+//! A colour-only frame (`RgbdFrameMeta::FLAG_COLOR_ONLY`: a camera without a depth sensor) is
+//! localized from the fused depth only. Without the fused source there will never be depth for
+//! it, and the task ends the run at the first one ([`PerceptionTaskError::NoDepthSource`]); with
+//! it, frames that arrive before the first cloud is fused are refused (warned once, then at
+//! DEBUG; the heartbeat is degraded while every frame is refused).
 
 use harvest_ipc::catalogue::{
     CAMERA_RGBD, LASER_SCAN_REQUEST, LASER_SCAN_RESULT, LIDAR_POINTS, PERCEPTION_APPLES,
@@ -27,6 +33,19 @@ use harvest_node::{
 use crate::depth_source::FusedDepth;
 use crate::frame_freshness::{FreshnessTotals, FreshnessTracker};
 use crate::node::PerceptionNode;
+use crate::pipeline::PerceptionSetupError;
+
+/// Why perception ends its run.
+#[derive(Debug, thiserror::Error)]
+pub enum PerceptionTaskError {
+    /// A colour-only frame arrived and the depth source is the frame's own (ToF): nothing will
+    /// ever give it depth.
+    #[error(
+        "{0}; this process runs with the ToF depth source, so it stops (give it \
+         --depth-source lidar-fused --lidar-extrinsic FILE and run a lidar process)"
+    )]
+    NoDepthSource(#[source] PerceptionSetupError),
+}
 
 /// The channels perception reads.
 #[derive(Default)]
@@ -69,6 +88,8 @@ pub struct PerceptionTask {
     /// The geometry of the last frame, to fuse a cloud that arrives between frames.
     last_meta: Option<RgbdFrameMeta>,
     apples_published: u64,
+    /// A colour-only frame has been refused for want of fused depth (warned once).
+    warned_no_depth: bool,
 }
 
 impl PerceptionTask {
@@ -80,6 +101,7 @@ impl PerceptionTask {
             freshness: FreshnessTracker::default(),
             last_meta: None,
             apples_published: 0,
+            warned_no_depth: false,
         }
     }
 
@@ -125,7 +147,7 @@ impl Node for PerceptionTask {
     type Inputs = PerceptionInputs;
     type Outputs = PerceptionOutputs;
     type Devices = ();
-    type Error = std::convert::Infallible;
+    type Error = PerceptionTaskError;
 
     fn name(&self) -> &str {
         "perception"
@@ -189,6 +211,13 @@ impl Node for PerceptionTask {
             }
             return Ok(());
         };
+        if frame.meta.is_color_only() && self.fused_depth.is_none() {
+            return Err(PerceptionTaskError::NoDepthSource(
+                PerceptionSetupError::NoDepthSource {
+                    frame_seq: frame.header.msg_seq,
+                },
+            ));
+        }
         let fresh =
             self.freshness
                 .start_frame(frame.header.msg_seq, frame.header.capture_ns, tick.now_ns);
@@ -222,6 +251,14 @@ impl Node for PerceptionTask {
                 total_us = stats.timings.total_us,
                 "frame processed"
             ),
+            Err(error @ PerceptionSetupError::NoDepthSource { .. }) => {
+                if self.warned_no_depth {
+                    tracing::debug!(%error, "frame refused: no fused depth yet");
+                } else {
+                    tracing::warn!(%error, "frame refused: no fused depth yet");
+                    self.warned_no_depth = true;
+                }
+            }
             Err(error) => tracing::warn!(%error, "frame rejected: camera parameters unusable"),
         }
         Ok(())

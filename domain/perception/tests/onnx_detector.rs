@@ -8,6 +8,7 @@
 //! with the shapes named; a missing GPU provider falls back to the CPU, or with `require_gpu`
 //! refuses to start.
 
+use harvest_test_support::python::ensure_python;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
@@ -17,32 +18,11 @@ use harvest_perception::detector::onnx::{ExecutionProvider, OnnxDetector, OnnxDe
 use harvest_perception::detector::yolo::layout::YoloHead;
 use harvest_perception::detector::{Detection, DetectionSource, Detector, PixelBox};
 
-/// Makes sure python3 has `onnx` (to write the models) and `onnxruntime` (the runtime under
-/// test), installing them with pip when missing, as `.ci/run` does.
-fn ensure_python_packages() {
-    let available = || {
-        Command::new("python3")
-            .args(["-c", "import onnx, onnxruntime"])
-            .status()
-            .map(|status| status.success())
-            .unwrap_or(false)
-    };
-    if !available() {
-        let _ = Command::new("python3")
-            .args(["-m", "pip", "install", "--quiet", "onnx", "onnxruntime"])
-            .status();
-    }
-    assert!(
-        available(),
-        "python3 with `onnx` and `onnxruntime` is required (python3 -m pip install onnx onnxruntime)"
-    );
-}
-
 /// The directory holding detect.onnx, segment.onnx and end2end.onnx (written once per run).
 fn models() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        ensure_python_packages();
+        ensure_python("onnx, onnxruntime", &["onnx", "onnxruntime"]);
         let dir = std::env::temp_dir().join(format!("harvest-yolo-models-{}", std::process::id()));
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/yolo_models.py");
         let status = Command::new("python3")

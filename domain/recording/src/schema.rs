@@ -2,22 +2,24 @@
 //!
 //! - Schema name: `<TYPE_NAME>.v<VERSION>`, e.g. `harvest.RgbdFrame.v1`: a reader knows both the
 //!   type and the layout version without decoding anything.
-//! - Schema encoding and channel message encoding: [`codec::ENCODING`] (`bincode2-fixint-le`).
-//! - Schema data: UTF-8 text naming the type, version and encoding, then the payload's
-//!   field-by-field [`Payload::SCHEMA`] layout, so another tool can decode the bytes.
+//! - Schema encoding and channel message encoding: [`harvest_ipc::codec::ENCODING`] (`bincode2-fixint-le`).
+//! - Schema data: UTF-8 text generated from the payload type
+//!   ([`harvest_ipc::schema::schema_text`]): type, version, encoding and its rules, then every
+//!   field, nested struct and enum code with its documentation, so another tool can decode the
+//!   bytes. Readers go by the schema name; the text is for people and other tools (recordings
+//!   made before it was generated carry a hand-written text under the same names).
 //! - Channel metadata: `type_name`, `version`, `layer`, `description`.
 
 use harvest_ipc::catalogue::{self, ChannelSpec, Layer};
-use harvest_ipc::codec;
-use harvest_ipc::{Channel, ChannelVisitor, Payload};
+use harvest_ipc::{Channel, ChannelVisitor, Payload, schema};
 use std::collections::BTreeMap;
 
-/// A catalogue channel as the recording tools see it: its spec plus its payload's layout text.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// A catalogue channel as the recording tools see it: its spec plus its payload's schema.
+#[derive(Debug, Clone, Copy)]
 pub struct TopicInfo {
     pub spec: ChannelSpec,
-    /// [`Payload::SCHEMA`] of the channel's payload type.
-    pub layout: &'static str,
+    /// [`harvest_ipc::schema::schema_text`] of the channel's payload type.
+    pub schema_text: fn() -> String,
     /// Size of the payload type in memory, bytes.
     pub payload_bytes: usize,
 }
@@ -26,7 +28,7 @@ impl TopicInfo {
     pub fn of<T: Payload>(channel: Channel<T>) -> Self {
         Self {
             spec: channel.spec,
-            layout: T::SCHEMA,
+            schema_text: schema::schema_text::<T>,
             payload_bytes: std::mem::size_of::<T>(),
         }
     }
@@ -44,13 +46,7 @@ impl TopicInfo {
 
     /// The MCAP schema data of this channel's payload (see the module docs).
     pub fn schema_data(&self) -> String {
-        format!(
-            "harvest message schema\ntype: {}\nversion: {}\nencoding: {}\nlayout: {}\n",
-            self.spec.type_name,
-            self.spec.version,
-            codec::ENCODING,
-            self.layout
-        )
+        (self.schema_text)()
     }
 
     /// The MCAP channel metadata of this channel.
@@ -121,8 +117,8 @@ mod tests {
         assert_eq!(topics.len(), catalogue::all_specs().len());
         for topic in &topics {
             let data = topic.schema_data();
-            assert!(data.contains(codec::ENCODING));
-            assert!(data.contains(topic.layout));
+            assert!(data.contains(harvest_ipc::codec::ENCODING));
+            assert!(data.contains(&format!("type: {}\n", topic.spec.type_name)));
             let name = topic.schema_name();
             assert_eq!(
                 parse_schema_name(&name),

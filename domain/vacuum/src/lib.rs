@@ -19,6 +19,7 @@
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod assignment;
+pub mod completion;
 pub mod harvest_events;
 pub mod node;
 pub mod policy;

@@ -4,7 +4,7 @@
 use crate::camera_model::CameraIntrinsics;
 use crate::codec::{self, CodecError};
 use crate::header::Header;
-use crate::payload::Payload;
+use crate::payload::CustomCodec;
 use crate::wire_code::WireCode;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
@@ -28,6 +28,7 @@ pub const ALACS_RGB_BYTES: usize = ALACS_WIDTH_PX * ALACS_HEIGHT_PX * 3;
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.AlacsCommand.v1")]
 pub struct AlacsCommand {
@@ -45,14 +46,6 @@ pub struct AlacsCommand {
     pub slide_target_m: f64,
 }
 
-crate::serde_payload!(
-    AlacsCommand,
-    "harvest.AlacsCommand",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-request_seq:u32; laser_on:u8; capture:u8; _reserved:[u8;2]; slide_target_m:f64"
-);
-
 /// How the device carried out a command (code in [`AlacsImage::status`]).
 #[repr(u8)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, crate::WireEnum)]
@@ -67,8 +60,9 @@ pub enum AlacsStatus {
 
 /// Device -> driver: the answer to one command, with the image when one was requested.
 #[repr(C)]
-#[derive(ZeroCopySend, crate::AnyBitPattern)]
+#[derive(ZeroCopySend, crate::AnyBitPattern, crate::Payload)]
 #[type_name("harvest.AlacsImage.v1")]
+#[payload(custom_codec)]
 pub struct AlacsImage {
     /// Sequence number, capture and publish stamps (ns, stack clock); see [`Header`].
     pub header: Header,
@@ -80,7 +74,8 @@ pub struct AlacsImage {
     pub status: WireCode<AlacsStatus>,
     /// 1 when `rgb` holds a captured image.
     pub has_image: u8,
-    /// Zero; keeps the following fields aligned.
+    /// Zero; keeps the following fields aligned. Not encoded.
+    #[schema(skip)]
     pub _reserved: u8,
     /// Where the slide actually stopped, metres.
     pub slide_position_m: f64,
@@ -112,21 +107,7 @@ struct AlacsImageMeta {
     intrinsics: CameraIntrinsics,
 }
 
-impl Payload for AlacsImage {
-    const TYPE_NAME: &'static str = "harvest.AlacsImage";
-    const VERSION: u32 = 1;
-    const SCHEMA: &'static str = "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, \
-publish_ns:u64}; request_seq:u32; laser_on:u8; status:u8 (0 ok, 1 slide target outside the \
-stroke, 2 device fault); has_image:u8; slide_position_m:f64; \
-intrinsics: {width_px:u32, height_px:u32, fx_px:f64, fy_px:f64, cx_px:f64, cy_px:f64, \
-distortion:[f64;5]}; then rgb: 4665600 raw bytes (RGB8 1440x1080 row-major)";
-
-    fn header(&self) -> &Header {
-        &self.header
-    }
-    fn header_mut(&mut self) -> &mut Header {
-        &mut self.header
-    }
+impl CustomCodec for AlacsImage {
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), CodecError> {
         let meta = AlacsImageMeta {
             header: self.header,

@@ -50,6 +50,7 @@ pub enum DepthSourceCode {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Describe,
 )]
 pub struct AppleDetection {
     /// Stable within a track of frames when perception can associate, else per frame.
@@ -86,6 +87,7 @@ pub struct AppleDetection {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.AppleDetections.v2")]
 pub struct AppleDetections {
@@ -100,15 +102,3 @@ pub struct AppleDetections {
     /// The apples found, at most [`MAX_APPLES_PER_FRAME`].
     pub apples: BoundedVec<AppleDetection, MAX_APPLES_PER_FRAME>,
 }
-
-crate::serde_payload!(
-    AppleDetections,
-    "harvest.AppleDetections",
-    2,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-source_frame_seq: u64; source_capture_ns: u64; processing_ns: u64; apples: u64 count then \
-count x {apple_id:u32, method:u8 (1 cluster centroid, 2 sphere fit, 3 laser, 5 z-score centroid; 4 lidar in v1 only), \
-depth_source:u8 (1 ToF, 2 LiDAR fused, 3 laser line), _reserved:[u8;2], \
-position_in_camera_m:[f64;3], position_in_robot_m:[f64;3], radius_m:f64, confidence:f32, \
-box_px:[u32;4] (x,y,w,h), visible_px:u32}"
-);

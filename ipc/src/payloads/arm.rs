@@ -55,6 +55,7 @@ pub enum TargetStatus {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.ArmTarget.v1")]
 pub struct ArmTarget {
@@ -74,15 +75,6 @@ pub struct ArmTarget {
     pub source_capture_ns: u64,
 }
 
-crate::serde_payload!(
-    ArmTarget,
-    "harvest.ArmTarget",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-arm_id:u8; _reserved:[u8;3]; apple_id:u32; position_in_robot_m:[f64;3]; radius_m:f64; \
-source_capture_ns:u64"
-);
-
 /// Joint set-points for one arm's servos (controller -> arm driver), sent every control period.
 ///
 /// `header.capture_ns` is the control tick the command was computed at. `apple_id` and
@@ -100,6 +92,7 @@ source_capture_ns:u64"
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.ArmCommand.v2")]
 pub struct ArmCommand {
@@ -122,16 +115,6 @@ pub struct ArmCommand {
     pub joint_velocity: [f64; JOINT_COUNT],
 }
 
-crate::serde_payload!(
-    ArmCommand,
-    "harvest.ArmCommand",
-    2,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64 (control tick), \
-publish_ns:u64}; arm_id:u8; hold:u8; _reserved:[u8;2]; apple_id:u32 (0 none); \
-source_capture_ns:u64 (camera frame behind the current target, 0 none); joint_position:[f64;4] \
-(D m, theta rad, phi rad, twist rad); joint_velocity:[f64;4]"
-);
-
 /// What an arm reports at its control rate.
 #[repr(C)]
 #[derive(
@@ -144,6 +127,7 @@ source_capture_ns:u64 (camera frame behind the current target, 0 none); joint_po
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.ArmState.v2")]
 pub struct ArmState {
@@ -174,14 +158,3 @@ pub struct ArmState {
     /// Period of the last control cycle.
     pub control_period_ns: u64,
 }
-
-crate::serde_payload!(
-    ArmState,
-    "harvest.ArmState",
-    2,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-arm_id:u8; phase:u8 (0 idle,1 approach,2 attach/detach,3 retract,4 release,5 stopped); \
-holding:u8; target_status:u8 (0 none, 1 waiting: refused for the moment, retried; 2 refused for \
-good); target_apple_id:u32 (0 none); apple_id:u32; harvested_count:u32; joint_position:[f64;4]; \
-joint_velocity:[f64;4]; end_effector_in_robot_m:[f64;3]; control_period_ns:u64"
-);

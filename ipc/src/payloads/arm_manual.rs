@@ -39,6 +39,7 @@ impl ArmManualKind {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.ArmManualCommand.v1")]
 pub struct ArmManualCommand {
@@ -57,15 +58,6 @@ pub struct ArmManualCommand {
     /// Fraction (0, 1] of the arm's rate limits the motion may use.
     pub speed_fraction: f64,
 }
-
-crate::serde_payload!(
-    ArmManualCommand,
-    "harvest.ArmManualCommand",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-request_id:u64; arm_id:u8; kind:u8 (1 move to, 2 stop); _reserved:[u8;6]; \
-goal_joint_position:[f64;4] (D m, theta rad, phi rad, twist rad); speed_fraction:f64"
-);
 
 impl ArmManualCommand {
     /// The order's kind; `None` for an unknown code.

@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.EmergencyStop.v1")]
 pub struct EmergencyStop {
@@ -29,11 +30,3 @@ pub struct EmergencyStop {
     /// Why it was engaged or released, for people.
     pub reason: FixedString<64>,
 }
-
-crate::serde_payload!(
-    EmergencyStop,
-    "harvest.EmergencyStop",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-engaged:u8; _reserved:[u8;7]; reason: u64 length + UTF-8"
-);

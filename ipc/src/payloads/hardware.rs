@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.ServoSetpoint.v1")]
 pub struct ServoSetpoint {
@@ -36,14 +37,6 @@ pub struct ServoSetpoint {
     pub joint_velocity: [f64; JOINT_COUNT],
 }
 
-crate::serde_payload!(
-    ServoSetpoint,
-    "harvest.ServoSetpoint",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-hold:u8; _reserved:[u8;7]; joint_position:[f64;4]; joint_velocity:[f64;4]"
-);
-
 /// Encoder feedback of one arm (device -> driver), at the servo rate.
 #[repr(C)]
 #[derive(
@@ -56,6 +49,7 @@ hold:u8; _reserved:[u8;7]; joint_position:[f64;4]; joint_velocity:[f64;4]"
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.EncoderFeedback.v1")]
 pub struct EncoderFeedback {
@@ -71,14 +65,6 @@ pub struct EncoderFeedback {
     pub _reserved: [u8; 7],
 }
 
-crate::serde_payload!(
-    EncoderFeedback,
-    "harvest.EncoderFeedback",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-joint_position:[f64;4]; joint_velocity:[f64;4]; fault_bits:u8; _reserved:[u8;7]"
-);
-
 /// Valve commands to the valve board (driver -> device).
 #[repr(C)]
 #[derive(
@@ -91,6 +77,7 @@ joint_position:[f64;4]; joint_velocity:[f64;4]; fault_bits:u8; _reserved:[u8;7]"
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.ValveBoardCommand.v1")]
 pub struct ValveBoardCommand {
@@ -101,14 +88,6 @@ pub struct ValveBoardCommand {
     /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 4],
 }
-
-crate::serde_payload!(
-    ValveBoardCommand,
-    "harvest.ValveBoardCommand",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-valve_open:[u8;4]; _reserved:[u8;4]"
-);
 
 /// Valve and pressure readings of the valve board (device -> driver).
 #[repr(C)]
@@ -122,6 +101,7 @@ valve_open:[u8;4]; _reserved:[u8;4]"
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.ValveBoardReadings.v1")]
 pub struct ValveBoardReadings {
@@ -136,14 +116,6 @@ pub struct ValveBoardReadings {
     /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 4],
 }
-
-crate::serde_payload!(
-    ValveBoardReadings,
-    "harvest.ValveBoardReadings",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-valve_open:[u8;4]; valve_in_transit:[u8;4]; pressure_mmh2o:[f32;3]; _reserved:[u8;4]"
-);
 
 /// At most this many apples in the ground truth message.
 pub const MAX_TRUE_APPLES: usize = 256;
@@ -176,6 +148,7 @@ pub enum TrueAppleState {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Describe,
 )]
 pub struct TrueApple {
     /// The simulator's id of the apple.
@@ -202,6 +175,7 @@ pub struct TrueApple {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.GroundTruth.v1")]
 pub struct GroundTruth {
@@ -210,12 +184,3 @@ pub struct GroundTruth {
     /// Every apple of the scene.
     pub apples: BoundedVec<TrueApple, MAX_TRUE_APPLES>,
 }
-
-crate::serde_payload!(
-    GroundTruth,
-    "harvest.GroundTruth",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; apples: \
-u64 count then count x {apple_id:u32, state:u8 (0 tree,1 arm1,2 arm2,3 dropped,4 harvested), \
-_reserved:[u8;3], center_in_robot_m:[f64;3], radius_m:f64}"
-);

@@ -174,6 +174,7 @@ impl HarvestCause {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.HarvestEvent.v1")]
 pub struct HarvestEvent {
@@ -204,22 +205,6 @@ pub struct HarvestEvent {
     /// A short human-readable reason or detail.
     pub reason: FixedString<HARVEST_EVENT_REASON_BYTES>,
 }
-
-crate::serde_payload!(
-    HarvestEvent,
-    "harvest.HarvestEvent",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64 (event tick), \
-publish_ns:u64}; source:u8 (1 arm1, 2 arm2, 3 vacuum, 4 field); kind:u8 (1 assigned, 2 target accepted, \
-3 target rejected, 4 target deferred, 5 phase changed, 6 attached, 7 cycle step, 8 attempt \
-ended, 9 valve opened, 10 valve closed, 11 valve refused, 12 emergency stop, 13 attempt \
-finished, 14 dispatch timed out, 15 replanned, 16 attachment changed, 17 harvest complete, 18 stop finished, 19 row finished); \
-arm_id:u8; phase:u8 (ArmState phase code); harvested:u8; cause:u8 (0 none, 1 approach timeout, \
-2 valve not granted, 3 no attachment, 4 apple lost, 5 valve not closed, 6 emergency stop, 7 \
-target not taken, 20 non-finite, 21 stale, 22 from future, 23 outside workspace, 24 busy, 25 \
-clearance conflict, 26 other arm goal unknown, 27 no feedback, 255 other); _reserved:[u8;2]; \
-apple_id:u32; _reserved2:u32; position_in_robot_m:[f64;3]; reason: u64 length + UTF-8"
-);
 
 impl HarvestEvent {
     /// An event with the given source, kind, arm and apple; everything else zero, the position

@@ -20,6 +20,7 @@ pub const MAX_SCAN_CANDIDATES: usize = 5;
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.LaserScanRequest.v1")]
 pub struct LaserScanRequest {
@@ -34,14 +35,6 @@ pub struct LaserScanRequest {
     /// Rough apple radius from the ToF camera, metres.
     pub rough_radius_m: f64,
 }
-
-crate::serde_payload!(
-    LaserScanRequest,
-    "harvest.LaserScanRequest",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-request_seq:u32; apple_id:u32; rough_position_in_camera_m:[f64;3]; rough_radius_m:f64"
-);
 
 /// How a scan ended (code in [`LaserScanResult::status`]).
 #[repr(u8)]
@@ -69,6 +62,7 @@ pub enum LaserScanStatus {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.LaserScanResult.v1")]
 pub struct LaserScanResult {
@@ -96,14 +90,3 @@ pub struct LaserScanResult {
     /// Time from the request to the result, ns.
     pub scan_duration_ns: u64,
 }
-
-crate::serde_payload!(
-    LaserScanResult,
-    "harvest.LaserScanResult",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-request_seq:u32; apple_id:u32; status:u8 (0 ok, 1 no laser line, 2 out of reach, 3 device \
-error); candidate_count:u8; selected:u8; _reserved:[u8;5]; \
-position_in_camera_m:[f64;3]; candidates_in_camera_m:[[f64;3];5]; candidate_scores:[f64;5]; \
-scan_duration_ns:u64"
-);

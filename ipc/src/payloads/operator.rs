@@ -212,6 +212,7 @@ impl OperatorRefusalCode {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.OperatorCommand.v1")]
 pub struct OperatorCommand {
@@ -239,17 +240,6 @@ pub struct OperatorCommand {
     pub client: FixedString<OPERATOR_CLIENT_BYTES>,
 }
 
-crate::serde_payload!(
-    OperatorCommand,
-    "harvest.OperatorCommand",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-request_id:u64; session_id:u64; code:u16 (1 start, 2 pause, 3 resume, 4 stop, 5 estop, \
-6 release, 7 home, 8 arm enable, 9 arm disable, 10 jog, 11 drop-off, 12 platform move, \
-13 heartbeat, 14 leave control, 15 next stop); arm_id:u8; joint:u8; _reserved:[u8;4]; value:f64; \
-platform_target_m:[f64;2]; token: u64 length + UTF-8; client: u64 length + UTF-8"
-);
-
 impl OperatorCommand {
     /// The typed command, `None` for an unknown code.
     pub fn command_code(&self) -> Option<OperatorCommandCode> {
@@ -269,6 +259,7 @@ impl OperatorCommand {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.OperatorAck.v1")]
 pub struct OperatorAck {
@@ -296,18 +287,6 @@ pub struct OperatorAck {
     pub reason: FixedString<OPERATOR_REASON_BYTES>,
 }
 
-crate::serde_payload!(
-    OperatorAck,
-    "harvest.OperatorAck",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-request_id:u64; session_id:u64; code:u16; accepted:u8; refusal:u8 (0 none, 1 unknown command, \
-2 missing token, 3 wrong token, 4 other session in control, 5 forbidden by mode, 6 outside \
-limits, 7 bad argument, 8 arm busy, 9 arm state unknown, 10 clearance, 11 device, \
-12 field); mode:u8; \
-_reserved:[u8;3]; motion_duration_ms:u32; _reserved2:[u8;4]; reason: u64 length + UTF-8"
-);
-
 /// The stack's operating mode (`operator/mode`, latched, re-sent at 10 Hz).
 #[repr(C)]
 #[derive(
@@ -320,6 +299,7 @@ _reserved:[u8;3]; motion_duration_ms:u32; _reserved2:[u8;4]; reason: u64 length 
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.OperatorModeState.v1")]
 pub struct OperatorModeState {
@@ -356,18 +336,6 @@ pub struct OperatorModeState {
     /// In words: why the mode last changed.
     pub last_change_reason: FixedString<OPERATOR_REASON_BYTES>,
 }
-
-crate::serde_payload!(
-    OperatorModeState,
-    "harvest.OperatorModeState",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-mode:u8 (1 idle, 2 harvesting, 3 paused, 4 manual, 5 estopped); emergency_stop_engaged:u8; \
-arms_enabled:[u8;2]; platform_in_motion:u8; platform_present:u8; field_hold:u8; _reserved:[u8;1]; \
-controlling_session:u64; last_change_ns:u64; platform_position_m:[f64;2]; \
-last_change_code:u16; _reserved2:[u8;6]; controller: u64 length + UTF-8; last_change_reason: \
-u64 length + UTF-8"
-);
 
 impl OperatorModeState {
     /// The typed mode, `None` before the first publication or for an unknown code.

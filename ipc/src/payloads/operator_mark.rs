@@ -25,6 +25,7 @@ pub const MARK_SOURCE_BYTES: usize = 32;
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.OperatorMark.v1")]
 pub struct OperatorMark {
@@ -35,11 +36,3 @@ pub struct OperatorMark {
     /// Who made it: `ctl`, `console`, ...
     pub source: FixedString<MARK_SOURCE_BYTES>,
 }
-
-crate::serde_payload!(
-    OperatorMark,
-    "harvest.OperatorMark",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64 (when marked), \
-publish_ns:u64}; text: u64 length + UTF-8; source: u64 length + UTF-8"
-);

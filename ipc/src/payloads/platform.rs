@@ -32,6 +32,7 @@ pub enum PlatformStatus {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.PlatformCommand.v1")]
 pub struct PlatformCommand {
@@ -47,14 +48,6 @@ pub struct PlatformCommand {
     pub _reserved: [u8; 7],
 }
 
-crate::serde_payload!(
-    PlatformCommand,
-    "harvest.PlatformCommand",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-target_in_out_m:f64; target_up_down_m:f64; stop:u8; _reserved:[u8;7]"
-);
-
 /// Device -> driver: the stages' encoder positions, sampled at the device's feedback rate.
 /// `header.capture_ns` is when the encoders were read.
 #[repr(C)]
@@ -68,6 +61,7 @@ target_in_out_m:f64; target_up_down_m:f64; stop:u8; _reserved:[u8;7]"
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.PlatformFeedback.v1")]
 pub struct PlatformFeedback {
@@ -96,16 +90,6 @@ pub struct PlatformFeedback {
     /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 6],
 }
-
-crate::serde_payload!(
-    PlatformFeedback,
-    "harvest.PlatformFeedback",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-in_out_m:f64; up_down_m:f64; in_out_velocity_m_per_s:f64; up_down_velocity_m_per_s:f64; \
-target_in_out_m:f64; target_up_down_m:f64; last_command_ns:u64; in_motion:u8; \
-status:u8 (0 ok, 1 refused, 2 fault); _reserved:[u8;6]"
-);
 
 #[cfg(test)]
 mod tests {

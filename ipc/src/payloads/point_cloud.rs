@@ -9,7 +9,7 @@
 
 use crate::codec::{self, CodecError};
 use crate::header::Header;
-use crate::payload::Payload;
+use crate::payload::CustomCodec;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
@@ -28,6 +28,7 @@ pub const POINT_CLOUD_CAPACITY: usize = 100_000;
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Describe,
 )]
 pub struct LidarPoint {
     /// Position in the LiDAR frame, metres.
@@ -64,6 +65,7 @@ impl LidarPoint {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Describe,
 )]
 pub struct PointCloudMeta {
     /// Valid points at the start of `points`.
@@ -82,14 +84,16 @@ impl PointCloudMeta {
 
 /// One integrated LiDAR point cloud in the LiDAR frame (`lidar/points`, `hw/lidar/points`).
 #[repr(C)]
-#[derive(ZeroCopySend, crate::AnyBitPattern)]
+#[derive(ZeroCopySend, crate::AnyBitPattern, crate::Payload)]
 #[type_name("harvest.PointCloud.v1")]
+#[payload(custom_codec)]
 pub struct PointCloud {
     /// `capture_ns` is the end of the integration window; see [`Header`].
     pub header: Header,
     /// Point count, flags and integration window.
     pub meta: PointCloudMeta,
-    /// The first `meta.point_count` entries are valid; the rest is stale memory.
+    /// The first `meta.point_count` entries are valid; the rest is stale memory (not encoded).
+    #[schema(count = "meta.point_count")]
     pub points: [LidarPoint; POINT_CLOUD_CAPACITY],
 }
 
@@ -144,21 +148,7 @@ impl PointCloud {
 
 const POINT_BYTES: usize = 16;
 
-impl Payload for PointCloud {
-    const TYPE_NAME: &'static str = "harvest.PointCloud";
-    const VERSION: u32 = 1;
-    const SCHEMA: &'static str = "encoding bincode2-fixint-le: header: {msg_seq:u64, \
-capture_ns:u64, publish_ns:u64}; meta: {point_count:u32, flags:u32 (bit 0 truncated), \
-integration_ns:u64}; then point_count x {x_m:f32, y_m:f32, z_m:f32, intensity:f32} \
-little-endian (LiDAR frame: x forward, y left, z up, metres)";
-
-    fn header(&self) -> &Header {
-        &self.header
-    }
-    fn header_mut(&mut self) -> &mut Header {
-        &mut self.header
-    }
-
+impl CustomCodec for PointCloud {
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), CodecError> {
         let points = self.valid_points();
         out.reserve(points.len() * POINT_BYTES + 64);

@@ -79,6 +79,7 @@ impl std::fmt::Display for DeviceErrorCode {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.ProcessHealth.v3")]
 pub struct ProcessHealth {
@@ -110,13 +111,3 @@ pub struct ProcessHealth {
     /// (Added in version 2.)
     pub deadline_misses: u64,
 }
-
-crate::serde_payload!(
-    ProcessHealth,
-    "harvest.ProcessHealth",
-    3,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-process_name: u64 length + UTF-8; pid:u32; run_state:u8 (0 starting,1 running,2 degraded,3 \
-stopping,4 failed); last_device_error:u8 (0 none,1 disconnected,2 timeout,3 fault,4 protocol,5 \
-refused,6 other); _reserved:[u8;2]; main_channel_count:u64; detail_value:u64; detail: u64 length + UTF-8; deadline_misses:u64"
-);

@@ -5,7 +5,7 @@
 use crate::camera_model::{CameraIntrinsics, RigidTransform};
 use crate::codec::{self, CodecError};
 use crate::header::Header;
-use crate::payload::Payload;
+use crate::payload::CustomCodec;
 use iceoryx2::prelude::ZeroCopySend;
 use serde::{Deserialize, Serialize};
 
@@ -25,7 +25,15 @@ pub const DEPTH_PIXELS: usize = DEPTH_WIDTH_PX * DEPTH_HEIGHT_PX;
 /// Frame metadata: everything but the pixel buffers.
 #[repr(C)]
 #[derive(
-    Debug, Clone, Copy, PartialEq, ZeroCopySend, Serialize, Deserialize, crate::AnyBitPattern,
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    ZeroCopySend,
+    Serialize,
+    Deserialize,
+    crate::AnyBitPattern,
+    crate::Describe,
 )]
 pub struct RgbdFrameMeta {
     /// Intrinsics of the colour camera.
@@ -70,8 +78,9 @@ impl Default for RgbdFrameMeta {
 
 /// One registered RGB-D frame of the ToF camera (`camera/rgbd`, `hw/camera/rgbd`).
 #[repr(C)]
-#[derive(ZeroCopySend, crate::AnyBitPattern)]
+#[derive(ZeroCopySend, crate::AnyBitPattern, crate::Payload)]
 #[type_name("harvest.RgbdFrame.v1")]
+#[payload(custom_codec)]
 pub struct RgbdFrame {
     /// `capture_ns` is the exposure time of the frame; see [`Header`].
     pub header: Header,
@@ -92,26 +101,7 @@ impl std::fmt::Debug for RgbdFrame {
     }
 }
 
-impl Payload for RgbdFrame {
-    const TYPE_NAME: &'static str = "harvest.RgbdFrame";
-    const VERSION: u32 = 1;
-    const SCHEMA: &'static str = concat!(
-        "encoding bincode2-fixint-le: ",
-        "header: Header{msg_seq:u64, capture_ns:u64, publish_ns:u64}; meta: {rgb_intrinsics: \
-Intrinsics, depth_intrinsics: Intrinsics, color_from_depth: {rotation: [[f64;3];3] row-major, \
-translation_m: [f64;3]}, exposure_us: u32, flags: u32}; then rgb: 6220800 raw bytes (RGB8 \
-1920x1080 row-major); then depth_mm: 307200 x u16 little-endian (640x480 row-major, 0 = no \
-return). Intrinsics = {width_px:u32, height_px:u32, fx_px:f64, fy_px:f64, cx_px:f64, \
-cy_px:f64, distortion:[f64;5] (k1,k2,p1,p2,k3)}"
-    );
-
-    fn header(&self) -> &Header {
-        &self.header
-    }
-    fn header_mut(&mut self) -> &mut Header {
-        &mut self.header
-    }
-
+impl CustomCodec for RgbdFrame {
     fn encode(&self, out: &mut Vec<u8>) -> Result<(), CodecError> {
         out.reserve(RGB_BYTES + DEPTH_PIXELS * 2 + 512);
         codec::encode_into(&(self.header, self.meta), out)?;

@@ -59,6 +59,7 @@ pub enum ViolationAction {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.SafetyViolation.v1")]
 pub struct SafetyViolation {
@@ -77,17 +78,6 @@ pub struct SafetyViolation {
     /// In words, as `harvest monitor` prints it.
     pub description: FixedString<VIOLATION_TEXT_BYTES>,
 }
-
-crate::serde_payload!(
-    SafetyViolation,
-    "harvest.SafetyViolation",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-violated_ns:u64; rule:u8 (1 opened beside unsealed, 2 both open unsealed, 3 failure not closed, \
-4 joint out of limits, 5 valve open during e-stop, 6 moved during e-stop, 7 end-effectors too \
-close, 8 reaction measurement); action:u8 (0 report, 1 stop); arm_id:u8; _reserved:[u8;5]; \
-description: u64 length + UTF-8"
-);
 
 impl SafetyViolation {
     /// True unless the monitor only reports it: an unknown action code asks for the stop (the

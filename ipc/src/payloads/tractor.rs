@@ -31,6 +31,7 @@ pub enum TractorStatus {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.TractorCommand.v1")]
 pub struct TractorCommand {
@@ -45,14 +46,6 @@ pub struct TractorCommand {
     pub _reserved: [u8; 7],
 }
 
-crate::serde_payload!(
-    TractorCommand,
-    "harvest.TractorCommand",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-target_m:f64; stop:u8; _reserved:[u8;7]"
-);
-
 /// Device -> driver: the trailer's position along the row.
 #[repr(C)]
 #[derive(
@@ -65,6 +58,7 @@ target_m:f64; stop:u8; _reserved:[u8;7]"
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.TractorFeedback.v1")]
 pub struct TractorFeedback {
@@ -87,15 +81,6 @@ pub struct TractorFeedback {
     /// Zero; keeps the following fields aligned.
     pub _reserved: [u8; 6],
 }
-
-crate::serde_payload!(
-    TractorFeedback,
-    "harvest.TractorFeedback",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-position_m:f64; velocity_m_per_s:f64; target_m:f64; row_end_m:f64; last_command_ns:u64; \
-in_motion:u8; status:u8 (0 ok, 1 refused); _reserved:[u8;6]"
-);
 
 #[cfg(test)]
 mod tests {

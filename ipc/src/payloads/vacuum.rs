@@ -59,6 +59,7 @@ pub enum VacuumPolicyCode {
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.ValveRequest.v1")]
 pub struct ValveRequest {
@@ -74,14 +75,6 @@ pub struct ValveRequest {
     pub request_seq: u32,
 }
 
-crate::serde_payload!(
-    ValveRequest,
-    "harvest.ValveRequest",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-arm_id:u8; kind:u8 (1 open for attach, 2 close); _reserved:[u8;2]; request_seq:u32"
-);
-
 /// The vacuum supervisor's answer to one [`ValveRequest`] (`vacuum/valve_grant`).
 #[repr(C)]
 #[derive(
@@ -94,6 +87,7 @@ arm_id:u8; kind:u8 (1 open for attach, 2 close); _reserved:[u8;2]; request_seq:u
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.ValveGrant.v1")]
 pub struct ValveGrant {
@@ -111,14 +105,6 @@ pub struct ValveGrant {
     pub request_seq: u32,
 }
 
-crate::serde_payload!(
-    ValveGrant,
-    "harvest.ValveGrant",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-arm_id:u8; granted:u8; reason:u8; _reserved:u8; request_seq:u32"
-);
-
 /// The vacuum system as the vacuum supervisor sees it (`vacuum/state`).
 #[repr(C)]
 #[derive(
@@ -131,6 +117,7 @@ arm_id:u8; granted:u8; reason:u8; _reserved:u8; request_seq:u32"
     Serialize,
     Deserialize,
     crate::AnyBitPattern,
+    crate::Payload,
 )]
 #[type_name("harvest.VacuumState.v1")]
 pub struct VacuumState {
@@ -149,12 +136,3 @@ pub struct VacuumState {
     /// Zero; keeps the following fields aligned.
     pub _reserved: u8,
 }
-
-crate::serde_payload!(
-    VacuumState,
-    "harvest.VacuumState",
-    1,
-    "encoding bincode2-fixint-le: header: {msg_seq:u64, capture_ns:u64, publish_ns:u64}; \
-valve_open:[u8;4]; valve_in_transit:[u8;4]; pressure_mmh2o:[f32;3] (arm1, arm2, source); \
-arm_attachment:[u8;2] (0 closed,1 open,2 sealed); policy:u8; _reserved:u8"
-);

@@ -1,28 +1,33 @@
 //! `harvest lidar`: LiDAR device -> `lidar/points`.
 //!
-//! The loop blocks in the device's integrating capture (the device paces it; a timeout only
-//! serves the heartbeat and shutdown), writes each integrated cloud straight into a loaned
-//! sample and sends it. Fusion with the camera runs in the consumer (see [`harvest_lidar::fusion`]).
+//! A [`Source`] node on the runtime ([`run_on_wake`], [`Wake::Device`]): each tick blocks in
+//! the device's integrating capture (the device paces it; a timeout only serves the heartbeat
+//! and shutdown), which writes the integrated cloud straight into a loaned `lidar/points`
+//! sample; the runtime sends it. Fusion with the camera runs in the consumer (see
+//! [`harvest_lidar::fusion`]).
 //!
 //! Devices: the simulated Mid-70 (`--device sim`) or a real one over the Livox SDK 1 protocol
-//! (`--device livox`, found by `--broadcast-code` or reached at `--lidar-ip`). The health
-//! heartbeat says `Degraded` while the device is lost (detail `disconnected`) or reports a
-//! warning or error (detail: the condition), with the lost packets as the value, and for one
-//! heartbeat after a capture error the driver already recovered from; otherwise
-//! `Running` with the last cloud's points, or the lost packets once there are any.
+//! (`--device livox`, found by `--broadcast-code` or reached at `--lidar-ip`). The heartbeat
+//! is [`LidarCapture`]'s: the device's condition, the lost packets, the last cloud's points.
 
+use harvest_hw::AnyDeviceError;
 use harvest_hw::lidar::livox::command::BroadcastCode;
 use harvest_hw::lidar::livox::{DeviceTarget, LivoxConfig, LivoxLidar};
 use harvest_hw::lidar::sim::SimLidar;
-use harvest_hw::lidar::{Lidar, LidarCondition, LidarSpec};
-use harvest_hw::{AnyDeviceError, DeviceError, ErrorKind};
+use harvest_hw::lidar::{Lidar, LidarSpec};
 use harvest_ipc::catalogue::LIDAR_POINTS;
-use harvest_ipc::payloads::ProcessRunState;
 use harvest_ipc::payloads::point_cloud::POINT_CLOUD_CAPACITY;
-use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD, HealthReporter};
+use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD};
+use harvest_lidar::capture::LidarCapture;
 use harvest_lidar::integration_window::max_window_s;
+use harvest_node::{RunnerConfig, Source};
+use harvest_robot_model::ModeSource;
+use harvest_runtime::{RunError, Wake, WakeOptions, run_on_wake};
 use std::net::Ipv4Addr;
-use std::time::{Duration, Instant};
+use std::time::Duration;
+
+/// Captures failing in a row after which the process stops (and is restarted).
+pub const MAX_FAILURES_IN_A_ROW: u32 = 10;
 
 /// Which LiDAR device to drive (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -131,8 +136,9 @@ pub enum LidarProcessError {
         max_s: f64,
         capacity: usize,
     },
-    #[error("installing signal handler: {0}")]
-    Signal(#[from] std::io::Error),
+    /// The run ended on an error (transport, too many failed captures in a row).
+    #[error(transparent)]
+    Run(#[from] RunError),
 }
 
 harvest_ipc::from_ipc_errors!(LidarProcessError);
@@ -147,7 +153,6 @@ pub fn run(args: &LidarArgs, domain: &Domain, process_name: &str) -> Result<(), 
             capacity: POINT_CLOUD_CAPACITY,
         });
     }
-    harvest_ipc::termination::install_handler()?;
     let context = Context::new(domain, process_name)?;
     let integration = Duration::from_secs_f64(args.integration_s);
     match args.device {
@@ -164,95 +169,32 @@ pub fn run(args: &LidarArgs, domain: &Domain, process_name: &str) -> Result<(), 
     }
 }
 
-/// The heartbeat's state, detail and value from the device's health (see the module docs).
-/// `error_since_last`: the detail of a capture error since the previous heartbeat, so a loss
-/// the driver recovered from between two heartbeats is still reported once.
-fn health_report<L: Lidar>(
-    lidar: &L,
-    clouds_sent: u64,
-    last_points: u64,
-    error_since_last: Option<&'static str>,
-) -> (ProcessRunState, &'static str, u64) {
-    let health = lidar.health();
-    let lost = health.lost_packets;
-    let (trouble, detail) = match (health.connected, health.condition, error_since_last) {
-        (false, _, _) => (true, "disconnected"),
-        (true, LidarCondition::Warning(what) | LidarCondition::Error(what), _) => (true, what),
-        (true, LidarCondition::Normal, Some(what)) => (true, what),
-        (true, LidarCondition::Normal, None) => (false, ""),
-    };
-    if clouds_sent == 0 {
-        let detail = if trouble { detail } else { "points" };
-        return (ProcessRunState::Starting, detail, lost);
-    }
-    if trouble {
-        return (ProcessRunState::Degraded, detail, lost);
-    }
-    if lost > 0 {
-        (ProcessRunState::Running, "lost_packets", lost)
-    } else {
-        (ProcessRunState::Running, "points", last_points)
-    }
-}
-
+/// Streams `lidar`'s clouds on `lidar/points` until SIGINT/SIGTERM or an error.
 fn stream<L: Lidar>(
     context: &Context,
-    mut lidar: L,
+    lidar: L,
     args: &LidarArgs,
 ) -> Result<(), LidarProcessError> {
-    let mut clouds = context.publisher(LIDAR_POINTS)?;
-    let mut health = HealthReporter::new(context)?;
-    let timeout = HEARTBEAT_PERIOD / 2;
-    let mut next_heartbeat = Instant::now();
-    let mut loan = None;
-    let mut consecutive_errors = 0u32;
-    let mut last_points = 0u64;
-    let mut error_since_heartbeat: Option<&'static str> = None;
+    let source = Source::new(
+        "lidar",
+        LIDAR_POINTS,
+        LidarCapture::new(lidar),
+        HEARTBEAT_PERIOD / 2,
+        MAX_FAILURES_IN_A_ROW,
+    );
+    let options = WakeOptions {
+        wake: Wake::Device,
+        runner: RunnerConfig {
+            max_read_failures: MAX_FAILURES_IN_A_ROW,
+            mode_source: ModeSource::WithoutOperator,
+        },
+        obeys: false,
+        stop: None,
+    };
     tracing::info!(integration_s = args.integration_s, device = ?args.device, "lidar streaming");
-    while !harvest_ipc::termination::requested() {
-        let mut cloud = match loan.take() {
-            Some(cloud) => cloud,
-            None => clouds.loan()?,
-        };
-        match lidar.capture_into(&mut cloud, timeout) {
-            Ok(true) => {
-                consecutive_errors = 0;
-                last_points = u64::from(cloud.meta.point_count);
-                if cloud.meta.point_count == 0 {
-                    tracing::warn!("integrated cloud is empty (nothing in range?)");
-                }
-                let msg_seq = clouds.send(cloud)?;
-                tracing::trace!(msg_seq, points = last_points, "cloud published");
-            }
-            Ok(false) => loan = Some(cloud),
-            Err(error) => {
-                consecutive_errors += 1;
-                error_since_heartbeat = Some(match error.kind() {
-                    ErrorKind::Disconnected => "disconnected",
-                    ErrorKind::Timeout => "timeout",
-                    ErrorKind::Fault => "device_fault",
-                    ErrorKind::Protocol => "protocol_error",
-                    ErrorKind::InvalidRequest | ErrorKind::Other => "device_error",
-                });
-                tracing::warn!(%error, kind = %error.kind(), "capture failed");
-                health.note_device_error(error.kind().into());
-                if consecutive_errors > 10 {
-                    return Err(LidarProcessError::Device(AnyDeviceError::new(error)));
-                }
-                loan = Some(cloud);
-            }
-        }
-        if Instant::now() >= next_heartbeat {
-            next_heartbeat += HEARTBEAT_PERIOD;
-            let (state, detail, value) = health_report(
-                &lidar,
-                clouds.last_seq(),
-                last_points,
-                error_since_heartbeat.take(),
-            );
-            health.report(state, clouds.last_seq(), detail, value)?;
-        }
-    }
-    tracing::info!(clouds = clouds.last_seq(), "lidar stopped");
+    let finished = run_on_wake(context, source, (), options)?;
+    let sent = finished.runner.node().counts().sent;
+    finished.result?;
+    tracing::info!(clouds = sent, "lidar stopped");
     Ok(())
 }

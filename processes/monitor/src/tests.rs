@@ -245,7 +245,6 @@ fn the_planted_violations_are_found_and_nothing_else() {
 #[test]
 fn a_message_with_a_foreign_schema_is_skipped_and_a_missing_file_is_an_error() {
     let mut r = Recording::new();
-    r.topics[0].layout = "something else";
     r.topics[0].spec.type_name = "other.Type";
     r.push(
         0,

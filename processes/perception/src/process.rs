@@ -17,6 +17,11 @@
 //! The extrinsic is `--lidar-extrinsic FILE` (written by `harvest calibrate lidar-camera
 //! --output`); it is required, as the camera calibration is.
 //!
+//! Colour-only frames (a GigE Vision camera, no depth of its own) need the fused source: before
+//! the first cloud has been fused they are refused (warned once, the heartbeat degraded); with
+//! the ToF source the process stops at the first such frame, naming the fix
+//! ([`harvest_perception::task::PerceptionTaskError`]).
+//!
 //! The heartbeat's figure is the age of the last frame worked on (`frame_age_ns`); the frames
 //! skipped and the largest age are logged when the process stops.
 

@@ -7,7 +7,7 @@ mod common;
 use common::*;
 use harvest_ipc::catalogue::{CAMERA_RGBD, HW_CAMERA_RGBD};
 use harvest_ipc::codec::ENCODING;
-use harvest_ipc::payloads::{ArmState, RgbdFrame};
+use harvest_ipc::payloads::{ArmState, EmergencyStop, ProcessHealth, RgbdFrame, VacuumState};
 use harvest_ipc::{Context, Payload};
 use harvest_recorder::recorder::LayerArg;
 use harvest_recording::payload_codec::zeroed_box;
@@ -21,6 +21,108 @@ fn messages_of<'a>(read: &'a serde_json::Value, topic: &str) -> Vec<&'a serde_js
         .iter()
         .filter(|message| message["topic"] == topic)
         .collect()
+}
+
+/// The JSON view of `T` decoded from `hex` by this build's codec.
+fn json_of<T: Payload>(hex: &str) -> serde_json::Value {
+    let mut value = zeroed_box::<T>();
+    T::decode_into(&from_hex(hex), &mut value).expect("decode");
+    value.to_json()
+}
+
+/// `a` and `b` are the same JSON, numbers within one unit of the last place (serde_json's
+/// default float parser may read Python's shortest representation one ulp off).
+fn assert_same(a: &serde_json::Value, b: &serde_json::Value, topic: &str) {
+    use serde_json::Value;
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => {
+            let (x, y) = (x.as_f64().expect("x"), y.as_f64().expect("y"));
+            assert!(
+                x == y || (x - y).abs() <= 4.0 * f64::EPSILON * x.abs().max(y.abs()),
+                "{topic}: {x} != {y}"
+            );
+        }
+        (Value::Array(xs), Value::Array(ys)) => {
+            assert_eq!(xs.len(), ys.len(), "{topic}: {a} != {b}");
+            for (x, y) in xs.iter().zip(ys) {
+                assert_same(x, y, topic);
+            }
+        }
+        (Value::Object(xs), Value::Object(ys)) => {
+            assert!(xs.keys().eq(ys.keys()), "{topic}: {a} != {b}");
+            for (key, x) in xs {
+                assert_same(x, &ys[key], topic);
+            }
+        }
+        _ => assert_eq!(a, b, "{topic}"),
+    }
+}
+
+/// An independent decoder that knows nothing but the schema text stored in the file
+/// (`decode_by_schema.py`: Python's `mcap` and `struct`) reads every message of `file`, byte for
+/// byte, to the values this build's codec reads (`read`: the same file by `python_read`).
+fn schema_alone_decodes_every_message(file: &std::path::Path, read: &serde_json::Value) {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/decode_by_schema.py");
+    let output = std::process::Command::new("python3")
+        .arg(script)
+        .arg(file)
+        .output()
+        .expect("run python3");
+    assert!(
+        output.status.success(),
+        "decode_by_schema.py failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let by_schema: serde_json::Value =
+        serde_json::from_slice(&output.stdout).expect("decoder output is JSON");
+    let by_schema = by_schema["messages"].as_array().expect("messages");
+    // The catalogue channels (the recorder's own events channel has a JSON schema).
+    let raw: Vec<&serde_json::Value> = read["messages"]
+        .as_array()
+        .expect("messages")
+        .iter()
+        .filter(|message| {
+            let schema = message["schema"].as_str().unwrap_or_default();
+            read["schemas"][schema]["data"]
+                .as_str()
+                .is_some_and(|data| data.starts_with("harvest message schema\n"))
+        })
+        .collect();
+    assert_eq!(
+        by_schema.len(),
+        raw.len(),
+        "every catalogue message decoded"
+    );
+    assert!(raw.len() >= 48, "{} catalogue messages", raw.len());
+    let mut frames = 0;
+    for (decoded, raw) in by_schema.iter().zip(raw) {
+        let topic = raw["topic"].as_str().expect("topic");
+        assert_eq!(decoded["topic"], topic);
+        assert_eq!(
+            decoded["used"], raw["size"],
+            "{topic}: every byte accounted for"
+        );
+        let value = &decoded["value"];
+        let hex = raw["data_hex"].as_str().unwrap_or_default();
+        match topic {
+            "arm1/state" => assert_same(value, &json_of::<ArmState>(hex), topic),
+            "vacuum/state" => assert_same(value, &json_of::<VacuumState>(hex), topic),
+            "safety/emergency_stop" => assert_same(value, &json_of::<EmergencyStop>(hex), topic),
+            "camera/rgbd" => {
+                let head = from_hex(raw["head_hex"].as_str().expect("head"));
+                let capture_ns = u64::from_le_bytes(head[8..16].try_into().expect("8 bytes"));
+                assert_eq!(value["header"]["capture_ns"], capture_ns);
+                assert_eq!(
+                    value["rgb"]["bytes"],
+                    harvest_ipc::payloads::rgbd_frame::RGB_BYTES
+                );
+                frames += 1;
+            }
+            "system/health" => assert_same(value, &json_of::<ProcessHealth>(hex), topic),
+            other => panic!("unexpected topic {other}"),
+        }
+    }
+    assert_eq!(frames, 2);
 }
 
 #[test]
@@ -137,11 +239,10 @@ fn records_every_message_and_an_independent_reader_agrees() {
 
     let schema = &read["schemas"]["harvest.RgbdFrame.v1"];
     assert_eq!(schema["encoding"], ENCODING);
-    assert!(
-        schema["data"]
-            .as_str()
-            .expect("schema text")
-            .contains(RgbdFrame::SCHEMA)
+    // The whole schema generated from the type, as the Python reader sees it.
+    assert_eq!(
+        schema["data"].as_str().expect("schema text"),
+        harvest_ipc::schema::schema_text::<RgbdFrame>()
     );
     assert_eq!(
         read["channels"]["camera/rgbd"]["message_encoding"],
@@ -151,6 +252,8 @@ fn records_every_message_and_an_independent_reader_agrees() {
         read["channels"]["camera/rgbd"]["metadata"]["type_name"],
         "harvest.RgbdFrame"
     );
+
+    schema_alone_decodes_every_message(&report.files[0], &read);
 
     let metadata = read["metadata"].as_array().expect("metadata");
     let record = |name: &str| {

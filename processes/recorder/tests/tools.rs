@@ -13,7 +13,6 @@ use harvest_recording::payload_codec::zeroed_box;
 use harvest_recording::rec_cat::{CatOptions, cat};
 use harvest_recording::rec_info::info;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Duration;
 
 fn record(dir: &Path) -> PathBuf {
@@ -225,17 +224,7 @@ with open(sys.argv[1], "rb") as f:
             out["jpeg_messages"] += 1
 print(json.dumps(out))
 "#;
-    let output = Command::new("python3")
-        .args(["-c", SCRIPT])
-        .arg(&foxglove)
-        .output()
-        .expect("python3");
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let read: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    let read = python_json(SCRIPT, &foxglove);
     let arm = &read["topics"]["arm1/state"];
     assert_eq!(arm["count"], 10);
     assert_eq!(arm["encoding"], "json");

@@ -16,7 +16,7 @@
 //! changed; then `armN/target`, `vacuum/valve_grant`, `vacuum/state` and `harvest/events`.
 //!
 //! When nothing is left to do for [`VacuumProcessConfig::complete_after_ms`]
-//! (`crate::completion::CompletionWatch`), a `HarvestComplete` event is published once;
+//! (`harvest_vacuum::completion::CompletionWatch`), a `HarvestComplete` event is published once;
 //! `harvest up --until-harvested` stops the stack on it. However the loop ends every valve is
 //! closed. The device is chosen in one place, [`run`] (`--device sim`: the simulated valve board
 //! behind `hw/valves/command|readings`; `--device serial`), with the pressure thresholds

@@ -20,7 +20,7 @@ use harvest_node::{
 use harvest_vacuum::harvest_events::{ArmContext, vacuum_event};
 use harvest_vacuum::node::{BoardReadings, VacuumNode, VacuumNodeInput};
 
-use crate::completion::CompletionWatch;
+use harvest_vacuum::completion::CompletionWatch;
 
 /// The valve board as the runtime drives it, with the position last sent per valve (unknown
 /// until the first command, and after a refused one, so that it is sent again).

@@ -1,7 +1,7 @@
 //! Fixed-size benchmark payloads for the size sweep (the catalogue's channels have fixed types).
 
 use harvest_ipc::codec::{self, CodecError};
-use harvest_ipc::{AnyBitPattern, Header, Payload};
+use harvest_ipc::{AnyBitPattern, Describe, Header, Payload};
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Bytes in front of [`BenchPayload::bytes`]: the [`Header`] (24) and the phase code (8).
@@ -11,7 +11,7 @@ pub const BENCH_PAYLOAD_OVERHEAD: usize = std::mem::size_of::<Header>() + 8;
 /// the struct has no padding (checked at compile time by the `AnyBitPattern` derive when the
 /// transport opens a channel of it, and by [`BenchPayload::SIZE`]).
 #[repr(C)]
-#[derive(ZeroCopySend, AnyBitPattern)]
+#[derive(ZeroCopySend, AnyBitPattern, Describe)]
 pub struct BenchPayload<const N: usize> {
     pub header: Header,
     /// Which benchmark phase the message belongs to (see [`crate::message::Phase`]).
@@ -44,9 +44,6 @@ impl<const N: usize> std::fmt::Debug for BenchPayload<N> {
 impl<const N: usize> Payload for BenchPayload<N> {
     const TYPE_NAME: &'static str = "harvest.bench.BenchPayload";
     const VERSION: u32 = 1;
-    const SCHEMA: &'static str = "encoding bincode2-fixint-le: header: {msg_seq:u64, \
-capture_ns:u64, publish_ns:u64}; phase:u64; then the body as raw bytes (length = message \
-length - 32)";
 
     fn header(&self) -> &Header {
         &self.header

@@ -18,6 +18,8 @@
 //!   video per 1080p frame on one core, its bytes, and the depth PNG ([`video`]).
 //! - [`run_bench_lidar_livox`] / [`BenchLidarLivoxArgs`]: `harvest bench lidar-livox`, the
 //!   Livox Mid-70 driver against the fake device on loopback ([`lidar_livox`]).
+//! - [`run_bench_camera_gige`] / [`BenchCameraGigeArgs`]: `harvest bench camera-gige`, the
+//!   GigE Vision camera driver against Aravis's fake camera on loopback ([`camera_gige`]).
 //! - [`run_bench_console`] / [`BenchConsoleArgs`]: `harvest bench console`, the operator
 //!   console's cost per viewer, capture-to-browser latency in Chromium, e-stop click to arms
 //!   braked under load, memory with viewers coming and going ([`console`]).
@@ -32,11 +34,13 @@
 
 pub mod affinity;
 pub mod bench_payload;
+pub mod camera_gige;
 pub mod case;
 pub mod child_stop;
 pub mod console;
 pub mod control;
 pub mod detector;
+pub mod driver_child;
 pub mod error;
 pub mod lidar_livox;
 pub mod message;
@@ -58,6 +62,7 @@ pub mod video;
 pub mod watchdog;
 
 pub use bench_payload::BenchPayload;
+pub use camera_gige::{BenchCameraGigeArgs, CameraGigeReport, run_bench_camera_gige};
 pub use console::{BenchConsoleArgs, ConsoleReport, run_bench_console};
 pub use detector::{BenchDetectorArgs, run_bench_detector};
 pub use error::BenchError;

@@ -15,6 +15,7 @@
 //!   the device lost (`Degraded`), and, once the fake speaks again, the time until the next
 //!   cloud arrives (reconnection, handshake, start sampling and one window).
 
+use crate::driver_child::DriverChild;
 use crate::stats::{LatencySummary, latency_histogram};
 use harvest_hw::lidar::livox::command::BroadcastCode;
 use harvest_ipc::catalogue::{LIDAR_POINTS, PROCESS_HEALTH};
@@ -24,7 +25,7 @@ use harvest_ipc::{Context, MonotonicClock, ScratchDomain};
 use harvest_sim::fake_mid70::{FakeFault, FakeMid70, FakeMid70Config};
 use serde::Serialize;
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Options of `harvest bench lidar-livox`.
@@ -97,24 +98,6 @@ pub struct LidarLivoxReport {
     pub reconnected_after_s: f64,
 }
 
-struct LidarChild(Child);
-
-impl Drop for LidarChild {
-    fn drop(&mut self) {
-        let pid = nix::unistd::Pid::from_raw(self.0.id() as i32);
-        let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT);
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if matches!(self.0.try_wait(), Ok(Some(_))) {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
 /// User + system CPU time of `pid`, seconds.
 fn cpu_time_s(pid: u32) -> Result<f64, LidarLivoxBenchError> {
     crate::proc_cpu::cpu_time_s(pid).map_err(LidarLivoxBenchError::Failed)
@@ -174,7 +157,7 @@ pub fn run_bench_lidar_livox(
             exe: exe.clone(),
             source,
         })?;
-    let child = LidarChild(child);
+    let child = DriverChild(child);
     let pid = child.0.id();
 
     // Health: the lidar process's latest heartbeat.

@@ -118,22 +118,9 @@ fn own_cpu_s() -> f64 {
     cpu_s(std::process::id())
 }
 
-/// User + system CPU seconds of `pid`.
+/// User + system CPU seconds of `pid` (0 once it is gone).
 fn cpu_s(pid: u32) -> f64 {
-    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
-        return 0.0;
-    };
-    let Some(rest) = stat.rsplit_once(')').map(|(_, rest)| rest) else {
-        return 0.0;
-    };
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    let ticks = |i: usize| {
-        fields
-            .get(i)
-            .and_then(|v| v.parse::<u64>().ok())
-            .unwrap_or(0)
-    };
-    (ticks(11) + ticks(12)) as f64 / 100.0
+    crate::proc_cpu::cpu_time_s(pid).unwrap_or(0.0)
 }
 
 /// The station: runs in its own process; prints its [`StationReport`] as JSON.

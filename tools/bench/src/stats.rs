@@ -129,6 +129,17 @@ impl StreamTally {
     }
 }
 
+/// The `fraction` percentile of `values` (nearest rank: the value at `fraction` of the way
+/// through the sorted values); sorts `values` in place; NaN when empty.
+pub fn percentile(values: &mut [f64], fraction: f64) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    values.sort_by(f64::total_cmp);
+    let index = ((values.len() - 1) as f64 * fraction).round() as usize;
+    values[index.min(values.len() - 1)]
+}
+
 /// Median; the mean of the two middle values for an even count; 0 when empty.
 pub fn median_f64(mut values: Vec<f64>) -> f64 {
     if values.is_empty() {

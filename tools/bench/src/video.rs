@@ -8,6 +8,7 @@
 //! real sensor's; the renderer's images are noise-free, which would flatter the encoder).
 
 use crate::affinity::AffinityRestore;
+use crate::stats::percentile;
 use harvest_ipc::codec;
 use harvest_ipc::header::Header;
 use harvest_ipc::payloads::rgbd_frame::{DEPTH_PIXELS, RgbdFrameMeta};
@@ -73,14 +74,6 @@ pub enum BenchVideoError {
     Video(String),
     #[error(transparent)]
     Affinity(#[from] crate::error::BenchError),
-}
-
-fn percentile(sorted: &[f64], fraction: f64) -> f64 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    let index = ((sorted.len() - 1) as f64 * fraction).round() as usize;
-    sorted[index.min(sorted.len() - 1)]
 }
 
 /// A deterministic noise byte for pixel `index` of frame `frame`.
@@ -190,10 +183,10 @@ pub fn run_bench_video(args: &BenchVideoArgs) -> Result<VideoBenchReport, BenchV
     let depth_bytes = depth_message.len() as f64;
     let report = VideoBenchReport {
         frames,
-        encode_median_ms: percentile(&encode_ms, 0.5),
-        encode_p95_ms: percentile(&encode_ms, 0.95),
+        encode_median_ms: percentile(&mut encode_ms, 0.5),
+        encode_p95_ms: percentile(&mut encode_ms, 0.95),
         encode_max_ms: encode_ms.last().copied().unwrap_or(0.0),
-        decode_median_ms: percentile(&decode_ms, 0.5),
+        decode_median_ms: percentile(&mut decode_ms, 0.5),
         bytes_per_frame,
         keyframe_bytes: if keyframes > 0 {
             keyframe_bytes as f64 / keyframes as f64
@@ -201,7 +194,7 @@ pub fn run_bench_video(args: &BenchVideoArgs) -> Result<VideoBenchReport, BenchV
             0.0
         },
         video_mb_per_s: bytes_per_frame * args.rate / 1e6,
-        depth_png_median_ms: percentile(&depth_ms, 0.5),
+        depth_png_median_ms: percentile(&mut depth_ms, 0.5),
         depth_bytes,
         depth_mb_per_s: depth_bytes * args.depth_rate / 1e6,
     };

@@ -7,38 +7,17 @@
 //! The full figures are `harvest eval perception --detector onnx --model ...`
 //! (docs/evaluation.md); this test checks a small run with margins below them.
 
+use harvest_test_support::python::ensure_python;
 use std::path::Path;
-use std::process::Command;
 
 use harvest_eval::{EvalPerceptionArgs, run_eval_perception};
 use harvest_perception::depth_source::DepthSource;
 use harvest_perception::detector::DetectorKind;
 use harvest_perception::estimator::EstimatorKind;
 
-/// Makes sure python3 has `onnxruntime` (the runtime perception loads), installing it with pip
-/// when missing, as `.ci/run` does.
-fn ensure_onnxruntime() {
-    let available = || {
-        Command::new("python3")
-            .args(["-c", "import onnxruntime"])
-            .status()
-            .map(|status| status.success())
-            .unwrap_or(false)
-    };
-    if !available() {
-        let _ = Command::new("python3")
-            .args(["-m", "pip", "install", "--quiet", "onnxruntime"])
-            .status();
-    }
-    assert!(
-        available(),
-        "python3 with `onnxruntime` is required (python3 -m pip install onnxruntime)"
-    );
-}
-
 #[test]
 fn the_committed_model_finds_apples_on_unseen_worlds() {
-    ensure_onnxruntime();
+    ensure_python("onnxruntime", &["onnxruntime"]);
     let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/apple_net_640.onnx");
     assert!(model.is_file(), "{} is missing", model.display());
     let args = EvalPerceptionArgs {

@@ -2,7 +2,9 @@
 //! into a binary.
 //!
 //! - [`toml_mutation`]: one generator of damaged TOML files for every reader of outside files.
+//! - [`python`]: the independent Python checkers, installed with pip where missing.
 
 #![forbid(unsafe_code)]
 
+pub mod python;
 pub mod toml_mutation;

@@ -14,30 +14,13 @@ pub const CRC16_SEED: u16 = 0x4c49;
 /// Seed of the frame CRC-32 (`comm_port.cpp`).
 pub const CRC32_SEED: u32 = 0x564f_580a;
 
-const CRC16_TABLE: [u16; 256] = crc16_table();
-const CRC32_TABLE: [u32; 256] = crc32_table();
+/// Reflected CRC-16 polynomial 0x1021 (its values stay within 16 bits).
+const CRC16_TABLE: [u32; 256] = reflected_table(0x8408);
+/// Reflected CRC-32 polynomial 0x04C11DB7.
+const CRC32_TABLE: [u32; 256] = reflected_table(0xEDB8_8320);
 
-const fn crc16_table() -> [u16; 256] {
-    let mut table = [0u16; 256];
-    let mut index = 0;
-    while index < 256 {
-        let mut crc = index as u16;
-        let mut bit = 0;
-        while bit < 8 {
-            crc = if crc & 1 != 0 {
-                (crc >> 1) ^ 0x8408
-            } else {
-                crc >> 1
-            };
-            bit += 1;
-        }
-        table[index] = crc;
-        index += 1;
-    }
-    table
-}
-
-const fn crc32_table() -> [u32; 256] {
+/// The byte table of a reflected CRC of polynomial `reflected_polynomial`.
+const fn reflected_table(reflected_polynomial: u32) -> [u32; 256] {
     let mut table = [0u32; 256];
     let mut index = 0;
     while index < 256 {
@@ -45,7 +28,7 @@ const fn crc32_table() -> [u32; 256] {
         let mut bit = 0;
         while bit < 8 {
             crc = if crc & 1 != 0 {
-                (crc >> 1) ^ 0xEDB8_8320
+                (crc >> 1) ^ reflected_polynomial
             } else {
                 crc >> 1
             };
@@ -60,7 +43,7 @@ const fn crc32_table() -> [u32; 256] {
 /// CRC-16/MCRF4XX of `bytes` from the SDK's seed.
 pub fn crc16(bytes: &[u8]) -> u16 {
     bytes.iter().fold(CRC16_SEED, |crc, &byte| {
-        (crc >> 8) ^ CRC16_TABLE[usize::from((crc as u8) ^ byte)]
+        (crc >> 8) ^ CRC16_TABLE[usize::from((crc as u8) ^ byte)] as u16
     })
 }
 
@@ -122,7 +105,7 @@ mod tests {
         // of "123456789": CRC-16/MCRF4XX 0x6F91 (init 0xFFFF), CRC-32 0xCBF43926 (init 0).
         let check = b"123456789";
         let crc16_std = check.iter().fold(0xFFFFu16, |crc, &byte| {
-            (crc >> 8) ^ CRC16_TABLE[usize::from((crc as u8) ^ byte)]
+            (crc >> 8) ^ CRC16_TABLE[usize::from((crc as u8) ^ byte)] as u16
         });
         assert_eq!(crc16_std, 0x6F91);
         let crc32_std = check.iter().fold(0xFFFF_FFFFu32, |crc, &byte| {

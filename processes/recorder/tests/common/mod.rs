@@ -11,8 +11,9 @@ use harvest_ipc::{Context, Domain, FixedString, Header, Payload, Publisher, Wire
 use harvest_recorder::recorder::CameraRecord;
 use harvest_recorder::{RecorderArgs, RecorderControl, RecorderError, RecordingReport};
 use harvest_recording::segment_writer::ChunkCompression;
+#[allow(unused_imports)]
+pub use harvest_test_support::python::{ensure_python, ensure_python_mcap, python_json};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::thread::JoinHandle;
@@ -202,32 +203,6 @@ pub fn encoded<T: Payload>(value: &T) -> Vec<u8> {
     bytes
 }
 
-/// Makes sure the Python `mcap` package (the independent reader) is importable.
-pub fn ensure_python_mcap() {
-    ensure_python("mcap, zstandard, lz4", &["mcap", "zstandard", "lz4"]);
-}
-
-/// Makes sure `python3` imports `modules`, installing `packages` with pip when it does not.
-pub fn ensure_python(modules: &str, packages: &[&str]) {
-    let available = || {
-        Command::new("python3")
-            .args(["-c", &format!("import {modules}")])
-            .status()
-            .is_ok_and(|status| status.success())
-    };
-    if !available() {
-        let _ = Command::new("python3")
-            .args(["-m", "pip", "install", "--quiet"])
-            .args(packages)
-            .status();
-    }
-    assert!(
-        available(),
-        "python3 with {modules} is required (pip install {})",
-        packages.join(" ")
-    );
-}
-
 /// Reads `path` with the Python `mcap` reader and returns its JSON description: schemas,
 /// channels, metadata and every message (`data_hex` for messages under 4 KiB, else the first
 /// 24 bytes as `head_hex` plus `crc32` of the rest).
@@ -257,18 +232,7 @@ with open(sys.argv[1], "rb") as f:
         out["metadata"].append({"name": record.name, "metadata": dict(record.metadata)})
 print(json.dumps(out))
 "#;
-    let output = Command::new("python3")
-        .args(["-c", SCRIPT])
-        .arg(path)
-        .output()
-        .expect("run python3");
-    assert!(
-        output.status.success(),
-        "python mcap reader failed on {}: {}",
-        path.display(),
-        String::from_utf8_lossy(&output.stderr)
-    );
-    serde_json::from_slice(&output.stdout).expect("python output is JSON")
+    python_json(SCRIPT, path)
 }
 
 /// Parses hex text into bytes.

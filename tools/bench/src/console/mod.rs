@@ -33,6 +33,7 @@ use serde_json::{Value, json};
 use crate::error::BenchError;
 use crate::pipeline::stack::Stack;
 use crate::proc_cpu::cpu_time_s;
+use crate::stats::percentile;
 use chromium::Chromium;
 use load::{HalfOpen, Viewers};
 
@@ -180,7 +181,11 @@ impl ConsoleReport {
     }
 }
 
-fn launch_text(port: u16, args: &BenchConsoleArgs) -> String {
+/// The launch file of the stack a console is measured on (and tested under load on): the
+/// simulator at `camera_rate_hz`, the camera, both arms, the executive harvesting without a
+/// platform, and the console on `127.0.0.1:port` admitting `max_watchers` watchers; no
+/// perception (the console's cost is measured, not detection's).
+pub fn watched_stack_launch(port: u16, camera_rate_hz: f64, max_watchers: usize) -> String {
     format!(
         r#"# harvest bench console: the stack the console watches (no perception: the console's cost
 # is measured, not detection's).
@@ -210,17 +215,9 @@ name = "console"
 command = "console"
 args = ["--listen", "127.0.0.1:{port}", "--max-watchers", "{watchers}"]
 "#,
-        rate = args.camera_rate_hz,
-        watchers = args.viewers + 8,
+        rate = camera_rate_hz,
+        watchers = max_watchers,
     )
-}
-
-fn percentile(values: &mut [f64], p: f64) -> f64 {
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    values.sort_by(f64::total_cmp);
-    values[((values.len() - 1) as f64 * p).round() as usize]
 }
 
 fn wait_for(
@@ -370,8 +367,11 @@ pub fn run_bench_console(args: &BenchConsoleArgs) -> Result<ConsoleReport, Conso
         .map_err(|e| failed(e.to_string()))?
         .port();
     let launch = std::env::temp_dir().join(format!("harvest-bench-console-{}.toml", domain.name()));
-    std::fs::write(&launch, launch_text(port, args))
-        .map_err(|e| failed(format!("{}: {e}", launch.display())))?;
+    std::fs::write(
+        &launch,
+        watched_stack_launch(port, args.camera_rate_hz, args.viewers + 8),
+    )
+    .map_err(|e| failed(format!("{}: {e}", launch.display())))?;
     let run_for = Duration::from_secs_f64(
         args.memory_run_s + 4.0 * args.cpu_window_s + 3.0 * args.latency_window_s + 300.0,
     );

@@ -1,8 +1,10 @@
 //! When the harvest of what the camera sees is complete ([`CompletionWatch`]): nothing
 //! assigned, dispatched or running, every taking-part arm idle, and the detection sets since
-//! the last attempt brought nothing new to pick, for a settled time.
+//! the last attempt brought nothing new to pick, for a settled time. The vacuum supervisor
+//! publishes `HarvestComplete` on it; it lives beside [`crate::node::VacuumNode`] so that
+//! every runner of the node (the process, an evaluation) decides completion by the same rule.
 
-use harvest_vacuum::node::VacuumNodeEvent;
+use crate::node::VacuumNodeEvent;
 
 /// Tracks whether the harvest of what the camera sees is complete (module documentation).
 #[derive(Debug, Clone, Copy, Default)]
@@ -59,7 +61,7 @@ mod tests {
         assert!(!watch.update(0, true, 100 * ms));
         assert!(!watch.update(200 * ms, true, 100 * ms));
         let replanned = VacuumNodeEvent::Replanned {
-            summary: harvest_vacuum::replan::ReplanSummary::default(),
+            summary: crate::replan::ReplanSummary::default(),
             queued: [0, 0],
             invalid: 0,
             given_up: 0,
