@@ -673,7 +673,7 @@ fn a_cut_link_stops_the_manual_motion_and_the_station_comes_back() {
     let manual = robot.wait_mode(Duration::from_secs(15), |m| {
         m.mode == OperatorModeCode::Manual as u8
     });
-    if !manual.is_some_and(|m| m.mode == OperatorModeCode::Manual as u8) {
+    if manual.is_none_or(|m| m.mode != OperatorModeCode::Manual as u8) {
         let _ = jog.kill();
         let output = jog.wait_with_output().expect("jog output");
         panic!("manual mode: {manual:?}; the jog: {}", text(&output));
