@@ -277,20 +277,10 @@ pub fn run_bench_camera_gige(
     };
 
     // Settle: the first 30 frames.
-    let settle_deadline = Instant::now() + Duration::from_secs(30);
-    let mut settled = 0;
-    while settled < 30 {
-        if Instant::now() > settle_deadline {
-            return Err(CameraGigeBenchError::Failed(
-                "fewer than 30 frames from harvest camera within 30 s".into(),
-            ));
-        }
-        while frames.receive()?.is_some() {
-            settled += 1;
-        }
-        let _ = frames
-            .listener()
-            .timed_wait(|_| {}, Duration::from_millis(100));
+    if !crate::settle::settled(&frames, 30, Duration::from_secs(30))? {
+        return Err(CameraGigeBenchError::Failed(
+            "fewer than 30 frames from harvest camera within 30 s".into(),
+        ));
     }
     std::thread::sleep(Duration::from_millis(600));
     let lost_before = lost_frames()?;

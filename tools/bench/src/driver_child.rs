@@ -1,10 +1,11 @@
-//! A device-driver process a benchmark runs against its fake device (`harvest lidar`, `harvest
-//! camera`): interrupted (then killed) when dropped.
+//! A process a benchmark runs (a device driver against its fake device: `harvest lidar`,
+//! `harvest camera`; the remote link's robot and station sides): interrupted (then killed) when
+//! dropped.
 
 use std::process::Child;
 use std::time::{Duration, Instant};
 
-/// A driver process; SIGINT when dropped, SIGKILL if it has not exited 5 s later.
+/// A benchmark's child process; SIGINT when dropped, SIGKILL if it has not exited 5 s later.
 pub struct DriverChild(pub Child);
 
 impl Drop for DriverChild {

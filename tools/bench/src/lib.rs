@@ -53,6 +53,7 @@ pub mod remote;
 pub mod report;
 pub mod run;
 pub mod sender_write;
+pub mod settle;
 pub mod soak;
 pub mod socket_io;
 pub mod stats;

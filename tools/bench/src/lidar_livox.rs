@@ -179,20 +179,10 @@ pub fn run_bench_lidar_livox(
         };
 
     // Wait for the stream to settle: the first few clouds.
-    let settle_deadline = Instant::now() + Duration::from_secs(30);
-    let mut settled = 0;
-    while settled < 5 {
-        if Instant::now() > settle_deadline {
-            return Err(LidarLivoxBenchError::Failed(
-                "no clouds from harvest lidar within 30 s".into(),
-            ));
-        }
-        while clouds.receive()?.is_some() {
-            settled += 1;
-        }
-        let _ = clouds
-            .listener()
-            .timed_wait(|_| {}, Duration::from_millis(100));
+    if !crate::settle::settled(&clouds, 5, Duration::from_secs(30))? {
+        return Err(LidarLivoxBenchError::Failed(
+            "no clouds from harvest lidar within 30 s".into(),
+        ));
     }
     read_health(&mut last_beat)?;
     let lost_before = match &last_beat {

@@ -14,8 +14,9 @@
 //! - command round trip: the station's query -> the executive's answer back at the station;
 //! - the station's CPU (user + system, `/proc/self/stat`) per robot.
 
+use crate::driver_child::DriverChild;
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -246,26 +247,7 @@ pub fn run_bench_remote_station(args: &BenchRemoteStationArgs) -> Result<(), Rem
     Ok(())
 }
 
-/// A child process ended with SIGINT (killed after 5 s).
-struct ChildGuard(Child);
-
-impl Drop for ChildGuard {
-    fn drop(&mut self) {
-        let pid = nix::unistd::Pid::from_raw(self.0.id() as i32);
-        let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT);
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if matches!(self.0.try_wait(), Ok(Some(_))) {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn spawn(exe: &PathBuf, domain: &str, args: &[&str]) -> Result<ChildGuard, RemoteBenchError> {
+fn spawn(exe: &PathBuf, domain: &str, args: &[&str]) -> Result<DriverChild, RemoteBenchError> {
     Command::new(exe)
         .args(args)
         .env("HARVEST_DOMAIN", domain)
@@ -274,7 +256,7 @@ fn spawn(exe: &PathBuf, domain: &str, args: &[&str]) -> Result<ChildGuard, Remot
         .stdout(Stdio::null())
         .stderr(Stdio::inherit())
         .spawn()
-        .map(ChildGuard)
+        .map(DriverChild)
         .map_err(|error| RemoteBenchError::Failed(format!("starting {}: {error}", exe.display())))
 }
 
