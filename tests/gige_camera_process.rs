@@ -10,7 +10,7 @@
 mod common;
 
 use common::*;
-use harvest_aravis::{Aravis, AravisError, FakeCamera, LoopbackCameraLock};
+use harvest_aravis::{Aravis, FakeCamera, LoopbackCameraLock};
 use harvest_hw::conformance::TestWatchdog;
 use harvest_ipc::Context;
 use harvest_ipc::catalogue::{CAMERA_RGBD, PROCESS_HEALTH};
@@ -23,20 +23,10 @@ const GIGE_CONFIG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/sim/gige_camera.
 /// A flat orange in the fake's RG/GB Bayer mosaic: every demosaiced pixel is this orange.
 const ORANGE: [u8; 3] = [230, 120, 20];
 
-fn aravis() -> Option<Aravis> {
-    match Aravis::load() {
-        Ok(aravis) => Some(aravis),
-        Err(error @ AravisError::NotInstalled { .. }) => {
-            eprintln!("skipped: {error}");
-            None
-        }
-        Err(error) => panic!("{error}"),
-    }
-}
-
 #[test]
 fn harvest_camera_publishes_the_fake_gige_cameras_frames_as_colour_only() {
-    let Some(aravis) = aravis() else { return };
+    // Aravis is required (`.ci/run` installs it): its error names the package to install.
+    let aravis = Aravis::load().unwrap_or_else(|error| panic!("{error}"));
     let _watchdog = TestWatchdog::arm("gige camera process", Duration::from_secs(120));
     let _lock = LoopbackCameraLock::acquire().expect("loopback camera lock");
     let mut fake = FakeCamera::start(&aravis, "127.0.0.1", "HVPROC").expect("fake camera");

@@ -3,7 +3,7 @@
 //! converted as the fake sent them, and lost frames counted. Skipped (with the reason printed)
 //! where Aravis is not installed.
 
-use harvest_aravis::{Aravis, AravisError, FakeCamera, LoopbackCameraLock};
+use harvest_aravis::{Aravis, FakeCamera, LoopbackCameraLock};
 use harvest_hw::conformance::TestWatchdog;
 use harvest_hw::rgbd_camera::RgbdCamera;
 use harvest_hw::rgbd_camera::conformance::{CameraConformanceConfig, conformance_suite};
@@ -15,17 +15,6 @@ use std::cell::RefCell;
 use std::time::Duration;
 
 const WATCHDOG: Duration = Duration::from_secs(120);
-
-fn aravis() -> Option<Aravis> {
-    match Aravis::load() {
-        Ok(aravis) => Some(aravis),
-        Err(error @ AravisError::NotInstalled { .. }) => {
-            eprintln!("skipped: {error}");
-            None
-        }
-        Err(error) => panic!("{error}"),
-    }
-}
 
 fn config(pixel_format: PixelFormat) -> GigeConfig {
     GigeConfig {
@@ -42,7 +31,8 @@ fn config(pixel_format: PixelFormat) -> GigeConfig {
 
 #[test]
 fn the_gige_driver_passes_the_camera_conformance_suite_against_the_fake() {
-    let Some(aravis) = aravis() else { return };
+    // Aravis is required (`.ci/run` installs it): its error names the package to install.
+    let aravis = Aravis::load().unwrap_or_else(|error| panic!("{error}"));
     let _watchdog = TestWatchdog::arm("gige conformance", WATCHDOG);
     let _lock = LoopbackCameraLock::acquire().unwrap();
     let fake = RefCell::new(FakeCamera::start(&aravis, "127.0.0.1", "HVCONF").unwrap());
@@ -65,7 +55,8 @@ fn the_gige_driver_passes_the_camera_conformance_suite_against_the_fake() {
 
 #[test]
 fn bayer_frames_are_demosaiced_and_lost_packets_cost_counted_frames() {
-    let Some(aravis) = aravis() else { return };
+    // Aravis is required (`.ci/run` installs it): its error names the package to install.
+    let aravis = Aravis::load().unwrap_or_else(|error| panic!("{error}"));
     let _watchdog = TestWatchdog::arm("gige formats", WATCHDOG);
     let _lock = LoopbackCameraLock::acquire().unwrap();
     let mut fake = FakeCamera::start(&aravis, "127.0.0.1", "HVFMT").unwrap();

@@ -375,11 +375,14 @@ pub fn run_bench_console(args: &BenchConsoleArgs) -> Result<ConsoleReport, Conso
     let run_for = Duration::from_secs_f64(
         args.memory_run_s + 4.0 * args.cpu_window_s + 3.0 * args.latency_window_s + 300.0,
     );
-    let stack = Stack::start(&exe, &domain, Some(&launch), run_for, true);
+    // The launch file stays until the stack has stopped: the supervisor reads it after it starts
+    // (and again on a restart).
+    let outcome = Stack::start(&exe, &domain, Some(&launch), run_for, true).map(|mut stack| {
+        let report = measure(args, &domain, port, &mut stack);
+        (report, stack.stop())
+    });
     let _ = std::fs::remove_file(&launch);
-    let mut stack = stack?;
-    let report = measure(args, &domain, port, &mut stack);
-    let stopped = stack.stop();
+    let (report, stopped) = outcome?;
     let report = report?;
     stopped?;
     if let Some(path) = &args.json {
