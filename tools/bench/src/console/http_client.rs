@@ -25,14 +25,22 @@ pub fn request(
     stream
         .write_all(head.as_bytes())
         .map_err(|e| format!("{method} {path}: {e}"))?;
+    // Read the head, then the body by its Content-Length (Chromium's DevTools keeps the
+    // connection open whatever the request asks); to the end where there is no length.
     let mut response = Vec::new();
-    stream
-        .read_to_end(&mut response)
-        .map_err(|e| format!("{method} {path}: {e}"))?;
-    let split = response
-        .windows(4)
-        .position(|w| w == b"\r\n\r\n")
-        .ok_or_else(|| format!("{method} {path}: no response head"))?;
+    let mut chunk = [0u8; 16 * 1024];
+    let split = loop {
+        if let Some(split) = response.windows(4).position(|w| w == b"\r\n\r\n") {
+            break split;
+        }
+        let read = stream
+            .read(&mut chunk)
+            .map_err(|e| format!("{method} {path}: {e}"))?;
+        if read == 0 {
+            return Err(format!("{method} {path}: no response head"));
+        }
+        response.extend_from_slice(&chunk[..read]);
+    };
     let head = String::from_utf8_lossy(&response[..split]).to_ascii_lowercase();
     let status = head
         .split_whitespace()
@@ -44,7 +52,36 @@ pub fn request(
             "{method} {path}: chunked answers are not read here"
         ));
     }
-    Ok((status, response[split + 4..].to_vec()))
+    let content_length = head.lines().find_map(|line| {
+        let (name, value) = line.split_once(':')?;
+        (name.trim() == "content-length")
+            .then(|| value.trim().parse::<usize>().ok())
+            .flatten()
+    });
+    let mut body = response.split_off(split + 4);
+    match content_length {
+        Some(length) => {
+            while body.len() < length {
+                let read = stream
+                    .read(&mut chunk)
+                    .map_err(|e| format!("{method} {path}: {e}"))?;
+                if read == 0 {
+                    return Err(format!(
+                        "{method} {path}: the body ended at {} of {length} bytes",
+                        body.len()
+                    ));
+                }
+                body.extend_from_slice(&chunk[..read]);
+            }
+            body.truncate(length);
+        }
+        None => {
+            stream
+                .read_to_end(&mut body)
+                .map_err(|e| format!("{method} {path}: {e}"))?;
+        }
+    }
+    Ok((status, body))
 }
 
 /// `GET path` as JSON, `None` unless it answers 200 with JSON.
