@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use harvest_ipc::{Context, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter};
 use harvest_node::{Node, Runner, RunnerConfig};
+use harvest_robot_model::ModeSource;
 
 use crate::{Finished, IpcTransport, RunError, heartbeat};
 
@@ -34,6 +35,23 @@ pub struct WakeOptions<'a> {
     /// Ends the run once set (checked at each heartbeat, and at each tick of
     /// [`Wake::Device`]): tests run a process's loop on a thread.
     pub stop: Option<&'a AtomicBool>,
+}
+
+impl WakeOptions<'_> {
+    /// A sensor's or perception's run: woken as `wake` says, ending after `max_read_failures`
+    /// failed device reads in a row, reading neither the emergency stop nor the operator's mode
+    /// (it drives no actuator), until SIGINT/SIGTERM.
+    pub fn sensor(wake: Wake, max_read_failures: u32) -> Self {
+        WakeOptions {
+            wake,
+            runner: RunnerConfig {
+                max_read_failures,
+                mode_source: ModeSource::WithoutOperator,
+            },
+            obeys: false,
+            stop: None,
+        }
+    }
 }
 
 /// Runs `node` with its `devices`, woken as `options.wake` says, until SIGINT/SIGTERM,

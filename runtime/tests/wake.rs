@@ -16,10 +16,8 @@ use harvest_ipc::payloads::rgbd_frame::RGB_BYTES;
 use harvest_ipc::payloads::{AppleDetections, ProcessHealth, RgbdFrame};
 use harvest_ipc::{Context, MonotonicClock, Payload, ScratchDomain, Subscriber};
 use harvest_node::{
-    InputVisitor, Inputs, LatestInPlace, Loaned, Node, NodeTick, OutputVisitor, Outputs,
-    RunnerConfig, Source,
+    InputVisitor, Inputs, LatestInPlace, Loaned, Node, NodeTick, OutputVisitor, Outputs, Source,
 };
-use harvest_robot_model::ModeSource;
 use harvest_runtime::{Wake, WakeOptions, run_on_wake};
 
 /// Watchdog on every wait of the test.
@@ -126,13 +124,8 @@ impl Node for Inspector {
 
 fn options(wake: Wake, stop: &AtomicBool) -> WakeOptions<'_> {
     WakeOptions {
-        wake,
-        runner: RunnerConfig {
-            max_read_failures: 1,
-            mode_source: ModeSource::WithoutOperator,
-        },
-        obeys: false,
         stop: Some(stop),
+        ..WakeOptions::sensor(wake, 1)
     }
 }
 

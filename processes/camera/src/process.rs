@@ -22,8 +22,7 @@ use harvest_hw::rgbd_camera::sim::SimRgbdCamera;
 use harvest_ipc::catalogue::CAMERA_RGBD;
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
 use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD};
-use harvest_node::{RunnerConfig, Source};
-use harvest_robot_model::ModeSource;
+use harvest_node::Source;
 use harvest_runtime::{RunError, Wake, WakeOptions, run_on_wake};
 
 /// Captures failing in a row after which the process stops (and is restarted).
@@ -128,15 +127,7 @@ pub fn stream<C: RgbdCamera>(
         timeout,
         MAX_FAILURES_IN_A_ROW,
     );
-    let options = WakeOptions {
-        wake: Wake::Device,
-        runner: RunnerConfig {
-            max_read_failures: MAX_FAILURES_IN_A_ROW,
-            mode_source: ModeSource::WithoutOperator,
-        },
-        obeys: false,
-        stop: None,
-    };
+    let options = WakeOptions::sensor(Wake::Device, MAX_FAILURES_IN_A_ROW);
     tracing::info!(rate_hz = args.rate_hz, device = ?args.device, "camera streaming");
     let finished = run_on_wake(context, source, (), options)?;
     let source = finished.runner.node();

@@ -20,8 +20,7 @@ use harvest_ipc::payloads::point_cloud::POINT_CLOUD_CAPACITY;
 use harvest_ipc::{Context, Domain, HEARTBEAT_PERIOD};
 use harvest_lidar::capture::LidarCapture;
 use harvest_lidar::integration_window::max_window_s;
-use harvest_node::{RunnerConfig, Source};
-use harvest_robot_model::ModeSource;
+use harvest_node::Source;
 use harvest_runtime::{RunError, Wake, WakeOptions, run_on_wake};
 use std::net::Ipv4Addr;
 use std::time::Duration;
@@ -182,15 +181,7 @@ fn stream<L: Lidar>(
         HEARTBEAT_PERIOD / 2,
         MAX_FAILURES_IN_A_ROW,
     );
-    let options = WakeOptions {
-        wake: Wake::Device,
-        runner: RunnerConfig {
-            max_read_failures: MAX_FAILURES_IN_A_ROW,
-            mode_source: ModeSource::WithoutOperator,
-        },
-        obeys: false,
-        stop: None,
-    };
+    let options = WakeOptions::sensor(Wake::Device, MAX_FAILURES_IN_A_ROW);
     tracing::info!(integration_s = args.integration_s, device = ?args.device, "lidar streaming");
     let finished = run_on_wake(context, source, (), options)?;
     let sent = finished.runner.node().counts().sent;

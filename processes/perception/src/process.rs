@@ -31,7 +31,6 @@ use harvest_ipc::{Context, Domain};
 use harvest_laser::calibration::read_extrinsics;
 use harvest_laser::{LaserReach, ScanConfig};
 use harvest_lidar::ExtrinsicFile;
-use harvest_node::RunnerConfig;
 use harvest_perception::calibration::Calibration;
 use harvest_perception::config_file::{ConfigFileError, read_config};
 use harvest_perception::depth_source::{DepthSource, FusedDepth};
@@ -40,7 +39,6 @@ use harvest_perception::estimator::EstimatorKind;
 use harvest_perception::node::PerceptionNode;
 use harvest_perception::pipeline::PerceptionConfig;
 use harvest_perception::task::PerceptionTask;
-use harvest_robot_model::ModeSource;
 use harvest_runtime::{RunError, Wake, WakeOptions, run_on_wake};
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
@@ -203,15 +201,13 @@ pub fn run_until(
         "perception running"
     );
     let options = WakeOptions {
-        wake: Wake::Input {
-            topic: CAMERA_RGBD.spec.topic,
-        },
-        runner: RunnerConfig {
-            max_read_failures: 1,
-            mode_source: ModeSource::WithoutOperator,
-        },
-        obeys: false,
         stop: Some(stop),
+        ..WakeOptions::sensor(
+            Wake::Input {
+                topic: CAMERA_RGBD.spec.topic,
+            },
+            1,
+        )
     };
     let finished = run_on_wake(
         &context,
