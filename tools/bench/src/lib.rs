@@ -42,6 +42,7 @@ pub mod control;
 pub mod detector;
 pub mod driver_child;
 pub mod error;
+pub mod json_report;
 pub mod lidar_livox;
 pub mod message;
 pub mod options;

@@ -276,11 +276,11 @@ pub fn run_bench_lidar_livox(
     };
     print_report(&report);
     if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&report)
-            .map_err(|error| LidarLivoxBenchError::Failed(error.to_string()))?;
-        std::fs::write(path, text).map_err(|source| LidarLivoxBenchError::Write {
-            path: path.clone(),
-            source,
+        crate::json_report::write_json_report(path, &report).map_err(|source| {
+            LidarLivoxBenchError::Write {
+                path: path.clone(),
+                source,
+            }
         })?;
     }
     Ok(report)

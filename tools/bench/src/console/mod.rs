@@ -386,8 +386,8 @@ pub fn run_bench_console(args: &BenchConsoleArgs) -> Result<ConsoleReport, Conso
     let report = report?;
     stopped?;
     if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&report).map_err(|e| failed(e.to_string()))?;
-        std::fs::write(path, text).map_err(|e| failed(format!("{}: {e}", path.display())))?;
+        crate::json_report::write_json_report(path, &report)
+            .map_err(|e| failed(format!("{}: {e}", path.display())))?;
     }
     Ok(report)
 }
