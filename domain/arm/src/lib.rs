@@ -14,4 +14,5 @@ pub mod node;
 pub mod picking_cycle;
 pub mod reported_phase;
 pub mod servo_model;
+pub mod task;
 pub mod trajectory;

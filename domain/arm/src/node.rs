@@ -586,6 +586,11 @@ impl ArmNode {
         }
     }
 
+    /// The outputs of the last [`Self::step`] (empty before the first).
+    pub fn last_output(&self) -> &ArmNodeOutput {
+        &self.output
+    }
+
     /// One control tick; see the module documentation. The returned outputs stay valid until
     /// the next call.
     pub fn step(&mut self, input: &ArmNodeInput<'_>) -> &ArmNodeOutput {

@@ -84,8 +84,9 @@ impl Bus {
         self.topic(channel).recent.back().copied()
     }
 
-    /// Hands every message after `*cursor` to `each`, oldest first, and moves the cursor.
-    fn read_since<T: Payload + Copy + 'static>(
+    /// Hands every message after `*cursor` to `each`, oldest first, and moves the cursor (a
+    /// reader's own position on the channel; 0: from the oldest kept).
+    pub fn read_since<T: Payload + Copy + 'static>(
         &mut self,
         channel: Channel<T>,
         cursor: &mut u64,

@@ -6,6 +6,10 @@
 
 use crate::node::VacuumNodeEvent;
 
+/// Nothing left to do for this long means the harvest is complete, ms: the vacuum process's
+/// default (`complete_after_ms`).
+pub const DEFAULT_COMPLETE_AFTER_MS: u64 = 2000;
+
 /// Tracks whether the harvest of what the camera sees is complete (module documentation).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CompletionWatch {

@@ -25,3 +25,4 @@ pub mod node;
 pub mod policy;
 pub mod pressure;
 pub mod replan;
+pub mod task;

@@ -224,6 +224,11 @@ impl VacuumNode {
         })
     }
 
+    /// The outputs of the last [`Self::step`] (empty before the first).
+    pub fn last_output(&self) -> &VacuumNodeOutput {
+        &self.output
+    }
+
     /// One tick; see the module documentation. The outputs stay valid until the next call.
     pub fn step(&mut self, input: &VacuumNodeInput<'_>) -> &VacuumNodeOutput {
         self.output.events.clear();

@@ -1,9 +1,9 @@
 //! `harvest arm --id 1|2`: one arm's 200 Hz control loop over the channels: [`ArmTask`]
-//! (`crate::task`: `ArmNode` between its channels and its servos) under the node runtime
+//! (`harvest_arm::task`: `ArmNode` between its channels and its servos) under the node runtime
 //! ([`run_node`]), every [`ArmProcessConfig::control_period_us`] on a kernel periodic timer.
 //!
-//! The tick is the runtime's (`harvest_node::Runner::tick`), in the order of the in-process
-//! evaluation (`harvest_eval::harvest::runner`, steps 2, 3 and 5): `safety/emergency_stop` first
+//! The tick is the runtime's (`harvest_node::Runner::tick`, the one `harvest eval harvest` runs
+//! in process): `safety/emergency_stop` first
 //! (engaged: the servos brake before anything else); the encoders through [`ArmServos`] (a
 //! failed read brakes too; the node still steps, without fresh feedback, so that a stop reaches
 //! the picking cycle); `operator/mode` by the stack's one rule
@@ -39,7 +39,7 @@ use harvest_robot_model::params::{ArmId, ArmParams};
 use harvest_runtime::{RunError, RunOptions, run_node};
 use serde::Deserialize;
 
-use crate::task::{ArmDevices, ArmTask};
+use harvest_arm::task::{ArmDevices, ArmTask};
 
 /// Which servo device drives the arm (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -112,7 +112,7 @@ impl Default for ArmProcessConfig {
     fn default() -> Self {
         Self {
             control_period_us: 5000,
-            valve_request_resend_ms: 500,
+            valve_request_resend_ms: harvest_arm::task::DEFAULT_VALVE_REQUEST_RESEND_MS,
             node: None,
         }
     }

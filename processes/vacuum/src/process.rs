@@ -1,10 +1,10 @@
 //! `harvest vacuum`: the vacuum supervisor's 200 Hz loop over the channels (valves, pressure
-//! inference, coordination policy, apple assignment): [`VacuumTask`] (`crate::task`:
+//! inference, coordination policy, apple assignment): [`VacuumTask`] (`harvest_vacuum::task`:
 //! `VacuumNode` between its channels and the valve board) under the node runtime
 //! ([`run_node`]), every [`VacuumProcessConfig::control_period_us`] on a kernel periodic timer.
 //!
-//! The tick is the runtime's (`harvest_node::Runner::tick`), in the order of the in-process
-//! evaluation (`harvest_eval::harvest::runner`, steps 2, 4, 5): `safety/emergency_stop` first
+//! The tick is the runtime's (`harvest_node::Runner::tick`, the one `harvest eval harvest` runs
+//! in process): `safety/emergency_stop` first
 //! (engaged: `close_all` before anything else, repeated each tick until the board takes it);
 //! the board through [`ValveBoard`] (valve states, the three pressures; a failed read leaves
 //! the valves as they are, so a carried apple is not dropped); `operator/mode` by the stack's
@@ -41,7 +41,7 @@ use harvest_vacuum::pressure::PressureConfig;
 use serde::Deserialize;
 
 use crate::policy_arg::PolicyArg;
-use crate::task::{BoardDevices, VacuumTask};
+use harvest_vacuum::task::{BoardDevices, VacuumTask};
 
 /// Which valve board the supervisor drives (the one place the implementation is chosen).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -134,7 +134,7 @@ impl Default for VacuumProcessConfig {
     fn default() -> Self {
         Self {
             control_period_us: 5000,
-            complete_after_ms: 2000,
+            complete_after_ms: harvest_vacuum::completion::DEFAULT_COMPLETE_AFTER_MS,
             board_timeout_ms: 100,
             node: None,
             arm_node: None,

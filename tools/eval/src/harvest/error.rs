@@ -36,6 +36,12 @@ pub enum HarvestEvalError {
         /// The device's error.
         message: String,
     },
+    /// The executive's node could not be built.
+    #[error("executive: {0}")]
+    Executive(String),
+    /// A node ended the run (its error, or a device read of the in-process robot failed).
+    #[error("node: {0}")]
+    Node(String),
     /// An argument is out of range.
     #[error("argument `{arg}` = {value}: {reason}")]
     InvalidArgument {

@@ -1,47 +1,65 @@
-//! One harvesting episode, in process, on a simulated clock.
+//! One harvesting episode, in process, on a simulated clock: the robot's nodes under the
+//! robot's tick.
 //!
-//! Per 5 ms control period (200 Hz, [dual-arm sec. 2.2]), in this order:
-//! 1. a detection set is captured from the world when due and delivered after the perception
-//!    latency ([`crate::harvest::detections`]);
-//! 2. the devices are read through their traits: both arms' encoders (`ArmServos::feedback`),
-//!    the valve states and pressures (`ValveBoard`);
-//! 3. arm 1's node steps, then arm 2's with arm 1's fresh state (the arm crate's wiring note:
-//!    the arm that moves second checks its path against the first one's), each seeing the vacuum
-//!    supervisor's state, answers and targets of the previous period (one period of transport
-//!    latency, as over the channels);
-//! 4. the vacuum node steps with both arms' states and valve requests, the board readings and
-//!    the delivered detection set;
-//! 5. the outputs go to the devices through the same traits (`set_valve` / `close_all`,
-//!    `command` / `hold`), and to the safety monitor as trace events;
-//! 6. the simulated robot advances one period and the clock with it.
+//! The nodes are the ones the processes run, with the processes' own glue around them: the
+//! executive ([`ExecutiveNode`], started harvesting as the simulated robot's launch profile
+//! starts it), both arms ([`ArmTask`]) and the vacuum supervisor ([`VacuumTask`]), each under
+//! [`harvest_node::Runner`] (the stop first, device faults, the operator's mode by the one
+//! rule), on an in-process [`Schedule`] in the order executive, arm 1, arm 2, vacuum
+//! supervisor, every 5 ms control period (200 Hz, [dual-arm sec. 2.2]). They exchange their
+//! messages on the schedule's bus as over the channels: a node sees what the nodes before it
+//! sent in the same period and the others' messages of the period before (arm 2 checks its
+//! path against arm 1's fresh state; the arms see the supervisor's targets, grants and state
+//! one period late). The devices are the simulated robot's, behind the hardware traits
+//! ([`super::devices`]).
 //!
-//! The episode ends when nothing is left to do: the vacuum node has nothing assigned, dispatched
-//! or running, both arms are idle, and a detection set has been processed since the last attempt
-//! ended (so a failed apple still on the tree is retried).
+//! Per period, in this order:
+//! 1. a detection set captured from the world when due is published on `perception/apples`
+//!    once the perception latency has passed ([`crate::harvest::detections`]); a requested
+//!    emergency stop goes to the executive on `operator/command`, as the console sends it;
+//! 2. the nodes tick;
+//! 3. the run is observed: the nodes' events for the records and the safety monitor, the
+//!    set-points the arms sent (`armN/command`), the stop as published
+//!    (`safety/emergency_stop`), the end effectors as the simulator measures them;
+//! 4. the simulated robot advances one period and the clock with it.
+//!
+//! The episode ends on the vacuum supervisor's `HarvestComplete` on `harvest/events`, decided
+//! by the process's rule ([`harvest_vacuum::completion::CompletionWatch`], after
+//! [`DEFAULT_COMPLETE_AFTER_MS`] with nothing left to do), as `harvest up --until-harvested`
+//! ends.
 
 use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::rc::Rc;
 
-use harvest_arm::node::{
-    ArmNode, ArmNodeConfig, ArmNodeInput, EncoderSample, OtherArmInput, ServoOrder, pick_reachable,
+use harvest_arm::node::{ArmNode, ArmNodeConfig, ServoOrder, pick_reachable};
+use harvest_arm::task::{ArmDevices, ArmTask, DEFAULT_VALVE_REQUEST_RESEND_MS};
+use harvest_executive_node::{ExecutiveDevices, ExecutiveNode, ExecutiveNodeConfig, messages};
+use harvest_hw::platform::sim::SimPlatform;
+use harvest_hw::tractor::sim::SimTractor;
+use harvest_ipc::catalogue::{
+    ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_COMMAND, OPERATOR_MODE,
+    PERCEPTION_APPLES,
 };
-use harvest_hw::arm_servos::ArmServos;
-use harvest_hw::valve_board::{ValveBoard, ValveId, ValveState};
 use harvest_ipc::payloads::{
-    AppleDetections, ArmPhase as PhaseCode, ArmState, ArmTarget, VacuumState, ValveGrant,
+    AppleDetections, ArmPhase as PhaseCode, ArmState, HarvestEventKind, HarvestEventSource,
+    OperatorModeCode, OperatorModeState,
 };
 use harvest_ipc::{Clock, ManualClock};
+use harvest_node::in_process::NodeHandle;
+use harvest_node::{Node, Runner, RunnerConfig, Schedule};
+use harvest_operator::{Command, ControlToken, ExecutiveConfig};
+use harvest_robot_model::ModeSource;
 use harvest_safety::safety_monitor::Violation;
 use harvest_sim::physics::ArmId;
 use harvest_sim::robot::SimRobot;
 use harvest_sim::scenario::Scenario;
-use harvest_vacuum::node::{
-    BoardReadings, VacuumNode, VacuumNodeConfig, VacuumNodeEvent, VacuumNodeInput,
-};
+use harvest_vacuum::completion::DEFAULT_COMPLETE_AFTER_MS;
+use harvest_vacuum::node::{VacuumNode, VacuumNodeConfig, VacuumNodeEvent};
 use harvest_vacuum::policy::PolicyKind;
 use harvest_vacuum::pressure::PressureConfig;
 use harvest_vacuum::replan::PlannerConfig;
+use harvest_vacuum::task::{BoardDevices, VacuumTask};
 use rand::SeedableRng;
 use rand::rngs::SmallRng;
 
@@ -60,6 +78,14 @@ const DETECTION_STREAM: u64 = 0x5eed_de7e_c710_0001;
 /// Joint rate below which an arm counts as stopped, m/s or rad/s.
 const STOPPED_RATE: f64 = 1e-3;
 
+/// An arm as its process runs it, on the simulated robot's servos.
+type Arm = ArmTask<InProcessServos>;
+/// The vacuum supervisor as its process runs it, on the simulated robot's valve board.
+type Vacuum = VacuumTask<InProcessValveBoard>;
+/// The executive without a platform or a tractor: the episode harvests where the robot stands
+/// (the types name the drivers a launch file would choose; none is opened).
+type Executive = ExecutiveNode<SimPlatform, SimTractor>;
+
 /// Where an episode's detection sets come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DetectionFeed {
@@ -67,6 +93,16 @@ pub enum DetectionFeed {
     Model,
     /// Handed in by the owner of the episode ([`Episode::deliver`]), e.g. perception on
     /// rendered frames (`harvest eval row`).
+    External,
+}
+
+/// Where the operator's mode comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeFeed {
+    /// The executive's node, started harvesting (the simulated robot's launch profile).
+    Executive,
+    /// Published by the owner of the episode ([`Episode::publish_mode`]), e.g. the row's stop
+    /// cycle (`harvest eval row`); the e-stop is then published directly.
     External,
 }
 
@@ -87,6 +123,8 @@ pub struct EpisodeConfig {
     pub detection: DetectionModel,
     /// Where the detection sets come from.
     pub detection_feed: DetectionFeed,
+    /// Where the operator's mode comes from.
+    pub mode_feed: ModeFeed,
     /// Keep the full event log.
     pub keep_events: bool,
     /// Feed the safety monitor.
@@ -112,6 +150,7 @@ impl EpisodeConfig {
             max_episode_s: 900.0,
             detection: DetectionModel::default(),
             detection_feed: DetectionFeed::Model,
+            mode_feed: ModeFeed::Executive,
             keep_events: true,
             check_safety: true,
             emergency_stop_at_s: None,
@@ -127,8 +166,8 @@ impl EpisodeConfig {
 pub struct EmergencyStopReaction {
     /// When the stop was requested, s.
     pub requested_s: f64,
-    /// From the request until every valve was commanded closed and both arms' drives were told
-    /// to brake, s.
+    /// From the request until the arms' and the vacuum supervisor's runners applied the stop
+    /// (every valve commanded closed, both arms' drives told to brake), s.
     pub commanded_s: Option<f64>,
     /// From the request until every gate reported closed at its end stop, s.
     pub valves_closed_s: Option<f64>,
@@ -172,16 +211,19 @@ fn vacuum_arm(arm: usize) -> ArmId {
     ArmId::ALL[arm]
 }
 
-fn device_error(
-    device: &'static str,
-    stamp_ns: u64,
-    error: impl std::fmt::Display,
-) -> HarvestEvalError {
-    HarvestEvalError::Device {
-        device,
-        stamp_ns,
-        message: error.to_string(),
-    }
+/// The nodes of the schedule.
+#[derive(Debug, Clone, Copy)]
+struct Nodes {
+    arms: [NodeHandle; 2],
+    vacuum: NodeHandle,
+}
+
+/// The episode's own read positions on the bus.
+#[derive(Debug, Default)]
+struct Cursors {
+    events: u64,
+    commands: [u64; 2],
+    emergency_stop: u64,
 }
 
 /// Everything one episode steps. [`run_episode`] runs one to its end; an owner that moves the
@@ -190,23 +232,19 @@ pub struct Episode {
     config: EpisodeConfig,
     clock: ManualClock,
     robot: SharedRobot,
-    servos: [InProcessServos; 2],
-    board: InProcessValveBoard,
-    arms: [ArmNode; 2],
-    vacuum: VacuumNode,
+    schedule: Schedule,
+    nodes: Nodes,
     rng: SmallRng,
     pending_sets: VecDeque<(u64, Box<AppleDetections>)>,
     next_capture_ns: u64,
     set_seq: u64,
-    targets: [Option<ArmTarget>; 2],
-    grants: [Option<ValveGrant>; 2],
-    vacuum_state: Option<VacuumState>,
     arm_states: [Option<ArmState>; 2],
-    applied_valves: [bool; 4],
+    cursors: Cursors,
     recorder: Recorder,
     safety: Option<SafetyTrace>,
-    last_replan_ns: u64,
-    last_attempt_end_ns: u64,
+    /// The vacuum supervisor's `HarvestComplete` heard at the last tick, and ever.
+    completed_last_tick: bool,
+    completed: bool,
     estop: Option<EmergencyStopReaction>,
 }
 
@@ -236,6 +274,40 @@ pub fn run_episode(config: &EpisodeConfig) -> Result<EpisodeOutcome, HarvestEval
     Ok(episode.finish(truncated))
 }
 
+/// The runner of `handle` in `schedule`.
+fn runner<N: Node + 'static>(
+    schedule: &Schedule,
+    handle: NodeHandle,
+) -> Result<&Runner<N>, HarvestEvalError> {
+    schedule.runner::<N>(handle).ok_or_else(|| {
+        HarvestEvalError::Node(format!(
+            "no {} in the schedule",
+            std::any::type_name::<N>()
+        ))
+    })
+}
+
+/// The executive of an episode (module documentation).
+fn executive() -> Result<(Executive, ExecutiveDevices<SimPlatform, SimTractor>), HarvestEvalError>
+{
+    let devices = ExecutiveDevices::new(None, None, None);
+    let token = ControlToken::generate()
+        .map_err(|error| HarvestEvalError::Executive(error.to_string()))?;
+    let config = ExecutiveNodeConfig {
+        executive: ExecutiveConfig {
+            initial_mode: OperatorModeCode::Harvesting,
+            ..ExecutiveConfig::default()
+        },
+        token,
+        previous: None,
+        row: None,
+        travel_max_m: [0.0; 2],
+    };
+    let node = Executive::new(config, &devices)
+        .map_err(|error| HarvestEvalError::Executive(error.to_string()))?;
+    Ok((node, devices))
+}
+
 impl Episode {
     /// An episode in the world of `config.scenario` generated from `config.seed`.
     pub fn new(config: EpisodeConfig) -> Result<Self, HarvestEvalError> {
@@ -248,60 +320,81 @@ impl Episode {
     pub fn with_robot(config: EpisodeConfig, robot: SimRobot) -> Result<Self, HarvestEvalError> {
         let clock = ManualClock::starting_at(EPOCH_NS);
         let robot = Rc::new(RefCell::new(robot));
-        let servos = [
-            InProcessServos::new(robot.clone(), ArmId::Arm1, clock.clone()),
-            InProcessServos::new(robot.clone(), ArmId::Arm2, clock.clone()),
-        ];
-        let board = InProcessValveBoard::new(robot.clone(), clock.clone());
-        let arms = [
-            ArmNode::new(ArmId::Arm1, config.arm_node)?,
-            ArmNode::new(ArmId::Arm2, config.arm_node)?,
-        ];
+        // The processes' settings, but for the device reads: the in-process robot fails none
+        // unless the evaluation has a bug, which ends the episode at once.
+        let runner_config = RunnerConfig {
+            max_read_failures: 1,
+            mode_source: ModeSource::Executive,
+        };
+        let mut schedule = Schedule::new(EPOCH_NS);
+        if config.mode_feed == ModeFeed::Executive {
+            let (node, devices) = executive()?;
+            schedule.add(
+                Runner::new(node, devices, runner_config),
+                CONTROL_PERIOD_NS,
+                EPOCH_NS,
+            );
+        }
+        let mut arms = Vec::with_capacity(2);
+        for arm in ArmId::ALL {
+            let task = Arm::new(
+                ArmNode::new(arm, config.arm_node)?,
+                DEFAULT_VALVE_REQUEST_RESEND_MS,
+            );
+            let servos = ArmDevices(InProcessServos::new(robot.clone(), arm, clock.clone()));
+            arms.push(schedule.add(
+                Runner::new(task, servos, runner_config),
+                CONTROL_PERIOD_NS,
+                EPOCH_NS,
+            ));
+        }
         let arm_node = config.arm_node;
+        let enabled = [true, config.arms >= 2];
         let vacuum = VacuumNode::new(
             VacuumNodeConfig {
                 policy: config.policy,
                 pressure: config.pressure,
                 planner: config.planner,
-                arms_enabled: [true, config.arms >= 2],
+                arms_enabled: enabled,
                 ..VacuumNodeConfig::default()
             },
             Box::new(move |arm: ArmId, centre: &[f64; 3], radius_m: f64| {
                 pick_reachable(arm, *centre, radius_m, &arm_node)
             }),
         )?;
+        let board = BoardDevices::new(InProcessValveBoard::new(robot.clone(), clock.clone()));
+        let vacuum = schedule.add(
+            Runner::new(
+                Vacuum::new(vacuum, enabled, DEFAULT_COMPLETE_AFTER_MS),
+                board,
+                runner_config,
+            ),
+            CONTROL_PERIOD_NS,
+            EPOCH_NS,
+        );
+        let nodes = Nodes {
+            arms: [arms[0], arms[1]],
+            vacuum,
+        };
         let rng = SmallRng::seed_from_u64(config.seed ^ DETECTION_STREAM);
-        let mut episode = Self {
+        Ok(Self {
             recorder: Recorder::new(config.keep_events),
             safety: config.check_safety.then(SafetyTrace::default),
             config,
             clock,
             robot,
-            servos,
-            board,
-            arms,
-            vacuum,
+            schedule,
+            nodes,
             rng,
             pending_sets: VecDeque::new(),
             next_capture_ns: EPOCH_NS,
             set_seq: 0,
-            targets: [None; 2],
-            grants: [None; 2],
-            vacuum_state: None,
             arm_states: [None; 2],
-            applied_valves: [false, true, false, true],
-            last_replan_ns: 0,
-            last_attempt_end_ns: 0,
+            cursors: Cursors::default(),
+            completed_last_tick: false,
+            completed: false,
             estop: None,
-        };
-        // No executive runs here: said explicitly, as the launch files without one do (a row
-        // episode obeys the stop cycle's mode instead, [`Episode::obey`]).
-        episode.obey(harvest_robot_model::obedience(
-            None,
-            harvest_robot_model::ModeSource::WithoutOperator,
-            EPOCH_NS,
-        ));
-        Ok(episode)
+        })
     }
 
     /// Simulated time since the episode started, s, of the stack-clock stamp `now_ns`.
@@ -329,49 +422,37 @@ impl Episode {
         &self.recorder
     }
 
-    /// Hands in a detection set delivered to the vacuum supervisor at `deliver_ns` (sets are
+    /// Hands in a detection set published on `perception/apples` at `deliver_ns` (sets are
     /// delivered in the order handed in).
     pub fn deliver(&mut self, deliver_ns: u64, set: Box<AppleDetections>) {
         self.pending_sets.push_back((deliver_ns, set));
     }
 
-    /// Applies what the operator's mode allows
-    /// ([`harvest_robot_model::obedience`](mod@harvest_robot_model::obedience)) as the processes
-    /// do: the vacuum supervisor dispatches no new target to a held arm, and a held arm takes up
-    /// none.
-    pub fn obey(&mut self, rule: harvest_robot_model::Obedience) {
-        self.vacuum.hold_dispatch(rule.targets_held);
-        for (arm, held) in self.arms.iter_mut().zip(rule.targets_held) {
-            arm.hold_targets(held);
-        }
+    /// Publishes the operator's mode (with [`ModeFeed::External`]); the arms and the vacuum
+    /// supervisor obey it at their next tick by the one rule
+    /// ([`harvest_robot_model::obedience`](mod@harvest_robot_model::obedience)).
+    pub fn publish_mode(&mut self, mut mode: OperatorModeState) {
+        let now_ns = self.clock.now_ns();
+        mode.header.capture_ns = now_ns;
+        self.schedule.bus_mut().publish(OPERATOR_MODE, mode, now_ns);
+    }
+
+    /// The vacuum supervisor reported the harvest complete at the last tick.
+    pub fn completed_last_tick(&self) -> bool {
+        self.completed_last_tick
     }
 
     /// One control period at `now_ns` (= [`Episode::now_ns`]); advances the robot and the
     /// clock.
     pub fn tick(&mut self, now_ns: u64) -> Result<(), HarvestEvalError> {
         let t_s = Self::t_s(now_ns);
-        let estop_at = self.config.emergency_stop_at_s;
-        let estop = estop_at.is_some_and(|at| t_s >= at);
-        if let Some(at) = estop_at
-            && estop
+        // 1. What the operator and perception send.
+        if let Some(at) = self.config.emergency_stop_at_s
+            && t_s >= at
             && self.estop.is_none()
         {
-            if let Some(safety) = self.safety.as_mut() {
-                safety.emergency_stop(now_ns, true)?;
-            }
-            self.estop = Some(EmergencyStopReaction {
-                requested_s: at,
-                commanded_s: None,
-                valves_closed_s: None,
-                arms_holding_s: None,
-                arms_stopped_s: None,
-                phases_at_request: self
-                    .arm_states
-                    .map(|s| s.map_or_else(|| "unknown".to_owned(), |s| format!("{:?}", s.phase))),
-            });
+            self.request_emergency_stop(now_ns, at);
         }
-
-        // 1. Detections.
         if self.config.detection_feed == DetectionFeed::Model && now_ns >= self.next_capture_ns {
             self.set_seq += 1;
             let set = {
@@ -388,149 +469,24 @@ impl Episode {
             self.pending_sets.push_back((deliver_ns, Box::new(set)));
             self.next_capture_ns += (self.config.detection.period_s * 1e9) as u64;
         }
-        let delivered = match self.pending_sets.front() {
-            Some((at, _)) if *at <= now_ns => self.pending_sets.pop_front().map(|(_, s)| s),
-            _ => None,
-        };
-
-        // 2. Devices.
-        let mut feedback = [None; 2];
-        for (i, servos) in self.servos.iter_mut().enumerate() {
-            feedback[i] = servos
-                .feedback()
-                .map_err(|e| device_error("arm servos", now_ns, e))?
-                .map(|f| EncoderSample {
-                    capture_ns: f.capture_ns,
-                    position: f.position,
-                    velocity: f.velocity,
-                });
-        }
-        let states = self
-            .board
-            .valve_states()
-            .map_err(|e| device_error("valve board", now_ns, e))?;
-        let pressures = self
-            .board
-            .pressures()
-            .map_err(|e| device_error("valve board", now_ns, e))?;
-        let readings = BoardReadings {
-            stamp_ns: now_ns,
-            valve_open: states
-                .0
-                .map(|s| matches!(s, ValveState::Open | ValveState::Opening)),
-            valve_in_transit: states.0.map(ValveState::is_in_transit),
-            pressure_mmh2o: pressures.to_array(),
-        };
-
-        // 3. Arm nodes: arm 1, then arm 2 with arm 1's fresh state.
-        let mut orders = [ServoOrder::Hold; 2];
-        let mut requests = [None; 2];
-        for i in 0..2 {
-            let other = 1 - i;
-            let input = ArmNodeInput {
-                now_ns,
-                feedback: feedback[i],
-                target: self.targets[i].as_ref(),
-                vacuum: self.vacuum_state.as_ref(),
-                grant: self.grants[i].as_ref(),
-                other_arm: self.arm_states[other].as_ref().map(|state| OtherArmInput {
-                    state,
-                    target: self.targets[other].as_ref(),
-                }),
-                emergency_stop: estop,
-            };
-            let out = self.arms[i].step(&input);
-            orders[i] = out.servo;
-            requests[i] = Some(out.valve_request);
-            self.arm_states[i] = Some(out.state);
-            for event in &out.events {
-                self.recorder.on_arm_event(t_s, i, event);
-            }
-            if let Some(safety) = self.safety.as_mut() {
-                safety.arm_events(now_ns, vacuum_arm(i), &out.events)?;
-            }
+        if let Some((at, _)) = self.pending_sets.front()
+            && *at <= now_ns
+            && let Some((_, set)) = self.pending_sets.pop_front()
+        {
+            self.schedule
+                .bus_mut()
+                .publish(PERCEPTION_APPLES, *set, now_ns);
         }
 
-        // 4. Vacuum node.
-        let input = VacuumNodeInput {
-            now_ns,
-            arm_states: [self.arm_states[0].as_ref(), self.arm_states[1].as_ref()],
-            valve_requests: [requests[0].as_ref(), requests[1].as_ref()],
-            readings: Some(readings),
-            detections: delivered.as_deref(),
-            emergency_stop: estop,
-        };
-        let out = self.vacuum.step(&input);
-        for event in &out.events {
-            match event {
-                VacuumNodeEvent::TargetDispatched { arm, target } => {
-                    let robot = self.robot.borrow();
-                    self.recorder
-                        .on_dispatch(t_s, arm.index(), target, robot.world());
-                }
-                VacuumNodeEvent::Replanned { .. } => self.last_replan_ns = now_ns,
-                VacuumNodeEvent::AttemptFinished { .. }
-                | VacuumNodeEvent::DispatchTimedOut { .. }
-                | VacuumNodeEvent::TargetRefused { .. } => self.last_attempt_end_ns = now_ns,
-                _ => {}
-            }
-            self.recorder.on_vacuum_event(t_s, event);
-        }
-        if let Some(safety) = self.safety.as_mut() {
-            safety.vacuum_events(now_ns, &out.events)?;
-        }
-        for i in 0..2 {
-            if let Some(target) = out.targets[i] {
-                self.targets[i] = Some(target);
-            }
-            if let Some(grant) = out.grants[i] {
-                self.grants[i] = Some(grant);
-            }
-        }
-        self.vacuum_state = Some(out.state);
-        let (close_all, commands) = (out.close_all, out.valve_commands);
+        // 2. The nodes.
+        self.schedule
+            .run_until(now_ns)
+            .map_err(|error| HarvestEvalError::Node(error.message))?;
 
-        // 5. Outputs to the devices.
-        if close_all {
-            self.board
-                .close_all()
-                .map_err(|e| device_error("valve board", now_ns, e))?;
-            self.applied_valves = [false; 4];
-        }
-        for (i, &open) in commands.iter().enumerate() {
-            if open != self.applied_valves[i] {
-                self.board
-                    .set_valve(ValveId(i as u8 + 1), open)
-                    .map_err(|e| device_error("valve board", now_ns, e))?;
-                self.applied_valves[i] = open;
-            }
-        }
-        for (i, order) in orders.iter().enumerate() {
-            match *order {
-                ServoOrder::Track { position, velocity } => self.servos[i]
-                    .command(position, velocity)
-                    .map_err(|e| device_error("arm servos", now_ns, e))?,
-                ServoOrder::Hold => self.servos[i]
-                    .hold()
-                    .map_err(|e| device_error("arm servos", now_ns, e))?,
-            }
-            if let Some(safety) = self.safety.as_mut() {
-                safety.servo_order(now_ns, vacuum_arm(i), order)?;
-            }
-        }
-        if let Some(safety) = self.safety.as_mut() {
-            let robot = self.robot.borrow();
-            safety.end_effectors(
-                now_ns,
-                [
-                    robot.end_effector_in_robot_m(ArmId::Arm1),
-                    robot.end_effector_in_robot_m(ArmId::Arm2),
-                ],
-            )?;
-        }
-        self.measure_estop(t_s, &orders, &states.0);
+        // 3. What they did.
+        self.observe(now_ns, t_s)?;
 
-        // 6. Advance the world and the clock.
+        // 4. Advance the world and the clock.
         let period_s = CONTROL_PERIOD_NS as f64 * 1e-9;
         let events = self.robot.borrow_mut().step(period_s)?;
         for event in &events {
@@ -540,41 +496,141 @@ impl Episode {
         Ok(())
     }
 
-    fn measure_estop(&mut self, t_s: f64, orders: &[ServoOrder; 2], valves: &[ValveState; 4]) {
-        let Some(m) = self.estop.as_mut() else {
-            return;
-        };
-        if m.commanded_s.is_none()
-            && self.applied_valves == [false; 4]
-            && orders.iter().all(|o| *o == ServoOrder::Hold)
-        {
-            m.commanded_s = Some(t_s - m.requested_s);
-        }
-        if m.valves_closed_s.is_none() && valves.iter().all(|s| *s == ValveState::Closed) {
-            m.valves_closed_s = Some(t_s - m.requested_s);
-        }
-        if m.arms_holding_s.is_none()
-            && self
-                .arm_states
-                .iter()
-                .all(|s| s.is_some_and(|s| s.phase == PhaseCode::Stopped))
-        {
-            m.arms_holding_s = Some(t_s - m.requested_s);
-        }
-        if m.arms_stopped_s.is_none() {
-            let robot = self.robot.borrow();
-            let still = ArmId::ALL
-                .iter()
-                .all(|&arm| robot.encoders(arm).1.iter().all(|v| v.abs() < STOPPED_RATE));
-            if still {
-                m.arms_stopped_s = Some(t_s - m.requested_s);
+    /// Sends the operator's e-stop: to the executive as the console does (it needs no token),
+    /// or, without an executive, as the executive would publish it.
+    fn request_emergency_stop(&mut self, now_ns: u64, at_s: f64) {
+        let bus = self.schedule.bus_mut();
+        match self.config.mode_feed {
+            ModeFeed::Executive => {
+                let mut command = Command::EmergencyStop.to_message(1, 1, "", "harvest eval");
+                command.header.capture_ns = now_ns;
+                bus.publish(OPERATOR_COMMAND, command, now_ns);
+            }
+            ModeFeed::External => {
+                let stop = messages::emergency_stop(now_ns, true, "harvest eval");
+                bus.publish(EMERGENCY_STOP, stop, now_ns);
             }
         }
+        self.estop = Some(EmergencyStopReaction {
+            requested_s: at_s,
+            commanded_s: None,
+            valves_closed_s: None,
+            arms_holding_s: None,
+            arms_stopped_s: None,
+            phases_at_request: self
+                .arm_states
+                .map(|s| s.map_or_else(|| "unknown".to_owned(), |s| format!("{:?}", s.phase))),
+        });
     }
 
-    /// Nothing left to do: the vacuum supervisor has nothing assigned, dispatched or running,
-    /// both arms are idle and a detection set was processed since the last attempt ended (or,
-    /// with an emergency stop, its reaction is measured).
+    /// Step 3 of the module documentation, in the order the nodes ticked.
+    fn observe(&mut self, now_ns: u64, t_s: f64) -> Result<(), HarvestEvalError> {
+        let bus = self.schedule.bus_mut();
+        let mut stops = Vec::new();
+        bus.read_since(EMERGENCY_STOP, &mut self.cursors.emergency_stop, |stop| {
+            stops.push(stop.engaged != 0)
+        });
+        let mut completed = false;
+        bus.read_since(HARVEST_EVENTS, &mut self.cursors.events, |event| {
+            completed |= event.source == HarvestEventSource::Vacuum
+                && event.kind == HarvestEventKind::HarvestComplete;
+        });
+        let mut set_points: [Vec<ServoOrder>; 2] = Default::default();
+        for (i, orders) in set_points.iter_mut().enumerate() {
+            bus.read_since(ARM_COMMAND[i], &mut self.cursors.commands[i], |command| {
+                if command.hold == 0 {
+                    orders.push(ServoOrder::Track {
+                        position: command.joint_position,
+                        velocity: command.joint_velocity,
+                    });
+                }
+            });
+            self.arm_states[i] = bus.latest(ARM_STATE[i]);
+        }
+        self.completed_last_tick = completed;
+        self.completed |= completed;
+        if let Some(safety) = self.safety.as_mut() {
+            for engaged in stops {
+                safety.emergency_stop(now_ns, engaged)?;
+            }
+        }
+
+        for i in 0..2 {
+            let runner = runner::<Arm>(&self.schedule, self.nodes.arms[i])?;
+            let Some(out) = runner.node().last_output() else {
+                continue;
+            };
+            for event in &out.events {
+                self.recorder.on_arm_event(t_s, i, event);
+            }
+            if let Some(safety) = self.safety.as_mut() {
+                safety.arm_events(now_ns, vacuum_arm(i), &out.events)?;
+            }
+        }
+        let out = runner::<Vacuum>(&self.schedule, self.nodes.vacuum)?.node().node().last_output();
+        for event in &out.events {
+            if let VacuumNodeEvent::TargetDispatched { arm, target } = event {
+                let robot = self.robot.borrow();
+                self.recorder
+                    .on_dispatch(t_s, arm.index(), target, robot.world());
+            }
+            self.recorder.on_vacuum_event(t_s, event);
+        }
+        if let Some(safety) = self.safety.as_mut() {
+            safety.vacuum_events(now_ns, &out.events)?;
+            for (i, orders) in set_points.iter().enumerate() {
+                for order in orders {
+                    safety.servo_order(now_ns, vacuum_arm(i), order)?;
+                }
+            }
+            let robot = self.robot.borrow();
+            safety.end_effectors(
+                now_ns,
+                [
+                    robot.end_effector_in_robot_m(ArmId::Arm1),
+                    robot.end_effector_in_robot_m(ArmId::Arm2),
+                ],
+            )?;
+        }
+        self.measure_estop(t_s)
+    }
+
+    fn measure_estop(&mut self, t_s: f64) -> Result<(), HarvestEvalError> {
+        if self.estop.is_none() {
+            return Ok(());
+        }
+        let applied = runner::<Arm>(&self.schedule, self.nodes.arms[0])?.emergency_stop()
+            && runner::<Arm>(&self.schedule, self.nodes.arms[1])?.emergency_stop()
+            && runner::<Vacuum>(&self.schedule, self.nodes.vacuum)?.emergency_stop();
+        let robot = self.robot.borrow();
+        let (open, in_transit, _) = robot.valve_readings();
+        let valves_closed = open.iter().chain(&in_transit).all(|v| !v);
+        let still = ArmId::ALL
+            .iter()
+            .all(|&arm| robot.encoders(arm).1.iter().all(|v| v.abs() < STOPPED_RATE));
+        let holding = self
+            .arm_states
+            .iter()
+            .all(|s| s.is_some_and(|s| s.phase == PhaseCode::Stopped));
+        let Some(m) = self.estop.as_mut() else {
+            return Ok(());
+        };
+        let since = t_s - m.requested_s;
+        for (slot, reached) in [
+            (&mut m.commanded_s, applied),
+            (&mut m.valves_closed_s, valves_closed),
+            (&mut m.arms_holding_s, holding),
+            (&mut m.arms_stopped_s, still),
+        ] {
+            if slot.is_none() && reached {
+                *slot = Some(since);
+            }
+        }
+        Ok(())
+    }
+
+    /// The episode is over: the vacuum supervisor reported the harvest complete (or, with an
+    /// emergency stop, its reaction is measured).
     pub fn finished(&self) -> bool {
         if let Some(m) = &self.estop {
             return m.commanded_s.is_some()
@@ -582,16 +638,14 @@ impl Episode {
                 && m.arms_holding_s.is_some()
                 && m.arms_stopped_s.is_some();
         }
-        let arms_idle = self
-            .arm_states
-            .iter()
-            .all(|s| s.is_some_and(|s| s.phase == PhaseCode::Idle));
-        arms_idle && self.vacuum.is_idle() && self.last_replan_ns > self.last_attempt_end_ns
+        self.completed
     }
 
-    /// Ends the episode: classifies the attempts and collects the outcome.
+    /// Ends the episode: the nodes' devices in their safe state, the attempts classified and
+    /// the outcome collected.
     pub fn finish(mut self, truncated: bool) -> EpisodeOutcome {
         let end_ns = self.clock.now_ns();
+        self.schedule.shutdown();
         self.recorder.finalize();
         let robot = self.robot.borrow();
         let apples = self.recorder.apples(robot.world());

@@ -5,13 +5,15 @@
 //!    to the episode, delivered after the simulated perception latency;
 //! 2. the stop cycle ([`harvest_field::StopCycle`], the executive's own sequencer) ticks on
 //!    what the stack shows (trailer and platform positions, arms parked or holding, the
-//!    newest delivered set, the vacuum supervisor's "nothing left" as `on_harvest_complete`);
+//!    newest delivered set, each `HarvestComplete` of the vacuum supervisor as
+//!    `on_harvest_complete`, as the executive's row work feeds it);
 //!    its platform moves and tractor advances go to the simulated stages and tractor
 //!    (`harvest_sim`'s `PlatformStages`, `TractorMotion`, the devices `harvest sim` serves);
-//! 3. new approaches are held while the cycle repositions (the executive's `field_hold`; a
-//!    disabled arm is held always, as the vacuum process does);
+//! 3. `operator/mode` is published: harvesting, with the `field_hold` while the cycle
+//!    repositions and a disabled arm's `arms_enabled` off (the executive's mode; the nodes obey
+//!    it by the one rule);
 //! 4. the harvesting episode ([`crate::harvest::Episode`]: both arms' and the vacuum
-//!    supervisor's nodes on the simulated robot) steps one period;
+//!    supervisor's nodes under the robot's tick on the simulated robot) steps one period;
 //! 5. the stages and the tractor step, and the world moves with the robot
 //!    (`World::set_robot_offset_m`, as `harvest sim`'s physics thread does);
 //! 6. assignments and ended attempts feed the stop cycle.
@@ -29,7 +31,6 @@ use harvest_field::{
 use harvest_ipc::payloads::ArmPhase as PhaseCode;
 use harvest_ipc::payloads::{OperatorModeCode, OperatorModeState};
 use harvest_robot_model::params::ArmParams;
-use harvest_robot_model::{ModeSource, obedience};
 use harvest_sim::World;
 use harvest_sim::platform_device::{PlatformDeviceConfig, PlatformStages};
 use harvest_sim::robot::{SimRobot, SimRobotConfig};
@@ -44,7 +45,7 @@ use super::error::RowEvalError;
 use super::perception_loop::{DetectionLoop, FrameNeed, FramePolicy};
 use super::truth::reachable_apples;
 use crate::harvest::runner::CONTROL_PERIOD_NS;
-use crate::harvest::{DetectionFeed, Episode, EpisodeConfig, EpisodeOutcome};
+use crate::harvest::{DetectionFeed, Episode, EpisodeConfig, EpisodeOutcome, ModeFeed};
 
 /// Fallback distance between stops of a one-section row, m (never travelled).
 const ONE_STOP_SPACING_M: f64 = 2.0;
@@ -193,6 +194,7 @@ pub fn run_row(config: &RowRunConfig) -> Result<RowOutcome, RowEvalError> {
     episode_config.arm_node = config.arm_node;
     episode_config.pressure = config.pressure;
     episode_config.detection_feed = DetectionFeed::External;
+    episode_config.mode_feed = ModeFeed::External;
     episode_config.keep_events = false;
     let robot = SimRobot::from_world(world, SimRobotConfig::default())
         .map_err(crate::harvest::HarvestEvalError::from)?;
@@ -250,7 +252,7 @@ pub fn run_row(config: &RowRunConfig) -> Result<RowOutcome, RowEvalError> {
             .iter()
             .all(|s| s.is_some_and(|s| s.phase == PhaseCode::Idle && s.holding == 0));
         let holding = states.iter().flatten().any(|s| s.holding != 0);
-        if matches!(phase, StopPhase::Harvesting { .. }) && episode.finished() {
+        if episode.completed_last_tick() {
             cycle.on_harvest_complete(now_ns);
         }
         let view = FieldView {
@@ -340,7 +342,7 @@ pub fn run_row(config: &RowRunConfig) -> Result<RowOutcome, RowEvalError> {
             field_hold: u8::from(cycle.holds_approaches()),
             ..OperatorModeState::default()
         };
-        episode.obey(obedience(Some(&mode), ModeSource::Executive, now_ns));
+        episode.publish_mode(mode);
         episode.tick(now_ns)?;
 
         // 5. The robot moves through the world.

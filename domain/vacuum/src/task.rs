@@ -17,10 +17,10 @@ use harvest_node::ports::{Drain, Latest, Out};
 use harvest_node::{
     Applied, Devices, InputVisitor, Inputs, Node, NodeTick, OutputVisitor, Outputs,
 };
-use harvest_vacuum::harvest_events::{ArmContext, vacuum_event};
-use harvest_vacuum::node::{BoardReadings, VacuumNode, VacuumNodeInput};
 
-use harvest_vacuum::completion::CompletionWatch;
+use crate::completion::CompletionWatch;
+use crate::harvest_events::{ArmContext, vacuum_event};
+use crate::node::{BoardReadings, VacuumNode, VacuumNodeInput};
 
 /// The valve board as the runtime drives it, with the position last sent per valve (unknown
 /// until the first command, and after a refused one, so that it is sent again).
@@ -186,6 +186,10 @@ impl<B> VacuumTask<B> {
     /// Detection sets taken so far.
     pub fn sets(&self) -> u64 {
         self.sets
+    }
+
+    pub fn node(&self) -> &VacuumNode {
+        &self.node
     }
 }
 

@@ -2,8 +2,6 @@
 //! glue between [`ArmNode`] and the channels. The tick around it (the stop first, device
 //! faults, the operator's mode, health) is the runtime's ([`harvest_node::Runner`]).
 
-use harvest_arm::harvest_events::ArmEventReporter;
-use harvest_arm::node::{ArmNode, ArmNodeInput, EncoderSample, OtherArmInput, ServoOrder};
 use harvest_hw::arm_servos::ArmServos;
 use harvest_ipc::Header;
 use harvest_ipc::catalogue::{
@@ -19,6 +17,15 @@ use harvest_node::{
     Applied, Devices, InputVisitor, Inputs, Node, NodeTick, OutputVisitor, Outputs,
 };
 use harvest_robot_model::params::ArmId;
+
+use crate::harvest_events::ArmEventReporter;
+use crate::node::{
+    ArmNode, ArmNodeInput, ArmNodeOutput, EncoderSample, OtherArmInput, ServoOrder,
+};
+
+/// The standing valve request is sent again this often when unchanged, ms (so a restarted
+/// vacuum supervisor learns it): the arm process's default.
+pub const DEFAULT_VALVE_REQUEST_RESEND_MS: u64 = 500;
 
 /// The servos as the runtime drives them.
 #[derive(Debug)]
@@ -109,8 +116,7 @@ impl Outputs for ArmOutputs {
     }
 }
 
-/// One arm: [`ArmNode`] between its channels (module documentation of `crate::process`), for
-/// servos of type `S`.
+/// One arm: [`ArmNode`] between its channels (module documentation), for servos of type `S`.
 pub struct ArmTask<S> {
     servos: std::marker::PhantomData<fn() -> S>,
     node: ArmNode,
@@ -118,6 +124,8 @@ pub struct ArmTask<S> {
     name: String,
     /// The servos reported once: until then nothing is stepped or published.
     ready: bool,
+    /// The node stepped at the last tick.
+    stepped: bool,
     /// This arm's newest answer on the shared grant channel.
     grant: Option<ValveGrant>,
     /// The standing valve request as last sent, and when.
@@ -137,6 +145,7 @@ impl<S> ArmTask<S> {
             name: format!("arm{}", arm.number()),
             node,
             ready: false,
+            stepped: false,
             grant: None,
             last_request: None,
             resend_ns: valve_request_resend_ms * 1_000_000,
@@ -147,6 +156,12 @@ impl<S> ArmTask<S> {
 
     pub fn node(&self) -> &ArmNode {
         &self.node
+    }
+
+    /// What the node did at the last tick (its events, servo order and state); `None` when it
+    /// did not step (the servos had not reported yet).
+    pub fn last_output(&self) -> Option<&ArmNodeOutput> {
+        self.stepped.then(|| self.node.last_output())
     }
 
     /// Carries out manual orders in manual mode only; stops a manual move when the mode left
@@ -228,6 +243,7 @@ impl<S: ArmServos> Node for ArmTask<S> {
         // or published (no state: the vacuum supervisor assigns it nothing and the other arm
         // defers its motions).
         self.ready |= readings.is_some();
+        self.stepped = self.ready;
         if !self.ready {
             *commands = ServoCommand::None;
             return Ok(());
