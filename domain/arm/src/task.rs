@@ -19,9 +19,7 @@ use harvest_node::{
 use harvest_robot_model::params::ArmId;
 
 use crate::harvest_events::ArmEventReporter;
-use crate::node::{
-    ArmNode, ArmNodeInput, ArmNodeOutput, EncoderSample, OtherArmInput, ServoOrder,
-};
+use crate::node::{ArmNode, ArmNodeInput, ArmNodeOutput, EncoderSample, OtherArmInput, ServoOrder};
 
 /// The standing valve request is sent again this often when unchanged, ms (so a restarted
 /// vacuum supervisor learns it): the arm process's default.

@@ -280,19 +280,15 @@ fn runner<N: Node + 'static>(
     handle: NodeHandle,
 ) -> Result<&Runner<N>, HarvestEvalError> {
     schedule.runner::<N>(handle).ok_or_else(|| {
-        HarvestEvalError::Node(format!(
-            "no {} in the schedule",
-            std::any::type_name::<N>()
-        ))
+        HarvestEvalError::Node(format!("no {} in the schedule", std::any::type_name::<N>()))
     })
 }
 
 /// The executive of an episode (module documentation).
-fn executive() -> Result<(Executive, ExecutiveDevices<SimPlatform, SimTractor>), HarvestEvalError>
-{
+fn executive() -> Result<(Executive, ExecutiveDevices<SimPlatform, SimTractor>), HarvestEvalError> {
     let devices = ExecutiveDevices::new(None, None, None);
-    let token = ControlToken::generate()
-        .map_err(|error| HarvestEvalError::Executive(error.to_string()))?;
+    let token =
+        ControlToken::generate().map_err(|error| HarvestEvalError::Executive(error.to_string()))?;
     let config = ExecutiveNodeConfig {
         executive: ExecutiveConfig {
             initial_mode: OperatorModeCode::Harvesting,
@@ -567,7 +563,10 @@ impl Episode {
                 safety.arm_events(now_ns, vacuum_arm(i), &out.events)?;
             }
         }
-        let out = runner::<Vacuum>(&self.schedule, self.nodes.vacuum)?.node().node().last_output();
+        let out = runner::<Vacuum>(&self.schedule, self.nodes.vacuum)?
+            .node()
+            .node()
+            .last_output();
         for event in &out.events {
             if let VacuumNodeEvent::TargetDispatched { arm, target } = event {
                 let robot = self.robot.borrow();
