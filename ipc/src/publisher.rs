@@ -7,6 +7,7 @@ use crate::error::SendError;
 use crate::payload::Payload;
 use iceoryx2::port::LoanError;
 use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::sample_mut::SampleMut;
 use std::ops::{Deref, DerefMut};
 
@@ -114,6 +115,21 @@ impl<T: Payload> Publisher<T> {
         write(&mut loan);
         loan.header_mut().capture_ns = capture_ns;
         self.send(loan)
+    }
+
+    /// Connects the subscribers that joined since the last send and hands each the channel's
+    /// history (on a latched channel, [`Qos::STATE`](crate::catalogue::Qos::STATE), the last
+    /// value). iceoryx2 does this at every send only, so a writer that sends on change calls
+    /// this between sends, or a late joiner sees nothing until the next change. Cheap when
+    /// nobody joined: one read of the service's subscriber-list counter. The history arrives
+    /// without an event: the reader finds it at its next read.
+    pub fn update_connections(&self) -> Result<(), SendError> {
+        self.port
+            .update_connections()
+            .map_err(|error| SendError::Send {
+                topic: self.channel.spec.topic,
+                reason: format!("connecting a new subscriber: {error}"),
+            })
     }
 
     /// Sends a small value (copied into the loan). Large payloads use [`Self::publish_with`].
