@@ -221,7 +221,7 @@ impl OutputVisitor for Send<'_> {
         self.index += 1;
         slot.flush(|value| publisher.publish(value).map(|_| ()))?;
         // A latched channel's late joiner gets the last value at the writer's next tick, not at
-        // its next change (the stop and the mode are sent on change).
+        // its next change (the stop is sent on change).
         if channel.spec.qos.history_size > 0 {
             publisher.update_connections()?;
         }

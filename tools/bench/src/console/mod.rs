@@ -24,8 +24,8 @@ use std::net::Ipv4Addr;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use harvest_ipc::catalogue::{ARM_STATE, PROCESS_HEALTH};
-use harvest_ipc::payloads::ArmPhase;
+use harvest_ipc::catalogue::{ARM_STATE, EMERGENCY_STOP, PROCESS_HEALTH};
+use harvest_ipc::payloads::{ArmPhase, EmergencyStop};
 use harvest_ipc::{Context, Domain, Subscriber};
 use serde::Serialize;
 use serde_json::{Value, json};
@@ -125,6 +125,21 @@ pub struct MemoryFigures {
     pub viewers_opened: u64,
 }
 
+/// One e-stop click, timed twice: from the click (the page's estimate of the stack's clock,
+/// good to `clock_uncertainty_ms`) and from the executive's stop (the stack's clock alone).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct EstopClick {
+    /// The click to arm 1 and arm 2 reporting `Stopped`, ms.
+    pub click_to_stopped_ms: [f64; 2],
+    /// The click to the executive's stop (`safety/emergency_stop` engaged, its stamp), ms.
+    pub click_to_engaged_ms: f64,
+    /// The executive's stop to arm 1 and arm 2 reporting `Stopped`, ms.
+    pub engaged_to_stopped_ms: [f64; 2],
+    /// Half the page's fastest clock round trip: how far the page's estimate of the stack's
+    /// clock can be off, ms.
+    pub clock_uncertainty_ms: f64,
+}
+
 /// The benchmark's figures.
 #[derive(Debug, Clone, Serialize)]
 pub struct ConsoleReport {
@@ -132,10 +147,13 @@ pub struct ConsoleReport {
     /// Slope of the console's CPU per viewer, percent of one core.
     pub cpu_per_viewer_percent: f64,
     pub latency: Vec<LatencyFigures>,
-    /// E-stop click to arm 1 and arm 2 stopped, ms, per click.
-    pub estop_ms: Vec<[f64; 2]>,
-    /// The median of the later arm of each click, ms.
+    /// Each e-stop click.
+    pub estop_clicks: Vec<EstopClick>,
+    /// The median of the later arm of each click, click to stopped, ms.
     pub estop_both_stopped_p50_ms: f64,
+    /// The median of the later arm of each click, the executive's stop to stopped (the stack's
+    /// clock only), ms.
+    pub estop_engaged_to_both_stopped_p50_ms: f64,
     pub memory: Option<MemoryFigures>,
     pub viewers: usize,
     pub half_open: usize,
@@ -161,15 +179,22 @@ impl ConsoleReport {
                 latency.condition, latency.p50_ms, latency.p99_ms, latency.views
             ));
         }
-        for (k, [arm1, arm2]) in self.estop_ms.iter().enumerate() {
+        for (k, click) in self.estop_clicks.iter().enumerate() {
+            let [arm1, arm2] = click.click_to_stopped_ms;
+            let [stack1, stack2] = click.engaged_to_stopped_ms;
             text.push_str(&format!(
-                "  e-stop click {} to stopped: arm 1 {arm1:.1} ms, arm 2 {arm2:.1} ms\n",
-                k + 1
+                "  e-stop click {}: to stopped arm 1 {arm1:.1} ms, arm 2 {arm2:.1} ms (to the executive's stop {:.1} ms, +-{:.1} ms; from it to stopped {stack1:.1} / {stack2:.1} ms)\n",
+                k + 1,
+                click.click_to_engaged_ms,
+                click.clock_uncertainty_ms,
             ));
         }
         text.push_str(&format!(
-            "  e-stop click to both arms stopped, p50: {:.1} ms ({} viewers, {} half-open)\n",
-            self.estop_both_stopped_p50_ms, self.viewers, self.half_open
+            "  e-stop click to both arms stopped, p50: {:.1} ms; the executive's stop to both stopped, p50: {:.1} ms ({} viewers, {} half-open)\n",
+            self.estop_both_stopped_p50_ms,
+            self.estop_engaged_to_both_stopped_p50_ms,
+            self.viewers,
+            self.half_open
         ));
         if let Some(memory) = &self.memory {
             text.push_str(&format!(
@@ -292,10 +317,20 @@ struct ArmWatch {
     states: [Subscriber<harvest_ipc::payloads::ArmState>; 2],
     stopped: [Option<bool>; 2],
     stopped_ns: [Option<u64>; 2],
+    /// The executive's stop, and when it first said engaged since the watch was reset.
+    stop: Subscriber<EmergencyStop>,
+    engaged: bool,
+    engaged_ns: Option<u64>,
 }
 
 impl ArmWatch {
     fn update(&mut self) {
+        while let Ok(Some(stop)) = self.stop.receive() {
+            self.engaged = stop.engaged != 0;
+            if self.engaged && self.engaged_ns.is_none() {
+                self.engaged_ns = Some(stop.header.capture_ns);
+            }
+        }
         for (i, subscriber) in self.states.iter().enumerate() {
             while let Ok(Some(state)) = subscriber.receive() {
                 let stopped = state.phase == ArmPhase::Stopped;
@@ -314,17 +349,18 @@ fn estop_click(
     arms: &mut ArmWatch,
     port: u16,
     token: &str,
-) -> Result<[f64; 2], ConsoleBenchError> {
-    // Harvesting again, neither arm stopped, before the click.
+) -> Result<EstopClick, ConsoleBenchError> {
+    // Released and harvesting again, neither arm stopped, before the click.
     wait_for(
-        "both arms running before the click",
+        "the stop released and both arms running before the click",
         Duration::from_secs(30),
         || {
             arms.update();
-            arms.stopped == [Some(false), Some(false)]
+            !arms.engaged && arms.stopped == [Some(false), Some(false)]
         },
     )?;
     arms.stopped_ns = [None, None];
+    arms.engaged_ns = None;
     let click_ns = page
         .evaluate(
             "window.consoleStats.estopClickNs = null; document.getElementById('btn-estop').click(); window.consoleStats.estopClickNs",
@@ -340,9 +376,21 @@ fn estop_click(
             arms.stopped_ns.iter().all(Option::is_some)
         },
     )?;
-    let ms = arms
-        .stopped_ns
-        .map(|ns| (ns.unwrap_or(0) as f64 - click_ns) / 1e6);
+    let stopped_ns = arms.stopped_ns.map(|ns| ns.unwrap_or(0) as f64);
+    let engaged_ns =
+        arms.engaged_ns
+            .ok_or_else(|| failed("the arms stopped without the executive's stop"))? as f64;
+    let best_rtt_ms = page
+        .evaluate("state.bestRttMs")
+        .map_err(failed)?
+        .as_f64()
+        .ok_or_else(|| failed("the page has no clock round trip yet"))?;
+    let click = EstopClick {
+        click_to_stopped_ms: stopped_ns.map(|ns| (ns - click_ns) / 1e6),
+        click_to_engaged_ms: (engaged_ns - click_ns) / 1e6,
+        engaged_to_stopped_ms: stopped_ns.map(|ns| (ns - engaged_ns) / 1e6),
+        clock_uncertainty_ms: best_rtt_ms / 2.0,
+    };
     let released = post_command(port, token, "release")?;
     if released["accepted"] != true {
         return Err(failed(format!("release refused: {released}")));
@@ -351,7 +399,7 @@ fn estop_click(
     if started["accepted"] != true {
         return Err(failed(format!("start refused: {started}")));
     }
-    Ok(ms)
+    Ok(click)
 }
 
 /// Runs the benchmark.
@@ -431,6 +479,9 @@ fn measure(
         ],
         stopped: [None, None],
         stopped_ns: [None, None],
+        stop: context.subscriber(EMERGENCY_STOP)?,
+        engaged: false,
+        engaged_ns: None,
     };
     let window = Duration::from_secs_f64(args.cpu_window_s);
 
@@ -485,13 +536,23 @@ fn measure(
         &format!("{} viewers + {} half-open", args.viewers, args.half_open),
         latency_window,
     )?);
-    let mut estop_ms = Vec::new();
+    let mut estop_clicks = Vec::new();
     for _ in 0..args.estop_clicks {
-        estop_ms.push(estop_click(&mut page, &mut arms, port, &token)?);
+        estop_clicks.push(estop_click(&mut page, &mut arms, port, &token)?);
         stack.check_running()?;
     }
-    let mut later: Vec<f64> = estop_ms.iter().map(|[a, b]| a.max(*b)).collect();
-    let estop_both_stopped_p50_ms = percentile(&mut later, 0.5);
+    let later_arm_p50 = |times: fn(&EstopClick) -> [f64; 2]| {
+        let mut later: Vec<f64> = estop_clicks
+            .iter()
+            .map(|click| {
+                let [arm1, arm2] = times(click);
+                arm1.max(arm2)
+            })
+            .collect();
+        percentile(&mut later, 0.5)
+    };
+    let estop_both_stopped_p50_ms = later_arm_p50(|click| click.click_to_stopped_ms);
+    let estop_engaged_to_both_stopped_p50_ms = later_arm_p50(|click| click.engaged_to_stopped_ms);
     half_open.stop();
     viewers.close();
 
@@ -505,8 +566,9 @@ fn measure(
         cpu,
         cpu_per_viewer_percent,
         latency,
-        estop_ms,
+        estop_clicks,
         estop_both_stopped_p50_ms,
+        estop_engaged_to_both_stopped_p50_ms,
         memory,
         viewers: args.viewers,
         half_open: args.half_open,
