@@ -125,6 +125,9 @@ fn ros2_bags_drive_perception_and_exports_read_back() {
     // The simulator's renders (raw frames: `--camera raw`), LiDAR clouds and arm states,
     // recorded natively.
     let record_dir = dir.0.join("recorded");
+    // The same frames as a continuous record holds them (the default: H.264 video and depth
+    // images), by a second recorder.
+    let video_dir = dir.0.join("recorded_video");
     let launch = dir.write(
         "record.toml",
         &format!(
@@ -134,8 +137,11 @@ fn ros2_bags_drive_perception_and_exports_read_back() {
              [[process]]\nname = \"arm1\"\ncommand = \"arm\"\nargs = [\"--id\", \"1\", \"--without-operator\"]\n\n\
              [[process]]\nname = \"arm2\"\ncommand = \"arm\"\nargs = [\"--id\", \"2\", \"--without-operator\"]\n\n\
              [[process]]\nname = \"recorder\"\ncommand = \"recorder\"\nargs = [\"--output-dir\", \"{}\", \"--camera\", \"raw\", \
-             \"--include\", \"camera/rgbd\", \"--include\", \"lidar/points\", \"--include\", \"arm*/state\"]\n",
-            record_dir.display()
+             \"--include\", \"camera/rgbd\", \"--include\", \"lidar/points\", \"--include\", \"arm*/state\"]\n\n\
+             [[process]]\nname = \"recorder_video\"\ncommand = \"recorder\"\nargs = [\"--output-dir\", \"{}\", \
+             \"--include\", \"camera/rgbd\"]\n",
+            record_dir.display(),
+            video_dir.display()
         ),
     );
     run_up_for("ros2rec", &launch, "6s", Duration::from_secs(120));
@@ -198,6 +204,60 @@ fn ros2_bags_drive_perception_and_exports_read_back() {
     for (stamp, capture) in stamps.iter().zip(&captures) {
         assert_eq!(*stamp as i128 - *capture as i128, offset);
     }
+    // The continuous record exports to the same topics: every video frame decoded into an
+    // `Image`, each recorded depth image with it.
+    let video_recordings = mcap_files(&video_dir);
+    assert_eq!(video_recordings.len(), 1, "{video_recordings:?}");
+    let video = cat(&video_recordings[0], "camera/video");
+    let depth = cat(&video_recordings[0], "camera/depth");
+    assert!(
+        video.len() >= 4,
+        "only {} video frames recorded",
+        video.len()
+    );
+    let video_bag = dir.0.join("exported_video");
+    let printed = harvest_ok(
+        &[
+            "rec",
+            "export",
+            video_recordings[0].to_str().expect("utf-8"),
+            "--ros2",
+            video_bag.to_str().expect("utf-8"),
+        ],
+        "rec export --ros2 (video)",
+    );
+    let read_video = run_python("read_bag.py", &[&video_bag]);
+    let video_topics = &read_video["topics"];
+    for (topic, count) in [
+        ("/camera/color/image_raw", video.len()),
+        ("/camera/color/camera_info", video.len()),
+        ("/camera/depth/image_raw", depth.len()),
+        ("/camera/depth/camera_info", depth.len()),
+    ] {
+        assert_eq!(
+            video_topics[topic]["count"].as_u64(),
+            Some(count as u64),
+            "{topic}: {printed}"
+        );
+    }
+    assert_eq!(video_topics["/camera/color/image_raw"]["encoding"], "rgb8");
+    assert_eq!(
+        video_topics["/camera/color/image_raw"]["size"],
+        topics["/camera/color/image_raw"]["size"]
+    );
+    assert_eq!(video_topics["/camera/depth/image_raw"]["encoding"], "16UC1");
+    let video_stamps: Vec<u64> = video_topics["/camera/color/image_raw"]["stamps"]
+        .as_array()
+        .expect("stamps")
+        .iter()
+        .map(|stamp| stamp.as_u64().expect("stamp"))
+        .collect();
+    assert!(
+        video_stamps.windows(2).all(|pair| pair[0] < pair[1]),
+        "{video_stamps:?}"
+    );
+    assert!(video_stamps[0] > 1_000_000_000 * 1_600_000_000, "UTC");
+
     let k = &topics["/camera/color/camera_info"]["k"];
     assert_eq!(k[0], frames[0]["meta"]["rgb_intrinsics"]["fx_px"]);
     let clouds = cat(recording, "lidar/points");

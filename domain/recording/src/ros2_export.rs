@@ -4,11 +4,21 @@
 //! `vision_msgs/Detection3DArray`, the arms' joints as `JointState`, the LiDAR clouds as
 //! `PointCloud2` (topics and frames: `harvest_ros2_mapping`).
 //!
+//! A continuous record holds the camera as H.264 video (`camera/video`) and depth images at a
+//! reduced rate (`camera/depth`) instead of raw frames ([`crate::camera_record`]): the export
+//! decodes the video back into frames and writes the same topics, the colour image for every
+//! video frame and the depth image when the recording has that frame's depth (video frames
+//! before the first depth image or the first key frame have no frame and are counted as
+//! skipped).
+//!
 //! Time: a message's `header.stamp` is its payload's time of validity (`capture_ns`; the
 //! source frame's for detections) and its bag receive time is the recording's log time, both
 //! on the recording's UTC time base (`harvest.clock`), as ROS 2 stamps are system time. A
 //! recording without a clock record keeps its stack-clock stamps.
 
+use crate::camera_record::{
+    CameraRebuild, DEPTH_SCHEMA, DEPTH_TOPIC, Rebuilt, VIDEO_TOPIC, video_channel,
+};
 use crate::recording_file::ReadError;
 use crate::scan::{ScanEnd, ScanItem, ScanOptions, scan_file};
 use crate::schema::schema_name;
@@ -51,6 +61,10 @@ impl Ros2ExportReport {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Mapping {
     Camera,
+    /// `camera/video`: H.264 colour images, decoded with the latest `camera/depth`.
+    Video,
+    /// `camera/depth`: depth images with the frames' metadata.
+    Depth,
     Detections,
     Joints,
     Points,
@@ -59,7 +73,9 @@ enum Mapping {
 impl Mapping {
     /// The mapping of a recorded channel, by topic and schema (this build's payload version).
     fn of(topic: &str, schema: &str) -> Result<Self, String> {
-        let candidates: [(&str, String, Mapping); 5] = [
+        let candidates: [(&str, String, Mapping); 7] = [
+            (VIDEO_TOPIC, video_channel().schema_name, Mapping::Video),
+            (DEPTH_TOPIC, DEPTH_SCHEMA.to_owned(), Mapping::Depth),
             (
                 CAMERA_RGBD.spec.topic,
                 schema_name(RgbdFrame::TYPE_NAME, RgbdFrame::VERSION),
@@ -129,6 +145,59 @@ impl Ros2Output {
         *self.report.written.entry(topic.to_owned()).or_insert(0) += 1;
         Ok(())
     }
+
+    /// The four camera topics of one frame stamped `stamp_ns`; the depth pair only `with_depth`.
+    fn write_camera(
+        &mut self,
+        frame: &RgbdFrame,
+        stamp_ns: u64,
+        log_ns: u64,
+        with_depth: bool,
+    ) -> Result<(), String> {
+        let messages = to_ros::camera_messages(frame, stamp_ns);
+        let qos = QosProfile::SENSOR_DATA;
+        self.write(
+            to_ros::COLOR_IMAGE_TOPIC,
+            &IMAGE_TYPE,
+            qos,
+            log_ns,
+            &messages.color,
+        )?;
+        self.write(
+            to_ros::COLOR_INFO_TOPIC,
+            &CAMERA_INFO_TYPE,
+            qos,
+            log_ns,
+            &messages.color_info,
+        )?;
+        if !with_depth {
+            return Ok(());
+        }
+        self.write(
+            to_ros::DEPTH_IMAGE_TOPIC,
+            &IMAGE_TYPE,
+            qos,
+            log_ns,
+            &messages.depth,
+        )?;
+        self.write(
+            to_ros::DEPTH_INFO_TOPIC,
+            &CAMERA_INFO_TYPE,
+            qos,
+            log_ns,
+            &messages.depth_info,
+        )
+    }
+
+    /// Counts a recorded message that gave nothing to export, and why.
+    fn skip(&mut self, topic: &str, reason: &str) {
+        let entry = self
+            .report
+            .skipped
+            .entry(topic.to_owned())
+            .or_insert_with(|| (0, reason.to_owned()));
+        entry.0 += 1;
+    }
 }
 
 /// A decode scratch value per payload type (frames and clouds are megabytes: on the heap).
@@ -137,6 +206,14 @@ struct Scratch {
     cloud: Box<PointCloud>,
     detections: Box<AppleDetections>,
     arm: Box<ArmState>,
+}
+
+/// The video decoder and the latest depth image of a continuous record, made when first needed.
+fn camera_rebuild(slot: &mut Option<CameraRebuild>) -> Result<&mut CameraRebuild, String> {
+    if slot.is_none() {
+        *slot = Some(CameraRebuild::new().map_err(|error| error.to_string())?);
+    }
+    slot.as_mut().ok_or_else(|| "no video decoder".to_owned())
 }
 
 /// Exports `path` (messages of topics matching `topics`, in the window `start`..`end` after the
@@ -168,6 +245,9 @@ pub fn export_ros2(
         detections: harvest_ipc::payload::boxed_zeroed(),
         arm: harvest_ipc::payload::boxed_zeroed(),
     };
+    let mut rebuild: Option<CameraRebuild> = None;
+    // A depth image came since the last video frame.
+    let mut depth_fresh = false;
     let mut failure: Option<String> = None;
     let outcome = scan_file(
         path,
@@ -221,40 +301,30 @@ pub fn export_ros2(
                 Mapping::Camera => RgbdFrame::decode_into(message.data, &mut scratch.frame)
                     .map_err(|e| e.to_string())
                     .and_then(|()| {
-                        let messages = to_ros::camera_messages(
-                            &scratch.frame,
-                            stamp(scratch.frame.header.capture_ns),
-                        );
-                        let qos = QosProfile::SENSOR_DATA;
-                        output.write(
-                            to_ros::COLOR_IMAGE_TOPIC,
-                            &IMAGE_TYPE,
-                            qos,
-                            log_ns,
-                            &messages.color,
-                        )?;
-                        output.write(
-                            to_ros::COLOR_INFO_TOPIC,
-                            &CAMERA_INFO_TYPE,
-                            qos,
-                            log_ns,
-                            &messages.color_info,
-                        )?;
-                        output.write(
-                            to_ros::DEPTH_IMAGE_TOPIC,
-                            &IMAGE_TYPE,
-                            qos,
-                            log_ns,
-                            &messages.depth,
-                        )?;
-                        output.write(
-                            to_ros::DEPTH_INFO_TOPIC,
-                            &CAMERA_INFO_TYPE,
-                            qos,
-                            log_ns,
-                            &messages.depth_info,
-                        )
+                        let stamp_ns = stamp(scratch.frame.header.capture_ns);
+                        output.write_camera(&scratch.frame, stamp_ns, log_ns, true)
                     }),
+                Mapping::Depth => camera_rebuild(&mut rebuild).and_then(|rebuild| {
+                    rebuild.depth(message.data).map_err(|e| e.to_string())?;
+                    depth_fresh = true;
+                    Ok(())
+                }),
+                Mapping::Video => camera_rebuild(&mut rebuild).and_then(|rebuild| {
+                    // The video's timestamps are on the file's UTC base already.
+                    let rebuilt = rebuild
+                        .video(message.data, |utc_ns| utc_ns, &mut scratch.frame)
+                        .map_err(|e| e.to_string())?;
+                    if rebuilt != Rebuilt::Frame {
+                        output.skip(
+                            &channel.topic,
+                            "before the first depth image or key frame: no frame yet",
+                        );
+                        return Ok(());
+                    }
+                    let with_depth = std::mem::take(&mut depth_fresh);
+                    let stamp_ns = scratch.frame.header.capture_ns;
+                    output.write_camera(&scratch.frame, stamp_ns, log_ns, with_depth)
+                }),
                 Mapping::Detections => {
                     AppleDetections::decode_into(message.data, &mut scratch.detections)
                         .map_err(|e| e.to_string())
