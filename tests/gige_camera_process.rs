@@ -3,9 +3,9 @@
 //! frames on `camera/rgbd` flagged colour only, with no depth, the fake's image demosaiced into
 //! their colour, stamps that advance, a running heartbeat and a clean stop on SIGINT. A config
 //! file with an unknown key or an unusable value stops the process before it opens a camera,
-//! naming the file, the key and the line or value. The camera tests skip, saying so, where
-//! Aravis is not installed; one fake at a time serves on 127.0.0.1 (`LoopbackCameraLock`, held
-//! across processes).
+//! naming the file, the key and the line or value. The camera tests require Aravis (`.ci/run`
+//! installs it; without it they fail naming the package); one fake at a time serves on
+//! 127.0.0.1 (`LoopbackCameraLock`, held across processes).
 
 mod common;
 

@@ -6,7 +6,7 @@
 //! device addresses replaced. Checked: colour-only frames and clouds flow at their rates, the
 //! clouds are fused into the frames' view and perception localizes apples from them (depth
 //! source LiDAR-fused) on true apples of the orchard, and the vacuum supervisor reads the board.
-//! Skipped (with the reason printed) where Aravis is not installed.
+//! Aravis is required (`.ci/run` installs it): without it the test fails, naming the package.
 
 mod common;
 

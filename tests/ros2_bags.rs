@@ -111,6 +111,19 @@ fn detections_by_frame(file: &Path) -> BTreeMap<u64, Vec<Value>> {
         .collect()
 }
 
+/// A UTC time in 2020, ns: stamps above it are on the UTC base, not the stack clock.
+const UTC_2020_NS: i128 = 1_000_000_000 * 1_600_000_000;
+
+/// The header stamps of a topic as `read_bag.py` reports them, ns.
+fn stamps_ns(topic: &Value) -> Vec<u64> {
+    topic["stamps"]
+        .as_array()
+        .expect("stamps")
+        .iter()
+        .map(|stamp| stamp.as_u64().expect("stamp"))
+        .collect()
+}
+
 fn position(apple: &Value) -> [f64; 3] {
     let p = &apple["position_in_camera_m"];
     [0, 1, 2].map(|i| p[i].as_f64().expect("position"))
@@ -190,17 +203,9 @@ fn ros2_bags_drive_perception_and_exports_read_back() {
         .iter()
         .map(|frame| frame["header"]["capture_ns"].as_u64().expect("capture_ns"))
         .collect();
-    let stamps: Vec<u64> = topics["/camera/color/image_raw"]["stamps"]
-        .as_array()
-        .expect("stamps")
-        .iter()
-        .map(|stamp| stamp.as_u64().expect("stamp"))
-        .collect();
+    let stamps = stamps_ns(&topics["/camera/color/image_raw"]);
     let offset = stamps[0] as i128 - captures[0] as i128;
-    assert!(
-        offset > 1_000_000_000 * 1_600_000_000,
-        "stamps are UTC: offset {offset}"
-    );
+    assert!(offset > UTC_2020_NS, "stamps are UTC: offset {offset}");
     for (stamp, capture) in stamps.iter().zip(&captures) {
         assert_eq!(*stamp as i128 - *capture as i128, offset);
     }
@@ -246,17 +251,12 @@ fn ros2_bags_drive_perception_and_exports_read_back() {
         topics["/camera/color/image_raw"]["size"]
     );
     assert_eq!(video_topics["/camera/depth/image_raw"]["encoding"], "16UC1");
-    let video_stamps: Vec<u64> = video_topics["/camera/color/image_raw"]["stamps"]
-        .as_array()
-        .expect("stamps")
-        .iter()
-        .map(|stamp| stamp.as_u64().expect("stamp"))
-        .collect();
+    let video_stamps = stamps_ns(&video_topics["/camera/color/image_raw"]);
     assert!(
         video_stamps.windows(2).all(|pair| pair[0] < pair[1]),
         "{video_stamps:?}"
     );
-    assert!(video_stamps[0] > 1_000_000_000 * 1_600_000_000, "UTC");
+    assert!(i128::from(video_stamps[0]) > UTC_2020_NS, "UTC");
 
     let k = &topics["/camera/color/camera_info"]["k"];
     assert_eq!(k[0], frames[0]["meta"]["rgb_intrinsics"]["fx_px"]);

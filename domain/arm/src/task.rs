@@ -122,8 +122,6 @@ pub struct ArmTask<S> {
     name: String,
     /// The servos reported once: until then nothing is stepped or published.
     ready: bool,
-    /// The node stepped at the last tick.
-    stepped: bool,
     /// This arm's newest answer on the shared grant channel.
     grant: Option<ValveGrant>,
     /// The standing valve request as last sent, and when.
@@ -143,7 +141,6 @@ impl<S> ArmTask<S> {
             name: format!("arm{}", arm.number()),
             node,
             ready: false,
-            stepped: false,
             grant: None,
             last_request: None,
             resend_ns: valve_request_resend_ms * 1_000_000,
@@ -159,7 +156,8 @@ impl<S> ArmTask<S> {
     /// What the node did at the last tick (its events, servo order and state); `None` when it
     /// did not step (the servos had not reported yet).
     pub fn last_output(&self) -> Option<&ArmNodeOutput> {
-        self.stepped.then(|| self.node.last_output())
+        // Once ready, the node steps at every tick.
+        self.ready.then(|| self.node.last_output())
     }
 
     /// Carries out manual orders in manual mode only; stops a manual move when the mode left
@@ -241,7 +239,6 @@ impl<S: ArmServos> Node for ArmTask<S> {
         // or published (no state: the vacuum supervisor assigns it nothing and the other arm
         // defers its motions).
         self.ready |= readings.is_some();
-        self.stepped = self.ready;
         if !self.ready {
             *commands = ServoCommand::None;
             return Ok(());

@@ -188,6 +188,7 @@ impl<B> VacuumTask<B> {
         self.sets
     }
 
+    /// The supervisor's node (its last outputs, its planner).
     pub fn node(&self) -> &VacuumNode {
         &self.node
     }

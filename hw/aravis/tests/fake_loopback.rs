@@ -1,7 +1,7 @@
 //! The safe types against Aravis's own fake GigE Vision camera on loopback: the camera is
 //! opened by address, configured, streams complete 1920x1080 frames, and the images are the
-//! ones the fill function wrote. Skipped (with the reason printed) where Aravis is not
-//! installed.
+//! ones the fill function wrote. Aravis is required (`.ci/run` installs it): without
+//! it the tests fail, naming the package.
 
 use harvest_aravis::pixel_format::{MONO_8, RGB_8};
 use harvest_aravis::{Aravis, AravisError, BufferStatus, Camera, FakeCamera, LoopbackCameraLock};
