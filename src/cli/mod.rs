@@ -77,8 +77,9 @@ enum Command {
     /// Foxglove bridge: the stack's channels, mapped to Foxglove's schemas, on a WebSocket
     /// server (ws://127.0.0.1:8765) for Foxglove or Lichtblick.
     Foxglove(harvest_foxglove::FoxgloveArgs),
-    /// Republish a recording into the channels at recorded timing.
-    Replay(harvest_rec::ReplayArgs),
+    /// Republish a recording into the channels at recorded timing; with `--check`, re-run
+    /// this build's perception on it and compare with what was recorded.
+    Replay(ReplayCommand),
     /// Recording tools: info, cat, export, clips, recover.
     Rec {
         #[command(subcommand)]
@@ -410,8 +411,9 @@ impl Cli {
                 harvest_foxglove::run(&args, &domain, process_name).context("foxglove bridge")?;
                 Ok(ExitCode::SUCCESS)
             }
-            Command::Replay(args) => {
-                let report = harvest_rec::run_replay(&args, &domain).context("replay")?;
+            Command::Replay(command) if command.check => run_check(&command),
+            Command::Replay(command) => {
+                let report = harvest_rec::run_replay(&command.replay, &domain).context("replay")?;
                 eprint!("{report}");
                 Ok(ExitCode::SUCCESS)
             }
@@ -567,4 +569,50 @@ fn ctl_remote(
     };
     let timeout = std::time::Duration::from_millis(args.timeout_ms);
     station_ctl::run(robot, link, ask, token, timeout).context("harvest ctl --remote")
+}
+
+/// `harvest replay`: the replay's options, and `--check` with the perception arguments the
+/// live process ran with.
+#[derive(Debug, clap::Args)]
+pub struct ReplayCommand {
+    #[command(flatten)]
+    replay: harvest_rec::ReplayArgs,
+    /// Do not publish: re-run this build's perception on the recording's camera frames (recorded
+    /// raw: `harvest recorder --camera raw`, or a clip) and compare its detections and scan
+    /// requests with the recorded ones; exit 1 on any difference. Give perception the
+    /// arguments it ran with (below).
+    #[arg(long)]
+    check: bool,
+    /// With --check: floats within this absolute difference count as equal (default: exact).
+    #[arg(long, requires = "check")]
+    tolerance: Option<f64>,
+    #[command(
+        flatten,
+        next_help_heading = "With --check: perception's arguments, as it ran"
+    )]
+    perception: harvest_perception_process::PerceptionArgs,
+}
+
+/// `harvest replay --check`: prints the report on stdout (the same for two runs on one file),
+/// the speed on stderr; exit 1 when an output differs.
+fn run_check(command: &ReplayCommand) -> anyhow::Result<ExitCode> {
+    if command.replay.ros2 {
+        anyhow::bail!("--check re-runs on harvest recordings, not ROS 2 bags (--ros2)");
+    }
+    let task = harvest_perception_process::build_task(&command.perception, None)
+        .context("perception for --check")?;
+    let report = harvest_rec::run_check(&command.replay.files, task, command.tolerance)
+        .context("replay --check")?;
+    print!("{report}");
+    eprintln!(
+        "re-ran {:.3} s of recording in {:.3} s ({:.2}x real time)",
+        report.perception.recorded_span_ns as f64 * 1e-9,
+        report.perception.rerun_wall_s,
+        report.speed_factor()
+    );
+    Ok(if report.differs() {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
 }

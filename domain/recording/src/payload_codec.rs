@@ -1,6 +1,7 @@
 //! Decoding recorded messages back into catalogue payloads, found by their schema name.
 
-use crate::schema::{parse_schema_name, schema_name};
+use crate::scan::ScannedMessage;
+use crate::schema::{TopicInfo, parse_schema_name, schema_name};
 use harvest_ipc::codec::CodecError;
 use harvest_ipc::{Channel, ChannelVisitor, Payload, catalogue};
 
@@ -8,6 +9,32 @@ use harvest_ipc::{Channel, ChannelVisitor, Payload, catalogue};
 /// value: large payloads (6.8 MB frames) are decoded into it without touching the stack.
 pub fn zeroed_box<T: Payload>() -> Box<T> {
     harvest_ipc::payload::boxed_zeroed()
+}
+
+/// Decodes `message` into `into` if it was recorded with `channel`'s schema (this build's type
+/// and version); false when the schema is another or the bytes do not decode.
+pub fn decode_scanned_into<T: Payload>(
+    channel: Channel<T>,
+    message: &ScannedMessage<'_>,
+    into: &mut T,
+) -> bool {
+    let expected = TopicInfo::of(channel).schema_name();
+    let schema_ok = message
+        .channel
+        .schema
+        .as_ref()
+        .is_some_and(|schema| schema.name == expected);
+    schema_ok && T::decode_into(message.data, into).is_ok()
+}
+
+/// The payload of `message` if it was recorded with `channel`'s schema and decodes (small
+/// payloads; large ones go through [`decode_scanned_into`] and a [`zeroed_box`]).
+pub fn decode_scanned<T: Payload + Default>(
+    channel: Channel<T>,
+    message: &ScannedMessage<'_>,
+) -> Option<T> {
+    let mut value = T::default();
+    decode_scanned_into(channel, message, &mut value).then_some(value)
 }
 
 /// Decodes one payload type to its JSON view, reusing one heap value across messages.

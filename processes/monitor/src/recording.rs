@@ -8,9 +8,8 @@ use std::ops::ControlFlow;
 use std::path::Path;
 
 use harvest_ipc::catalogue::{ARM_COMMAND, ARM_STATE, EMERGENCY_STOP, VACUUM_STATE};
-use harvest_ipc::{Channel, Payload};
-use harvest_recording::scan::{ScanItem, ScanOptions, ScannedMessage, scan_file};
-use harvest_recording::schema::TopicInfo;
+use harvest_recording::payload_codec::decode_scanned as decode;
+use harvest_recording::scan::{ScanItem, ScanOptions, scan_file};
 use harvest_recording::time_base::FileTimeBase;
 use harvest_robot_model::ArmId;
 use harvest_safety::safety_monitor::{MonitorConfig, Violation};
@@ -18,22 +17,6 @@ use harvest_safety::safety_monitor::{MonitorConfig, Violation};
 use crate::error::MonitorError;
 use crate::mapping::MappingConfig;
 use crate::stack_monitor::{MonitorReport, StackMessage, StackMonitor};
-
-/// The payload of `message` if its schema is `channel`'s and it decodes.
-fn decode<T: Payload + Default>(channel: Channel<T>, message: &ScannedMessage<'_>) -> Option<T> {
-    let expected = TopicInfo::of(channel).schema_name();
-    let schema_ok = message
-        .channel
-        .schema
-        .as_ref()
-        .is_some_and(|s| s.name == expected);
-    if !schema_ok {
-        return None;
-    }
-    let mut value = T::default();
-    T::decode_into(message.data, &mut value).ok()?;
-    Some(value)
-}
 
 /// Which monitored channel a topic is, if any.
 #[derive(Debug, Clone, Copy)]

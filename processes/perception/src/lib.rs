@@ -7,4 +7,4 @@
 
 pub mod process;
 
-pub use process::{PerceptionArgs, PerceptionProcessError, run};
+pub use process::{PerceptionArgs, PerceptionProcessError, build_task, run};

@@ -124,15 +124,14 @@ pub fn run(
     run_until(args, domain, process_name, None, &AtomicBool::new(false))
 }
 
-/// [`run`] with `detector` in place of the configured one (when given) that also stops once
-/// `stop` is set (checked at each heartbeat, so within [`harvest_ipc::HEARTBEAT_PERIOD`]).
-pub fn run_until(
+/// The perception task these arguments describe (the camera calibration, the config and its
+/// overrides, the detector, the laser's reach, the depth source), with `detector` in place of
+/// the configured one when given: what the process runs, and what `harvest replay --check`
+/// re-runs on a recording.
+pub fn build_task(
     args: &PerceptionArgs,
-    domain: &Domain,
-    process_name: &str,
     detector: Option<Box<dyn Detector + Send>>,
-    stop: &AtomicBool,
-) -> Result<(), PerceptionProcessError> {
+) -> Result<PerceptionTask, PerceptionProcessError> {
     let calibration_path =
         args.calibration
             .as_deref()
@@ -190,16 +189,29 @@ pub fn run_until(
         ),
         None => {}
     }
-
-    let context = Context::new(domain, process_name)?;
     tracing::info!(
         detector = detector_name,
         estimator = config.estimator.kind.name(),
         laser = config.laser.enabled,
         depth_source = ?config.depth_source,
         extrinsic = ?args.lidar_extrinsic,
-        "perception running"
+        "perception configured"
     );
+    Ok(PerceptionTask::new(node, fused_depth))
+}
+
+/// [`run`] with `detector` in place of the configured one (when given) that also stops once
+/// `stop` is set (checked at each heartbeat, so within [`harvest_ipc::HEARTBEAT_PERIOD`]).
+pub fn run_until(
+    args: &PerceptionArgs,
+    domain: &Domain,
+    process_name: &str,
+    detector: Option<Box<dyn Detector + Send>>,
+    stop: &AtomicBool,
+) -> Result<(), PerceptionProcessError> {
+    let task = build_task(args, detector)?;
+    let context = Context::new(domain, process_name)?;
+    tracing::info!("perception running");
     let options = WakeOptions {
         stop: Some(stop),
         ..WakeOptions::sensor(
@@ -209,12 +221,7 @@ pub fn run_until(
             1,
         )
     };
-    let finished = run_on_wake(
-        &context,
-        PerceptionTask::new(node, fused_depth),
-        (),
-        options,
-    )?;
+    let finished = run_on_wake(&context, task, (), options)?;
     let task = finished.runner.node();
     let totals = task.freshness();
     tracing::info!(
