@@ -124,7 +124,7 @@ impl ScanService {
         self.reach.hint(rough_centre_in_alacs_m, radius_m)
     }
 
-    /// The unit's reach model (the check [`Self::answer`] makes before scanning).
+    /// The unit's reach model (the check [`Self::start`] makes before scanning).
     pub fn reach(&self) -> &LaserReach {
         &self.reach
     }
