@@ -295,10 +295,16 @@ pub const VACUUM_STATE: Channel<VacuumState> = Channel::new(
 );
 /// One writer, the owner of the stop: the executive (`harvest executive`). Anyone else who
 /// must stop the robot asks the owner (operators on `operator/command`, the safety monitor on
-/// `safety/violation`); nobody else can engage or release it.
+/// `safety/violation`); nobody else can engage or release it. Read by every node that drives
+/// an actuator (the arms, the vacuum supervisor, the laser, the executive itself) and by the
+/// watchers (monitor, recorder, Foxglove bridge, remote link) and tools: room for 16.
 pub const EMERGENCY_STOP: Channel<EmergencyStop> = Channel::new(
     "safety/emergency_stop",
-    Qos::STATE,
+    Qos {
+        max_subscribers: 16,
+        max_nodes: 24,
+        ..Qos::STATE
+    },
     "engaged: all arms stop, all valves close (writer: the executive)",
 );
 /// One writer, the independent safety monitor (`harvest monitor --on-violation report|stop`).

@@ -7,7 +7,8 @@
 //! place in shared memory, [`harvest_node::in_place`]); the wake-up, never a sleep or a poll:
 //! [`run_node`] ticks on a kernel periodic timer ([`harvest_ipc::control_loop`]: tick-to-tick
 //! intervals and deadline misses measured), [`run_on_wake`] on an input's iceoryx2 event
-//! ([`Wake::Input`]: a wait set) or back to back on a device that paces the node
+//! ([`Wake::Input`]: a wait set, then back to back while the node has more work,
+//! [`Node::has_more_work`]) or back to back on a device that paces the node
 //! ([`Wake::Device`]: the step blocks in the driver's event-driven capture, bounded); the
 //! heartbeat on `system/health` (run state degraded while a device exchange fails, the
 //! period's p99 and the deadline misses, or what the node says, [`Node::health`]); and the

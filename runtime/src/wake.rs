@@ -1,6 +1,7 @@
 //! [`run_on_wake`]: a node woken by what it waits for, not by a clock: a sample on one of its
-//! inputs ([`Wake::Input`], an iceoryx2 wait set on the channel's event service), or its own
-//! device ([`Wake::Device`]). The heartbeat goes out every [`HEARTBEAT_PERIOD`] either way.
+//! inputs ([`Wake::Input`], an iceoryx2 wait set on the channel's event service; ticked again
+//! at once while the node has more work, [`Node::has_more_work`]), or its own device
+//! ([`Wake::Device`]). The heartbeat goes out every [`HEARTBEAT_PERIOD`] either way.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -15,7 +16,11 @@ use crate::{Finished, IpcTransport, RunError, heartbeat};
 pub enum Wake {
     /// A sample on this input channel (one of the node's declared inputs): the node sleeps in
     /// a wait set on the channel's event service until the publisher's notification.
-    /// Perception wakes on `camera/rgbd` this way.
+    /// Perception wakes on `camera/rgbd` this way. While the node says it has more work
+    /// ([`Node::has_more_work`]) the runtime ticks it again at once, without waiting, sending
+    /// the heartbeat between ticks when it is due and ending the run between ticks on a
+    /// signal or `stop`: the laser answers a request with one device exchange per tick this
+    /// way.
     Input { topic: &'static str },
     /// The node's own device paces it: the runtime ticks again as soon as a tick ends, and the
     /// step blocks in the driver's capture (event-driven in the driver, bounded by the node's
@@ -84,12 +89,28 @@ pub fn run_on_wake<N: Node>(
             let waiter = Waiter::new()?;
             let input = port.attach(&waiter)?;
             let beat = waiter.attach_interval(HEARTBEAT_PERIOD)?;
+            let heartbeat_ns = HEARTBEAT_PERIOD.as_nanos() as u64;
+            let mut last_heartbeat_ns = MonotonicClock::read_ns();
             waiter
                 .run(|attachment| -> Result<Flow, RunError> {
                     if attachment.has_event_from(&input) {
                         runner.tick(&mut transport, MonotonicClock::read_ns())?;
+                        // More work: tick again at once; the wait set's interval is not seen
+                        // meanwhile, so the heartbeat goes out here when due.
+                        while runner.node().has_more_work() {
+                            if harvest_ipc::termination::requested() || stopped() {
+                                return Ok(Flow::Stop);
+                            }
+                            let now_ns = MonotonicClock::read_ns();
+                            if now_ns.saturating_sub(last_heartbeat_ns) >= heartbeat_ns {
+                                last_heartbeat_ns = now_ns;
+                                heartbeat(&mut health, &mut runner, None)?;
+                            }
+                            runner.tick(&mut transport, now_ns)?;
+                        }
                     }
                     if attachment.has_event_from(&beat) {
+                        last_heartbeat_ns = MonotonicClock::read_ns();
                         heartbeat(&mut health, &mut runner, None)?;
                         if stopped() {
                             return Ok(Flow::Stop);

@@ -1,5 +1,5 @@
 //! Which apples the ALACS unit can scan: the one reach check of the laser, used by the laser
-//! process before it scans ([`crate::service::ScanService::answer`]) and by perception before
+//! process before it scans ([`crate::service::ScanService::start`]) and by perception before
 //! it asks (the perception crate's laser refiner), so that no scan is requested that the
 //! unit would answer "out of reach".
 //!

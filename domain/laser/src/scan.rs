@@ -1,7 +1,7 @@
 //! The ALACS perception strategy ([alacs sec. 3]): initialisation, interval scanning,
 //! refinement. No IPC here: [`ScanPlanner`] says where to put the slide, [`ScanProcessor`]
 //! turns each image into a candidate and picks the final position, and [`run_scan`] drives any
-//! [`AlacsUnit`] through one scan.
+//! [`AlacsUnit`] through one scan ([`crate::interval_scan`]: the scan exchange by exchange).
 
 use harvest_hw::DeviceError;
 use harvest_hw::alacs::{AlacsExtrinsics, AlacsUnit, SLIDE_STROKE_M, check_slide_position};
@@ -12,6 +12,7 @@ use crate::candidate::{
     CandidateConfig, CandidateError, CandidateFitter, CandidatePoint, PositionCandidate, TargetHint,
 };
 use crate::extraction::{ExtractionConfig, ExtractionError, LaserLineExtractor};
+use crate::interval_scan::{IntervalScan, drive};
 use crate::selection::select_candidate;
 use crate::triangulation::LaserTriangulator;
 
@@ -296,7 +297,8 @@ fn summarize(candidates: &[Result<PositionCandidate, ImageError>]) -> String {
         .join("; ")
 }
 
-/// Why a scan driven by [`run_scan`] failed.
+/// Why a scan driven by [`run_scan`] (or exchange by exchange,
+/// [`crate::interval_scan::IntervalScan`]) failed.
 #[derive(Debug, thiserror::Error)]
 pub enum ScanError<E: DeviceError> {
     #[error(transparent)]
@@ -306,11 +308,16 @@ pub enum ScanError<E: DeviceError> {
     Device(#[source] E),
     #[error(transparent)]
     NoCandidate(#[from] ScanFailure),
+    /// The scan was stopped before its last exchange (the emergency stop, or the end of the
+    /// run), the stop having switched the laser off.
+    #[error("the scan was stopped before its end (emergency stop or end of the run)")]
+    Stopped,
 }
 
 /// Runs one interval scan on `unit`: plan, then for each position move the slide, capture with
 /// the laser on and process the image with the *reported* slide position; the laser is
-/// switched off at the end, also on failure. `rgb` is resized to one image.
+/// switched off at the end, also on failure ([`crate::interval_scan`]). `rgb` is resized to one
+/// image.
 pub fn run_scan<U: AlacsUnit>(
     unit: &mut U,
     planner: &ScanPlanner,
@@ -319,39 +326,9 @@ pub fn run_scan<U: AlacsUnit>(
     rgb: &mut Vec<u8>,
 ) -> Result<ScanResult, ScanError<U::Error>> {
     let plan = planner.plan(hint.rough_centre_in_camera_m)?;
-    let intrinsics = unit.intrinsics();
-    rgb.resize(
-        intrinsics.width_px as usize * intrinsics.height_px as usize * 3,
-        0,
-    );
-    let scanned = scan_images(unit, &plan, processor, hint, rgb);
-    let laser_off = unit.set_laser(false);
-    let candidates = scanned.map_err(ScanError::Device)?;
-    laser_off.map_err(ScanError::Device)?;
-    let result = ScanProcessor::select(candidates)?;
-    tracing::debug!(
-        selected = result.selected,
-        centre_in_camera_m = ?result.centre_in_camera_m,
-        "ALACS scan done"
-    );
-    Ok(result)
-}
-
-fn scan_images<U: AlacsUnit>(
-    unit: &mut U,
-    plan: &ScanPlan,
-    processor: &mut ScanProcessor,
-    hint: &TargetHint,
-    rgb: &mut [u8],
-) -> Result<Vec<Result<PositionCandidate, ImageError>>, U::Error> {
-    unit.set_laser(true)?;
-    let mut candidates = Vec::with_capacity(plan.slide_positions_m.len());
-    for &slide_position_m in &plan.slide_positions_m {
-        unit.move_slide(slide_position_m)?;
-        let info = unit.capture_rgb(rgb)?;
-        candidates.push(processor.process_image(rgb, info.slide_position_m, hint));
-    }
-    Ok(candidates)
+    let mut scan = IntervalScan::new(plan, *hint, None);
+    drive(&mut scan, unit, processor, rgb, &mut || {});
+    scan.finish()
 }
 
 #[cfg(test)]

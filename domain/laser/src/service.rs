@@ -9,8 +9,10 @@
 //! ([`crate::selection`]). A single candidate depends on the request's apple radius, which the
 //! ToF camera measures only to a few millimetres; the fused sphere measures the radius itself.
 //!
-//! Transport-free: the laser process calls it with the driver of the simulated device, and
-//! `harvest eval laser` with an in-process device.
+//! Transport-free: [`ScanService::answer`] scans blocking on any unit (`harvest eval laser`
+//! with an in-process device); the laser's node ([`crate::task::LaserTask`]) scans one device
+//! exchange per tick with the same pieces: [`ScanService::start`], [`ScanService::answered`]
+//! for each exchange of the [`IntervalScan`], [`ScanService::complete`].
 //!
 //! [`ALACS_FROM_TOF_CAMERA`]: harvest_hw::alacs::ALACS_FROM_TOF_CAMERA
 
@@ -26,11 +28,12 @@ use crate::candidate::PositionCandidate;
 use crate::candidate::TargetHint;
 use crate::extraction::ExtractionError;
 use crate::fusion::{FusedSphere, FusionConfig, fuse_slices};
-use crate::observed_unit::{ObservedUnit, ScanMotion};
+use crate::interval_scan::{IntervalScan, UnitAnswer, drive};
 use crate::reach::{LaserReach, ReachError};
 use crate::scan::{
-    ProcessorConfig, ScanConfig, ScanError, ScanPlanError, ScanProcessor, ScanResult, run_scan,
+    ProcessorConfig, ScanConfig, ScanError, ScanPlanError, ScanProcessor, ScanResult,
 };
+use crate::scan_motion::ScanMotion;
 
 pub use crate::reach::FALLBACK_APPLE_RADIUS_M;
 
@@ -56,7 +59,7 @@ impl<E: DeviceError> ScanRequestError<E> {
                 ScanPlanError::OutOfReach { .. } | ScanPlanError::InvalidRoughCentre { .. },
             )) => LaserScanStatus::OutOfReach,
             Self::Scan(ScanError::Plan(ScanPlanError::InvalidConfig { .. }))
-            | Self::Scan(ScanError::Device(_)) => LaserScanStatus::DeviceError,
+            | Self::Scan(ScanError::Device(_) | ScanError::Stopped) => LaserScanStatus::DeviceError,
             Self::Scan(ScanError::NoCandidate(_)) => LaserScanStatus::NoLaserLine,
         }
     }
@@ -121,7 +124,7 @@ impl ScanService {
         self.reach.hint(rough_centre_in_alacs_m, radius_m)
     }
 
-    /// The unit's reach model (the check [`Self::answer`] makes before scanning).
+    /// The unit's reach model (the check [`Self::start`] makes before scanning).
     pub fn reach(&self) -> &LaserReach {
         &self.reach
     }
@@ -134,8 +137,8 @@ impl ScanService {
     /// score, `selected` indexes the one the selection picked, and `position_in_camera_m` is the
     /// refined centre when `status` is 0 (the fused sphere, else the selected candidate; the
     /// returned [`ScanResult::centre_in_camera_m`] holds the same in the ALACS frame), else the
-    /// request's rough position. `before_step` runs before every device operation
-    /// (heartbeats).
+    /// request's rough position; `scan_duration_ns` is the wall time of the whole answer.
+    /// `before_step` runs before every device exchange (heartbeats).
     pub fn answer<U: AlacsUnit>(
         &mut self,
         unit: &mut U,
@@ -144,9 +147,29 @@ impl ScanService {
         before_step: &mut dyn FnMut(),
     ) -> Result<ScanResult, ScanRequestError<U::Error>> {
         let started = Instant::now();
-        self.motion.clear();
-        self.fused = None;
-        let outcome = match self
+        let scan = self.start(request).map(|mut scan| {
+            drive(
+                &mut scan,
+                unit,
+                &mut self.processor,
+                &mut self.rgb,
+                before_step,
+            );
+            scan
+        });
+        let outcome = self.complete(request, scan, out);
+        out.scan_duration_ns = started.elapsed().as_nanos() as u64;
+        outcome
+    }
+
+    /// The scan of `request`'s apple, to be driven exchange by exchange (answers through
+    /// [`Self::answered`]) and then given to [`Self::complete`]; an apple out of view or reach
+    /// (no exchange needed) is the error, to be given to [`Self::complete`] as well.
+    pub fn start<E: DeviceError>(
+        &self,
+        request: &LaserScanRequest,
+    ) -> Result<IntervalScan<E>, ScanRequestError<E>> {
+        match self
             .reach
             .check(request.rough_position_in_camera_m, request.rough_radius_m)
         {
@@ -154,32 +177,61 @@ impl ScanService {
                 Err(ScanRequestError::NotInView { centre_in_alacs_m })
             }
             Err(ReachError::Plan(error)) => Err(ScanRequestError::Scan(ScanError::Plan(error))),
-            Ok(in_reach) => {
-                let mut observed =
-                    ObservedUnit::new(unit, self.slide_position_m, before_step, &mut self.motion);
-                let result = run_scan(
-                    &mut observed,
-                    self.reach.planner(),
-                    &mut self.processor,
-                    &in_reach.hint,
-                    &mut self.rgb,
-                );
-                self.slide_position_m = observed.slide_position_m();
+            Ok(in_reach) => Ok(IntervalScan::new(
+                in_reach.plan,
+                in_reach.hint,
+                self.slide_position_m,
+            )),
+        }
+    }
+
+    /// The unit answered `scan`'s next exchange after `device_ns` (a captured image in `rgb`,
+    /// processed at once): [`IntervalScan::answered`] with this service's image processor.
+    pub fn answered<E: DeviceError>(
+        &mut self,
+        scan: &mut IntervalScan<E>,
+        answer: UnitAnswer,
+        rgb: &[u8],
+        device_ns: u64,
+    ) {
+        scan.answered(answer, rgb, device_ns, &mut self.processor);
+    }
+
+    /// The answer to `request` once its scan ended (or could not start, `scan` being the error
+    /// of [`Self::start`]): the outcome, fused when the scan's circles agree, written into `out`
+    /// as [`Self::answer`] says except `scan_duration_ns` (the caller's clock). The scan's
+    /// motion becomes [`Self::last_motion`].
+    pub fn complete<E: DeviceError>(
+        &mut self,
+        request: &LaserScanRequest,
+        scan: Result<IntervalScan<E>, ScanRequestError<E>>,
+        out: &mut LaserScanResult,
+    ) -> Result<ScanResult, ScanRequestError<E>> {
+        self.fused = None;
+        let outcome = match scan {
+            Err(error) => {
+                self.motion.clear();
+                Err(error)
+            }
+            Ok(mut scan) => {
+                self.slide_position_m = scan.slide_position_m();
+                self.motion.clone_from(scan.motion());
                 let extrinsics = self.reach.planner().extrinsics;
-                result.map_err(ScanRequestError::from).map(|mut result| {
-                    self.valid.clear();
-                    self.valid
-                        .extend(result.candidates.iter().filter_map(|c| c.as_ref().ok()));
-                    self.fused = fuse_slices(&self.valid, &extrinsics, &self.fusion);
-                    if let Some(fused) = &self.fused {
-                        result.centre_in_camera_m = fused.centre_in_camera_m;
-                    }
-                    result
-                })
+                scan.finish()
+                    .map_err(ScanRequestError::from)
+                    .map(|mut result| {
+                        self.valid.clear();
+                        self.valid
+                            .extend(result.candidates.iter().filter_map(|c| c.as_ref().ok()));
+                        self.fused = fuse_slices(&self.valid, &extrinsics, &self.fusion);
+                        if let Some(fused) = &self.fused {
+                            result.centre_in_camera_m = fused.centre_in_camera_m;
+                        }
+                        result
+                    })
             }
         };
         self.write_result(request, &outcome, out);
-        out.scan_duration_ns = started.elapsed().as_nanos() as u64;
         outcome
     }
 

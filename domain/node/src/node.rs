@@ -103,6 +103,15 @@ pub trait Node {
         None
     }
 
+    /// Whether the node has work left that needs another tick at once, without waiting for
+    /// what wakes it (e.g. a scan of several device exchanges, one per tick). A runtime woken
+    /// by an input (`harvest_runtime::Wake::Input`) ticks again right away while this is true,
+    /// with the heartbeat between ticks; a periodic or device-paced run ignores it. Default:
+    /// never.
+    fn has_more_work(&self) -> bool {
+        false
+    }
+
     /// What the heartbeat says (asked once per heartbeat); `None`: the runner's run state
     /// (degraded while a device exchange fails) and figure.
     fn health(&mut self) -> Option<NodeHealth> {

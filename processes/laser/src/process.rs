@@ -1,30 +1,36 @@
 //! `harvest laser`: `laser/scan_request` -> ALACS interval scan -> `laser/scan_result`.
 //!
-//! Event-driven: the wait set wakes on scan requests (and on the heartbeat interval). Each
-//! request is answered in arrival order by [`ScanService::answer`] driving the ALACS unit's
-//! driver ([`SimAlacsUnit`] over `hw/alacs/*`); one scan is 12 device exchanges (laser on,
-//! 5 x move + capture, laser off), so the heartbeat is also sent between exchanges while a scan
-//! runs, or the supervisor would take the busy process for a hung one.
+//! [`LaserTask`] (`harvest_laser::task`: the requests answered in arrival order by the scan
+//! service, one device exchange per tick) on the node runtime with the ALACS unit's driver as
+//! its devices ([`UnitDevices`] over [`SimAlacsUnit`], `hw/alacs/*`), woken by each request on
+//! `laser/scan_request` ([`Wake::Input`]) and ticked back to back while a scan runs, with the
+//! heartbeat between ticks: a scan is 12 exchanges (laser on, 5 x move + capture, laser off),
+//! each bounded by `--device-timeout-ms`. The tick is the runtime's: `safety/emergency_stop`
+//! first (engaged: the laser off before anything else, the scan under way ended and answered
+//! with status `DeviceError`, never resumed), then the unit's answer to the previous exchange,
+//! the requests, the step and the next exchange. However the run ends, the laser is switched
+//! off and every request read is answered. This file wires the arguments into it.
 //!
 //! Frames: requests carry the rough centre in the ToF colour-camera frame; results come back in
 //! the same frame (see [`harvest_laser::service`]).
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
 
 use harvest_hw::alacs::{
     ALACS_FROM_TOF_CAMERA, AlacsError, AlacsExtrinsics, SimAlacsUnit, alacs_camera_intrinsics,
 };
-use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT};
-use harvest_ipc::payloads::{LaserScanResult, LaserScanStatus, ProcessRunState};
-use harvest_ipc::{Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, Waiter, WireCode};
-
-use harvest_hw::DeviceError;
+use harvest_ipc::catalogue::LASER_SCAN_REQUEST;
+use harvest_ipc::{Context, Domain};
 use harvest_laser::calibration::{CalibrationFileError, read_extrinsics};
 use harvest_laser::extraction::ExtractionError;
-use harvest_laser::scan::ScanError;
-use harvest_laser::service::{ScanRequestError, ScanService};
+use harvest_laser::service::ScanService;
+use harvest_laser::task::LaserTask;
+use harvest_laser::unit_devices::UnitDevices;
+use harvest_node::RunnerConfig;
+use harvest_robot_model::ModeSource;
+use harvest_runtime::{RunError, Wake, WakeOptions, run_on_wake};
 
 /// Arguments of `harvest laser`.
 #[derive(Debug, Clone, PartialEq, clap::Args)]
@@ -62,6 +68,9 @@ pub enum LaserProcessError {
     /// The transport (node, channel, send, receive, wait set) failed.
     #[error(transparent)]
     Ipc(#[from] harvest_ipc::error::IpcError),
+    /// The run ended on an error (transport, wait set).
+    #[error(transparent)]
+    Run(#[from] RunError),
 }
 
 harvest_ipc::from_ipc_errors!(LaserProcessError);
@@ -79,8 +88,8 @@ pub fn run(args: &LaserArgs, domain: &Domain, process_name: &str) -> Result<(), 
     run_until(args, domain, process_name, &AtomicBool::new(false))
 }
 
-/// [`run`] that also stops once `stop` is set (checked at each heartbeat, so within
-/// [`HEARTBEAT_PERIOD`] of setting it when no scan is running): tests run the process on a thread.
+/// [`run`] that also stops once `stop` is set (checked at each heartbeat, and between the
+/// exchanges of a scan): tests run the process on a thread.
 pub fn run_until(
     args: &LaserArgs,
     domain: &Domain,
@@ -94,23 +103,14 @@ pub fn run_until(
     }
     let extrinsics = load_extrinsics(args)?;
     let intrinsics = alacs_camera_intrinsics();
-    let mut service = ScanService::new(extrinsics, intrinsics, ALACS_FROM_TOF_CAMERA)?;
+    let service = ScanService::new(extrinsics, intrinsics, ALACS_FROM_TOF_CAMERA)?;
 
     let context = Context::new(domain, process_name)?;
-    let requests = context.subscriber(LASER_SCAN_REQUEST)?;
-    let mut results = context.publisher(LASER_SCAN_RESULT)?;
-    let mut unit = SimAlacsUnit::connect(
+    let unit = SimAlacsUnit::connect(
         &context,
         intrinsics,
         Duration::from_millis(args.device_timeout_ms),
     )?;
-    let mut health = HealthReporter::new(&context)?;
-    let waiter = Waiter::new()?;
-    let request_guard = waiter.attach_listener(requests.listener())?;
-    let heartbeat = waiter.attach_interval(HEARTBEAT_PERIOD)?;
-
-    let mut scans = ScanCounters::default();
-    let mut last_beat = Instant::now();
     tracing::info!(
         alpha_deg = extrinsics.alpha_rad.to_degrees(),
         l0_mm = extrinsics.l0_m * 1e3,
@@ -118,112 +118,39 @@ pub fn run_until(
         calibration = ?args.calibration,
         "laser scanner running"
     );
-    waiter
-        .run(|attachment| -> Result<Flow, LaserProcessError> {
-            if attachment.has_event_from(&request_guard) {
-                while let Some(sample) = requests.receive()? {
-                    let request = *sample;
-                    drop(sample);
-                    let mut result = LaserScanResult::default();
-                    let mut beat_during_scan = || {
-                        if last_beat.elapsed() >= HEARTBEAT_PERIOD {
-                            last_beat = Instant::now();
-                            if let Err(error) = health.report(
-                                scans.run_state(),
-                                scans.answered,
-                                "scanning_apple",
-                                u64::from(request.apple_id),
-                            ) {
-                                tracing::debug!(%error, "heartbeat during a scan failed");
-                            }
-                        }
-                    };
-                    let outcome =
-                        service.answer(&mut unit, &request, &mut result, &mut beat_during_scan);
-                    results.publish(&result)?;
-                    scans.count(&result);
-                    match outcome {
-                        Ok(scan) => tracing::debug!(
-                            request_seq = request.request_seq,
-                            apple_id = request.apple_id,
-                            selected = scan.selected,
-                            position_in_camera_m = ?result.position_in_camera_m,
-                            scan_ms = result.scan_duration_ns / 1_000_000,
-                            "apple scanned"
-                        ),
-                        Err(error) if result.status == LaserScanStatus::DeviceError => {
-                            if let ScanRequestError::Scan(ScanError::Device(device)) = &error {
-                                health.note_device_error(device.kind().into());
-                            }
-                            tracing::warn!(
-                                request_seq = request.request_seq,
-                                apple_id = request.apple_id,
-                                %error,
-                                "scan failed"
-                            )
-                        }
-                        Err(error) => tracing::debug!(
-                            request_seq = request.request_seq,
-                            apple_id = request.apple_id,
-                            status = ?result.status,
-                            %error,
-                            "scan gave no position"
-                        ),
-                    }
-                }
-            }
-            if attachment.has_event_from(&heartbeat) {
-                last_beat = Instant::now();
-                health.report(
-                    scans.run_state(),
-                    scans.answered,
-                    "last_scan_ms",
-                    scans.last_scan_ns / 1_000_000,
-                )?;
-                if stop.load(Ordering::Relaxed) {
-                    return Ok(Flow::Stop);
-                }
-            }
-            Ok(Flow::Continue)
-        })
-        .map_err(harvest_ipc::RunError::flatten)?;
+    let options = WakeOptions {
+        wake: Wake::Input {
+            topic: LASER_SCAN_REQUEST.spec.topic,
+        },
+        runner: RunnerConfig {
+            // A read takes the last exchange's answer and never fails.
+            max_read_failures: u32::MAX,
+            // The mode does not restrict scanning (harvest_laser::task).
+            mode_source: ModeSource::WithoutOperator,
+        },
+        // The laser is an emitter on a moving slide: it obeys the stop.
+        obeys: true,
+        stop: Some(stop),
+    };
+    let finished = run_on_wake(
+        &context,
+        LaserTask::<SimAlacsUnit>::new(service),
+        UnitDevices::new(unit),
+        options,
+    )?;
+    let counts = finished.runner.node().counts();
+    let (read_failures, exchange_failures) = finished.runner.device_failures();
     tracing::info!(
-        answered = scans.answered,
-        refined = scans.refined,
-        device_errors = scans.device_errors,
-        dropped_requests = requests.dropped_count(),
+        answered = counts.answered,
+        refined = counts.refined,
+        device_errors = counts.device_errors,
+        stopped = counts.stopped,
+        exchange_failures,
+        read_failures,
         "laser scanner stopped"
     );
+    finished.result?;
     Ok(())
-}
-
-/// What the process has answered so far (heartbeat figures).
-#[derive(Debug, Clone, Copy, Default)]
-struct ScanCounters {
-    answered: u64,
-    refined: u64,
-    device_errors: u64,
-    last_status: WireCode<LaserScanStatus>,
-    last_scan_ns: u64,
-}
-
-impl ScanCounters {
-    fn count(&mut self, result: &LaserScanResult) {
-        self.answered += 1;
-        self.refined += u64::from(result.status == LaserScanStatus::Ok);
-        self.device_errors += u64::from(result.status == LaserScanStatus::DeviceError);
-        self.last_status = result.status;
-        self.last_scan_ns = result.scan_duration_ns;
-    }
-
-    /// Degraded while the last scan failed on the device.
-    fn run_state(&self) -> ProcessRunState {
-        if self.last_status == LaserScanStatus::DeviceError {
-            ProcessRunState::Degraded
-        } else {
-            ProcessRunState::Running
-        }
-    }
 }
 
 #[cfg(test)]

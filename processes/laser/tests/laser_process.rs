@@ -11,38 +11,15 @@ mod common;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
 
-use common::{Device, ideal_world, unique_domain};
+use common::{Device, ideal_world, unique_domain, wait_for};
 use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsExtrinsics, alacs_camera_intrinsics};
+use harvest_ipc::Context;
 use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT, PROCESS_HEALTH};
 use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
-use harvest_ipc::{Context, Payload, Subscriber};
 use harvest_laser::{LaserReach, ScanConfig};
 use harvest_laser_process::process::{LaserArgs, run_until};
 use harvest_sim::alacs_device::robot_from_tof_color;
-
-/// Watchdog on every wait of the test.
-const WATCHDOG: Duration = Duration::from_secs(60);
-
-/// Waits (event-driven, bounded by the watchdog) for the first message `accept` takes.
-fn wait_for<T: Payload + Copy>(subscriber: &Subscriber<T>, accept: impl Fn(&T) -> bool) -> T {
-    let deadline = Instant::now() + WATCHDOG;
-    loop {
-        while let Some(message) = subscriber.receive().expect("receive") {
-            if accept(&message) {
-                return *message;
-            }
-        }
-        let remaining = deadline.saturating_duration_since(Instant::now());
-        assert!(
-            !remaining.is_zero(),
-            "watchdog: nothing on {:?}",
-            subscriber.channel()
-        );
-        let _ = subscriber.listener().timed_wait(|_| {}, remaining);
-    }
-}
 
 #[test]
 fn laser_process_answers_scan_requests() {

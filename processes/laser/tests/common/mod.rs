@@ -7,10 +7,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use harvest_ipc::catalogue::{HW_ALACS_COMMAND, HW_ALACS_IMAGE};
-use harvest_ipc::{Context, Domain, Flow, Waiter};
+use harvest_ipc::{Context, Domain, Flow, Payload, Subscriber, Waiter};
 use harvest_sim::alacs_device::{AlacsDeviceConfig, AlacsDeviceServer};
 use harvest_sim::{Scenario, World};
 
@@ -18,6 +18,28 @@ use harvest_sim::{Scenario, World};
 /// it is dropped.
 pub fn unique_domain(tag: &str) -> harvest_ipc::ScratchDomain {
     harvest_ipc::ScratchDomain::new(tag)
+}
+
+/// Watchdog on every wait of the tests.
+pub const WATCHDOG: Duration = Duration::from_secs(60);
+
+/// Waits (event-driven, bounded by the watchdog) for the first message `accept` takes.
+pub fn wait_for<T: Payload + Copy>(subscriber: &Subscriber<T>, accept: impl Fn(&T) -> bool) -> T {
+    let deadline = Instant::now() + WATCHDOG;
+    loop {
+        while let Some(message) = subscriber.receive().expect("receive") {
+            if accept(&message) {
+                return *message;
+            }
+        }
+        let remaining = deadline.saturating_duration_since(Instant::now());
+        assert!(
+            !remaining.is_zero(),
+            "watchdog: nothing on {:?}",
+            subscriber.channel()
+        );
+        let _ = subscriber.listener().timed_wait(|_| {}, remaining);
+    }
 }
 
 /// The world the device shows: the `ideal` scenario (a grid of apples, no leaves), seed 5.
@@ -34,11 +56,17 @@ pub struct Device {
 impl Device {
     /// Starts serving [`ideal_world`] in `domain` and returns once its ports exist.
     pub fn start(domain: &Domain) -> Self {
+        Self::start_slow(domain, Duration::ZERO)
+    }
+
+    /// [`Self::start`] with a device that takes `delay` more for every answer (a slow slide
+    /// or camera).
+    pub fn start_slow(domain: &Domain, delay: Duration) -> Self {
         let stop = Arc::new(AtomicBool::new(false));
         let (ready_tx, ready_rx) = mpsc::channel();
         let thread = {
             let (domain, stop) = (domain.clone(), Arc::clone(&stop));
-            std::thread::spawn(move || serve(&domain, &stop, &ready_tx))
+            std::thread::spawn(move || serve(&domain, &stop, &ready_tx, delay))
         };
         ready_rx
             .recv_timeout(Duration::from_secs(30))
@@ -63,8 +91,14 @@ impl Drop for Device {
     }
 }
 
-/// What the sim process does for the ALACS: answer every command with one loaned image.
-fn serve(domain: &Domain, stop: &AtomicBool, ready: &mpsc::Sender<()>) -> Result<u64, String> {
+/// What the sim process does for the ALACS: answer every command with one loaned image, each
+/// `delay` late.
+fn serve(
+    domain: &Domain,
+    stop: &AtomicBool,
+    ready: &mpsc::Sender<()>,
+    delay: Duration,
+) -> Result<u64, String> {
     let world = ideal_world();
     let mut server =
         AlacsDeviceServer::new(AlacsDeviceConfig::default()).map_err(|e| e.to_string())?;
@@ -88,6 +122,10 @@ fn serve(domain: &Domain, stop: &AtomicBool, ready: &mpsc::Sender<()>) -> Result
         .run(|attachment| -> Result<Flow, String> {
             if attachment.has_event_from(&command_guard) {
                 while let Some(command) = commands.receive().map_err(|e| e.to_string())? {
+                    if !delay.is_zero() {
+                        // The test double of a slow device.
+                        std::thread::sleep(delay);
+                    }
                     let mut image = images.loan().map_err(|e| e.to_string())?;
                     server.handle(&world, &command, &mut image);
                     images.send(image).map_err(|e| e.to_string())?;
