@@ -67,10 +67,13 @@ fn run_with_watchdog(mut command: Command, limit: Duration) -> Output {
 
 /// The Python station: `station_client.py <args>`, its JSON report.
 fn python_station(args: &[&str]) -> Value {
+    python_script("station_client.py", args)
+}
+
+/// Runs one of the independent Python clients of `tests/remote`; its JSON report.
+fn python_script(script: &str, args: &[&str]) -> Value {
     let mut command = Command::new("python3");
-    command
-        .arg(Path::new(SCRIPTS).join("station_client.py"))
-        .args(args);
+    command.arg(Path::new(SCRIPTS).join(script)).args(args);
     let output = run_with_watchdog(command, Duration::from_secs(60));
     assert!(output.status.success(), "python station: {}", text(&output));
     serde_json::from_slice(&output.stdout).unwrap_or_else(|e| panic!("{e}: {}", text(&output)))
@@ -279,6 +282,83 @@ fn wait_fleet(port: u16, limit: Duration, check: impl Fn(&Value) -> bool) -> Opt
         std::thread::sleep(Duration::from_millis(100));
     }
     None
+}
+
+/// The robot as a ROS 2 node over rmw_zenoh, seen by an independent peer (Python
+/// `eclipse-zenoh` and `rosbags`, none of our code): the node and its publishers in the ROS 2
+/// graph (liveliness tokens), joint states and diagnostics decoded by the Jazzy types from keys
+/// carrying rosbags' own RIHS01 hashes, 33-byte attachments with increasing sequence numbers;
+/// then a `std_msgs/Bool` true from ROS engages the robot's emergency stop.
+#[test]
+fn a_ros2_peer_sees_the_robot_over_rmw_zenoh_and_can_stop_it() {
+    ensure_python("zenoh", &["eclipse-zenoh==1.10.2"]);
+    ensure_python("rosbags", &["rosbags"]);
+    let port = free_port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let robot = Robot::start(
+        "remote-ros2",
+        &["--listen", &endpoint, "--ros2-domain", "0"],
+    );
+    assert!(
+        !robot.estop_within(Duration::from_millis(500), true),
+        "stopped before the test"
+    );
+    let report = python_script("ros2_client.py", &[&endpoint, "r1", "3"]);
+    let engaged = robot.estop_within(Duration::from_secs(10), true);
+    let logs = robot.stop();
+    assert!(
+        engaged,
+        "the ROS 2 e-stop did not engage the robot's stop: {logs}"
+    );
+    assert_eq!(report["errors"], serde_json::json!([]), "{report}\n{logs}");
+    let tokens: Vec<&str> = report["tokens"]
+        .as_array()
+        .expect("tokens")
+        .iter()
+        .filter_map(Value::as_str)
+        .collect();
+    assert!(
+        tokens
+            .iter()
+            .any(|t| t.contains("/NN/%/%r1/harvest_remote")),
+        "no node token: {tokens:?}"
+    );
+    for (kind, topic) in [
+        ("MP", "%r1%arm1%joint_states"),
+        ("MP", "%r1%diagnostics"),
+        ("MS", "%r1%emergency_stop"),
+    ] {
+        assert!(
+            tokens
+                .iter()
+                .any(|t| t.contains(&format!("/{kind}/")) && t.contains(topic)),
+            "no {kind} token for {topic}: {tokens:?}"
+        );
+    }
+    let topics = &report["topics"];
+    for arm in ["arm1", "arm2"] {
+        let joints = &topics[format!("/r1/{arm}/joint_states")];
+        assert!(joints["count"].as_u64().unwrap_or(0) >= 20, "{report}");
+        assert_eq!(
+            joints["sequences_increase"],
+            serde_json::json!(true),
+            "{joints}"
+        );
+        let names = joints["last"]["name"].as_array().expect("joint names");
+        assert_eq!(names.len(), 4, "{joints}");
+        assert!(
+            joints["last"]["stamp_s"].as_u64().unwrap_or(0) > 1_600_000_000,
+            "{joints}"
+        );
+    }
+    let diagnostics = &topics["/r1/diagnostics"];
+    assert!(diagnostics["count"].as_u64().unwrap_or(0) >= 1, "{report}");
+    assert!(
+        diagnostics["names"]
+            .to_string()
+            .contains("harvest/executive"),
+        "{diagnostics}"
+    );
 }
 
 #[test]

@@ -15,6 +15,8 @@
 //! - [`link_settings`]: the link's TOML settings, the security rules (loopback only unless
 //!   configured; beyond loopback TLS plus user/password or certificates; viewers cannot command)
 //!   and the Zenoh configuration they become.
+//! - [`ros2_graph`]: the robot as a ROS 2 node over rmw_zenoh (topic keys, liveliness tokens,
+//!   the sample attachment).
 
 #![forbid(unsafe_code)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
@@ -28,6 +30,7 @@ pub mod link_settings;
 pub mod rate_gate;
 pub mod remote_request;
 pub mod robot_name;
+pub mod ros2_graph;
 pub mod state_encoding;
 pub mod token_bucket;
 

@@ -8,7 +8,7 @@ use harvest_ros2::msgs::{
 };
 use harvest_ros2::type_description::MessageType;
 
-const PUBLISHED: [(&MessageType, &str); 15] = [
+const PUBLISHED: [(&MessageType, &str); 16] = [
     (
         &builtin_interfaces::TIME_TYPE,
         "RIHS01_b106235e25a4c5ed35098aa0a61a3ee9c9b18d197f398b0e4206cea9acf9c197",
@@ -16,6 +16,11 @@ const PUBLISHED: [(&MessageType, &str); 15] = [
     (
         &std_msgs::HEADER_TYPE,
         "RIHS01_f49fb3ae2cf070f793645ff749683ac6b06203e41c891e17701b1cb597ce6a01",
+    ),
+    (
+        // The type of rmw_zenoh's own talker example (`0/chatter/std_msgs::msg::dds_::String_/...`).
+        &std_msgs::STRING_TYPE,
+        "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18",
     ),
     (
         &std_msgs::BOOL_TYPE,

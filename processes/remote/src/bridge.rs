@@ -12,6 +12,10 @@
 //! - two **command lanes** (`command_lane.rs`): the command key and the e-stop key, each
 //!   a queryable, a thread and its own `operator/command` publisher.
 //!
+//! With `--ros2-domain N` the same session also carries the robot as a ROS 2 node over
+//! rmw_zenoh (`ros2_link.rs`): joint states, detections, events and diagnostics at the same
+//! paces, and an e-stop from ROS.
+//!
 //! Every Zenoh publisher drops on congestion; the bridge reads the stack's channels like any
 //! other subscriber, so a slow or cut link never blocks a process onboard. Without settings
 //! the session neither listens nor connects: the robot is off the network until configured.
@@ -24,7 +28,7 @@ use harvest_ipc::catalogue::{
     ARM_STATE, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MODE, PERCEPTION_APPLES, PROCESS_HEALTH,
     VACUUM_STATE,
 };
-use harvest_ipc::payloads::{AppleDetections, ProcessRunState};
+use harvest_ipc::payloads::{AppleDetections, ArmState, ProcessRunState};
 use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
 };
@@ -45,6 +49,7 @@ use crate::camera_thread;
 use crate::command_lane::{self, LaneKind};
 use crate::error::RemoteError;
 use crate::link_session::{LinkArgs, open_session, priority};
+use crate::ros2_link::Ros2Link;
 
 /// The tick that samples the 200 Hz states and sends what is due: a fifth of the states'
 /// period, so a gate that opens between two ticks waits at most 10 ms (18-20 Hz).
@@ -76,6 +81,11 @@ pub struct RemoteArgs {
     /// How long a command waits for the executive's answer, ms.
     #[arg(long, default_value_t = 1500)]
     pub ack_timeout_ms: u64,
+    /// Also appear as a ROS 2 node over rmw_zenoh in this ROS domain (`ROS_DOMAIN_ID`, 0-232):
+    /// connect the link to the ROS machine's `rmw_zenohd` (`--connect tcp/HOST:7447`). Off by
+    /// default; refused together with `[access]` rules (they cover the harvest keys only).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=232))]
+    pub ros2_domain: Option<u32>,
 }
 
 /// The robot's name: `--robot`, else the domain's name when it is a valid one, else `robot`.
@@ -140,6 +150,24 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
     }
     let _alive = session.liveliness().declare_token(keys.alive()).wait()?;
     let publishers = declare_publishers(&session, &keys)?;
+    let mut ros2 = match args.ros2_domain {
+        Some(_) if settings.access.is_some() => {
+            return Err(RemoteError::Invalid(
+                "--ros2-domain with [access] rules in the link settings: the rules cover the \
+                 harvest/v1 keys only, so ROS 2 peers would be refused; use a link without \
+                 [access] (a trusted wired link to the ROS machine)"
+                    .to_owned(),
+            ));
+        }
+        Some(ros_domain_id) => Some(Ros2Link::declare(
+            &session,
+            &robot,
+            ros_domain_id,
+            domain,
+            process_name,
+        )?),
+        None => None,
+    };
 
     let gate = Arc::new(Mutex::new(InboundGate::new(keys.clone())));
     let ack_timeout = Duration::from_millis(args.ack_timeout_ms);
@@ -186,8 +214,8 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
         _ => 1.0,
     };
     let mut arm_gates = [
-        RateGate::<Vec<u8>>::with_max_hz(rate(Outbound::ArmState(1))),
-        RateGate::<Vec<u8>>::with_max_hz(rate(Outbound::ArmState(2))),
+        RateGate::<ArmState>::with_max_hz(rate(Outbound::ArmState(1))),
+        RateGate::<ArmState>::with_max_hz(rate(Outbound::ArmState(2))),
     ];
     let mut vacuum_gate = RateGate::<Vec<u8>>::with_max_hz(rate(Outbound::VacuumState));
     let mut detections_gate =
@@ -263,6 +291,9 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
             if entry.0.due(&content, now_ns) {
                 put(&publishers, Outbound::Health, json.clone(), &mut failed);
                 sent += 1;
+                if let Some(ros2) = ros2.as_mut() {
+                    ros2.health(beat);
+                }
             }
             entry.1 = json;
             Ok(())
@@ -276,6 +307,9 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
                 &mut failed,
             );
             sent += 1;
+            if let Some(ros2) = ros2.as_mut() {
+                ros2.event(event);
+            }
             Ok(())
         })?;
         if let Some(detections) = detections_in.receive_latest()? {
@@ -289,6 +323,9 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
                 &mut failed,
             );
             sent += 1;
+            if let Some(ros2) = ros2.as_mut() {
+                ros2.detections(&detections);
+            }
         }
         if attachment.has_event_from(&tick) {
             for (i, arm_in) in arms_in.iter().enumerate() {
@@ -296,16 +333,19 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
                     && state.header.msg_seq != last_state_seq[i]
                 {
                     last_state_seq[i] = state.header.msg_seq;
-                    arm_gates[i].offer(json_bytes(&*state));
+                    arm_gates[i].offer(*state);
                 }
-                if let Some(json) = arm_gates[i].take_due(now_ns) {
+                if let Some(state) = arm_gates[i].take_due(now_ns) {
                     put(
                         &publishers,
                         Outbound::ArmState(i as u8 + 1),
-                        json,
+                        json_bytes(&state),
                         &mut failed,
                     );
                     sent += 1;
+                    if let Some(ros2) = ros2.as_mut() {
+                        ros2.arm_state(&state);
+                    }
                 }
             }
             if let Some(state) = vacuum_in.receive_latest()?
@@ -365,7 +405,8 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
         Ok(Flow::Continue)
     });
     let counters = gate.lock().map(|g| g.counters()).unwrap_or_default();
-    info!(sent, failed, ?counters, "remote link stopping");
+    let ros2_failed = ros2.as_ref().map_or(0, Ros2Link::failed_puts);
+    info!(sent, failed, ros2_failed, ?counters, "remote link stopping");
     if failed > 0 {
         warn!(failed, "puts failed while the link ran");
     }

@@ -20,6 +20,7 @@ mod command_lane;
 pub mod error;
 pub mod fleet;
 pub mod link_session;
+pub mod ros2_link;
 pub mod station_ctl;
 
 pub use bridge::{RemoteArgs, run};

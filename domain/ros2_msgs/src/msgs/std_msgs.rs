@@ -1,4 +1,4 @@
-//! `std_msgs`: the header every stamped message starts with, and `Bool`.
+//! `std_msgs`: the header every stamped message starts with, `Bool` and `String`.
 
 use super::builtin_interfaces::{TIME_TYPE, Time};
 use crate::cdr::{CdrError, CdrReader, CdrWriter};
@@ -68,6 +68,32 @@ impl RosMessage for Bool {
     fn read_fields(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
         Ok(Self {
             data: r.read_bool()?,
+        })
+    }
+}
+
+/// `std_msgs/msg/String`.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct StringMessage {
+    pub data: String,
+}
+
+pub static STRING_TYPE: MessageType = MessageType {
+    name: "std_msgs/msg/String",
+    constants: &[],
+    fields: &[Field::new("data", STRING)],
+};
+
+impl RosMessage for StringMessage {
+    const TYPE: &'static MessageType = &STRING_TYPE;
+
+    fn write_fields(&self, w: &mut CdrWriter) {
+        w.write_string(&self.data);
+    }
+
+    fn read_fields(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
+        Ok(Self {
+            data: r.read_string()?,
         })
     }
 }
