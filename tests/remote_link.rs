@@ -286,7 +286,8 @@ fn wait_fleet(port: u16, limit: Duration, check: impl Fn(&Value) -> bool) -> Opt
 
 /// The robot as a ROS 2 node over rmw_zenoh, seen by an independent peer (Python
 /// `eclipse-zenoh` and `rosbags`, none of our code): the node and its publishers in the ROS 2
-/// graph (liveliness tokens), joint states and diagnostics decoded by the Jazzy types from keys
+/// graph (liveliness tokens), joint states, camera images and diagnostics decoded by the Jazzy
+/// types from keys
 /// carrying rosbags' own RIHS01 hashes, 33-byte attachments with increasing sequence numbers;
 /// then a `std_msgs/Bool` true from ROS engages the robot's emergency stop.
 #[test]
@@ -351,6 +352,11 @@ fn a_ros2_peer_sees_the_robot_over_rmw_zenoh_and_can_stop_it() {
             "{joints}"
         );
     }
+    // The camera while this peer's subscription matches: JPEG images at the link's pace.
+    let camera = &topics["/r1/camera/color/image_raw/compressed"];
+    assert!(camera["count"].as_u64().unwrap_or(0) >= 2, "{report}");
+    assert_eq!(camera["jpeg_ok"], camera["count"], "{camera}");
+    assert_eq!(camera["format"], "jpeg", "{camera}");
     let diagnostics = &topics["/r1/diagnostics"];
     assert!(diagnostics["count"].as_u64().unwrap_or(0) >= 1, "{report}");
     assert!(

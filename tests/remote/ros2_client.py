@@ -89,6 +89,10 @@ def main():
                     for status in message.status:
                         if status.name not in topic["names"]:
                             topic["names"].append(status.name)
+                elif msgtype == "sensor_msgs/msg/CompressedImage":
+                    jpeg = bytes(message.data)
+                    topic["format"] = message.format
+                    topic["jpeg_ok"] = topic.get("jpeg_ok", 0) + int(jpeg[:2] == b"\xff\xd8" and jpeg[-2:] == b"\xff\xd9")
                 elif msgtype == "std_msgs/msg/String":
                     topic["last"] = json.loads(message.data)
             except Exception as error:  # noqa: BLE001 - every failure goes into the report

@@ -182,7 +182,15 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
             ack_timeout,
         )?;
     }
-    camera_thread::spawn(&session, &keys, domain, process_name, camera_settings)?;
+    let ros_camera = ros2.as_mut().and_then(Ros2Link::take_camera);
+    camera_thread::spawn(
+        &session,
+        &keys,
+        domain,
+        process_name,
+        camera_settings,
+        ros_camera,
+    )?;
 
     let context = Context::new(domain, process_name)?;
     let mut health = HealthReporter::new(&context)?;

@@ -9,6 +9,9 @@
 //!   hypothesis, the track id as `id`) at the link's detections rate;
 //! - `/<robot>/harvest/events` (`std_msgs/msg/String`, each event's JSON line, as the link's
 //!   own events key carries it: ROS has no standard type for a pick cycle's events);
+//! - `/<robot>/camera/color/image_raw/compressed` (`sensor_msgs/msg/CompressedImage`, format
+//!   `jpeg`): the link's downscaled JPEG, sent by the camera thread at its pace only while a ROS
+//!   subscriber (or a station) matches ([`RosCamera`]);
 //! - `/<robot>/diagnostics` (`diagnostic_msgs/msg/DiagnosticArray`, one status per process
 //!   heartbeat heard: OK starting or running, WARN degraded or stopping, ERROR failed);
 //! - in: `/<robot>/emergency_stop` (`std_msgs/msg/Bool`): `true` engages the emergency stop as
@@ -34,9 +37,10 @@ use harvest_ros2::RosMessage;
 use harvest_ros2::msgs::diagnostic_msgs::{
     DIAGNOSTIC_ARRAY_TYPE, DiagnosticArray, DiagnosticStatus, KeyValue,
 };
-use harvest_ros2::msgs::sensor_msgs::JOINT_STATE_TYPE;
+use harvest_ros2::msgs::sensor_msgs::{COMPRESSED_IMAGE_TYPE, CompressedImage, JOINT_STATE_TYPE};
 use harvest_ros2::msgs::std_msgs::{BOOL_TYPE, Bool, Header, STRING_TYPE, StringMessage};
 use harvest_ros2::msgs::vision_msgs::DETECTION_3D_ARRAY_TYPE;
+use harvest_ros2_mapping::frames::COLOR_OPTICAL_FRAME;
 use harvest_ros2_mapping::to_ros;
 use tracing::{debug, info, warn};
 use zenoh::Wait;
@@ -116,6 +120,27 @@ impl RosPublisher {
     }
 }
 
+/// The camera's ROS 2 publisher, handed to the camera thread.
+pub struct RosCamera {
+    publisher: RosPublisher,
+}
+
+impl RosCamera {
+    /// The Zenoh publisher, for its matching listener.
+    pub fn publisher(&self) -> &Publisher<'static> {
+        &self.publisher.publisher
+    }
+
+    /// Puts one JPEG of the frame captured at `capture_ns` (stack clock).
+    pub fn put(&mut self, jpeg: &[u8], capture_ns: u64) {
+        self.publisher.put(&CompressedImage {
+            header: Header::new(ros_stamp_ns(capture_ns), COLOR_OPTICAL_FRAME),
+            format: "jpeg".to_owned(),
+            data: jpeg.to_vec(),
+        });
+    }
+}
+
 /// The robot's ROS 2 node on the link (module documentation).
 pub struct Ros2Link {
     _node_token: LivelinessToken,
@@ -124,6 +149,7 @@ pub struct Ros2Link {
     detections: RosPublisher,
     events: RosPublisher,
     diagnostics: RosPublisher,
+    camera: Option<RosCamera>,
 }
 
 impl Ros2Link {
@@ -173,6 +199,14 @@ impl Ros2Link {
             &node.topic("diagnostics", &DIAGNOSTIC_ARRAY_TYPE),
             5,
         )?;
+        let camera = RosCamera {
+            publisher: RosPublisher::declare(
+                session,
+                &node,
+                &node.topic("camera/color/image_raw/compressed", &COMPRESSED_IMAGE_TYPE),
+                7,
+            )?,
+        };
         let estop_topic = node.topic("emergency_stop", &BOOL_TYPE);
         let estop_token = session
             .liveliness()
@@ -190,7 +224,13 @@ impl Ros2Link {
             detections,
             events,
             diagnostics,
+            camera: Some(camera),
         })
+    }
+
+    /// The camera's publisher, for the camera thread (once).
+    pub fn take_camera(&mut self) -> Option<RosCamera> {
+        self.camera.take()
     }
 
     pub fn arm_state(&mut self, state: &ArmState) {
