@@ -107,7 +107,7 @@ def main():
     estop_key = f"0/{robot}/emergency_stop/std_msgs::msg::dds_::Bool_/{JAZZY.hash_rihs01(estop_type)}"
     Bool = JAZZY.types[estop_type]
     attachment = struct.pack("<qqB", 1, time.time_ns(), 16) + bytes(16)
-    session.put(estop_key, JAZZY.serialize_cdr(Bool(data=True), estop_type), attachment=attachment)
+    session.put(estop_key, bytes(JAZZY.serialize_cdr(Bool(data=True), estop_type)), attachment=attachment)
     time.sleep(1.0)
     for topic in report["topics"].values():
         sequences = topic.pop("sequences")
