@@ -304,7 +304,8 @@ fn a_ros2_peer_sees_the_robot_over_rmw_zenoh_and_can_stop_it() {
         !robot.estop_within(Duration::from_millis(500), true),
         "stopped before the test"
     );
-    let report = python_script("ros2_client.py", &[&endpoint, "r1", "3"]);
+    // Six seconds: diagnostics come on change and on the 5 s beat.
+    let report = python_script("ros2_client.py", &[&endpoint, "r1", "6"]);
     let engaged = robot.estop_within(Duration::from_secs(10), true);
     let logs = robot.stop();
     assert!(

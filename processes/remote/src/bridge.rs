@@ -28,7 +28,7 @@ use harvest_ipc::catalogue::{
     ARM_STATE, EMERGENCY_STOP, HARVEST_EVENTS, OPERATOR_MODE, PERCEPTION_APPLES, PROCESS_HEALTH,
     VACUUM_STATE,
 };
-use harvest_ipc::payloads::{AppleDetections, ArmState, ProcessRunState};
+use harvest_ipc::payloads::{AppleDetections, ArmState, ProcessHealth, ProcessRunState};
 use harvest_ipc::{
     Context, Domain, Flow, HEARTBEAT_PERIOD, HealthReporter, MonotonicClock, Waiter,
 };
@@ -233,7 +233,9 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
     let mut estop_beat = ChangeBeat::<(u8, String)>::new(beat_ns);
     let mut last_estop_json: Option<Vec<u8>> = None;
     let mut estop_heard = false;
-    let mut health_beats: HashMap<String, (ChangeBeat<HealthContent>, Vec<u8>)> = HashMap::new();
+    // Per process: its beat, the last heartbeat's JSON and the heartbeat (for ROS 2 diagnostics).
+    let mut health_beats: HashMap<String, (ChangeBeat<HealthContent>, Vec<u8>, ProcessHealth)> =
+        HashMap::new();
     let mut summary_beat = ChangeBeat::<FleetSummary>::new(beat_ns);
     let mut summary = SummaryBuilder::new(
         robot.as_str(),
@@ -295,7 +297,7 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
             let json = json_bytes(beat);
             let entry = health_beats
                 .entry(content.0.clone())
-                .or_insert_with(|| (ChangeBeat::new(HEALTH_BEAT_NS), Vec::new()));
+                .or_insert_with(|| (ChangeBeat::new(HEALTH_BEAT_NS), Vec::new(), *beat));
             if entry.0.due(&content, now_ns) {
                 put(&publishers, Outbound::Health, json.clone(), &mut failed);
                 sent += 1;
@@ -304,6 +306,7 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
                 }
             }
             entry.1 = json;
+            entry.2 = *beat;
             Ok(())
         })?;
         events_in.try_drain(|event| -> Result<(), RemoteError> {
@@ -382,9 +385,12 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
             {
                 put(&publishers, Outbound::Mode, json.clone(), &mut failed);
             }
-            for (beat, json) in health_beats.values_mut() {
+            for (beat, json, last) in health_beats.values_mut() {
                 if beat.beat_due(now_ns).is_some() {
                     put(&publishers, Outbound::Health, json.clone(), &mut failed);
+                    if let Some(ros2) = ros2.as_mut() {
+                        ros2.health(last);
+                    }
                 }
             }
             // The summary is rebuilt every tenth tick (10 Hz): it changes with events and modes.
