@@ -9,16 +9,12 @@
 
 mod common;
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-
-use common::{Device, ideal_world, unique_domain, wait_for};
+use common::{Device, Laser, ideal_world, unique_domain, wait_for};
 use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsExtrinsics, alacs_camera_intrinsics};
 use harvest_ipc::Context;
 use harvest_ipc::catalogue::{LASER_SCAN_REQUEST, LASER_SCAN_RESULT, PROCESS_HEALTH};
 use harvest_ipc::payloads::{LaserScanRequest, LaserScanResult, LaserScanStatus};
 use harvest_laser::{LaserReach, ScanConfig};
-use harvest_laser_process::process::{LaserArgs, run_until};
 use harvest_sim::alacs_device::robot_from_tof_color;
 
 #[test]
@@ -60,23 +56,7 @@ fn laser_process_answers_scan_requests() {
 
     let domain = unique_domain("proc");
     let device = Device::start(&domain);
-    let stop = Arc::new(AtomicBool::new(false));
-    let laser = {
-        let (domain, stop) = (domain.clone(), Arc::clone(&stop));
-        std::thread::spawn(move || {
-            let args = LaserArgs {
-                calibration: Some(
-                    concat!(
-                        env!("CARGO_MANIFEST_DIR"),
-                        "/../../sim/alacs_calibration.toml"
-                    )
-                    .into(),
-                ),
-                device_timeout_ms: 2900,
-            };
-            run_until(&args, &domain, "laser", &stop).map_err(|e| e.to_string())
-        })
-    };
+    let laser = Laser::start(&domain);
 
     let context = Context::new(&domain, "perception_test").expect("context");
     let health = context.subscriber(PROCESS_HEALTH).expect("health");
@@ -116,11 +96,7 @@ fn laser_process_answers_scan_requests() {
         }
     }
 
-    stop.store(true, Ordering::SeqCst);
-    laser
-        .join()
-        .expect("laser thread")
-        .expect("laser loop ends cleanly");
+    laser.finish();
     // One scan: laser on, 5 x (move + capture), laser off; the unreachable apple never reached
     // the device.
     assert_eq!(device.finish(), 12);

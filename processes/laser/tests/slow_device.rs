@@ -10,12 +10,9 @@
 
 mod common;
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::JoinHandle;
 use std::time::Duration;
 
-use common::{Device, WATCHDOG, ideal_world, unique_domain, wait_for};
+use common::{Device, Laser, WATCHDOG, ideal_world, unique_domain, wait_for};
 use harvest_hw::alacs::{ALACS_FROM_TOF_CAMERA, AlacsExtrinsics, alacs_camera_intrinsics};
 use harvest_ipc::catalogue::{
     EMERGENCY_STOP, LASER_SCAN_REQUEST, LASER_SCAN_RESULT, PROCESS_HEALTH,
@@ -23,9 +20,8 @@ use harvest_ipc::catalogue::{
 use harvest_ipc::payloads::{
     EmergencyStop, LaserScanRequest, LaserScanResult, LaserScanStatus, ProcessHealth,
 };
-use harvest_ipc::{Context, Domain, Flow, MonotonicClock, Waiter};
+use harvest_ipc::{Context, Flow, MonotonicClock, Waiter};
 use harvest_laser::{LaserReach, ScanConfig};
-use harvest_laser_process::process::{LaserArgs, run_until};
 use harvest_sim::alacs_device::robot_from_tof_color;
 
 /// How late the device answers each exchange.
@@ -60,43 +56,6 @@ fn request_in_reach(request_seq: u32) -> LaserScanRequest {
         rough_position_in_camera_m: [truth_in_tof[0], truth_in_tof[1], truth_in_tof[2] + 0.012],
         rough_radius_m: apple.radius_m,
         ..LaserScanRequest::default()
-    }
-}
-
-/// The laser loop on its own thread.
-struct Laser {
-    stop: Arc<AtomicBool>,
-    thread: JoinHandle<Result<(), String>>,
-}
-
-impl Laser {
-    fn start(domain: &Domain) -> Self {
-        let stop = Arc::new(AtomicBool::new(false));
-        let thread = {
-            let (domain, stop) = (domain.clone(), Arc::clone(&stop));
-            std::thread::spawn(move || {
-                let args = LaserArgs {
-                    calibration: Some(
-                        concat!(
-                            env!("CARGO_MANIFEST_DIR"),
-                            "/../../sim/alacs_calibration.toml"
-                        )
-                        .into(),
-                    ),
-                    device_timeout_ms: 2900,
-                };
-                run_until(&args, &domain, "laser", &stop).map_err(|e| e.to_string())
-            })
-        };
-        Self { stop, thread }
-    }
-
-    fn finish(self) {
-        self.stop.store(true, Ordering::SeqCst);
-        self.thread
-            .join()
-            .expect("laser thread")
-            .expect("laser loop ends cleanly");
     }
 }
 

@@ -7,6 +7,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::thread::JoinHandle;
+
+use harvest_laser_process::process::{LaserArgs, run_until};
 use std::time::{Duration, Instant};
 
 use harvest_ipc::catalogue::{HW_ALACS_COMMAND, HW_ALACS_IMAGE};
@@ -139,4 +141,41 @@ fn serve(
         })
         .map_err(|e| e.to_string())?;
     Ok(answered)
+}
+
+/// The laser loop on its own thread.
+pub struct Laser {
+    stop: Arc<AtomicBool>,
+    thread: JoinHandle<Result<(), String>>,
+}
+
+impl Laser {
+    pub fn start(domain: &Domain) -> Self {
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let (domain, stop) = (domain.clone(), Arc::clone(&stop));
+            std::thread::spawn(move || {
+                let args = LaserArgs {
+                    calibration: Some(
+                        concat!(
+                            env!("CARGO_MANIFEST_DIR"),
+                            "/../../sim/alacs_calibration.toml"
+                        )
+                        .into(),
+                    ),
+                    device_timeout_ms: 2900,
+                };
+                run_until(&args, &domain, "laser", &stop).map_err(|e| e.to_string())
+            })
+        };
+        Self { stop, thread }
+    }
+
+    pub fn finish(self) {
+        self.stop.store(true, Ordering::SeqCst);
+        self.thread
+            .join()
+            .expect("laser thread")
+            .expect("laser loop ends cleanly");
+    }
 }
