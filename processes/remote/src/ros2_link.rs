@@ -325,15 +325,22 @@ fn spawn_estop(
                         Ok(Bool { data: true }) => {
                             let session = forwarded_session(0);
                             let message = Command::EmergencyStop.to_message(0, session, "", "ros2");
-                            let request = client.send(message)?;
-                            match client.wait_ack(session, request, ESTOP_ACK_TIMEOUT)? {
-                                Some(ack) => info!(
+                            // A failure is logged and the subscription goes on: the next
+                            // stop from ROS must still be heard.
+                            let answer = client.send(message).and_then(|request| {
+                                client.wait_ack(session, request, ESTOP_ACK_TIMEOUT)
+                            });
+                            match answer {
+                                Ok(Some(ack)) => info!(
                                     accepted = ack.accepted != 0,
                                     "emergency stop from ROS 2 sent to the executive"
                                 ),
-                                None => warn!(
+                                Ok(None) => warn!(
                                     "emergency stop from ROS 2 sent; no answer from the executive"
                                 ),
+                                Err(error) => {
+                                    warn!(%error, "emergency stop from ROS 2 not sent")
+                                }
                             }
                         }
                         Ok(Bool { data: false }) => {
