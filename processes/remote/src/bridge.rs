@@ -233,8 +233,8 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
     let mut estop_beat = ChangeBeat::<(u8, String)>::new(beat_ns);
     let mut last_estop_json: Option<Vec<u8>> = None;
     let mut estop_heard = false;
-    // Per process: its beat, the last heartbeat's JSON and the heartbeat (for ROS 2 diagnostics).
-    let mut health_beats: HashMap<String, (ChangeBeat<HealthContent>, Vec<u8>, ProcessHealth)> =
+    // Per process: its beat and its last heartbeat (sent again on the beat).
+    let mut health_beats: HashMap<String, (ChangeBeat<HealthContent>, ProcessHealth)> =
         HashMap::new();
     let mut summary_beat = ChangeBeat::<FleetSummary>::new(beat_ns);
     let mut summary = SummaryBuilder::new(
@@ -294,19 +294,17 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
         health_in.try_drain(|beat| -> Result<(), RemoteError> {
             summary.on_health(beat);
             let content = health_content(beat);
-            let json = json_bytes(beat);
             let entry = health_beats
                 .entry(content.0.clone())
-                .or_insert_with(|| (ChangeBeat::new(HEALTH_BEAT_NS), Vec::new(), *beat));
+                .or_insert_with(|| (ChangeBeat::new(HEALTH_BEAT_NS), *beat));
             if entry.0.due(&content, now_ns) {
-                put(&publishers, Outbound::Health, json.clone(), &mut failed);
+                put(&publishers, Outbound::Health, json_bytes(beat), &mut failed);
                 sent += 1;
                 if let Some(ros2) = ros2.as_mut() {
                     ros2.health(beat);
                 }
             }
-            entry.1 = json;
-            entry.2 = *beat;
+            entry.1 = *beat;
             Ok(())
         })?;
         events_in.try_drain(|event| -> Result<(), RemoteError> {
@@ -385,9 +383,9 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
             {
                 put(&publishers, Outbound::Mode, json.clone(), &mut failed);
             }
-            for (beat, json, last) in health_beats.values_mut() {
+            for (beat, last) in health_beats.values_mut() {
                 if beat.beat_due(now_ns).is_some() {
-                    put(&publishers, Outbound::Health, json.clone(), &mut failed);
+                    put(&publishers, Outbound::Health, json_bytes(last), &mut failed);
                     if let Some(ros2) = ros2.as_mut() {
                         ros2.health(last);
                     }

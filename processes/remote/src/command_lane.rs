@@ -49,21 +49,32 @@ pub fn spawn(
         LaneKind::EmergencyStop => format!("{process_name}-estop"),
         LaneKind::Command => format!("{process_name}-command"),
     };
+    spawn_with_client(node_name, domain, move |client| {
+        info!(%key, "command lane ready");
+        while let Ok(query) = queryable.recv() {
+            answer(&query, &gate, client, ack_timeout);
+        }
+    })
+}
+
+/// Starts thread `node_name` with its own node in `domain` and its own `operator/command`
+/// client (iceoryx2 ports are not Send: each thread opens its own), and runs `serve` with it.
+pub fn spawn_with_client(
+    node_name: String,
+    domain: Domain,
+    serve: impl FnOnce(&mut OperatorClient) + Send + 'static,
+) -> Result<(), RemoteError> {
     std::thread::Builder::new()
         .name(node_name.clone())
         .spawn(move || {
-            // iceoryx2 ports are not Send: the lane opens its own inside its thread.
             let result = (|| -> Result<(), RemoteError> {
                 let context = Context::new(&domain, &node_name)?;
                 let mut client = OperatorClient::new(&context)?;
-                info!(%key, "command lane ready");
-                while let Ok(query) = queryable.recv() {
-                    answer(&query, &gate, &mut client, ack_timeout);
-                }
+                serve(&mut client);
                 Ok(())
             })();
             if let Err(error) = result {
-                warn!(%error, "command lane ended");
+                warn!(%error, thread = node_name, "could not start");
             }
         })?;
     Ok(())

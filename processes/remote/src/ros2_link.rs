@@ -27,7 +27,7 @@ use harvest_ipc::operator_client::OperatorClient;
 use harvest_ipc::payloads::{
     AppleDetections, ArmState, HarvestEvent, ProcessHealth, ProcessRunState,
 };
-use harvest_ipc::{Context, Domain, MonotonicClock};
+use harvest_ipc::{Domain, MonotonicClock};
 use harvest_operator::Command;
 use harvest_remote::RobotName;
 use harvest_remote::remote_request::forwarded_session;
@@ -48,6 +48,7 @@ use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 
+use crate::command_lane::spawn_with_client;
 use crate::error::RemoteError;
 
 /// How long the ROS e-stop waits for the executive's answer before it logs none came.
@@ -308,56 +309,43 @@ fn spawn_estop(
     process_name: &str,
 ) -> Result<(), RemoteError> {
     let subscriber = session.declare_subscriber(topic.key_any_hash()).wait()?;
-    let domain = domain.clone();
-    let node_name = format!("{process_name}-ros2-estop");
     let key = topic.key.clone();
-    std::thread::Builder::new()
-        .name(node_name.clone())
-        .spawn(move || {
-            // iceoryx2 ports are not Send: the thread opens its own.
-            let result = (|| -> Result<(), RemoteError> {
-                let context = Context::new(&domain, &node_name)?;
-                let mut client = OperatorClient::new(&context)?;
-                info!(%key, "ROS 2 e-stop subscription ready");
-                while let Ok(sample) = subscriber.recv() {
-                    let bytes = sample.payload().to_bytes();
-                    match Bool::from_cdr(&bytes) {
-                        Ok(Bool { data: true }) => {
-                            let session = forwarded_session(0);
-                            let message = Command::EmergencyStop.to_message(0, session, "", "ros2");
-                            // A failure is logged and the subscription goes on: the next
-                            // stop from ROS must still be heard.
-                            let answer = client.send(message).and_then(|request| {
-                                client.wait_ack(session, request, ESTOP_ACK_TIMEOUT)
-                            });
-                            match answer {
-                                Ok(Some(ack)) => info!(
-                                    accepted = ack.accepted != 0,
-                                    "emergency stop from ROS 2 sent to the executive"
-                                ),
-                                Ok(None) => warn!(
-                                    "emergency stop from ROS 2 sent; no answer from the executive"
-                                ),
-                                Err(error) => {
-                                    warn!(%error, "emergency stop from ROS 2 not sent")
-                                }
-                            }
-                        }
-                        Ok(Bool { data: false }) => {
-                            debug!(
-                                "ROS 2 e-stop false: ignored (a stop is never released from ROS)"
-                            );
-                        }
-                        Err(error) => {
-                            warn!(%error, key = %sample.key_expr(), "ROS 2 e-stop message refused")
-                        }
+    spawn_with_client(
+        format!("{process_name}-ros2-estop"),
+        domain.clone(),
+        move |client| {
+            info!(%key, "ROS 2 e-stop subscription ready");
+            while let Ok(sample) = subscriber.recv() {
+                let bytes = sample.payload().to_bytes();
+                match Bool::from_cdr(&bytes) {
+                    Ok(Bool { data: true }) => send_stop(client),
+                    Ok(Bool { data: false }) => {
+                        debug!("ROS 2 e-stop false: ignored (a stop is never released from ROS)");
+                    }
+                    Err(error) => {
+                        warn!(%error, key = %sample.key_expr(), "ROS 2 e-stop message refused")
                     }
                 }
-                Ok(())
-            })();
-            if let Err(error) = result {
-                warn!(%error, "ROS 2 e-stop thread ended");
             }
-        })?;
-    Ok(())
+            warn!("ROS 2 e-stop subscription ended");
+        },
+    )
+}
+
+/// Sends the emergency stop to the executive. A failure is logged and the subscription goes
+/// on: the next stop from ROS must still be heard.
+fn send_stop(client: &mut OperatorClient) {
+    let session = forwarded_session(0);
+    let message = Command::EmergencyStop.to_message(0, session, "", "ros2");
+    let answer = client
+        .send(message)
+        .and_then(|request| client.wait_ack(session, request, ESTOP_ACK_TIMEOUT));
+    match answer {
+        Ok(Some(ack)) => info!(
+            accepted = ack.accepted != 0,
+            "emergency stop from ROS 2 sent to the executive"
+        ),
+        Ok(None) => warn!("emergency stop from ROS 2 sent; no answer from the executive"),
+        Err(error) => warn!(%error, "emergency stop from ROS 2 not sent"),
+    }
 }
