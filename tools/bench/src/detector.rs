@@ -6,14 +6,13 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use crate::scene_frame::{SceneFrame, SceneFrameError};
 use harvest_perception::RgbView;
 use harvest_perception::detector::color_segmentation::{
     ColorSegmentation, ColorSegmentationConfig,
 };
 use harvest_perception::detector::onnx::{OnnxDetector, OnnxDetectorConfig};
 use harvest_perception::detector::{Detection, Detector};
-use harvest_sim::process::load_scenario;
-use harvest_sim::{RgbdRenderer, World};
 
 /// Arguments of `harvest bench detector`.
 #[derive(Debug, Clone, clap::Args)]
@@ -47,10 +46,8 @@ pub struct DetectorLatency {
 /// Why the benchmark could not run.
 #[derive(Debug, thiserror::Error)]
 pub enum BenchDetectorError {
-    #[error("scenario {0}")]
-    Scenario(String),
-    #[error("render: {0}")]
-    Render(String),
+    #[error(transparent)]
+    Scene(#[from] SceneFrameError),
     #[error("detector {name}: {reason}")]
     Detector { name: String, reason: String },
     #[error("--input-size: give one size or one per model")]
@@ -66,21 +63,11 @@ pub fn run_bench_detector(
         many if many.len() == args.model.len() => many.to_vec(),
         _ => return Err(BenchDetectorError::InputSizes),
     };
-    let scenario =
-        load_scenario(&args.scenario).map_err(|e| BenchDetectorError::Scenario(e.to_string()))?;
-    let world =
-        World::generate(&scenario, 1).map_err(|e| BenchDetectorError::Render(e.to_string()))?;
-    let mut renderer = RgbdRenderer::new(&scenario.camera)
-        .map_err(|e| BenchDetectorError::Render(e.to_string()))?;
-    let intrinsics = *renderer.color_intrinsics();
-    let mut rgb = vec![0u8; intrinsics.width_px as usize * intrinsics.height_px as usize * 3];
-    renderer
-        .render_color(&world, &mut rgb)
-        .map_err(|e| BenchDetectorError::Render(e.to_string()))?;
+    let scene = SceneFrame::render(&args.scenario)?;
     let view = RgbView {
-        width_px: intrinsics.width_px,
-        height_px: intrinsics.height_px,
-        data: &rgb,
+        width_px: scene.width_px as u32,
+        height_px: scene.height_px as u32,
+        data: &scene.rgb,
     };
     let mut detectors: Vec<(String, Box<dyn Detector>)> = Vec::new();
     for (model, size) in args.model.iter().zip(sizes) {
@@ -131,7 +118,7 @@ pub fn run_bench_detector(
     }
     println!(
         "Detector latency per {}x{} frame ({} timed frames each, scenario {}):",
-        intrinsics.width_px, intrinsics.height_px, args.frames, args.scenario
+        scene.width_px, scene.height_px, args.frames, args.scenario
     );
     println!(
         "{:<60} {:>10} {:>10} {:>10}",

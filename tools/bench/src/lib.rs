@@ -53,6 +53,7 @@ pub mod proc_cpu;
 pub mod remote;
 pub mod report;
 pub mod run;
+pub mod scene_frame;
 pub mod sender_write;
 pub mod settle;
 pub mod soak;

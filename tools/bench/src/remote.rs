@@ -24,6 +24,7 @@ use std::time::{Duration, Instant};
 use harvest_ipc::catalogue::{ARM_STATE, CAMERA_RGBD};
 use harvest_ipc::duration::parse_duration;
 use harvest_ipc::payloads::ArmPhase;
+use harvest_ipc::payloads::rgbd_frame::RGB_BYTES;
 use harvest_ipc::{Context, MonotonicClock, ScratchDomain};
 use harvest_operator::ControlToken;
 use harvest_operator::token::write_token_file;
@@ -32,6 +33,7 @@ use harvest_remote_process::zenoh::Wait;
 use hdrhistogram::Histogram;
 use serde::{Deserialize, Serialize};
 
+use crate::scene_frame::SceneFrame;
 use crate::stats::LatencySummary;
 
 /// Options of `harvest bench remote`.
@@ -302,12 +304,24 @@ pub fn run_bench_remote(args: &BenchRemoteArgs) -> Result<RemoteBenchReport, Rem
             &["remote", "--robot", &robot, "--listen", &listen],
         )?);
     }
-    // The replay threads: camera frames and arm states into each robot's domain.
+    // The replay threads: camera frames and arm states into each robot's domain. The frames
+    // are the simulator's render of the default scenario (a blank frame would flatter JPEG's
+    // size and time), with a moving stripe so that each image differs, as a camera's do.
+    let scene =
+        SceneFrame::render("default").map_err(|e| RemoteBenchError::Failed(e.to_string()))?;
+    if scene.rgb.len() != RGB_BYTES {
+        return Err(RemoteBenchError::Failed(format!(
+            "the default scenario renders {}x{}, camera/rgbd holds 1920x1080",
+            scene.width_px, scene.height_px
+        )));
+    }
+    let scene = Arc::new(scene.rgb);
     let running = Arc::new(AtomicBool::new(true));
     let mut replays = Vec::new();
     for domain in &domains {
         let domain = domain.domain().clone();
         let running = Arc::clone(&running);
+        let scene = Arc::clone(&scene);
         let frame_period = Duration::from_secs_f64(1.0 / args.camera_hz.clamp(1.0, 60.0));
         replays.push(std::thread::spawn(
             move || -> Result<(), RemoteBenchError> {
@@ -331,7 +345,7 @@ pub fn run_bench_remote(args: &BenchRemoteArgs) -> Result<RemoteBenchReport, Rem
                         next_frame += frame_period;
                         n += 1;
                         frames.publish_with(now_ns, |frame| {
-                            // A moving stripe: each image differs, as a camera's do.
+                            frame.rgb.copy_from_slice(&scene);
                             let row = (n as usize * 8) % 1000;
                             for px in
                                 frame.rgb[row * 1920 * 3..(row + 8) * 1920 * 3].chunks_exact_mut(3)

@@ -8,14 +8,13 @@
 //! real sensor's; the renderer's images are noise-free, which would flatter the encoder).
 
 use crate::affinity::AffinityRestore;
+use crate::scene_frame::{SceneFrame, SceneFrameError};
 use crate::stats::percentile;
 use harvest_ipc::codec;
 use harvest_ipc::header::Header;
 use harvest_ipc::payloads::rgbd_frame::{DEPTH_PIXELS, RgbdFrameMeta};
 use harvest_recording::camera_record::{EncodedFrameParts, encode_depth_message};
 use harvest_recording::video_codec::{H264Decoder, H264Encoder, VideoSettings};
-use harvest_sim::process::load_scenario;
-use harvest_sim::{RgbdRenderer, World};
 use std::time::Instant;
 
 /// Arguments of `harvest bench video`.
@@ -66,10 +65,8 @@ pub struct VideoBenchReport {
 /// Why the benchmark could not run.
 #[derive(Debug, thiserror::Error)]
 pub enum BenchVideoError {
-    #[error("scenario {0}")]
-    Scenario(String),
-    #[error("render: {0}")]
-    Render(String),
+    #[error(transparent)]
+    Scene(#[from] SceneFrameError),
     #[error("video: {0}")]
     Video(String),
     #[error(transparent)]
@@ -91,22 +88,12 @@ fn noise(index: usize, frame: u32, amplitude: u8) -> i16 {
 
 /// Runs the benchmark and prints its table.
 pub fn run_bench_video(args: &BenchVideoArgs) -> Result<VideoBenchReport, BenchVideoError> {
-    let scenario =
-        load_scenario(&args.scenario).map_err(|e| BenchVideoError::Scenario(e.to_string()))?;
-    let world =
-        World::generate(&scenario, 1).map_err(|e| BenchVideoError::Render(e.to_string()))?;
-    let mut renderer =
-        RgbdRenderer::new(&scenario.camera).map_err(|e| BenchVideoError::Render(e.to_string()))?;
-    let intrinsics = *renderer.color_intrinsics();
-    let (width, height) = (intrinsics.width_px as usize, intrinsics.height_px as usize);
-    let mut scene = vec![0u8; width * height * 3];
-    renderer
-        .render_color(&world, &mut scene)
-        .map_err(|e| BenchVideoError::Render(e.to_string()))?;
-    let mut depth_mm = vec![0u16; DEPTH_PIXELS];
-    renderer
-        .render_depth(&world, 1, &mut depth_mm)
-        .map_err(|e| BenchVideoError::Render(e.to_string()))?;
+    let SceneFrame {
+        width_px: width,
+        height_px: height,
+        rgb: scene,
+        depth_mm,
+    } = SceneFrame::render(&args.scenario)?;
     let _pinned = AffinityRestore::pin(args.cpu)?;
 
     let settings = VideoSettings::at_rate(args.rate, args.bitrate);
