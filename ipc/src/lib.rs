@@ -36,6 +36,7 @@ pub mod failure_streak;
 pub mod fixed_string;
 pub mod header;
 pub mod health;
+pub mod heap_trim;
 pub mod memory_lock;
 // The operator channels' client side.
 pub mod operator_client;

@@ -37,10 +37,26 @@ pub struct Block {
     seal_number: u64,
 }
 
+/// Bytes of a memory page (the smallest the kernel backs; huge pages are multiples of it).
+const PAGE_BYTES: usize = 4096;
+
+/// Writes one byte in every page of `bytes`' spare capacity, so that the kernel backs the whole
+/// buffer now: the ring is resident at its configured size from the start (not creeping up to
+/// it as blocks happen to be filled further), and appending never takes a page fault.
+fn commit_pages(bytes: &mut Vec<u8>) {
+    let spare = bytes.spare_capacity_mut();
+    for page in spare.chunks_mut(PAGE_BYTES) {
+        page[0].write(0);
+    }
+    std::hint::black_box(&*spare);
+}
+
 impl Block {
     fn with_capacity(block_bytes: usize) -> Self {
+        let mut bytes = Vec::with_capacity(block_bytes);
+        commit_pages(&mut bytes);
         Self {
-            bytes: Vec::with_capacity(block_bytes),
+            bytes,
             first_log_ns: u64::MAX,
             last_log_ns: 0,
             records: 0,
@@ -167,7 +183,8 @@ pub struct FlightRing {
 
 impl FlightRing {
     /// A ring of `capacity_bytes` in blocks of `block_bytes` (at least two blocks). Every block
-    /// is allocated here, once; the pages become resident as the ring fills.
+    /// is allocated here, once, and made resident (every page written), so the ring's memory is
+    /// what was configured from the first message on, never more.
     pub fn new(capacity_bytes: usize, block_bytes: usize) -> Self {
         let block_bytes = block_bytes.max(RECORD_HEADER_BYTES + 1);
         let blocks = (capacity_bytes / block_bytes).max(2);

@@ -35,7 +35,7 @@ use std::time::{Duration, Instant};
 /// The flight recorder's settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FlightSettings {
-    /// RAM of the ring, bytes (allocated once, resident as it fills).
+    /// RAM of the ring, bytes (allocated and made resident once, at start).
     pub ring_bytes: usize,
     /// The ring's block size: the largest message it keeps (plus a small header).
     pub block_bytes: usize,

@@ -142,7 +142,7 @@ pub struct RecorderArgs {
     #[arg(long = "note", value_name = "KEY=VALUE")]
     pub notes: Vec<String>,
     /// RAM of the flight recorder's ring: every recorded channel at full rate (0: no flight
-    /// recorder). Allocated once; resident as it fills. The default stack's raw channels take
+    /// recorder). Allocated and made resident once, at start. The default stack's raw channels take
     /// about 125 MB/s, so 2 GiB holds about 16 s.
     #[arg(long, default_value = "2GiB", value_parser = parse_size_bytes)]
     pub flight_ring_size: u64,

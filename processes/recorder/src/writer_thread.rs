@@ -26,6 +26,7 @@ use crate::flight_thread::{FlightFeed, FlightReport};
 use crate::output_dir::{create_segment, enforce_age_bound, enforce_size_bound};
 use crate::video_thread::{VideoFeed, VideoReport};
 use crate::view_thread::{ViewFeed, ViewReport};
+use harvest_ipc::heap_trim::PeriodicHeapTrim;
 use harvest_recording::mcap_error::{is_disk_full, is_out_of_space, mcap_error_text};
 use harvest_recording::metadata;
 use harvest_recording::recorded_events::{EVENTS_TOPIC, RecordedEvent};
@@ -171,6 +172,8 @@ const MAX_FREE_SMALL: usize = 256;
 const MAX_FREE_LARGE: usize = 8;
 /// Queue depth in messages (the byte bound usually binds first for frames).
 const QUEUE_MESSAGES: usize = 16 * 1024;
+/// How often the writer thread hands the process's freed heap pages back to the kernel.
+const HEAP_TRIM_PERIOD: Duration = Duration::from_secs(10);
 
 impl WriterHandle {
     /// Creates the output directory and the first segment, then starts the writer thread.
@@ -560,7 +563,12 @@ impl WriterState {
             .chunk_interval
             .min(Duration::from_secs(1))
             .max(Duration::from_millis(1));
+        // The recorder's threads allocate and free large transient buffers (chunks, clips,
+        // encoded images): freed pages go back to the kernel now and then, off the tap's path,
+        // so the private memory follows what is in use.
+        let mut heap_trim = PeriodicHeapTrim::new(HEAP_TRIM_PERIOD);
         loop {
+            heap_trim.run_if_due();
             let wait = match self.chunk_opened {
                 Some(opened) => self
                     .settings
