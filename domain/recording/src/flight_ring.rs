@@ -9,6 +9,7 @@
 //! writer still holds it: the new message is then left out of the ring and counted (the ring
 //! never allocates more, and never waits).
 
+use crate::resident_buffer::resident_buffer;
 use std::collections::VecDeque;
 use std::sync::Arc;
 
@@ -37,26 +38,10 @@ pub struct Block {
     seal_number: u64,
 }
 
-/// Bytes of a memory page (the smallest the kernel backs; huge pages are multiples of it).
-const PAGE_BYTES: usize = 4096;
-
-/// Writes one byte in every page of `bytes`' spare capacity, so that the kernel backs the whole
-/// buffer now: the ring is resident at its configured size from the start (not creeping up to
-/// it as blocks happen to be filled further), and appending never takes a page fault.
-fn commit_pages(bytes: &mut Vec<u8>) {
-    let spare = bytes.spare_capacity_mut();
-    for page in spare.chunks_mut(PAGE_BYTES) {
-        page[0].write(0);
-    }
-    std::hint::black_box(&*spare);
-}
-
 impl Block {
     fn with_capacity(block_bytes: usize) -> Self {
-        let mut bytes = Vec::with_capacity(block_bytes);
-        commit_pages(&mut bytes);
         Self {
-            bytes,
+            bytes: resident_buffer(block_bytes),
             first_log_ns: u64::MAX,
             last_log_ns: 0,
             records: 0,

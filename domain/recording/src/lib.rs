@@ -32,6 +32,7 @@ pub mod record_lengths;
 pub mod recorded_events;
 pub mod recording_file;
 pub mod recover;
+pub mod resident_buffer;
 pub mod ros2_export;
 pub mod scan;
 pub mod schema;

@@ -39,6 +39,16 @@ impl TopicInfo {
         self.payload_bytes + 4096
     }
 
+    /// The bound of [`Self::max_encoded_bytes`] over `topics` (0 for none): the largest
+    /// message a recording of them can hold.
+    pub fn largest_encoded_bytes(topics: &[TopicInfo]) -> usize {
+        topics
+            .iter()
+            .map(TopicInfo::max_encoded_bytes)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// The MCAP schema name of this channel's payload.
     pub fn schema_name(&self) -> String {
         schema_name(self.spec.type_name, self.spec.version)

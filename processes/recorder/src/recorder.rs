@@ -250,11 +250,7 @@ impl RecorderArgs {
             return None;
         }
         // A block holds the largest recorded message (a camera frame) with room to spare.
-        let largest = topics
-            .iter()
-            .map(|topic| topic.max_encoded_bytes())
-            .max()
-            .unwrap_or(0);
+        let largest = TopicInfo::largest_encoded_bytes(topics);
         let block_bytes = (largest + largest / 4 + RECORD_HEADER_BYTES).max(1 << 20);
         let compression = match self.compression {
             ChunkCompression::None => ChunkCompression::None,

@@ -30,6 +30,7 @@ use harvest_ipc::heap_trim::PeriodicHeapTrim;
 use harvest_recording::mcap_error::{is_disk_full, is_out_of_space, mcap_error_text};
 use harvest_recording::metadata;
 use harvest_recording::recorded_events::{EVENTS_TOPIC, RecordedEvent};
+use harvest_recording::resident_buffer::resident_buffer;
 use harvest_recording::schema::TopicInfo;
 use harvest_recording::seal::seal_cut_file;
 use harvest_recording::segment_writer::{ChunkSettings, ForeignChannel, SegmentWriter};
@@ -169,6 +170,10 @@ pub struct WriterHandle {
 /// Buffers at least this big are pooled as "large" (frames); smaller ones as "small".
 const LARGE_BUFFER_BYTES: usize = 64 * 1024;
 const MAX_FREE_SMALL: usize = 256;
+/// Large buffers kept for reuse. They are made at start, each as big as the largest recorded
+/// message and resident, so the recorder's memory does not step up later each time more frames
+/// than ever before happen to be in flight at once (a buffer needed beyond these, while all
+/// are in flight, is allocated then and freed when it comes back to a full pool).
 const MAX_FREE_LARGE: usize = 8;
 /// Queue depth in messages (the byte bound usually binds first for frames).
 const QUEUE_MESSAGES: usize = 16 * 1024;
@@ -197,6 +202,14 @@ impl WriterHandle {
         let failed = Arc::new(AtomicBool::new(false));
         let disk_full = Arc::new(AtomicBool::new(false));
         let max_queued_bytes = settings.queue_bytes;
+        let largest_bytes = TopicInfo::largest_encoded_bytes(&topics);
+        let free_large = if largest_bytes >= LARGE_BUFFER_BYTES {
+            (0..MAX_FREE_LARGE)
+                .map(|_| resident_buffer(largest_bytes))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let mut state = WriterState {
             report: WriterReport {
                 messages_per_topic: vec![0; topics.len() + foreign.len()],
@@ -242,7 +255,7 @@ impl WriterHandle {
             recycled,
             recycle,
             free_small: Vec::new(),
-            free_large: Vec::new(),
+            free_large,
             queued_bytes,
             max_queued_bytes,
             failed,
