@@ -153,6 +153,8 @@ pub struct WriterHandle {
     recycle: Sender<Vec<u8>>,
     free_small: Vec<Vec<u8>>,
     free_large: Vec<Vec<u8>>,
+    /// Large buffers allocated because the pool was empty (more frames in flight than it holds).
+    large_allocated_beyond_pool: u64,
     queued_bytes: Arc<AtomicUsize>,
     max_queued_bytes: usize,
     failed: Arc<AtomicBool>,
@@ -256,6 +258,7 @@ impl WriterHandle {
             recycle,
             free_small: Vec::new(),
             free_large,
+            large_allocated_beyond_pool: 0,
             queued_bytes,
             max_queued_bytes,
             failed,
@@ -390,12 +393,20 @@ impl WriterHandle {
                 self.free_small.push(buffer);
             }
         }
-        let pool = if size_hint >= LARGE_BUFFER_BYTES {
-            &mut self.free_large
-        } else {
-            &mut self.free_small
-        };
-        pool.pop().unwrap_or_else(|| Vec::with_capacity(size_hint))
+        if size_hint < LARGE_BUFFER_BYTES {
+            return self
+                .free_small
+                .pop()
+                .unwrap_or_else(|| Vec::with_capacity(size_hint));
+        }
+        self.free_large.pop().unwrap_or_else(|| {
+            self.large_allocated_beyond_pool += 1;
+            tracing::debug!(
+                total = self.large_allocated_beyond_pool,
+                "frame buffer pool empty: a buffer allocated"
+            );
+            Vec::with_capacity(size_hint)
+        })
     }
 
     /// Returns a buffer that was not sent.
@@ -457,6 +468,11 @@ impl WriterHandle {
 
     /// Writes `trailing` metadata, finishes the open segment and waits for the thread.
     pub fn finish(mut self, trailing: Vec<Metadata>) -> Result<WriterReport, WriteError> {
+        tracing::info!(
+            pooled = MAX_FREE_LARGE,
+            allocated_beyond_pool = self.large_allocated_beyond_pool,
+            "frame buffers"
+        );
         let _ = self.finish_view();
         let _ = self.finish_video();
         let _ = self.finish_flight();
