@@ -383,15 +383,8 @@ impl WriterHandle {
     /// An empty buffer for encoding a message of about `size_hint` bytes (recycled when one is
     /// available, so frames do not cost a fresh allocation each).
     pub fn take_buffer(&mut self, size_hint: usize) -> Vec<u8> {
-        while let Ok(mut buffer) = self.recycled.try_recv() {
-            buffer.clear();
-            if buffer.capacity() >= LARGE_BUFFER_BYTES {
-                if self.free_large.len() < MAX_FREE_LARGE {
-                    self.free_large.push(buffer);
-                }
-            } else if self.free_small.len() < MAX_FREE_SMALL {
-                self.free_small.push(buffer);
-            }
+        while let Ok(buffer) = self.recycled.try_recv() {
+            self.give_back(buffer);
         }
         if size_hint < LARGE_BUFFER_BYTES {
             return self
