@@ -36,6 +36,7 @@ def main(path):
                 "first_log_time": message.log_time,
             })
             entry["count"] += 1
+            entry["last_log_time"] = max(entry.get("last_log_time", 0), message.log_time)
             if channel.message_encoding != "protobuf":
                 continue
             if channel.topic in last_log_time and message.log_time < last_log_time[channel.topic]:
