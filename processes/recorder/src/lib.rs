@@ -10,6 +10,7 @@
 #![forbid(unsafe_code)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod buffer_pool;
 pub mod clip_writer;
 pub mod disk_space;
 pub mod flight_thread;

@@ -21,6 +21,7 @@
 //! last complete record and sealed ([`harvest_recording::seal`]), and the writer pauses the
 //! same way. Other write errors end the recording as before.
 
+use crate::buffer_pool::{BufferPool, FRAME_BUFFERS};
 use crate::disk_space::{OutOfSpace, SpaceReservation, free_bytes_in};
 use crate::flight_thread::{FlightFeed, FlightReport};
 use crate::output_dir::{create_segment, enforce_age_bound, enforce_size_bound};
@@ -30,7 +31,6 @@ use harvest_ipc::heap_trim::PeriodicHeapTrim;
 use harvest_recording::mcap_error::{is_disk_full, is_out_of_space, mcap_error_text};
 use harvest_recording::metadata;
 use harvest_recording::recorded_events::{EVENTS_TOPIC, RecordedEvent};
-use harvest_recording::resident_buffer::resident_buffer;
 use harvest_recording::schema::TopicInfo;
 use harvest_recording::seal::seal_cut_file;
 use harvest_recording::segment_writer::{ChunkSettings, ForeignChannel, SegmentWriter};
@@ -151,10 +151,8 @@ pub struct WriterHandle {
     recycled: Receiver<Vec<u8>>,
     /// What other threads holding a message's buffer last return it with.
     recycle: Sender<Vec<u8>>,
-    free_small: Vec<Vec<u8>>,
-    free_large: Vec<Vec<u8>>,
-    /// Large buffers allocated because the pool was empty (more frames in flight than it holds).
-    large_allocated_beyond_pool: u64,
+    /// The encode buffers the receiving thread recycles.
+    pool: BufferPool,
     queued_bytes: Arc<AtomicUsize>,
     max_queued_bytes: usize,
     failed: Arc<AtomicBool>,
@@ -169,14 +167,6 @@ pub struct WriterHandle {
     video: Option<VideoFeed>,
 }
 
-/// Buffers at least this big are pooled as "large" (frames); smaller ones as "small".
-const LARGE_BUFFER_BYTES: usize = 64 * 1024;
-const MAX_FREE_SMALL: usize = 256;
-/// Large buffers kept for reuse. They are made at start, each as big as the largest recorded
-/// message and resident, so the recorder's memory does not step up later each time more frames
-/// than ever before happen to be in flight at once (a buffer needed beyond these, while all
-/// are in flight, is allocated then and freed when it comes back to a full pool).
-const MAX_FREE_LARGE: usize = 8;
 /// Queue depth in messages (the byte bound usually binds first for frames).
 const QUEUE_MESSAGES: usize = 16 * 1024;
 /// How often the writer thread hands the process's freed heap pages back to the kernel.
@@ -204,14 +194,7 @@ impl WriterHandle {
         let failed = Arc::new(AtomicBool::new(false));
         let disk_full = Arc::new(AtomicBool::new(false));
         let max_queued_bytes = settings.queue_bytes;
-        let largest_bytes = TopicInfo::largest_encoded_bytes(&topics);
-        let free_large = if largest_bytes >= LARGE_BUFFER_BYTES {
-            (0..MAX_FREE_LARGE)
-                .map(|_| resident_buffer(largest_bytes))
-                .collect()
-        } else {
-            Vec::new()
-        };
+        let pool = BufferPool::new(TopicInfo::largest_encoded_bytes(&topics));
         let mut state = WriterState {
             report: WriterReport {
                 messages_per_topic: vec![0; topics.len() + foreign.len()],
@@ -256,9 +239,7 @@ impl WriterHandle {
             commands,
             recycled,
             recycle,
-            free_small: Vec::new(),
-            free_large,
-            large_allocated_beyond_pool: 0,
+            pool,
             queued_bytes,
             max_queued_bytes,
             failed,
@@ -384,34 +365,14 @@ impl WriterHandle {
     /// available, so frames do not cost a fresh allocation each).
     pub fn take_buffer(&mut self, size_hint: usize) -> Vec<u8> {
         while let Ok(buffer) = self.recycled.try_recv() {
-            self.give_back(buffer);
+            self.pool.give_back(buffer);
         }
-        if size_hint < LARGE_BUFFER_BYTES {
-            return self
-                .free_small
-                .pop()
-                .unwrap_or_else(|| Vec::with_capacity(size_hint));
-        }
-        self.free_large.pop().unwrap_or_else(|| {
-            self.large_allocated_beyond_pool += 1;
-            tracing::debug!(
-                total = self.large_allocated_beyond_pool,
-                "frame buffer pool empty: a buffer allocated"
-            );
-            Vec::with_capacity(size_hint)
-        })
+        self.pool.take(size_hint)
     }
 
     /// Returns a buffer that was not sent.
-    pub fn give_back(&mut self, mut buffer: Vec<u8>) {
-        buffer.clear();
-        if buffer.capacity() >= LARGE_BUFFER_BYTES {
-            if self.free_large.len() < MAX_FREE_LARGE {
-                self.free_large.push(buffer);
-            }
-        } else if self.free_small.len() < MAX_FREE_SMALL {
-            self.free_small.push(buffer);
-        }
+    pub fn give_back(&mut self, buffer: Vec<u8>) {
+        self.pool.give_back(buffer);
     }
 
     /// Returns a shared buffer that was not sent, unless another thread still holds it.
@@ -462,8 +423,8 @@ impl WriterHandle {
     /// Writes `trailing` metadata, finishes the open segment and waits for the thread.
     pub fn finish(mut self, trailing: Vec<Metadata>) -> Result<WriterReport, WriteError> {
         tracing::info!(
-            pooled = MAX_FREE_LARGE,
-            allocated_beyond_pool = self.large_allocated_beyond_pool,
+            pooled = FRAME_BUFFERS,
+            allocated_beyond_pool = self.pool.allocated_beyond_pool(),
             "frame buffers"
         );
         let _ = self.finish_view();
