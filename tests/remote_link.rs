@@ -813,3 +813,136 @@ fn a_cut_link_stops_the_manual_motion_and_the_station_comes_back() {
     let _ = fleet.interrupt_and_wait(Duration::from_secs(10));
     robot.stop();
 }
+
+/// The station's console: the robot's page served on the station and fed over the link, held
+/// by an independent page client (Python `websockets`): the robot's mode, arms and heartbeats,
+/// with ages on the robot's clock, and the camera while the page watches; a stop posted without
+/// a token engages the robot's stop, the release with the token releases it, a wrong token is
+/// refused by the executive, a mark is refused (the link carries none); once the robot is gone
+/// the page says its command paths are down.
+#[test]
+fn a_station_console_serves_the_robots_page_over_the_link() {
+    use common::console::{post_command, status, wait_until};
+    ensure_python("websockets", &["websockets"]);
+    let port = free_port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let robot = Robot::start("remote-console", &["--listen", &endpoint]);
+    let station = unique_domain("station-console");
+    let http = free_port();
+    let console = Drained::spawn(
+        &station,
+        &[
+            "console",
+            "--remote",
+            "r1",
+            "--connect",
+            &endpoint,
+            "--listen",
+            &format!("127.0.0.1:{http}"),
+        ],
+    );
+    let mut last = Value::Null;
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        if let Some(seen) = status(http) {
+            last = seen;
+        }
+        let shown = last["remote"]["seen"] == true
+            && last["mode"]["name"] == "idle"
+            && last["arms"][0]["phase"] == "idle"
+            && last["arms"][1]["number"] == 2
+            && last["processes"]
+                .as_array()
+                .is_some_and(|rows| rows.iter().any(|row| row["name"] == "remote"));
+        if shown {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "watchdog: the station's console did not show the robot's mode, arms and heartbeats within 30 s; last status: {last}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // Ages are on the robot's clock (the link's delay beyond the smallest one seen is all).
+    let arm_age_ms = last["arms"][0]["age_ms"].as_u64().expect("age");
+    assert!(arm_age_ms < 2000, "arm state {arm_age_ms} ms old: {last}");
+    assert_eq!(last["links"]["estop"]["ok"], true, "{last}");
+    assert_eq!(last["links"]["commands"]["ok"], true, "{last}");
+    assert_eq!(last["remote"]["undecodable"], 0, "{last}");
+
+    // A page: the status at its rate, and the robot's camera while it watches.
+    let mut page_client = Command::new("python3");
+    page_client
+        .arg(Path::new(SCRIPTS).join("console_page.py"))
+        .args([&http.to_string(), "5", "5"]);
+    let output = run_with_watchdog(page_client, Duration::from_secs(60));
+    if !output.status.success() {
+        let (_, _, console_log) = console.interrupt_and_wait(Duration::from_secs(15));
+        panic!("page client: {}\nconsole: {console_log}", text(&output));
+    }
+    let page: Value = serde_json::from_slice(&output.stdout).expect("page report");
+    assert!(page["statuses"].as_u64() >= Some(10), "{page}");
+    assert!(page["views"].as_u64() >= Some(2), "{page}");
+    assert_eq!(page["view_header"]["width_px"], 480, "{page}");
+    assert_eq!(page["jpeg_whole"], true, "{page}");
+    assert!(
+        page["status"]["view"]["capture_ns"].as_u64() > Some(0),
+        "{page}"
+    );
+
+    // Commands as the page posts them.
+    let (code, answer) = post_command(http, "", 5, serde_json::json!({"command": "estop"}));
+    assert_eq!(
+        (code, &answer["accepted"]),
+        (200, &Value::Bool(true)),
+        "{answer}"
+    );
+    assert!(
+        robot.estop_within(Duration::from_secs(3), true),
+        "the stop from the station's console engaged the robot's stop"
+    );
+    let token = std::fs::read_to_string(&robot.token_file)
+        .expect("token")
+        .trim()
+        .to_owned();
+    let (code, answer) = post_command(http, &token, 5, serde_json::json!({"command": "release"}));
+    assert_eq!(
+        (code, &answer["accepted"]),
+        (200, &Value::Bool(true)),
+        "{answer}"
+    );
+    assert!(
+        !robot.estop_within(Duration::from_secs(3), false),
+        "the release from the station's console released the robot's stop"
+    );
+    let (code, answer) = post_command(
+        http,
+        "00000000000000000000000000000000",
+        5,
+        serde_json::json!({"command": "start"}),
+    );
+    assert_eq!(code, 200, "{answer}");
+    assert_eq!(answer["accepted"], false, "{answer}");
+    assert!(answer["refusal"].is_string(), "{answer}");
+    let (code, _) =
+        common::webdriver::http(http, "POST", "/api/mark", Some(r#"{"text":"x"}"#)).expect("mark");
+    assert_eq!(code, 503);
+
+    // The robot gone: the page says the command paths are down.
+    let _ = robot.stop();
+    wait_until(
+        "the station's console saying the robot is not seen",
+        Duration::from_secs(30),
+        || {
+            status(http).is_some_and(|s| {
+                s["remote"]["seen"] == false
+                    && s["links"]["estop"]["ok"] == false
+                    && s["links"]["estop"]["problem"]
+                        .as_str()
+                        .is_some_and(|p| p.contains("not seen"))
+            })
+        },
+    );
+    let (_, _, stderr) = console.interrupt_and_wait(Duration::from_secs(15));
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}

@@ -120,8 +120,22 @@ enum Command {
     /// harvest and alarms (http://127.0.0.1:8090 by default).
     Fleet(harvest_remote_process::fleet::FleetArgs),
     /// Operator console: the robot's camera view, status and control panels in a browser
-    /// (http://127.0.0.1:8080 by default).
-    Console(harvest_console::ConsoleArgs),
+    /// (http://127.0.0.1:8080 by default). With --remote ROBOT, on the station: the same page
+    /// fed over the remote link (--connect/--link as for `harvest ctl --remote`).
+    Console {
+        #[command(flatten)]
+        args: harvest_console::ConsoleArgs,
+        /// Serve this robot's console here, fed over the remote link (the station's side).
+        #[arg(long, value_name = "ROBOT")]
+        remote: Option<String>,
+        /// With --remote: the link's settings (TOML, as for `harvest ctl --remote`).
+        #[arg(long = "link", value_name = "FILE", requires = "remote")]
+        link_file: Option<std::path::PathBuf>,
+        /// With --remote: an endpoint to connect to, added to the file's
+        /// (`tcp/127.0.0.1:7447`).
+        #[arg(long = "connect", value_name = "ENDPOINT", requires = "remote")]
+        connect: Vec<String>,
+    },
 }
 
 #[cfg(feature = "sim-tools")]
@@ -244,7 +258,7 @@ impl Cli {
             Command::Ctl { .. } => "ctl",
             Command::Remote(_) => "remote",
             Command::Fleet(_) => "fleet",
-            Command::Console(_) => "console",
+            Command::Console { .. } => "console",
         }
         .to_owned()
     }
@@ -454,7 +468,21 @@ impl Cli {
                 harvest_remote_process::fleet::run(&args).context("fleet page")?;
                 Ok(ExitCode::SUCCESS)
             }
-            Command::Console(args) => {
+            Command::Console {
+                args,
+                remote: Some(robot),
+                link_file,
+                connect,
+            } => {
+                let link = harvest_remote_process::link_session::LinkArgs {
+                    link_file,
+                    listen: Vec::new(),
+                    connect,
+                };
+                station_console(&args, &robot, &link)?;
+                Ok(ExitCode::SUCCESS)
+            }
+            Command::Console { args, .. } => {
                 harvest_console::run(&args, &domain, process_name).context("console")?;
                 Ok(ExitCode::SUCCESS)
             }
@@ -533,6 +561,28 @@ fn clean(domain: &Domain, check: bool) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `harvest console --remote ROBOT`: the robot's page on the station.
+#[cfg(feature = "station")]
+fn station_console(
+    args: &harvest_console::ConsoleArgs,
+    robot: &str,
+    link: &harvest_remote_process::link_session::LinkArgs,
+) -> Result<()> {
+    let robot = harvest_remote::RobotName::parse(robot)?;
+    harvest_station::run(args, robot, link).context("station console (harvest console --remote)")
+}
+
+#[cfg(not(feature = "station"))]
+fn station_console(
+    _args: &harvest_console::ConsoleArgs,
+    _robot: &str,
+    _link: &harvest_remote_process::link_session::LinkArgs,
+) -> Result<()> {
+    anyhow::bail!(
+        "this build has no station console: build with the `station` feature (on by default)"
+    )
 }
 
 /// `harvest ctl --remote ROBOT ...`: the same commands over the link.

@@ -95,7 +95,7 @@ pub const OUTBOUND: [ChannelPolicy; 9] = [
         what: Outbound::Health,
         key_suffix: "state/health",
         pace: Pace::OnChange {
-            beat_ms: 5 * SLOW_BEAT_MS,
+            beat_ms: SLOW_BEAT_MS,
         },
         priority: LinkPriority::InteractiveHigh,
         express: false,

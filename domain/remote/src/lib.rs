@@ -8,7 +8,7 @@
 //!   (the e-stop express and highest); raw frames and arm commands are not in the table, so
 //!   they never leave.
 //! - [`rate_gate`]: latest-only rate limits and "on change plus a slow beat".
-//! - [`state_encoding`], [`camera_image`], [`fleet_summary`]: the payloads the station reads
+//! - [`state_encoding`] and [`state_decoding`], [`camera_image`], [`fleet_summary`]: the payloads the station reads
 //!   (JSON for states, a downscaled JPEG for the camera, one summary per robot for the fleet).
 //! - [`remote_request`], [`inbound_gate`], [`token_bucket`]: an operator command from the
 //!   station: size, syntax and rate checked before the executive sees it, every refusal counted.
@@ -31,6 +31,7 @@ pub mod rate_gate;
 pub mod remote_request;
 pub mod robot_name;
 pub mod ros2_graph;
+pub mod state_decoding;
 pub mod state_encoding;
 pub mod token_bucket;
 

@@ -155,6 +155,12 @@ impl Admission {
         })
     }
 
+    /// Push sessions open (watchers and controlling pages).
+    pub fn sessions(&self) -> usize {
+        let counts = self.counts();
+        counts.watchers_total + counts.controllers
+    }
+
     /// Counts for the status panel and the benchmarks.
     pub fn status_json(&self) -> Value {
         let counts = self.counts();

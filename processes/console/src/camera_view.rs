@@ -121,7 +121,8 @@ impl CameraView {
         self.latest.subscribe()
     }
 
-    fn publish(&self, frame: EncodedFrame) {
+    /// Makes `frame` the newest view.
+    pub fn publish(&self, frame: EncodedFrame) {
         self.latest.send_replace(Some(Arc::new(frame)));
     }
 }

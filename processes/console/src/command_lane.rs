@@ -1,6 +1,7 @@
-//! A lane to the executive: a thread with its own node, `operator/command` publisher and
-//! `operator/ack` subscriber that sends the commands handed to it, one at a time, and waits
-//! (bounded) for each answer.
+//! A lane to the executive: a thread that sends the commands handed to it, one at a time,
+//! through its [`CommandPort`], and waits (bounded) for each answer. On the robot the port is
+//! the lane's own node with an `operator/command` publisher and an `operator/ack` subscriber
+//! ([`ipc_port_opener`]); a station's console gives it a port over the remote link.
 //!
 //! The console runs two lanes: one that carries the emergency stop and nothing else, so a stop
 //! goes out at once even while another command's answer is pending, and one for every other
@@ -15,8 +16,9 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use harvest_ipc::operator_client::OperatorClient;
-use harvest_ipc::payloads::{OperatorAck, OperatorCommand};
+use harvest_ipc::payloads::{OperatorAck, OperatorModeCode, OperatorRefusalCode};
 use harvest_ipc::{Context, Domain};
+use harvest_operator::Command;
 use serde_json::{Value, json};
 use tokio::sync::oneshot;
 
@@ -25,11 +27,66 @@ use crate::error::ConsoleError;
 /// How often a lane without ports tries to open them again.
 pub const REOPEN_PERIOD: Duration = Duration::from_secs(1);
 
+/// The executive's answer to one command.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommandAnswer {
+    pub accepted: bool,
+    pub reason: String,
+    /// The refusal's code name (`NoToken`, ...), none when accepted.
+    pub refusal: Option<String>,
+    /// The mode after the command.
+    pub mode: Option<String>,
+    pub motion_duration_ms: u32,
+}
+
+impl CommandAnswer {
+    /// The answer an acknowledgement on `operator/ack` carries.
+    pub fn from_ack(ack: &OperatorAck) -> Self {
+        Self {
+            accepted: ack.accepted != 0,
+            reason: ack.reason.as_str().to_owned(),
+            refusal: if ack.accepted != 0 {
+                None
+            } else {
+                OperatorRefusalCode::from_code(ack.refusal).map(|c| format!("{c:?}"))
+            },
+            mode: OperatorModeCode::from_code(ack.mode).map(|m| m.name().to_owned()),
+            motion_duration_ms: ack.motion_duration_ms,
+        }
+    }
+}
+
+/// One command as a page gives it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaneCommand {
+    pub command: Command,
+    /// The page's session.
+    pub session: u64,
+    /// The control token the operator typed (empty for the e-stop).
+    pub token: String,
+    /// Who sends it, in a few words (`console 10.0.0.7`).
+    pub client: String,
+}
+
+/// What a lane sends through: one command, then its answer within `ack_timeout` (`None`: no
+/// answer). An error means the port is broken; the lane opens a new one.
+pub trait CommandPort {
+    fn send(
+        &mut self,
+        command: &LaneCommand,
+        ack_timeout: Duration,
+    ) -> Result<Option<CommandAnswer>, String>;
+}
+
+/// Opens a lane's port (on the lane's thread, again after a failure); the error says why it
+/// cannot.
+pub type PortOpener = Box<dyn FnMut() -> Result<Box<dyn CommandPort>, String> + Send>;
+
 /// What became of one command.
 #[derive(Debug, Clone, PartialEq)]
 pub enum LaneAnswer {
-    /// The executive's acknowledgement.
-    Ack(OperatorAck),
+    /// The executive's answer.
+    Ack(CommandAnswer),
     /// Sent, but no acknowledgement within the lane's timeout.
     NoAnswer,
     /// Not sent (or sent and the ports failed): the lane cannot reach the executive.
@@ -58,7 +115,7 @@ impl LaneState {
 }
 
 struct Job {
-    message: OperatorCommand,
+    command: LaneCommand,
     reply: oneshot::Sender<LaneAnswer>,
 }
 
@@ -70,11 +127,11 @@ pub struct Lane {
 }
 
 impl Lane {
-    /// Starts the lane's thread (node `node_name` in `domain`); it ends once `stop` is set.
+    /// Starts the lane's thread, sending through the ports `open` makes; it ends once `stop`
+    /// is set.
     pub fn spawn(
         name: &'static str,
-        domain: &Domain,
-        node_name: String,
+        open: PortOpener,
         ack_timeout: Duration,
         stop: Arc<AtomicBool>,
     ) -> Result<(Self, JoinHandle<()>), ConsoleError> {
@@ -83,11 +140,11 @@ impl Lane {
             problem: Mutex::new(Some("starting".to_owned())),
         });
         let thread = {
-            let (domain, state) = (domain.clone(), state.clone());
+            let state = state.clone();
             std::thread::Builder::new()
                 .name(format!("console-{name}"))
                 .spawn(move || {
-                    run_lane(name, &domain, &node_name, &jobs, &state, ack_timeout, &stop);
+                    run_lane(name, open, &jobs, &state, ack_timeout, &stop);
                     state.set(Some("console stopping".to_owned()));
                 })
                 .map_err(|error| ConsoleError::Thread(format!("{name} lane thread: {error}")))?
@@ -102,15 +159,15 @@ impl Lane {
         ))
     }
 
-    /// Hands `message` to the lane; the answer comes on the returned receiver (awaited by the
+    /// Hands `command` to the lane; the answer comes on the returned receiver (awaited by the
     /// server's tasks; the lane's thread does the blocking wait).
-    pub fn submit(&self, message: OperatorCommand) -> oneshot::Receiver<LaneAnswer> {
+    pub fn submit(&self, command: LaneCommand) -> oneshot::Receiver<LaneAnswer> {
         let (reply, answer) = oneshot::channel();
         let sent = self
             .jobs
             .lock()
             .unwrap_or_else(|p| p.into_inner())
-            .send(Job { message, reply });
+            .send(Job { command, reply });
         if let Err(mpsc::SendError(job)) = sent {
             let _ = job.reply.send(LaneAnswer::Unreachable(format!(
                 "the console's {} lane has ended",
@@ -127,45 +184,71 @@ impl Lane {
     }
 }
 
-/// The lane's ports; the context (the node) outlives the client's ports.
-struct Ports {
+/// The lane's ports on the robot; the context (the node) outlives the client's ports.
+struct IpcPort {
     client: OperatorClient,
     _context: Context,
 }
 
-fn open(domain: &Domain, node_name: &str) -> Result<Ports, String> {
-    let context = Context::new(domain, node_name).map_err(|error| error.to_string())?;
-    let client = OperatorClient::new(&context).map_err(|error| error.to_string())?;
-    Ok(Ports {
-        client,
-        _context: context,
+impl CommandPort for IpcPort {
+    fn send(
+        &mut self,
+        command: &LaneCommand,
+        ack_timeout: Duration,
+    ) -> Result<Option<CommandAnswer>, String> {
+        let message =
+            command
+                .command
+                .to_message(0, command.session, &command.token, &command.client);
+        let request = self
+            .client
+            .send(message)
+            .map_err(|error| format!("operator channels failed: {error}"))?;
+        let ack = self
+            .client
+            .wait_ack(command.session, request, ack_timeout)
+            .map_err(|error| format!("operator channels failed: {error}"))?;
+        Ok(ack.as_ref().map(CommandAnswer::from_ack))
+    }
+}
+
+/// Ports of a node `node_name` in `domain`: `operator/command` out, `operator/ack` in.
+pub fn ipc_port_opener(domain: &Domain, node_name: String) -> PortOpener {
+    let domain = domain.clone();
+    Box::new(move || {
+        let context = Context::new(&domain, &node_name)
+            .map_err(|error| format!("cannot open the operator channels: {error}"))?;
+        let client = OperatorClient::new(&context)
+            .map_err(|error| format!("cannot open the operator channels: {error}"))?;
+        Ok(Box::new(IpcPort {
+            client,
+            _context: context,
+        }) as Box<dyn CommandPort>)
     })
 }
 
 fn run_lane(
     name: &str,
-    domain: &Domain,
-    node_name: &str,
+    mut open: PortOpener,
     jobs: &mpsc::Receiver<Job>,
     state: &LaneState,
     ack_timeout: Duration,
     stop: &AtomicBool,
 ) {
-    let mut ports: Option<Ports> = None;
-    let reopen = |ports: &mut Option<Ports>| {
-        if ports.is_some() {
+    let mut port: Option<Box<dyn CommandPort>> = None;
+    let mut reopen = |port: &mut Option<Box<dyn CommandPort>>| {
+        if port.is_some() {
             return;
         }
-        match open(domain, node_name) {
+        match open() {
             Ok(opened) => {
                 if state.problem().is_some() {
                     tracing::info!(lane = name, "command lane open");
                 }
                 state.set(None);
-                *ports = Some(opened);
+                *port = Some(opened);
             }
-            Err(error) => {
-                let problem = format!("cannot open the operator channels: {error}");
+            Err(problem) => {
                 if state.problem().as_deref() != Some(problem.as_str()) {
                     tracing::error!(lane = name, %problem, "command lane down; retrying");
                 }
@@ -174,10 +257,10 @@ fn run_lane(
         }
     };
     while !stop.load(Ordering::Acquire) {
-        reopen(&mut ports);
-        // Bounded so the lane notices the shutdown and reopens its ports; a command wakes it at
+        reopen(&mut port);
+        // Bounded so the lane notices the shutdown and reopens its port; a command wakes it at
         // once.
-        let wait = if ports.is_some() {
+        let wait = if port.is_some() {
             Duration::from_millis(500)
         } else {
             REOPEN_PERIOD
@@ -187,27 +270,18 @@ fn run_lane(
             Err(mpsc::RecvTimeoutError::Timeout) => continue,
             Err(mpsc::RecvTimeoutError::Disconnected) => break,
         };
-        reopen(&mut ports);
-        let answer = match ports.as_mut() {
+        reopen(&mut port);
+        let answer = match port.as_mut() {
             None => LaneAnswer::Unreachable(state.problem().unwrap_or_default()),
-            Some(open) => {
-                let session = job.message.session_id;
-                let sent = open.client.send(job.message).and_then(|request| {
-                    open.client
-                        .wait_ack(session, request, ack_timeout)
-                        .map(|ack| ack.map_or(LaneAnswer::NoAnswer, LaneAnswer::Ack))
-                });
-                match sent {
-                    Ok(answer) => answer,
-                    Err(error) => {
-                        let problem = format!("operator channels failed: {error}");
-                        tracing::error!(lane = name, %problem, "command lane down; reopening");
-                        state.set(Some(problem.clone()));
-                        ports = None;
-                        LaneAnswer::Unreachable(problem)
-                    }
+            Some(open) => match open.send(&job.command, ack_timeout) {
+                Ok(answer) => answer.map_or(LaneAnswer::NoAnswer, LaneAnswer::Ack),
+                Err(problem) => {
+                    tracing::error!(lane = name, %problem, "command lane down; reopening");
+                    state.set(Some(problem.clone()));
+                    port = None;
+                    LaneAnswer::Unreachable(problem)
                 }
-            }
+            },
         };
         let _ = job.reply.send(answer);
     }

@@ -23,6 +23,7 @@ pub mod push;
 pub mod routes;
 pub mod server;
 pub mod shared;
+pub mod stack_clock;
 pub mod status_board;
 
 pub use error::ConsoleError;

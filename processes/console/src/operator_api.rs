@@ -6,13 +6,12 @@
 use std::net::IpAddr;
 use std::time::Duration;
 
-use harvest_ipc::payloads::{OperatorModeCode, OperatorRefusalCode};
 use harvest_operator::Command;
 use harvest_operator::request::CommandRequest;
 use serde::Deserialize;
 use serde_json::{Value, json};
 
-use crate::command_lane::LaneAnswer;
+use crate::command_lane::{LaneAnswer, LaneCommand};
 use crate::shared::Shared;
 
 /// Longest mark text, bytes (the channel's capacity).
@@ -36,10 +35,6 @@ pub struct PostedMark {
     pub text: String,
 }
 
-fn refusal_name(code: u8) -> Option<String> {
-    OperatorRefusalCode::from_code(code).map(|c| format!("{c:?}"))
-}
-
 /// The client label the executive shows for a page.
 pub fn client_label(peer: Option<IpAddr>) -> String {
     format!(
@@ -59,7 +54,12 @@ pub async fn command(shared: &Shared, posted: PostedCommand, peer: Option<IpAddr
             );
         }
     };
-    let message = command.to_message(0, posted.session, &posted.token, &client_label(peer));
+    let message = LaneCommand {
+        command,
+        session: posted.session,
+        token: posted.token,
+        client: client_label(peer),
+    };
     let lane = if command == Command::EmergencyStop {
         &shared.estop_lane
     } else {
@@ -70,14 +70,14 @@ pub async fn command(shared: &Shared, posted: PostedCommand, peer: Option<IpAddr
     // margin covers a command waiting behind another one on the command lane.
     let limit = 2 * shared.ack_timeout + Duration::from_millis(500);
     match tokio::time::timeout(limit, answer).await {
-        Ok(Ok(LaneAnswer::Ack(ack))) => (
+        Ok(Ok(LaneAnswer::Ack(answer))) => (
             200,
             json!({
-                "accepted": ack.accepted != 0,
-                "reason": ack.reason.as_str(),
-                "refusal": refusal_name(ack.refusal),
-                "mode": OperatorModeCode::from_code(ack.mode).map(OperatorModeCode::name),
-                "motion_duration_ms": ack.motion_duration_ms,
+                "accepted": answer.accepted,
+                "reason": answer.reason,
+                "refusal": answer.refusal,
+                "mode": answer.mode,
+                "motion_duration_ms": answer.motion_duration_ms,
             }),
         ),
         Ok(Ok(LaneAnswer::Unreachable(problem))) => (
@@ -120,7 +120,13 @@ pub async fn mark(shared: &Shared, posted: PostedMark, peer: Option<IpAddr>) -> 
             )}),
         );
     }
-    let answer = shared.marks.submit(text.clone(), client_label(peer));
+    let Some(marks) = &shared.marks else {
+        return (
+            503,
+            json!({"accepted": false, "reason": "marks are not carried over the remote link: make them on the robot's console or with `harvest ctl mark` there"}),
+        );
+    };
+    let answer = marks.submit(text.clone(), client_label(peer));
     match tokio::time::timeout(Duration::from_secs(5), answer).await {
         Ok(Ok(Ok(marked_ns))) => (
             200,

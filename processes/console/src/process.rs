@@ -35,11 +35,12 @@ use tokio_tungstenite::tungstenite::Utf8Bytes;
 
 use crate::admission::{Admission, Limits};
 use crate::camera_view::{CameraView, ViewSettings, run_camera_view};
-use crate::command_lane::Lane;
+use crate::command_lane::{Lane, ipc_port_opener};
 use crate::error::ConsoleError;
 use crate::mark_outlet::MarkOutlet;
 use crate::server::{ServerSettings, run_server};
 use crate::shared::Shared;
+use crate::stack_clock::StackClock;
 use crate::status_board::StatusBoard;
 
 /// Status refresh period.
@@ -74,6 +75,88 @@ pub struct ConsoleArgs {
     pub max_connections_per_address: u64,
 }
 
+impl ConsoleArgs {
+    /// The admission limits these options set.
+    pub fn limits(&self) -> Limits {
+        Limits {
+            connections_per_address: self.max_connections_per_address as usize,
+            watchers_total: self.max_watchers as usize,
+            watchers_per_address: self.max_watchers_per_address as usize,
+            ..Limits::default()
+        }
+    }
+
+    /// How long a command waits for the executive's answer.
+    pub fn ack_timeout(&self) -> Duration {
+        Duration::from_millis(self.ack_timeout_ms)
+    }
+
+    /// What the threads and the server share, around the two lanes and the marks.
+    pub fn shared(
+        &self,
+        estop_lane: Lane,
+        command_lane: Lane,
+        marks: Option<MarkOutlet>,
+    ) -> Arc<Shared> {
+        Arc::new(Shared {
+            view: CameraView::default(),
+            status: watch::Sender::new(Utf8Bytes::from_static("{\"type\":\"status\"}")),
+            estop_lane,
+            command_lane,
+            marks,
+            ack_timeout: self.ack_timeout(),
+            controlling_session: AtomicU64::new(0),
+            admission: Admission::new(self.limits()),
+            clock: StackClock::default(),
+        })
+    }
+}
+
+/// The server on its thread (hyper on tokio), until [`ConsoleServer::stop`].
+pub struct ConsoleServer {
+    shutdown: watch::Sender<bool>,
+    thread: std::thread::JoinHandle<std::io::Result<()>>,
+}
+
+impl ConsoleServer {
+    /// Serves `shared` on `args.listen`.
+    pub fn start(shared: Arc<Shared>, args: &ConsoleArgs) -> Result<Self, ConsoleError> {
+        let (shutdown, shutdown_seen) = watch::channel(false);
+        let server = ServerSettings {
+            listen: args.listen,
+            limits: args.limits(),
+            // Above the command lanes' own bound (twice the acknowledgement timeout and a
+            // margin), so a command's answer is never cut short.
+            request_timeout: 2 * args.ack_timeout() + Duration::from_secs(2),
+        };
+        let bound = Arc::new(Mutex::new(None));
+        let thread = std::thread::Builder::new()
+            .name("console-server".to_owned())
+            .spawn(move || run_server(shared, server, shutdown_seen, bound))
+            .map_err(|error| ConsoleError::Thread(format!("server thread: {error}")))?;
+        Ok(Self { shutdown, thread })
+    }
+
+    /// Stops serving and waits for the server's thread.
+    pub fn stop(self) {
+        let _ = self.shutdown.send(true);
+        match self.thread.join() {
+            Ok(Ok(())) => {}
+            Ok(Err(error)) => tracing::warn!(%error, "console server failed"),
+            Err(_) => tracing::warn!("console server panicked"),
+        }
+    }
+}
+
+/// Waits for the console's helper threads (lanes, marks), naming any that panicked.
+pub fn join_threads(threads: Vec<(&str, std::thread::JoinHandle<()>)>) {
+    for (name, thread) in threads {
+        if thread.join().is_err() {
+            tracing::warn!(thread = name, "console thread panicked");
+        }
+    }
+}
+
 /// Runs the console until SIGINT/SIGTERM.
 pub fn run(args: &ConsoleArgs, domain: &Domain, process_name: &str) -> Result<(), ConsoleError> {
     if !(args.view_rate_hz.is_finite() && (0.5..=30.0).contains(&args.view_rate_hz)) {
@@ -83,39 +166,21 @@ pub fn run(args: &ConsoleArgs, domain: &Domain, process_name: &str) -> Result<()
         )));
     }
     let stop = Arc::new(AtomicBool::new(false));
-    let ack_timeout = Duration::from_millis(args.ack_timeout_ms);
     let (estop_lane, estop_thread) = Lane::spawn(
         "e-stop",
-        domain,
-        format!("{process_name}-estop"),
-        ack_timeout,
+        ipc_port_opener(domain, format!("{process_name}-estop")),
+        args.ack_timeout(),
         stop.clone(),
     )?;
     let (command_lane, command_thread) = Lane::spawn(
         "command",
-        domain,
-        format!("{process_name}-cmd"),
-        ack_timeout,
+        ipc_port_opener(domain, format!("{process_name}-cmd")),
+        args.ack_timeout(),
         stop.clone(),
     )?;
     let (marks, mark_thread) =
         MarkOutlet::spawn(domain, format!("{process_name}-mark"), stop.clone())?;
-    let limits = Limits {
-        connections_per_address: args.max_connections_per_address as usize,
-        watchers_total: args.max_watchers as usize,
-        watchers_per_address: args.max_watchers_per_address as usize,
-        ..Limits::default()
-    };
-    let shared = Arc::new(Shared {
-        view: CameraView::default(),
-        status: watch::Sender::new(Utf8Bytes::from_static("{\"type\":\"status\"}")),
-        estop_lane,
-        command_lane,
-        marks,
-        ack_timeout,
-        controlling_session: AtomicU64::new(0),
-        admission: Admission::new(limits),
-    });
+    let shared = args.shared(estop_lane, command_lane, Some(marks));
     let settings = ViewSettings {
         rate_hz: args.view_rate_hz,
         scale: args.view_scale,
@@ -133,46 +198,53 @@ pub fn run(args: &ConsoleArgs, domain: &Domain, process_name: &str) -> Result<()
             .spawn(move || run_camera_view(&domain, &name, settings, &shared.view))
             .map_err(|error| ConsoleError::Thread(format!("view thread: {error}")))?
     };
-    let (shutdown, shutdown_seen) = watch::channel(false);
-    let server_thread = {
-        let server = ServerSettings {
-            listen: args.listen,
-            limits,
-            // Above the command lanes' own bound (twice the acknowledgement timeout and a
-            // margin), so a command's answer is never cut short.
-            request_timeout: 2 * ack_timeout + Duration::from_secs(2),
-        };
-        let (shared, bound) = (shared.clone(), Arc::new(Mutex::new(None)));
-        std::thread::Builder::new()
-            .name("console-server".to_owned())
-            .spawn(move || run_server(shared, server, shutdown_seen, bound))
-            .map_err(|error| ConsoleError::Thread(format!("server thread: {error}")))?
-    };
+    let server = ConsoleServer::start(shared.clone(), args)?;
 
     let result = run_status(domain, process_name, &shared);
 
     stop.store(true, Ordering::Release);
-    let _ = shutdown.send(true);
-    match server_thread.join() {
-        Ok(Ok(())) => {}
-        Ok(Err(error)) => tracing::warn!(%error, "console server failed"),
-        Err(_) => tracing::warn!("console server panicked"),
-    }
+    server.stop();
     match view_thread.join() {
         Ok(Ok(())) => {}
         Ok(Err(error)) => tracing::warn!(thread = "view", %error, "console thread failed"),
         Err(_) => tracing::warn!(thread = "view", "console thread panicked"),
     }
-    for (name, thread) in [
+    join_threads(vec![
         ("e-stop", estop_thread),
         ("command", command_thread),
         ("mark", mark_thread),
-    ] {
-        if thread.join().is_err() {
-            tracing::warn!(thread = name, "console thread panicked");
-        }
-    }
+    ]);
     result
+}
+
+/// The status the pages get: the board, the newest view, the lanes and the admission counts.
+pub fn status_json(board: &StatusBoard, shared: &Shared, now_ns: u64) -> serde_json::Value {
+    let view = shared.view.latest().map_or(serde_json::Value::Null, |v| {
+        json!({
+            "view_seq": v.view_seq,
+            "frame_seq": v.frame_seq,
+            "capture_ns": v.capture_ns,
+            "width_px": v.width_px,
+            "height_px": v.height_px,
+            "scale": v.scale,
+            "work_ms_total": shared.view.work_ns.load(Ordering::Relaxed) as f64 * 1e-6,
+        })
+    });
+    let mut status = board.to_json(now_ns, view);
+    status["type"] = json!("status");
+    status["links"] = json!({
+        "estop": shared.estop_lane.status_json(),
+        "commands": shared.command_lane.status_json(),
+    });
+    status["console"] = shared.admission.status_json();
+    status
+}
+
+/// Hands `status` to every page's push connection.
+pub fn publish_status(shared: &Shared, status: &serde_json::Value) {
+    shared
+        .status
+        .send_replace(Utf8Bytes::from(status.to_string()));
 }
 
 /// The status loop (module docs).
@@ -237,27 +309,7 @@ fn run_status(domain: &Domain, process_name: &str, shared: &Shared) -> Result<()
             while let Some(beat) = health_in.receive()? {
                 board.on_health(&beat, now_ns);
             }
-            let view = shared.view.latest().map_or(serde_json::Value::Null, |v| {
-                json!({
-                    "view_seq": v.view_seq,
-                    "frame_seq": v.frame_seq,
-                    "capture_ns": v.capture_ns,
-                    "width_px": v.width_px,
-                    "height_px": v.height_px,
-                    "scale": v.scale,
-                    "work_ms_total": shared.view.work_ns.load(Ordering::Relaxed) as f64 * 1e-6,
-                })
-            });
-            let mut status = board.to_json(now_ns, view);
-            status["type"] = json!("status");
-            status["links"] = json!({
-                "estop": shared.estop_lane.status_json(),
-                "commands": shared.command_lane.status_json(),
-            });
-            status["console"] = shared.admission.status_json();
-            shared
-                .status
-                .send_replace(Utf8Bytes::from(status.to_string()));
+            publish_status(shared, &status_json(&board, shared, now_ns));
             updates += 1;
             Ok(Flow::Continue)
         })

@@ -21,7 +21,6 @@ use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
-use harvest_ipc::MonotonicClock;
 use harvest_operator::request::CommandRequest;
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -182,7 +181,7 @@ fn handle(shared: &Arc<Shared>, peer: IpAddr, text: &str, answers: &mpsc::Sender
     };
     match message {
         PageMessage::Clock { id } => {
-            let reading = json!({"type": "clock", "id": id, "now_ns": MonotonicClock::read_ns()});
+            let reading = json!({"type": "clock", "id": id, "now_ns": shared.clock.now_ns()});
             let _ = answers.try_send(Utf8Bytes::from(reading.to_string()));
         }
         PageMessage::Command {

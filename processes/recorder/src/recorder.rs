@@ -82,8 +82,10 @@ pub struct RecorderArgs {
     /// Start a new segment file at this size (0: never split by size).
     #[arg(long, default_value = "1GiB", value_parser = parse_size_bytes)]
     pub split_size: u64,
-    /// Start a new segment file after this long (e.g. 5m).
-    #[arg(long, value_parser = parse_duration)]
+    /// Start a new segment file after this long (0s: only by size). The open segment's index
+    /// (one MCAP chunk index per chunk, kept for the file's summary) grows with its length and is
+    /// freed at the split, so this also bounds that memory.
+    #[arg(long, default_value = "5m", value_parser = parse_duration)]
     pub split_duration: Option<Duration>,
     /// Bound on the total size of `<prefix>-*.mcap` files in the output directory; the oldest
     /// are removed first when a segment starts (0: unbounded).
@@ -192,7 +194,7 @@ impl Default for RecorderArgs {
             chunk_size: 4 << 20,
             chunk_interval: Duration::from_secs(1),
             split_size: 1 << 30,
-            split_duration: None,
+            split_duration: Some(Duration::from_secs(300)),
             max_total_size: 20 << 30,
             max_age: None,
             camera: CameraRecord::Video,

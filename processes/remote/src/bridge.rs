@@ -55,7 +55,7 @@ use crate::ros2_link::Ros2Link;
 /// period, so a gate that opens between two ticks waits at most 10 ms (18-20 Hz).
 const TICK: Duration = Duration::from_millis(10);
 /// Beat of an unchanged process heartbeat on the link, ns.
-const HEALTH_BEAT_NS: u64 = 5 * SLOW_BEAT_MS * 1_000_000;
+const HEALTH_BEAT_NS: u64 = SLOW_BEAT_MS * 1_000_000;
 
 /// `harvest remote` command line.
 #[derive(Debug, Clone, clap::Args)]

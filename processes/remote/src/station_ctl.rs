@@ -64,6 +64,19 @@ fn station_session_id(robot: &RobotName) -> u64 {
 }
 
 impl Station {
+    /// Opens the link to `robot`, whether or not the robot is there yet.
+    pub fn open(robot: RobotName, link: &LinkArgs) -> Result<Self, RemoteError> {
+        let settings = link.settings(LinkSettings::station_default())?;
+        let session = open_session(&settings, harvest_remote::keys::ROOT)?;
+        let user = std::env::var("USER").unwrap_or_else(|_| "user".to_owned());
+        Ok(Self {
+            session,
+            session_id: station_session_id(&robot),
+            keys: RobotKeys::new(robot),
+            client: format!("station {user}"),
+        })
+    }
+
     /// Opens the link to `robot` and waits up to `timeout` until the robot is seen (its
     /// liveliness token); `None` if it is not.
     pub fn connect(
@@ -71,25 +84,15 @@ impl Station {
         link: &LinkArgs,
         timeout: Duration,
     ) -> Result<Option<Self>, RemoteError> {
-        let settings = link.settings(LinkSettings::station_default())?;
-        let session = open_session(&settings, harvest_remote::keys::ROOT)?;
-        let keys = RobotKeys::new(robot.clone());
-        let alive = session
+        let station = Self::open(robot, link)?;
+        let alive = station
+            .session
             .liveliness()
-            .declare_subscriber(keys.alive())
+            .declare_subscriber(station.keys.alive())
             .history(true)
             .wait()?;
         let seen = alive.recv_timeout(timeout).ok().flatten().is_some();
-        if !seen {
-            return Ok(None);
-        }
-        let user = std::env::var("USER").unwrap_or_else(|_| "user".to_owned());
-        Ok(Some(Self {
-            session,
-            keys,
-            session_id: station_session_id(&robot),
-            client: format!("station {user}"),
-        }))
+        Ok(seen.then_some(station))
     }
 
     /// Sends one command; the reply, `None` if none came within `timeout`.
@@ -105,9 +108,20 @@ impl Station {
             client: self.client.clone(),
             command: command_request(command),
         };
+        self.send_request(&request, command == Command::EmergencyStop, timeout)
+    }
+
+    /// Sends `request` (on the e-stop's key when `estop`, else on the command key); the reply,
+    /// `None` if none came within `timeout`.
+    pub fn send_request(
+        &self,
+        request: &RemoteRequest,
+        estop: bool,
+        timeout: Duration,
+    ) -> Result<Option<RemoteReply>, RemoteError> {
         let payload =
-            serde_json::to_vec(&request).map_err(|e| RemoteError::Invalid(e.to_string()))?;
-        let key = if command == Command::EmergencyStop {
+            serde_json::to_vec(request).map_err(|e| RemoteError::Invalid(e.to_string()))?;
+        let key = if estop {
             self.keys.estop()
         } else {
             self.keys.command()
