@@ -12,6 +12,7 @@ use std::sync::{Arc, Mutex};
 use harvest_console::camera_view::EncodedFrame;
 use harvest_console::shared::Shared;
 use harvest_console::status_board::StatusBoard;
+use harvest_ipc::Payload;
 use harvest_ipc::payloads::rgbd_frame::RGB_WIDTH_PX;
 use harvest_ipc::payloads::{
     AppleDetections, ArmState, HarvestEvent, OperatorModeState, ProcessHealth, VacuumState,
@@ -39,8 +40,31 @@ pub struct FeedState {
     pub images: AtomicU64,
 }
 
-/// What one key's samples do to the board.
-type SampleHandler = Box<dyn Fn(&Sample, &mut StatusBoard) + Send + Sync>;
+/// What one decoded message does to the board.
+type PayloadHandler<T> = Box<dyn Fn(T, &mut StatusBoard, &Shared) + Send + Sync>;
+
+/// Subscribes to the key of `what`: each sample decoded as a `T`, its stamp given to the clock
+/// estimate, then handed to `handle` with the board.
+fn subscribe_payload<T: Payload + DeserializeOwned + 'static>(
+    station: &Station,
+    state: &Arc<FeedState>,
+    shared: &Arc<Shared>,
+    what: Outbound,
+    handle: PayloadHandler<T>,
+) -> Result<Subscriber<()>, StationError> {
+    let (state, shared) = (state.clone(), shared.clone());
+    Ok(station
+        .session()
+        .declare_subscriber(station.keys().key(key_suffix(what)))
+        .callback(move |sample| {
+            if let Some(message) = decode::<T>(&sample, &state) {
+                shared.clock.observe(message.header().publish_ns);
+                let mut board = state.board.lock().unwrap_or_else(|p| p.into_inner());
+                handle(message, &mut board, &shared);
+            }
+        })
+        .wait()?)
+}
 
 /// The subscribers; dropping this ends them.
 pub struct LinkFeed {
@@ -80,93 +104,60 @@ impl LinkFeed {
             undecodable: AtomicU64::new(0),
             images: AtomicU64::new(0),
         });
-        let mut subscribers = Vec::new();
-        let mut subscribe = |what: Outbound, handle: SampleHandler| -> Result<(), StationError> {
-            let state = state.clone();
-            let subscriber = station
-                .session()
-                .declare_subscriber(station.keys().key(key_suffix(what)))
-                .callback(move |sample| {
-                    let mut board = state.board.lock().unwrap_or_else(|p| p.into_inner());
-                    handle(&sample, &mut board);
-                })
-                .wait()?;
-            subscribers.push(subscriber);
-            Ok(())
-        };
-        {
-            let (state, shared) = (state.clone(), shared.clone());
-            subscribe(
-                Outbound::Mode,
-                Box::new(move |sample, board| {
-                    if let Some(mut mode) = decode::<OperatorModeState>(sample, &state) {
-                        shared.clock.observe(mode.header.publish_ns);
-                        mode.controlling_session = relayed.page_session(mode.controlling_session);
-                        shared
-                            .controlling_session
-                            .store(mode.controlling_session, Ordering::Release);
-                        board.on_mode(&mode);
-                    }
-                }),
-            )?;
-        }
+        let mut subscribers = vec![subscribe_payload(
+            &station,
+            &state,
+            &shared,
+            Outbound::Mode,
+            Box::new(move |mut mode: OperatorModeState, board, shared| {
+                mode.controlling_session = relayed.page_session(mode.controlling_session);
+                shared
+                    .controlling_session
+                    .store(mode.controlling_session, Ordering::Release);
+                board.on_mode(&mode);
+            }),
+        )?];
         for (index, arm) in [1u8, 2].into_iter().enumerate() {
-            let (state, shared) = (state.clone(), shared.clone());
-            subscribe(
+            subscribers.push(subscribe_payload(
+                &station,
+                &state,
+                &shared,
                 Outbound::ArmState(arm),
-                Box::new(move |sample, board| {
-                    if let Some(arm_state) = decode::<ArmState>(sample, &state) {
-                        shared.clock.observe(arm_state.header.publish_ns);
-                        board.on_arm_state(index, &arm_state);
-                    }
+                Box::new(move |arm_state: ArmState, board, _| {
+                    board.on_arm_state(index, &arm_state)
                 }),
-            )?;
+            )?);
         }
-        {
-            let (state, shared) = (state.clone(), shared.clone());
-            subscribe(
-                Outbound::VacuumState,
-                Box::new(move |sample, board| {
-                    if let Some(vacuum) = decode::<VacuumState>(sample, &state) {
-                        shared.clock.observe(vacuum.header.publish_ns);
-                        board.on_vacuum(&vacuum);
-                    }
-                }),
-            )?;
-        }
-        {
-            let state = state.clone();
-            subscribe(
-                Outbound::Detections,
-                Box::new(move |sample, board| {
-                    if let Some(set) = decode::<AppleDetections>(sample, &state) {
-                        board.on_detections(&set);
-                    }
-                }),
-            )?;
-        }
-        {
-            let state = state.clone();
-            subscribe(
-                Outbound::HarvestEvents,
-                Box::new(move |sample, board| {
-                    if let Some(event) = decode::<HarvestEvent>(sample, &state) {
-                        board.on_harvest_event(&event);
-                    }
-                }),
-            )?;
-        }
-        {
-            let (state, shared) = (state.clone(), shared.clone());
-            subscribe(
-                Outbound::Health,
-                Box::new(move |sample, board| {
-                    if let Some(beat) = decode::<ProcessHealth>(sample, &state) {
-                        board.on_health(&beat, shared.clock.now_ns());
-                    }
-                }),
-            )?;
-        }
+        subscribers.push(subscribe_payload(
+            &station,
+            &state,
+            &shared,
+            Outbound::VacuumState,
+            Box::new(|vacuum: VacuumState, board, _| board.on_vacuum(&vacuum)),
+        )?);
+        subscribers.push(subscribe_payload(
+            &station,
+            &state,
+            &shared,
+            Outbound::Detections,
+            Box::new(|set: AppleDetections, board, _| board.on_detections(&set)),
+        )?);
+        subscribers.push(subscribe_payload(
+            &station,
+            &state,
+            &shared,
+            Outbound::HarvestEvents,
+            Box::new(|event: HarvestEvent, board, _| board.on_harvest_event(&event)),
+        )?);
+        subscribers.push(subscribe_payload(
+            &station,
+            &state,
+            &shared,
+            Outbound::Health,
+            Box::new(|beat: ProcessHealth, board, shared| {
+                board.on_health(&beat, shared.clock.now_ns())
+            }),
+        )?);
         let seen = state.clone();
         let alive = station
             .session()
