@@ -86,6 +86,12 @@ impl ClockMapping {
         u64::try_from(host).ok()
     }
 
+    /// When the newest sample arrived, stack clock (0 before the first): no datum taken so far
+    /// can be stamped later than this.
+    pub fn last_host_ns(&self) -> u64 {
+        self.last_host_ns
+    }
+
     /// Times the estimate started over (the first sample not counted).
     pub fn resets(&self) -> u64 {
         self.resets

@@ -98,7 +98,7 @@ pub struct LiveEvents {
 }
 
 impl FlightFeed {
-    /// Allocates the ring and starts the flight thread and its clip writer.
+    /// Starts the flight thread (which allocates the ring) and its clip writer.
     #[allow(clippy::too_many_arguments)]
     pub fn spawn(
         settings: FlightSettings,
@@ -109,15 +109,6 @@ impl FlightFeed {
         log_time_offset_ns: i64,
         live: LiveEvents,
     ) -> std::io::Result<Self> {
-        let ring = FlightRing::new(settings.ring_bytes, settings.block_bytes);
-        tracing::info!(
-            ring_bytes = ring.capacity_bytes(),
-            block_bytes = ring.block_bytes(),
-            before_s = settings.before.as_secs_f64(),
-            after_s = settings.after.as_secs_f64(),
-            clips = %settings.clips.dir.display(),
-            "flight recorder"
-        );
         let clips = ClipWriterHandle::spawn(
             settings.clips.clone(),
             topics,
@@ -127,23 +118,39 @@ impl FlightFeed {
             log_time_offset_ns,
         )?;
         let (inputs, receiver) = shared_queue::bounded(MAX_PENDING_MESSAGES, MAX_PENDING_BYTES);
-        let state = FlightState {
-            report: FlightReport {
-                ring_capacity_bytes: ring.capacity_bytes(),
-                ..FlightReport::default()
-            },
-            settings,
-            ring,
-            detector: TriggerDetector::default(),
-            clips,
-            live,
-            live_sequence: 0,
-            log_time_offset_ns,
-            clip: None,
-        };
+        // The ring is made on the thread: making 2 GiB resident takes a second or more, and
+        // the recorder's taps open meanwhile (the continuous record hears the stack's first
+        // messages; the ring misses what comes before it is ready, counted as dropped).
         let thread = std::thread::Builder::new()
             .name("recorder-flight".to_owned())
-            .spawn(move || state.run(receiver))?;
+            .spawn(move || {
+                let started = std::time::Instant::now();
+                let ring = FlightRing::new(settings.ring_bytes, settings.block_bytes);
+                tracing::info!(
+                    ring_bytes = ring.capacity_bytes(),
+                    block_bytes = ring.block_bytes(),
+                    resident_after_ms = started.elapsed().as_millis() as u64,
+                    before_s = settings.before.as_secs_f64(),
+                    after_s = settings.after.as_secs_f64(),
+                    clips = %settings.clips.dir.display(),
+                    "flight recorder"
+                );
+                let state = FlightState {
+                    report: FlightReport {
+                        ring_capacity_bytes: ring.capacity_bytes(),
+                        ..FlightReport::default()
+                    },
+                    settings,
+                    ring,
+                    detector: TriggerDetector::default(),
+                    clips,
+                    live,
+                    live_sequence: 0,
+                    log_time_offset_ns,
+                    clip: None,
+                };
+                state.run(receiver)
+            })?;
         Ok(Self { inputs, thread })
     }
 

@@ -6,7 +6,7 @@
 //! 95, wait in a small carry buffer for the next cloud) and consecutive clouds tile the scan
 //! without overlap. `meta.integration_ns` is the scan time the cloud holds (firings received x
 //! 10 us: lost packets leave it short), `header.capture_ns` the end of the window mapped to the
-//! stack's clock ([`ClockMapping`]). Firings without a return (reported at the origin) are not
+//! stack's clock ([`ClockMapping`]), no later than the newest packet's arrival. Firings without a return (reported at the origin) are not
 //! written. A dual-return packet gives two returns per firing: a one-second window would hold
 //! 200,000, twice a cloud's capacity, so dual-return windows of more than 0.5 s come truncated
 //! (`PointCloudMeta::FLAG_TRUNCATED`).
@@ -199,7 +199,13 @@ impl LivoxLidar {
             Some((_, end)) => end.min(self.window.held_until_ns),
             None => self.window.held_until_ns,
         };
-        cloud.header.capture_ns = self.clock.to_host_ns(end_ns).unwrap_or(0);
+        // The window ends one firing period after its last firing, which the mapping (paired
+        // with a packet's last firing) may put a few microseconds after that packet arrived:
+        // a stamp is never later than the arrival of the newest data.
+        cloud.header.capture_ns = self
+            .clock
+            .to_host_ns(end_ns)
+            .map_or(0, |stamp| stamp.min(self.clock.last_host_ns()));
         cloud.meta.integration_ns = self.window.firings * FIRING_PERIOD_NS;
         self.window.open = false;
         self.stats.clouds += 1;
