@@ -7,6 +7,10 @@ use std::sync::atomic::{AtomicI64, Ordering};
 
 use harvest_ipc::MonotonicClock;
 
+/// A stamp this much older than the estimate says is not a slow message but a clock that
+/// started over, ns.
+pub const RESTART_NS: i64 = 10_000_000_000;
+
 /// This machine's monotonic clock plus an offset (module docs).
 #[derive(Debug, Default)]
 pub struct StackClock {
@@ -21,14 +25,18 @@ impl StackClock {
     }
 
     /// A message stamped `stamp_ns` on the stack clock arrived now: the offset becomes at
-    /// least what this message implies (it cannot have arrived before it was stamped).
+    /// least what this message implies (it cannot have arrived before it was stamped). One that
+    /// implies an offset [`RESTART_NS`] or more below the estimate means the robot's clock
+    /// started over (its computer restarted): the estimate starts over from it.
     pub fn observe(&self, stamp_ns: u64) {
         let local_ns = MonotonicClock::read_ns();
         let implied = i64::try_from(i128::from(stamp_ns) - i128::from(local_ns)).unwrap_or(0);
-        if self.estimated.swap(true, Ordering::Relaxed) {
-            self.offset_ns.fetch_max(implied, Ordering::Relaxed);
-        } else {
+        let current = self.offset_ns.load(Ordering::Relaxed);
+        let restarted = implied < current.saturating_sub(RESTART_NS);
+        if !self.estimated.swap(true, Ordering::Relaxed) || restarted {
             self.offset_ns.store(implied, Ordering::Relaxed);
+        } else {
+            self.offset_ns.fetch_max(implied, Ordering::Relaxed);
         }
     }
 }
@@ -42,8 +50,8 @@ mod tests {
         let clock = StackClock::default();
         let before = MonotonicClock::read_ns();
         assert!(clock.now_ns() >= before);
-        // A robot whose clock is 1000 s behind this machine's.
-        let robot_ns = before - 1_000_000_000_000;
+        // A robot whose clock is 1000 s ahead of this machine's.
+        let robot_ns = before + 1_000_000_000_000;
         clock.observe(robot_ns);
         let now = clock.now_ns();
         assert!(
@@ -53,5 +61,8 @@ mod tests {
         // A message that took longer does not move the estimate back.
         clock.observe(robot_ns - 5_000_000);
         assert!(clock.now_ns() >= now);
+        // The robot's computer restarted: its clock counts from near zero again.
+        clock.observe(1_000);
+        assert!(clock.now_ns() < 1_000_000_000, "{}", clock.now_ns());
     }
 }
