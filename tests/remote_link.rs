@@ -946,3 +946,71 @@ fn a_station_console_serves_the_robots_page_over_the_link() {
     let (_, _, stderr) = console.interrupt_and_wait(Duration::from_secs(15));
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+/// With a real ROS 2 on this machine (Jazzy or later with `rmw_zenoh_cpp`): its router
+/// (`rmw_zenohd`, tcp/7447), the robot's link connected to it with `--ros2-domain 0`, then
+/// `ros2 topic echo` receives the robot's joint states and `ros2 topic pub` of a `Bool` true
+/// engages the robot's stop. Skipped, saying so, where `ros2` or `rmw_zenoh_cpp` is missing
+/// (this machine and CI have no ROS 2: the protocol is tested by the independent peer above).
+#[test]
+fn a_real_ros2_sees_the_robot_and_stops_it_where_one_is_installed() {
+    let installed = Command::new("ros2")
+        .args(["pkg", "prefix", "rmw_zenoh_cpp"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|status| status.success());
+    if !installed {
+        eprintln!("skipped: no ROS 2 with rmw_zenoh_cpp here (`ros2 pkg prefix rmw_zenoh_cpp`)");
+        return;
+    }
+    let ros2 = |args: &[&str]| {
+        let mut command = Command::new("timeout");
+        command
+            .arg("60")
+            .arg("ros2")
+            .args(args)
+            .env("RMW_IMPLEMENTATION", "rmw_zenoh_cpp")
+            .env("ROS_DOMAIN_ID", "0")
+            .stdin(Stdio::null());
+        command
+    };
+    let mut router = ros2(&["run", "rmw_zenoh_cpp", "rmw_zenohd"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("rmw_zenohd");
+    std::thread::sleep(Duration::from_secs(2));
+    let robot = Robot::start(
+        "remote-ros2-real",
+        &["--connect", "tcp/127.0.0.1:7447", "--ros2-domain", "0"],
+    );
+    let echo = ros2(&["topic", "echo", "--once", "/r1/arm1/joint_states"])
+        .output()
+        .expect("ros2 topic echo");
+    let printed = String::from_utf8_lossy(&echo.stdout).into_owned();
+    let published = ros2(&[
+        "topic",
+        "pub",
+        "--once",
+        "/r1/emergency_stop",
+        "std_msgs/msg/Bool",
+        "{data: true}",
+    ])
+    .output()
+    .expect("ros2 topic pub");
+    let stopped = robot.estop_within(Duration::from_secs(10), true);
+    let _ = router.kill();
+    let _ = router.wait();
+    let logs = robot.stop();
+    assert!(
+        echo.status.success() && printed.contains("arm1_theta"),
+        "ros2 topic echo: {printed}{}\nrobot: {logs}",
+        String::from_utf8_lossy(&echo.stderr)
+    );
+    assert!(
+        published.status.success() && stopped,
+        "ros2 topic pub of true on /r1/emergency_stop did not engage the stop: {}\nrobot: {logs}",
+        String::from_utf8_lossy(&published.stderr)
+    );
+}
