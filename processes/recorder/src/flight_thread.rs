@@ -120,7 +120,7 @@ impl FlightFeed {
         let (inputs, receiver) = shared_queue::bounded(MAX_PENDING_MESSAGES, MAX_PENDING_BYTES);
         // The ring is made on the thread: making 2 GiB resident takes a second or more, and
         // the recorder's taps open meanwhile (the continuous record hears the stack's first
-        // messages; the ring misses what comes before it is ready, counted as dropped).
+        // messages; the ring misses what comes before it is ready, counted as left out).
         let thread = std::thread::Builder::new()
             .name("recorder-flight".to_owned())
             .spawn(move || {

@@ -54,8 +54,6 @@ use crate::ros2_link::Ros2Link;
 /// The tick that samples the 200 Hz states and sends what is due: a fifth of the states'
 /// period, so a gate that opens between two ticks waits at most 10 ms (18-20 Hz).
 const TICK: Duration = Duration::from_millis(10);
-/// Beat of an unchanged process heartbeat on the link, ns.
-const HEALTH_BEAT_NS: u64 = SLOW_BEAT_MS * 1_000_000;
 
 /// `harvest remote` command line.
 #[derive(Debug, Clone, clap::Args)]
@@ -216,7 +214,11 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
         waiter.attach_listener(detections_in.listener())?,
     ];
 
-    let beat_ns = SLOW_BEAT_MS * 1_000_000;
+    // What the policy table says: the beat of an on-change key, the rate of a latest-only one.
+    let beat_ns = |what| match policy(what).pace {
+        harvest_remote::Pace::OnChange { beat_ms } => beat_ms * 1_000_000,
+        _ => SLOW_BEAT_MS * 1_000_000,
+    };
     let rate = |what| match policy(what).pace {
         harvest_remote::Pace::Latest { max_hz } => max_hz,
         _ => 1.0,
@@ -228,15 +230,15 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
     let mut vacuum_gate = RateGate::<Vec<u8>>::with_max_hz(rate(Outbound::VacuumState));
     let mut detections_gate =
         RateGate::<Box<AppleDetections>>::with_max_hz(rate(Outbound::Detections));
-    let mut mode_beat = ChangeBeat::<ModeContent>::new(beat_ns);
+    let mut mode_beat = ChangeBeat::<ModeContent>::new(beat_ns(Outbound::Mode));
     let mut last_mode_json: Option<Vec<u8>> = None;
-    let mut estop_beat = ChangeBeat::<(u8, String)>::new(beat_ns);
+    let mut estop_beat = ChangeBeat::<(u8, String)>::new(beat_ns(Outbound::EmergencyStop));
     let mut last_estop_json: Option<Vec<u8>> = None;
     let mut estop_heard = false;
     // Per process: its beat and its last heartbeat (sent again on the beat).
     let mut health_beats: HashMap<String, (ChangeBeat<HealthContent>, ProcessHealth)> =
         HashMap::new();
-    let mut summary_beat = ChangeBeat::<FleetSummary>::new(beat_ns);
+    let mut summary_beat = ChangeBeat::<FleetSummary>::new(beat_ns(Outbound::Summary));
     let mut summary = SummaryBuilder::new(
         robot.as_str(),
         args.console_url.clone(),
@@ -296,7 +298,7 @@ pub fn run(args: &RemoteArgs, domain: &Domain, process_name: &str) -> Result<(),
             let content = health_content(beat);
             let entry = health_beats
                 .entry(content.0.clone())
-                .or_insert_with(|| (ChangeBeat::new(HEALTH_BEAT_NS), *beat));
+                .or_insert_with(|| (ChangeBeat::new(beat_ns(Outbound::Health)), *beat));
             if entry.0.due(&content, now_ns) {
                 put(&publishers, Outbound::Health, json_bytes(beat), &mut failed);
                 sent += 1;
