@@ -274,6 +274,30 @@ pub const ARM_STATE: [Channel<ArmState>; 2] = [
         "arm 2 phase, joints and end-effector, 200 Hz",
     ),
 ];
+/// Tick records: a recorder that joins after the node started still gets its first ticks (the
+/// last 1.28 s at 200 Hz, from the channel's history), so a re-run can begin at the node's
+/// first tick. Few readers: the recorder and a tool.
+const TICK_RECORDS: Qos = Qos {
+    history_size: 256,
+    subscriber_max_buffer_size: 256,
+    max_subscribers: 4,
+    ..Qos::SMALL
+};
+/// What each arm's control node saw at every tick (the stop, the mode, its encoders, the
+/// messages it read), 200 Hz; written by the arm process, read by the recorder, so that
+/// `harvest replay --check` can re-run the arm on a recording.
+pub const ARM_TICKS: [Channel<NodeTickRecord>; 2] = [
+    Channel::new(
+        "arm1/ticks",
+        TICK_RECORDS,
+        "arm 1's control ticks: stop, mode, encoders and the messages read, 200 Hz",
+    ),
+    Channel::new(
+        "arm2/ticks",
+        TICK_RECORDS,
+        "arm 2's control ticks: stop, mode, encoders and the messages read, 200 Hz",
+    ),
+];
 /// Valve open/close requests of the two arm processes to the vacuum supervisor.
 pub const VALVE_REQUEST: Channel<ValveRequest> = Channel::new(
     "vacuum/valve_request",
@@ -292,6 +316,13 @@ pub const VACUUM_STATE: Channel<VacuumState> = Channel::new(
     "vacuum/state",
     Qos::STATE,
     "valves, 3 pressures and inferred attachment per arm",
+);
+/// What the vacuum supervisor saw at every tick (the stop, the mode, the valve board's
+/// readings, the messages it read), 200 Hz; read by the recorder for `harvest replay --check`.
+pub const VACUUM_TICKS: Channel<NodeTickRecord> = Channel::new(
+    "vacuum/ticks",
+    TICK_RECORDS,
+    "the vacuum supervisor's control ticks: stop, mode, valve board and the messages read, 200 Hz",
 );
 /// One writer, the owner of the stop: the executive (`harvest executive`). Anyone else who
 /// must stop the robot asks the owner (operators on `operator/command`, the safety monitor on
@@ -551,6 +582,10 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(VALVE_REQUEST);
     visitor.visit(VALVE_GRANT);
     visitor.visit(VACUUM_STATE);
+    for arm in ArmId::ALL {
+        visitor.visit(ARM_TICKS[arm.index()]);
+    }
+    visitor.visit(VACUUM_TICKS);
     visitor.visit(EMERGENCY_STOP);
     visitor.visit(SAFETY_VIOLATION);
     visitor.visit(HARVEST_EVENTS);

@@ -26,11 +26,13 @@ pub use transport::IpcTransport;
 pub use wake::{Wake, WakeOptions, run_on_wake};
 
 use harvest_hw::AnyDeviceError;
+use harvest_ipc::catalogue::Channel;
 use harvest_ipc::control_loop::{Wake as TimerWake, run_control_loop};
 use harvest_ipc::error::IpcError;
+use harvest_ipc::payloads::NodeTickRecord;
 use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
 use harvest_ipc::{Context, Flow, HealthReporter, MonotonicClock};
-use harvest_node::{Node, Runner, RunnerConfig, TickError};
+use harvest_node::{Devices, Node, Runner, RunnerConfig, TickError};
 
 /// How a node is run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -109,18 +111,59 @@ pub fn run_node<N: Node>(
     devices: N::Devices,
     options: RunOptions,
 ) -> Result<Finished<N>, RunError> {
+    run_periodic(
+        context,
+        Runner::new(node, devices, options.runner),
+        options,
+        None,
+    )
+}
+
+/// [`run_node`], and after every tick what it saw ([`harvest_node::tick_record`]: the stop,
+/// the mode, the device readings, the messages read) published on `ticks`, so that a
+/// recording can re-run the node (`harvest replay --check`).
+pub fn run_node_recording_ticks<N: Node>(
+    context: &Context,
+    node: N,
+    devices: N::Devices,
+    options: RunOptions,
+    ticks: Channel<NodeTickRecord>,
+) -> Result<Finished<N>, RunError>
+where
+    <N::Devices as Devices>::Readings: serde::Serialize,
+{
     let mut runner = Runner::new(node, devices, options.runner);
+    runner.record_ticks();
+    run_periodic(context, runner, options, Some(ticks))
+}
+
+fn run_periodic<N: Node>(
+    context: &Context,
+    mut runner: Runner<N>,
+    options: RunOptions,
+    ticks: Option<Channel<NodeTickRecord>>,
+) -> Result<Finished<N>, RunError> {
     let (inputs, outputs) = runner.slots_mut();
     let mut transport = IpcTransport::open(context, inputs, outputs)?;
     let mut health = HealthReporter::new(context)?;
+    let mut tick_publisher = ticks
+        .map(|channel| context.publisher(channel))
+        .transpose()?;
     tracing::info!(
         node = runner.node().name(),
         period_us = options.period_ns / 1000,
+        records_ticks = tick_publisher.is_some(),
         "running"
     );
     let result = run_control_loop(options.period_ns, |wake| -> Result<Flow, RunError> {
         match wake {
-            TimerWake::Tick { now_ns } => runner.tick(&mut transport, now_ns)?,
+            TimerWake::Tick { now_ns } => {
+                runner.tick(&mut transport, now_ns)?;
+                if let (Some(publisher), Some(record)) = (&mut tick_publisher, runner.tick_record())
+                {
+                    publisher.publish(record)?;
+                }
+            }
             TimerWake::Heartbeat { period } => heartbeat(&mut health, &mut runner, Some(&period))?,
         }
         Ok(Flow::Continue)

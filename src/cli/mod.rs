@@ -78,7 +78,8 @@ enum Command {
     /// server (ws://127.0.0.1:8765) for Foxglove or Lichtblick.
     Foxglove(harvest_foxglove::FoxgloveArgs),
     /// Republish a recording into the channels at recorded timing; with `--check`, re-run
-    /// this build's perception on it and compare with what was recorded.
+    /// this build's perception, arms and vacuum supervisor on it and compare with what was
+    /// recorded.
     Replay(ReplayCommand),
     /// Recording tools: info, cat, export, clips, recover.
     Rec {
@@ -641,6 +642,86 @@ pub struct ReplayCommand {
         next_help_heading = "With --check: perception's arguments, as it ran"
     )]
     perception: harvest_perception_process::PerceptionArgs,
+    #[command(
+        flatten,
+        next_help_heading = "With --check: the arms' and the vacuum supervisor's arguments, as they ran"
+    )]
+    control: ControlCheckArgs,
+}
+
+/// The control nodes' arguments for `harvest replay --check` (those of `harvest arm` and
+/// `harvest vacuum` in the launch file). Whether a node ran without an operator is in its
+/// tick records.
+#[derive(Debug, clap::Args)]
+struct ControlCheckArgs {
+    /// `harvest arm --device`, both arms.
+    #[arg(long, value_enum, default_value = "sim", requires = "check")]
+    arm_device: harvest_arm_process::ArmDevice,
+    /// `harvest arm --config` of arm 1.
+    #[arg(long, requires = "check")]
+    arm1_config: Option<std::path::PathBuf>,
+    /// `harvest arm --config` of arm 2.
+    #[arg(long, requires = "check")]
+    arm2_config: Option<std::path::PathBuf>,
+    /// `harvest vacuum --policy`.
+    #[arg(long, value_enum, default_value = "2024", requires = "check")]
+    vacuum_policy: harvest_vacuum_process::policy_arg::PolicyArg,
+    /// `harvest vacuum --arms`.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2), requires = "check")]
+    vacuum_arms: u8,
+    /// `harvest vacuum --device` (its pressure thresholds and reach follow the device).
+    #[arg(long, value_enum, default_value = "sim", requires = "check")]
+    vacuum_device: harvest_vacuum_process::process::VacuumDevice,
+    /// `harvest vacuum --config`.
+    #[arg(long, requires = "check")]
+    vacuum_config: Option<std::path::PathBuf>,
+}
+
+impl ControlCheckArgs {
+    /// The arms and the vacuum supervisor, built as these arguments say, on recorded devices.
+    fn nodes(&self) -> Vec<Box<dyn harvest_rec::check::ControlRerun>> {
+        use harvest_rec::check::{RecordedBoard, RecordedServos, arm_rerun, vacuum_rerun};
+        let arm = |id: u8, config: &Option<std::path::PathBuf>| {
+            let args = harvest_arm_process::ArmArgs {
+                id,
+                device: self.arm_device,
+                config: config.clone(),
+                without_operator: false,
+            };
+            let arm_id = if id == 1 {
+                harvest_ipc::ArmId::Arm1
+            } else {
+                harvest_ipc::ArmId::Arm2
+            };
+            arm_rerun(
+                arm_id,
+                Box::new(move || {
+                    harvest_arm_process::process::task::<RecordedServos>(&args)
+                        .map_err(|error| format!("arm {id}: {error}"))
+                }),
+                harvest_arm_process::process::MAX_CONSECUTIVE_DEVICE_ERRORS,
+            )
+        };
+        let vacuum_args = harvest_vacuum_process::process::VacuumArgs {
+            policy: self.vacuum_policy,
+            arms: self.vacuum_arms,
+            device: self.vacuum_device,
+            port: None,
+            config: self.vacuum_config.clone(),
+            without_operator: false,
+        };
+        vec![
+            arm(1, &self.arm1_config),
+            arm(2, &self.arm2_config),
+            vacuum_rerun(
+                Box::new(move || {
+                    harvest_vacuum_process::process::task::<RecordedBoard>(&vacuum_args)
+                        .map_err(|error| format!("vacuum: {error}"))
+                }),
+                harvest_vacuum_process::process::MAX_CONSECUTIVE_DEVICE_ERRORS,
+            ),
+        ]
+    }
 }
 
 /// `harvest replay --check`: prints the report on stdout (the same for two runs on one file),
@@ -651,15 +732,38 @@ fn run_check(command: &ReplayCommand) -> anyhow::Result<ExitCode> {
     }
     let task = harvest_perception_process::build_task(&command.perception, None)
         .context("perception for --check")?;
-    let report = harvest_rec::run_check(&command.replay.files, task, command.tolerance)
+    let controls = command.control.nodes();
+    let report = harvest_rec::run_check(&command.replay.files, task, &controls, command.tolerance)
         .context("replay --check")?;
     print!("{report}");
     eprintln!(
         "re-ran {:.3} s of recording in {:.3} s ({:.2}x real time)",
         report.perception.recorded_span_ns as f64 * 1e-9,
-        report.perception.rerun_wall_s,
+        report.rerun_wall_s(),
         report.speed_factor()
     );
+    let controls_wall_s = report.controls_read_wall_s
+        + report
+            .controls
+            .iter()
+            .map(|control| control.rerun_wall_s)
+            .sum::<f64>();
+    if let Some(first) = report.controls.first() {
+        eprintln!(
+            "  the control nodes: {:.3} s reading their records and inputs, then {} ({:.1}x real time in all)",
+            report.controls_read_wall_s,
+            report
+                .controls
+                .iter()
+                .map(|control| format!(
+                    "{} {} ticks in {:.3} s",
+                    control.name, control.ticks_rerun, control.rerun_wall_s
+                ))
+                .collect::<Vec<_>>()
+                .join(", "),
+            first.recorded_span_ns as f64 * 1e-9 / controls_wall_s.max(1e-9)
+        );
+    }
     Ok(if report.differs() {
         ExitCode::from(1)
     } else {

@@ -192,7 +192,7 @@ pub enum ArmNodeError {
 }
 
 /// Encoder feedback as read from the servos (the `ArmServos::feedback` sample).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct EncoderSample {
     /// When the encoders were sampled, ns (stack clock).
     pub capture_ns: u64,

@@ -37,6 +37,7 @@ pub mod node;
 pub mod ports;
 pub mod source;
 pub mod tick;
+pub mod tick_record;
 pub mod transport;
 
 pub use in_place::{LatestInPlace, Loaned, SampleHolder};
@@ -45,4 +46,5 @@ pub use node::{Applied, Devices, Node, NodeHealth, NodeTick};
 pub use ports::{Drain, Latest, Out};
 pub use source::{Capture, Source, SourceCounts, SourceError};
 pub use tick::{Runner, RunnerConfig, TickError};
+pub use tick_record::TickRecorder;
 pub use transport::{InputVisitor, Inputs, OutputVisitor, Outputs, Transport};

@@ -7,6 +7,7 @@ use harvest_ipc::payloads::{OperatorModeState, ProcessRunState};
 use harvest_robot_model::{ModeSource, obedience};
 
 use crate::node::{Applied, Devices, Node, NodeTick};
+use crate::tick_record::TickRecorder;
 use crate::transport::Transport;
 
 /// What the runner needs to know besides the node.
@@ -55,6 +56,8 @@ pub struct Runner<N: Node> {
     write_failures: FailureStreak,
     last_device_error: Option<ErrorKind>,
     ticks: u64,
+    /// What each tick saw, when asked ([`Self::record_ticks`]).
+    recorder: Option<TickRecorder<<N::Devices as Devices>::Readings>>,
 }
 
 impl<N: Node> Runner<N> {
@@ -73,7 +76,27 @@ impl<N: Node> Runner<N> {
             write_failures: FailureStreak::new(u32::MAX),
             last_device_error: None,
             ticks: 0,
+            recorder: None,
         }
+    }
+
+    /// From now on each tick is written down ([`crate::tick_record`]); the last tick's record
+    /// is [`Self::tick_record`].
+    pub fn record_ticks(&mut self)
+    where
+        <N::Devices as Devices>::Readings: serde::Serialize,
+    {
+        self.recorder = Some(TickRecorder::new());
+    }
+
+    /// What the last tick saw, when ticks are recorded.
+    pub fn tick_record(&self) -> Option<&harvest_ipc::payloads::NodeTickRecord> {
+        self.recorder.as_ref().map(TickRecorder::record)
+    }
+
+    /// The devices, to be given what they answer (a re-run on recorded readings).
+    pub fn devices_mut(&mut self) -> &mut N::Devices {
+        &mut self.devices
     }
 
     pub fn node(&self) -> &N {
@@ -145,9 +168,17 @@ impl<N: Node> Runner<N> {
         now_ns: u64,
     ) -> Result<(), TickError<T::Error, N::Error>> {
         self.ticks += 1;
+        if let Some(recorder) = &mut self.recorder {
+            let without_operator = self.config.mode_source == ModeSource::WithoutOperator;
+            recorder.begin(now_ns, self.ticks, without_operator);
+        }
         // 1. The stop first, applied whatever the devices do.
-        if let Some(engaged) = transport.emergency_stop().map_err(TickError::Transport)? {
+        let stop_heard = transport.emergency_stop().map_err(TickError::Transport)?;
+        if let Some(engaged) = stop_heard {
             self.emergency_stop = engaged;
+        }
+        if let Some(recorder) = &mut self.recorder {
+            recorder.stop_heard(stop_heard);
         }
         let mut safe = false;
         if self.emergency_stop {
@@ -159,10 +190,16 @@ impl<N: Node> Runner<N> {
         let (readings, device_fault) = match self.devices.read(now_ns) {
             Ok(readings) => {
                 self.read_failures.succeeded();
+                if let Some(recorder) = &mut self.recorder {
+                    recorder.read(Ok(readings.as_ref()));
+                }
                 (readings, false)
             }
             Err(error) => {
                 self.last_device_error = Some(error.kind());
+                if let Some(recorder) = &mut self.recorder {
+                    recorder.read(Err(error.kind()));
+                }
                 let limit = self.read_failures.failed("device read", &error);
                 if !safe {
                     self.make_safe(false);
@@ -181,6 +218,9 @@ impl<N: Node> Runner<N> {
 
         // 3. The operator's mode, by the one rule.
         if let Some(mode) = transport.operator_mode().map_err(TickError::Transport)? {
+            if let Some(recorder) = &mut self.recorder {
+                recorder.mode_heard(&mode);
+            }
             self.mode = Some(mode);
         }
         let tick = NodeTick {
@@ -195,6 +235,9 @@ impl<N: Node> Runner<N> {
         transport
             .read_inputs(&mut self.inputs)
             .map_err(TickError::Transport)?;
+        if let Some(recorder) = &mut self.recorder {
+            recorder.inputs(&mut self.inputs);
+        }
         self.node
             .step(
                 &tick,
@@ -217,6 +260,9 @@ impl<N: Node> Runner<N> {
                 }
                 Err(error) => {
                     self.last_device_error = Some(error.kind());
+                    if let Some(recorder) = &mut self.recorder {
+                        recorder.write_refused(error.kind());
+                    }
                     self.write_failures.failed("device command", &error);
                     self.make_safe(false);
                     Applied::Refused

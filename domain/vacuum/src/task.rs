@@ -37,6 +37,11 @@ impl<B> BoardDevices<B> {
             applied: [None; 4],
         }
     }
+
+    /// The board (a re-run tells it what to answer).
+    pub fn board_mut(&mut self) -> &mut B {
+        &mut self.board
+    }
 }
 
 /// One tick's valve commands.

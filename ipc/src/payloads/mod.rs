@@ -7,6 +7,7 @@ pub mod emergency_stop;
 pub mod hardware;
 pub mod harvest_event;
 pub mod laser_scan;
+pub mod node_tick;
 pub mod platform;
 pub mod point_cloud;
 pub mod process_health;
@@ -32,6 +33,9 @@ pub use harvest_event::{
     HARVEST_EVENT_REASON_BYTES, HarvestCause, HarvestEvent, HarvestEventKind, HarvestEventSource,
 };
 pub use laser_scan::{LaserScanRequest, LaserScanResult, LaserScanStatus};
+pub use node_tick::{
+    DeviceRead, MODE_SLOT, NodeTickRecord, StopHeard, TICK_INPUTS, TICK_READINGS_BYTES, TickInput,
+};
 pub use operator::{
     OperatorAck, OperatorCommand, OperatorCommandCode, OperatorModeCode, OperatorModeState,
     OperatorRefusalCode,

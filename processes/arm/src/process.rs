@@ -30,13 +30,14 @@ use harvest_arm::node::{ArmNode, ArmNodeConfig, ArmNodeError};
 use harvest_hw::AnyDeviceError;
 use harvest_hw::arm_servos::ArmServos;
 use harvest_hw::arm_servos::sim::SimArmServos;
+use harvest_ipc::catalogue::ARM_TICKS;
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
 use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
 use harvest_ipc::{Context, Domain};
 use harvest_node::RunnerConfig;
 use harvest_robot_model::ModeSource;
 use harvest_robot_model::params::{ArmId, ArmParams};
-use harvest_runtime::{RunError, RunOptions, run_node};
+use harvest_runtime::{RunError, RunOptions, run_node_recording_ticks};
 use serde::Deserialize;
 
 use harvest_arm::task::{ArmDevices, ArmTask};
@@ -185,14 +186,10 @@ harvest_ipc::from_ipc_errors!(ArmProcessError);
 pub use harvest_robot_model::obedience::MODE_STALE_NS;
 
 /// Device errors in a row after which the process stops (and the supervisor restarts it).
-const MAX_CONSECUTIVE_DEVICE_ERRORS: u32 = 200;
+pub const MAX_CONSECUTIVE_DEVICE_ERRORS: u32 = 200;
 
-/// Runs arm `args.id` until SIGINT/SIGTERM; returns its control period statistics.
-pub fn run(
-    args: &ArmArgs,
-    domain: &Domain,
-    process_name: &str,
-) -> Result<PeriodSummary, ArmProcessError> {
+/// The arm, its process settings and its node settings as `args` give them.
+fn settings(args: &ArmArgs) -> Result<(ArmId, ArmProcessConfig, ArmNodeConfig), ArmProcessError> {
     let config = match &args.config {
         Some(path) => ArmProcessConfig::from_path(path)?,
         None => ArmProcessConfig::default(),
@@ -202,6 +199,24 @@ pub fn run(
         _ => ArmId::Arm2,
     };
     let node_config = config.node.unwrap_or_else(|| args.device.node_config());
+    Ok((arm, config, node_config))
+}
+
+/// The task [`run`] runs for `args`, on servos of type `S` (`harvest replay --check` re-runs
+/// it on recorded servos).
+pub fn task<S: ArmServos>(args: &ArmArgs) -> Result<ArmTask<S>, ArmProcessError> {
+    let (arm, config, node_config) = settings(args)?;
+    let node = ArmNode::new(arm, node_config)?;
+    Ok(ArmTask::new(node, config.valve_request_resend_ms))
+}
+
+/// Runs arm `args.id` until SIGINT/SIGTERM; returns its control period statistics.
+pub fn run(
+    args: &ArmArgs,
+    domain: &Domain,
+    process_name: &str,
+) -> Result<PeriodSummary, ArmProcessError> {
+    let (arm, config, node_config) = settings(args)?;
     let context = Context::new(domain, process_name)?;
     let params = ArmParams::for_arm(arm);
     let lo = params.position_limits.min.to_array();
@@ -244,7 +259,13 @@ pub fn control_loop<S: ArmServos>(
             mode_source,
         },
     };
-    let finished = run_node(context, task, ArmDevices(servos), options)?;
+    let finished = run_node_recording_ticks(
+        context,
+        task,
+        ArmDevices(servos),
+        options,
+        ARM_TICKS[arm.index()],
+    )?;
     let summary = finished.result?;
     let (read_failures, write_failures) = finished.runner.device_failures();
     tracing::info!(

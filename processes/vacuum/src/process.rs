@@ -30,12 +30,13 @@ use harvest_hw::AnyDeviceError;
 use harvest_hw::valve_board::ValveBoard;
 use harvest_hw::valve_board::serial::{SerialBoardConfig, SerialValveBoard};
 use harvest_hw::valve_board::sim::SimValveBoard;
+use harvest_ipc::catalogue::VACUUM_TICKS;
 use harvest_ipc::config_file::{ConfigFileError, read_toml};
 use harvest_ipc::period_stats::{PeriodStatsError, PeriodSummary};
 use harvest_ipc::{Context, Domain};
 use harvest_node::RunnerConfig;
 use harvest_robot_model::{ArmId, ModeSource};
-use harvest_runtime::{RunError, RunOptions, run_node};
+use harvest_runtime::{RunError, RunOptions, run_node_recording_ticks};
 use harvest_vacuum::node::{VacuumNode, VacuumNodeConfig, VacuumNodeError};
 use harvest_vacuum::pressure::PressureConfig;
 use serde::Deserialize;
@@ -220,14 +221,10 @@ pub enum VacuumProcessError {
 harvest_ipc::from_ipc_errors!(VacuumProcessError);
 
 /// Board exchanges failing in a row after which the process stops (and is restarted): 10 s.
-const MAX_CONSECUTIVE_DEVICE_ERRORS: u32 = 2000;
+pub const MAX_CONSECUTIVE_DEVICE_ERRORS: u32 = 2000;
 
-/// Runs the vacuum supervisor until SIGINT/SIGTERM; returns its control period statistics.
-pub fn run(
-    args: &VacuumArgs,
-    domain: &Domain,
-    process_name: &str,
-) -> Result<PeriodSummary, VacuumProcessError> {
+/// The process settings and the node `args` give.
+fn settings(args: &VacuumArgs) -> Result<(VacuumProcessConfig, VacuumNode), VacuumProcessError> {
     let config = match &args.config {
         Some(path) => VacuumProcessConfig::from_path(path)?,
         None => VacuumProcessConfig::default(),
@@ -237,7 +234,7 @@ pub fn run(
         ..VacuumNodeConfig::default()
     });
     node_config.policy = args.policy.kind();
-    node_config.arms_enabled = [true, args.arms >= 2];
+    node_config.arms_enabled = enabled_arms(args);
     let arm_node = config
         .arm_node
         .unwrap_or_else(|| args.device.arm_node_config());
@@ -247,6 +244,31 @@ pub fn run(
             pick_reachable(arm, *centre, radius_m, &arm_node)
         }),
     )?;
+    Ok((config, node))
+}
+
+/// The task [`run`] runs for `args`, on a valve board of type `B` (`harvest replay --check`
+/// re-runs it on a recorded board).
+pub fn task<B: ValveBoard>(args: &VacuumArgs) -> Result<VacuumTask<B>, VacuumProcessError> {
+    let (config, node) = settings(args)?;
+    Ok(VacuumTask::new(
+        node,
+        enabled_arms(args),
+        config.complete_after_ms,
+    ))
+}
+
+fn enabled_arms(args: &VacuumArgs) -> [bool; 2] {
+    [true, args.arms >= 2]
+}
+
+/// Runs the vacuum supervisor until SIGINT/SIGTERM; returns its control period statistics.
+pub fn run(
+    args: &VacuumArgs,
+    domain: &Domain,
+    process_name: &str,
+) -> Result<PeriodSummary, VacuumProcessError> {
+    let (config, node) = settings(args)?;
     let context = Context::new(domain, process_name)?;
     let timeout = Duration::from_millis(config.board_timeout_ms);
     match args.device {
@@ -276,8 +298,7 @@ pub fn control_loop<B: ValveBoard>(
     config: &VacuumProcessConfig,
     args: &VacuumArgs,
 ) -> Result<PeriodSummary, VacuumProcessError> {
-    let enabled = [true, args.arms >= 2];
-    let task = VacuumTask::<B>::new(node, enabled, config.complete_after_ms);
+    let task = VacuumTask::<B>::new(node, enabled_arms(args), config.complete_after_ms);
     let mode_source = if args.without_operator {
         ModeSource::WithoutOperator
     } else {
@@ -291,7 +312,13 @@ pub fn control_loop<B: ValveBoard>(
         },
     };
     tracing::info!(policy = ?args.policy, arms = args.arms, ?mode_source, "vacuum supervisor");
-    let finished = run_node(context, task, BoardDevices::new(board), options)?;
+    let finished = run_node_recording_ticks(
+        context,
+        task,
+        BoardDevices::new(board),
+        options,
+        VACUUM_TICKS,
+    )?;
     let summary = finished.result?;
     let (read_failures, write_failures) = finished.runner.device_failures();
     tracing::info!(

@@ -368,3 +368,61 @@ fn a_schedule_runs_nodes_in_time_order_and_each_reads_a_message_once() {
     schedule.shutdown();
     assert!(schedule.runner::<Toy>(slow).expect("toy").node().exited);
 }
+
+#[test]
+fn a_recorded_tick_names_the_stop_the_mode_the_readings_and_every_message_read() {
+    use harvest_ipc::payloads::{DeviceErrorCode, DeviceRead, MODE_SLOT, StopHeard};
+
+    let mut bus = Bus::default();
+    let mut cursors = Cursors::default();
+    let mut runner = Runner::new(
+        Toy::default(),
+        Device::default(),
+        config(ModeSource::WithoutOperator),
+    );
+    runner.record_ticks();
+    bus.publish(EMERGENCY_STOP, stop(true), 1);
+    let mode_seq = bus.publish(OPERATOR_MODE, OperatorModeState::default(), 2);
+    let first = bus.publish(VALVE_REQUEST, ValveRequest::default(), 3);
+    let second = bus.publish(VALVE_REQUEST, ValveRequest::default(), 4);
+    tick(&mut runner, &mut bus, &mut cursors, 10);
+
+    let record = *runner.tick_record().expect("recorded");
+    assert_eq!((record.header.capture_ns, record.tick), (10, 1));
+    assert_eq!(record.emergency_stop_heard.get(), Ok(StopHeard::Engaged));
+    assert_eq!(record.device_read.get(), Ok(DeviceRead::Readings));
+    let readings: u32 =
+        harvest_ipc::codec::decode_exact(record.readings.as_slice()).expect("readings");
+    assert_eq!(readings, 7);
+    assert_eq!(record.without_operator, 1);
+    assert_eq!(record.inputs_complete, 1);
+    let read: Vec<(u8, u64, u64)> = record
+        .inputs
+        .as_slice()
+        .iter()
+        .map(|input| (input.slot, input.msg_seq, input.publish_ns))
+        .collect();
+    assert_eq!(
+        read,
+        [(MODE_SLOT, mode_seq, 2), (0, first, 3), (0, second, 4)]
+    );
+    // Stopped: nothing written, so nothing refused.
+    assert_eq!(record.write_error.get(), Ok(DeviceErrorCode::None));
+
+    // Released, with the device refusing the commands and then failing to read.
+    bus.publish(EMERGENCY_STOP, stop(false), 11);
+    runner.devices.fail_writes = true;
+    tick(&mut runner, &mut bus, &mut cursors, 12);
+    let record = *runner.tick_record().expect("recorded");
+    assert_eq!(record.tick, 2);
+    assert_eq!(record.emergency_stop_heard.get(), Ok(StopHeard::Released));
+    assert_eq!(record.write_error.get(), Ok(DeviceErrorCode::Timeout));
+    assert!(record.inputs.is_empty());
+    runner.devices.fail_reads = true;
+    tick(&mut runner, &mut bus, &mut cursors, 13);
+    let record = *runner.tick_record().expect("recorded");
+    assert_eq!(record.emergency_stop_heard.get(), Ok(StopHeard::Nothing));
+    assert_eq!(record.device_read.get(), Ok(DeviceRead::Failed));
+    assert_eq!(record.read_error.get(), Ok(DeviceErrorCode::Timeout));
+    assert!(record.readings.is_empty());
+}

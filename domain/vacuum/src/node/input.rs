@@ -5,7 +5,7 @@ use harvest_ipc::payloads::{AppleDetections, ArmState, ValveRequest};
 use harvest_robot_model::ArmId;
 
 /// One report of the valve board (the `ValveBoard::valve_states` and `pressures` of a tick).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct BoardReadings {
     /// When the board was read, ns.
     pub stamp_ns: u64,

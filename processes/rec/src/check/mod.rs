@@ -3,50 +3,81 @@
 //! what is re-run and how; [`json_diff`] for the comparison). Two runs on one file print the
 //! same report byte for byte; the speed goes to the log.
 
+pub mod control_nodes;
+pub mod control_rerun;
 pub mod held_sample;
 pub mod json_diff;
 pub mod perception_rerun;
+pub mod recorded_devices;
 pub mod recorded_inputs;
 pub mod report;
+pub mod scan_recording;
 
 use std::path::PathBuf;
 
 use harvest_perception::task::PerceptionTask;
 
+pub use control_nodes::{arm_rerun, vacuum_rerun};
+pub use control_rerun::{ControlCheck, ControlNode, ControlRerun};
 pub use perception_rerun::PerceptionCheck;
+pub use recorded_devices::{RecordedBoard, RecordedServos};
 pub use report::{ChannelCheck, CheckError};
 
 /// What `harvest replay --check` re-ran and found.
 pub struct CheckReport {
     pub perception: PerceptionCheck,
+    /// The control nodes whose tick records the recording holds.
+    pub controls: Vec<ControlCheck>,
+    /// The control nodes it does not hold records of.
+    pub controls_absent: Vec<&'static str>,
+    /// The wall time of the pass that read the control nodes' records and messages.
+    pub controls_read_wall_s: f64,
 }
 
 impl CheckReport {
-    pub fn channels(&self) -> [&ChannelCheck; 2] {
+    pub fn channels(&self) -> impl Iterator<Item = &ChannelCheck> {
         [&self.perception.detections, &self.perception.scan_requests]
+            .into_iter()
+            .chain(self.controls.iter().flat_map(|control| &control.channels))
     }
 
     /// Whether any re-run output differs from the recording.
     pub fn differs(&self) -> bool {
-        self.channels().iter().any(|channel| channel.differs())
+        self.channels().any(ChannelCheck::differs)
     }
 
-    /// Recorded time re-run per second of wall time.
+    /// The wall time every re-run took (the control nodes' reading pass included).
+    pub fn rerun_wall_s(&self) -> f64 {
+        self.perception.rerun_wall_s
+            + self.controls_read_wall_s
+            + self
+                .controls
+                .iter()
+                .map(|control| control.rerun_wall_s)
+                .sum::<f64>()
+    }
+
+    /// Recorded time re-run per second of wall time (every node re-run in turn).
     pub fn speed_factor(&self) -> f64 {
         let span_s = self.perception.recorded_span_ns as f64 * 1e-9;
-        if self.perception.rerun_wall_s > 0.0 {
-            span_s / self.perception.rerun_wall_s
-        } else {
-            0.0
-        }
+        let wall_s = self.rerun_wall_s();
+        if wall_s > 0.0 { span_s / wall_s } else { 0.0 }
     }
 }
 
 impl std::fmt::Display for CheckReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         writeln!(f, "check: perception re-run on the recorded frames")?;
-        for channel in self.channels() {
-            write!(f, "{channel}")?;
+        write!(f, "{}", self.perception.detections)?;
+        write!(f, "{}", self.perception.scan_requests)?;
+        for control in &self.controls {
+            write!(f, "{control}")?;
+        }
+        for name in &self.controls_absent {
+            writeln!(
+                f,
+                "check: {name} not re-run: the recording holds none of its tick records"
+            )?;
         }
         if self.differs() {
             writeln!(f, "check: DIFFERENT")
@@ -56,18 +87,33 @@ impl std::fmt::Display for CheckReport {
     }
 }
 
-/// Re-runs `perception` (built from the live process's arguments) on `files`, segments of one
-/// recording in order; `tolerance`: absolute, for floats (exact when `None`).
+/// Re-runs `perception` (built from the live process's arguments) and the control nodes on
+/// `files`, segments of one recording in order; `tolerance`: absolute, for floats (exact
+/// when `None`).
 pub fn run_check(
     files: &[PathBuf],
     perception: PerceptionTask,
+    controls: &[Box<dyn ControlRerun>],
     tolerance: Option<f64>,
 ) -> Result<CheckReport, CheckError> {
     let perception = perception_rerun::check_perception(files, perception, tolerance)?;
-    let report = CheckReport { perception };
+    let reading = std::time::Instant::now();
+    let recorded = control_rerun::read_recording(files, controls)?;
+    let mut report = CheckReport {
+        perception,
+        controls: Vec::new(),
+        controls_absent: Vec::new(),
+        controls_read_wall_s: reading.elapsed().as_secs_f64(),
+    };
+    for control in controls {
+        match control.rerun(&recorded, tolerance)? {
+            Some(check) => report.controls.push(check),
+            None => report.controls_absent.push(control.name()),
+        }
+    }
     tracing::info!(
         recorded_s = report.perception.recorded_span_ns as f64 * 1e-9,
-        wall_s = report.perception.rerun_wall_s,
+        wall_s = report.rerun_wall_s(),
         speed = report.speed_factor(),
         "check done"
     );

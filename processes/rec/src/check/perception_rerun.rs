@@ -9,7 +9,6 @@
 //! lossy, and a frame that is not the one perception saw gives other detections.
 
 use std::collections::HashMap;
-use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -22,13 +21,13 @@ use harvest_node::{Inputs, Outputs, Runner, RunnerConfig};
 use harvest_perception::task::PerceptionTask;
 use harvest_recording::camera_record::VIDEO_TOPIC;
 use harvest_recording::payload_codec::{decode_scanned, decode_scanned_into, zeroed_box};
-use harvest_recording::scan::{ScanItem, ScanOptions, scan_file};
 use harvest_robot_model::ModeSource;
 
 use crate::check::held_sample::AttachHeld;
 use crate::check::json_diff::first_difference;
 use crate::check::recorded_inputs::{RecordedInputs, RerunOutputs};
 use crate::check::report::{ChannelCheck, CheckError, Difference};
+use crate::check::scan_recording::{scan, undecodable};
 
 /// Fields set by the transport or measured, not decided by the node: never compared.
 const STAMPS: [&str; 2] = ["header.msg_seq", "header.publish_ns"];
@@ -60,42 +59,6 @@ pub struct PerceptionCheck {
     /// Recorded time covered, and the wall time the re-run took.
     pub recorded_span_ns: u64,
     pub rerun_wall_s: f64,
-}
-
-fn scan(
-    files: &[PathBuf],
-    mut on_message: impl FnMut(&harvest_recording::scan::ScannedMessage<'_>) -> Result<(), CheckError>,
-) -> Result<(), CheckError> {
-    for file in files {
-        let mut failure = None;
-        let outcome = scan_file(file, ScanOptions::default(), |item| {
-            if let ScanItem::Message(message) = item
-                && let Err(error) = on_message(&message)
-            {
-                failure = Some(error);
-                return ControlFlow::Break(());
-            }
-            ControlFlow::Continue(())
-        })
-        .map_err(|error| CheckError::Read {
-            file: file.clone(),
-            message: error.to_string(),
-        })?;
-        if let Some(error) = failure {
-            return Err(error);
-        }
-        for damaged in &outcome.damaged_chunks {
-            tracing::warn!(file = %file.display(), offset = damaged.offset, reason = %damaged.reason, "damaged chunk skipped");
-        }
-    }
-    Ok(())
-}
-
-fn undecodable(topic: &str, log_time_ns: u64) -> CheckError {
-    CheckError::Undecodable {
-        topic: topic.to_owned(),
-        log_time_ns,
-    }
 }
 
 fn first_pass(files: &[PathBuf]) -> Result<RecordedRun, CheckError> {

@@ -104,6 +104,9 @@ pub enum CheckError {
     /// The node is configured in a way the check cannot re-run.
     #[error("not supported by the check: {0}")]
     Unsupported(String),
+    /// A node could not be built from the arguments given for it.
+    #[error("settings of a re-run node: {0}")]
+    Settings(String),
     /// The re-run node ended the run.
     #[error("the re-run node stopped: {0}")]
     Node(String),

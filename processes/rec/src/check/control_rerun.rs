@@ -1,0 +1,732 @@
+//! The control nodes (each arm, the vacuum supervisor) re-run from their tick records: every
+//! tick of the live node is on its `*/ticks` channel ([`NodeTickRecord`]: the tick's time, the
+//! stop and mode samples it read, what its devices answered, the stamps of every message it
+//! read). The check builds this build's node, gives it at each recorded tick the same stop,
+//! mode, messages (found in the recording by topic and stamps) and device answers
+//! ([`crate::check::recorded_devices`]), runs the runtime's own [`Runner::tick`] at the
+//! recorded time, and compares what the tick sends with what the live tick sent: a recorded
+//! output belongs to the tick whose window holds its publish stamp (from the tick's time to its
+//! record's publish stamp), so each tick is compared with its own messages. A process restart
+//! (the tick count back at 1) starts a fresh node, as the live restart did.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use harvest_ipc::Payload;
+use harvest_ipc::catalogue::{Channel, OPERATOR_MODE};
+use harvest_ipc::payload::boxed_zeroed;
+use harvest_ipc::payloads::{MODE_SLOT, NodeTickRecord, OperatorModeState, StopHeard, TickInput};
+use harvest_node::{
+    InputVisitor, Inputs, LatestInPlace, Loaned, Node, OutputVisitor, Outputs, Runner,
+    RunnerConfig, Transport,
+    ports::{Drain, Latest, Out},
+};
+use harvest_recording::scan::ScannedMessage;
+use harvest_robot_model::ModeSource;
+
+use crate::check::json_diff::{FieldDifference, first_difference};
+use crate::check::recorded_devices::RecordedDevices;
+use crate::check::report::{ChannelCheck, CheckError, Difference};
+use crate::check::scan_recording::{scan, undecodable};
+
+/// Fields set by the transport, not decided by the node: never compared.
+const STAMPS: [&str; 2] = ["header.msg_seq", "header.publish_ns"];
+
+/// Whether a recorded message (topic, encoded payload) on one of a node's output channels was
+/// written by that node (channels with several writers: `harvest/events`,
+/// `vacuum/valve_request`).
+pub type Owns = fn(&str, &[u8]) -> bool;
+
+/// Builds a fresh node and its recorded devices.
+pub type BuildNode<N> = Box<dyn Fn() -> Result<(N, <N as Node>::Devices), CheckError>>;
+
+/// One control node to re-run: how to build it, where its records are.
+pub struct ControlNode<N: Node> {
+    /// Its name in the report (`arm1`, `vacuum`).
+    pub name: &'static str,
+    /// Its tick records' channel.
+    pub ticks: Channel<NodeTickRecord>,
+    /// A fresh node and its recorded devices, once per run of the process in the recording.
+    pub build: BuildNode<N>,
+    /// The live process's limit of failed device reads in a row.
+    pub max_read_failures: u32,
+    pub owns: Owns,
+}
+
+/// What the re-run of one control node found.
+pub struct ControlCheck {
+    pub name: &'static str,
+    /// Ticks re-run, and ticks recorded before the recording holds the node's start (a process
+    /// started before the recorder): not re-run.
+    pub ticks_rerun: u64,
+    pub ticks_before_start: u64,
+    /// Ticks missing between two recorded ones (the recorder lost their records).
+    pub ticks_lost: u64,
+    /// Messages a tick read that the recording does not hold, and ticks that read more than a
+    /// record names.
+    pub inputs_missing: u64,
+    pub inputs_incomplete_ticks: u64,
+    /// One comparison per output channel, in the node's order.
+    pub channels: Vec<ChannelCheck>,
+    pub recorded_span_ns: u64,
+    pub rerun_wall_s: f64,
+}
+
+impl ControlCheck {
+    pub fn differs(&self) -> bool {
+        self.channels.iter().any(ChannelCheck::differs)
+    }
+}
+
+impl std::fmt::Display for ControlCheck {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "check: {} re-run on its {} recorded ticks",
+            self.name, self.ticks_rerun
+        )?;
+        if self.ticks_before_start > 0 {
+            writeln!(
+                f,
+                "    {} tick(s) not re-run: recorded before the recording holds the process's first tick",
+                self.ticks_before_start
+            )?;
+        }
+        if self.ticks_lost > 0 {
+            writeln!(
+                f,
+                "    {} tick record(s) missing from the recording",
+                self.ticks_lost
+            )?;
+        }
+        if self.inputs_missing > 0 || self.inputs_incomplete_ticks > 0 {
+            writeln!(
+                f,
+                "    {} message(s) read by the live node not in the recording; {} tick(s) read more than their record names",
+                self.inputs_missing, self.inputs_incomplete_ticks
+            )?;
+        }
+        for channel in &self.channels {
+            write!(f, "{channel}")?;
+        }
+        Ok(())
+    }
+}
+
+/// A re-run control node of any type.
+pub trait ControlRerun {
+    fn name(&self) -> &'static str;
+    fn ticks_topic(&self) -> &'static str;
+    fn input_topics(&self) -> Result<Vec<&'static str>, CheckError>;
+    fn output_topics(&self) -> Result<Vec<&'static str>, CheckError>;
+    fn owns(&self) -> Owns;
+    /// `None` when the recording holds none of the node's tick records.
+    fn rerun(
+        &self,
+        recorded: &Recorded,
+        tolerance: Option<f64>,
+    ) -> Result<Option<ControlCheck>, CheckError>;
+}
+
+/// A recorded output message.
+struct RecordedOutput {
+    log_time_ns: u64,
+    publish_ns: u64,
+    bytes: Vec<u8>,
+}
+
+/// What the control check reads from a recording, for every node at once (one pass).
+#[derive(Default)]
+pub struct Recorded {
+    /// Tick records per ticks topic, in recorded order, with their log time.
+    ticks: HashMap<&'static str, Vec<NodeTickRecord>>,
+    /// The log time of each of those records.
+    tick_log_times: HashMap<&'static str, Vec<u64>>,
+    /// Input messages per topic, by (msg_seq, publish_ns).
+    inputs: HashMap<&'static str, HashMap<(u64, u64), Vec<u8>>>,
+    /// Output messages per (ticks topic, output topic), the node's own only.
+    outputs: HashMap<(&'static str, &'static str), Vec<RecordedOutput>>,
+    first_log_time_ns: Option<u64>,
+    last_log_time_ns: u64,
+}
+
+/// Reads `files` once for every node in `nodes`.
+pub fn read_recording(
+    files: &[PathBuf],
+    nodes: &[Box<dyn ControlRerun>],
+) -> Result<Recorded, CheckError> {
+    let mut recorded = Recorded::default();
+    let mut input_topics: Vec<&'static str> = vec![OPERATOR_MODE.spec.topic];
+    let mut output_topics: Vec<(&'static str, &'static str, Owns)> = Vec::new();
+    for node in nodes {
+        recorded.ticks.insert(node.ticks_topic(), Vec::new());
+        recorded
+            .tick_log_times
+            .insert(node.ticks_topic(), Vec::new());
+        input_topics.extend(node.input_topics()?);
+        for topic in node.output_topics()? {
+            output_topics.push((node.ticks_topic(), topic, node.owns()));
+        }
+    }
+    for topic in &input_topics {
+        recorded.inputs.entry(topic).or_default();
+    }
+    scan(files, |message: &ScannedMessage<'_>| {
+        let topic = message.channel.topic.as_str();
+        let log_time_ns = message.log_time;
+        recorded.first_log_time_ns.get_or_insert(log_time_ns);
+        recorded.last_log_time_ns = recorded.last_log_time_ns.max(log_time_ns);
+        if let Some(records) = recorded.ticks.get_mut(topic) {
+            let mut record = NodeTickRecord::default();
+            NodeTickRecord::decode_into(message.data, &mut record)
+                .map_err(|_| undecodable(topic, log_time_ns))?;
+            records.push(record);
+            if let Some(log_times) = recorded.tick_log_times.get_mut(topic) {
+                log_times.push(log_time_ns);
+            }
+        }
+        if let Some(messages) = recorded.inputs.get_mut(topic) {
+            let header = header_of(message.data).ok_or_else(|| undecodable(topic, log_time_ns))?;
+            messages.insert((header.msg_seq, header.publish_ns), message.data.to_vec());
+        }
+        for &(ticks_topic, output_topic, owns) in &output_topics {
+            if output_topic == topic && owns(topic, message.data) {
+                let header =
+                    header_of(message.data).ok_or_else(|| undecodable(topic, log_time_ns))?;
+                recorded
+                    .outputs
+                    .entry((ticks_topic, output_topic))
+                    .or_default()
+                    .push(RecordedOutput {
+                        log_time_ns,
+                        publish_ns: header.publish_ns,
+                        bytes: message.data.to_vec(),
+                    });
+            }
+        }
+        Ok(())
+    })?;
+    Ok(recorded)
+}
+
+/// The header every payload starts with, encoded first (three u64, fixed-width little endian).
+fn header_of(bytes: &[u8]) -> Option<harvest_ipc::Header> {
+    let field = |k: usize| -> Option<u64> {
+        Some(u64::from_le_bytes(
+            bytes.get(k * 8..k * 8 + 8)?.try_into().ok()?,
+        ))
+    };
+    Some(harvest_ipc::Header {
+        msg_seq: field(0)?,
+        capture_ns: field(1)?,
+        publish_ns: field(2)?,
+    })
+}
+
+/// Visits a node's slots and lists their topics.
+struct Topics(Vec<&'static str>);
+
+impl InputVisitor for Topics {
+    type Error = std::convert::Infallible;
+    fn latest<T: Payload + Copy + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        _: &mut Latest<T>,
+    ) -> Result<(), Self::Error> {
+        self.0.push(channel.spec.topic);
+        Ok(())
+    }
+    fn drain<T: Payload + Copy + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        _: &mut Drain<T>,
+    ) -> Result<(), Self::Error> {
+        self.0.push(channel.spec.topic);
+        Ok(())
+    }
+    fn latest_in_place<T: Payload + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        _: &mut LatestInPlace<T>,
+    ) -> Result<(), Self::Error> {
+        self.0.push(channel.spec.topic);
+        Ok(())
+    }
+}
+
+impl OutputVisitor for Topics {
+    type Error = std::convert::Infallible;
+    fn output<T: Payload + Copy + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        _: &mut Out<T>,
+    ) -> Result<(), Self::Error> {
+        self.0.push(channel.spec.topic);
+        Ok(())
+    }
+    fn loaned<T: Payload + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        _: &mut Loaned<T>,
+    ) -> Result<(), Self::Error> {
+        self.0.push(channel.spec.topic);
+        Ok(())
+    }
+}
+
+/// A recorded message decoded as `T`.
+fn decode<T: Payload + Copy>(bytes: &[u8]) -> Option<T> {
+    let mut value = boxed_zeroed::<T>();
+    T::decode_into(bytes, &mut value).ok()?;
+    Some(*value)
+}
+
+/// The comparison of one node's outputs, tick by tick.
+struct Comparison<'a> {
+    /// The node's recorded outputs per output topic, each with the index of its tick record
+    /// (`None`: outside every recorded tick).
+    recorded: HashMap<&'static str, Vec<(Option<usize>, &'a RecordedOutput)>>,
+    cursors: HashMap<&'static str, usize>,
+    checks: Vec<ChannelCheck>,
+    totals: HashMap<&'static str, (u64, u64)>,
+    tolerance: Option<f64>,
+    start_ns: u64,
+    /// The tick being re-run (index of its record) and its record's log time.
+    tick: usize,
+    tick_log_ns: u64,
+    undecodable: Option<CheckError>,
+}
+
+impl Comparison<'_> {
+    fn check_mut(&mut self, topic: &'static str) -> &mut ChannelCheck {
+        let index = match self.checks.iter().position(|check| check.topic == topic) {
+            Some(index) => index,
+            None => {
+                self.checks.push(ChannelCheck::new(topic));
+                self.checks.len() - 1
+            }
+        };
+        &mut self.checks[index]
+    }
+
+    /// The recorded messages of the current tick on `topic` (advancing past earlier ones,
+    /// which belong to ticks not re-run).
+    fn take_recorded(&mut self, topic: &'static str) -> Vec<(u64, Vec<u8>)> {
+        let tick = self.tick;
+        let Some(list) = self.recorded.get(topic) else {
+            return Vec::new();
+        };
+        let cursor = self.cursors.entry(topic).or_insert(0);
+        while *cursor < list.len() && list[*cursor].0.is_none_or(|index| index < tick) {
+            *cursor += 1;
+        }
+        let mut taken = Vec::new();
+        while *cursor < list.len() && list[*cursor].0 == Some(tick) {
+            let output = list[*cursor].1;
+            taken.push((output.log_time_ns, output.bytes.clone()));
+            *cursor += 1;
+        }
+        taken
+    }
+
+    fn compare<T: Payload + Copy>(&mut self, topic: &'static str, sent: &[T]) {
+        let recorded = self.take_recorded(topic);
+        let totals = self.totals.entry(topic).or_insert((0, 0));
+        totals.0 += recorded.len() as u64;
+        totals.1 += sent.len() as u64;
+        let (tolerance, start_ns, tick_log_ns) = (self.tolerance, self.start_ns, self.tick_log_ns);
+        let mut failure = None;
+        let check = self.check_mut(topic);
+        for index in 0..recorded.len().max(sent.len()) {
+            let recorded_message = recorded.get(index);
+            let difference = match (recorded_message, sent.get(index)) {
+                (Some((_, bytes)), Some(rerun)) => {
+                    let Some(value) = decode::<T>(bytes) else {
+                        let at_ns = recorded_message.map_or(0, |(at, _)| *at);
+                        failure = Some(undecodable(topic, at_ns));
+                        break;
+                    };
+                    check.compared += 1;
+                    let found =
+                        first_difference(&value.to_json(), &rerun.to_json(), &STAMPS, tolerance);
+                    if found.is_none() {
+                        check.identical += 1;
+                    }
+                    found
+                }
+                (Some((_, bytes)), None) => {
+                    check.compared += 1;
+                    check.missing_in_rerun += 1;
+                    Some(FieldDifference {
+                        field: "(the message)".to_owned(),
+                        recorded: decode::<T>(bytes)
+                            .map_or(serde_json::Value::Null, |v| v.to_json()),
+                        rerun: serde_json::Value::Null,
+                    })
+                }
+                (None, Some(rerun)) => Some(FieldDifference {
+                    field: "(the message)".to_owned(),
+                    recorded: serde_json::Value::Null,
+                    rerun: rerun.to_json(),
+                }),
+                (None, None) => None,
+            };
+            if let Some(field) = difference
+                && check.first_difference.is_none()
+            {
+                // A message only the re-run sent: at its tick, after those compared.
+                let (at_ns, message_index) = match recorded_message {
+                    Some((at, _)) => (*at, check.compared.saturating_sub(1)),
+                    None => (tick_log_ns, check.compared),
+                };
+                check.first_difference = Some(Difference {
+                    at_s: at_ns.saturating_sub(start_ns) as f64 * 1e-9,
+                    message_index,
+                    field,
+                });
+            }
+        }
+        if failure.is_some() && self.undecodable.is_none() {
+            self.undecodable = failure;
+        }
+    }
+}
+
+/// One recorded tick as the runner's transport: the stop, the mode and the messages the live
+/// tick read; what the tick sends is compared at once.
+struct RecordedTick<'a, 'b> {
+    record: &'a NodeTickRecord,
+    inputs: &'a HashMap<&'static str, HashMap<(u64, u64), Vec<u8>>>,
+    missing: &'b mut u64,
+    comparison: &'b mut Comparison<'a>,
+}
+
+/// The check's transport cannot fail.
+#[derive(Debug, thiserror::Error)]
+#[error("recorded tick")]
+pub enum NoFailure {}
+
+impl RecordedTick<'_, '_> {
+    fn refs(&self, slot: u8) -> impl Iterator<Item = &TickInput> {
+        self.record
+            .inputs
+            .as_slice()
+            .iter()
+            .filter(move |input| input.slot == slot)
+    }
+
+    fn message<T: Payload + Copy>(&mut self, topic: &str, input: &TickInput) -> Option<T> {
+        let found = self
+            .inputs
+            .get(topic)
+            .and_then(|messages| messages.get(&(input.msg_seq, input.publish_ns)))
+            .and_then(|bytes| decode::<T>(bytes));
+        if found.is_none() {
+            *self.missing += 1;
+        }
+        found
+    }
+}
+
+struct Fill<'t, 'a, 'b> {
+    tick: &'t mut RecordedTick<'a, 'b>,
+    slot: u8,
+}
+
+impl Fill<'_, '_, '_> {
+    fn next_slot(&mut self) -> u8 {
+        let slot = self.slot;
+        self.slot = self.slot.saturating_add(1);
+        slot
+    }
+
+    fn messages<T: Payload + Copy>(&mut self, slot: u8, topic: &str) -> Vec<T> {
+        let refs: Vec<TickInput> = self.tick.refs(slot).copied().collect();
+        refs.iter()
+            .filter_map(|input| self.tick.message::<T>(topic, input))
+            .collect()
+    }
+}
+
+impl InputVisitor for Fill<'_, '_, '_> {
+    type Error = NoFailure;
+
+    fn latest<T: Payload + Copy + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        slot: &mut Latest<T>,
+    ) -> Result<(), NoFailure> {
+        let index = self.next_slot();
+        slot.begin();
+        for message in self.messages::<T>(index, channel.spec.topic) {
+            slot.set(message);
+        }
+        Ok(())
+    }
+
+    fn drain<T: Payload + Copy + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        slot: &mut Drain<T>,
+    ) -> Result<(), NoFailure> {
+        let index = self.next_slot();
+        slot.begin();
+        for message in self.messages::<T>(index, channel.spec.topic) {
+            slot.push(message);
+        }
+        Ok(())
+    }
+
+    fn latest_in_place<T: Payload + 'static>(
+        &mut self,
+        _channel: Channel<T>,
+        _slot: &mut LatestInPlace<T>,
+    ) -> Result<(), NoFailure> {
+        // The control nodes read no large messages.
+        self.next_slot();
+        Ok(())
+    }
+}
+
+struct Compare<'t, 'a, 'b> {
+    tick: &'t mut RecordedTick<'a, 'b>,
+}
+
+impl OutputVisitor for Compare<'_, '_, '_> {
+    type Error = NoFailure;
+
+    fn output<T: Payload + Copy + 'static>(
+        &mut self,
+        channel: Channel<T>,
+        slot: &mut Out<T>,
+    ) -> Result<(), NoFailure> {
+        self.tick
+            .comparison
+            .compare(channel.spec.topic, slot.pending());
+        slot.flush(|_| Ok(()))
+    }
+
+    fn loaned<T: Payload + 'static>(
+        &mut self,
+        _channel: Channel<T>,
+        slot: &mut Loaned<T>,
+    ) -> Result<(), NoFailure> {
+        let _ = slot.take_send::<()>();
+        Ok(())
+    }
+}
+
+impl Transport for RecordedTick<'_, '_> {
+    type Error = NoFailure;
+
+    fn emergency_stop(&mut self) -> Result<Option<bool>, NoFailure> {
+        Ok(match self.record.emergency_stop_heard.get() {
+            Ok(StopHeard::Engaged) => Some(true),
+            Ok(StopHeard::Released) => Some(false),
+            Ok(StopHeard::Nothing) | Err(_) => None,
+        })
+    }
+
+    fn operator_mode(&mut self) -> Result<Option<OperatorModeState>, NoFailure> {
+        let refs: Vec<TickInput> = self.refs(MODE_SLOT).copied().collect();
+        Ok(refs
+            .iter()
+            .filter_map(|input| self.message::<OperatorModeState>(OPERATOR_MODE.spec.topic, input))
+            .last())
+    }
+
+    fn read_inputs<I: Inputs>(&mut self, inputs: &mut I) -> Result<(), NoFailure> {
+        inputs.visit(&mut Fill {
+            tick: self,
+            slot: 0,
+        })
+    }
+
+    fn publish<O: Outputs>(&mut self, outputs: &mut O) -> Result<(), NoFailure> {
+        outputs.visit(&mut Compare { tick: self })
+    }
+}
+
+impl<N> ControlRerun for ControlNode<N>
+where
+    N: Node,
+    N::Devices: RecordedDevices,
+{
+    fn name(&self) -> &'static str {
+        self.name
+    }
+
+    fn ticks_topic(&self) -> &'static str {
+        self.ticks.spec.topic
+    }
+
+    fn input_topics(&self) -> Result<Vec<&'static str>, CheckError> {
+        let (node, _) = (self.build)()?;
+        let mut topics = Topics(Vec::new());
+        let Ok(()) = Inputs::visit(&mut node.inputs(), &mut topics);
+        Ok(topics.0)
+    }
+
+    fn output_topics(&self) -> Result<Vec<&'static str>, CheckError> {
+        let (node, _) = (self.build)()?;
+        let mut topics = Topics(Vec::new());
+        let Ok(()) = Outputs::visit(&mut node.outputs(), &mut topics);
+        Ok(topics.0)
+    }
+
+    fn owns(&self) -> Owns {
+        self.owns
+    }
+
+    fn rerun(
+        &self,
+        recorded: &Recorded,
+        tolerance: Option<f64>,
+    ) -> Result<Option<ControlCheck>, CheckError> {
+        let records = recorded
+            .ticks
+            .get(self.ticks_topic())
+            .map_or(&[][..], Vec::as_slice);
+        let name = self.name;
+        if records.is_empty() {
+            return Ok(None);
+        }
+        let log_times = recorded
+            .tick_log_times
+            .get(self.ticks_topic())
+            .map_or(&[][..], Vec::as_slice);
+        let start_ns = recorded.first_log_time_ns.unwrap_or_default();
+        let output_topics = self.output_topics()?;
+        // Each recorded output with the tick whose window holds its publish stamp.
+        let mut attributed: HashMap<&'static str, Vec<(Option<usize>, &RecordedOutput)>> =
+            HashMap::new();
+        for topic in &output_topics {
+            let list = recorded
+                .outputs
+                .get(&(self.ticks_topic(), *topic))
+                .map_or(&[][..], Vec::as_slice);
+            let mut entries: Vec<(Option<usize>, &RecordedOutput)> = list
+                .iter()
+                .map(|output| {
+                    let index =
+                        records.partition_point(|r| r.header.publish_ns < output.publish_ns);
+                    let tick = records
+                        .get(index)
+                        .filter(|record| record.header.capture_ns <= output.publish_ns)
+                        .map(|_| index);
+                    (tick, output)
+                })
+                .collect();
+            entries.sort_by_key(|(tick, output)| (tick.unwrap_or(usize::MAX), output.publish_ns));
+            attributed.insert(topic, entries);
+        }
+        let mut comparison = Comparison {
+            recorded: attributed,
+            cursors: HashMap::new(),
+            checks: output_topics
+                .iter()
+                .map(|topic| ChannelCheck::new(topic))
+                .collect(),
+            totals: HashMap::new(),
+            tolerance,
+            start_ns,
+            tick: 0,
+            tick_log_ns: 0,
+            undecodable: None,
+        };
+        let mut check = ControlCheck {
+            name,
+            ticks_rerun: 0,
+            ticks_before_start: 0,
+            ticks_lost: 0,
+            inputs_missing: 0,
+            inputs_incomplete_ticks: 0,
+            channels: Vec::new(),
+            recorded_span_ns: recorded.last_log_time_ns.saturating_sub(start_ns),
+            rerun_wall_s: 0.0,
+        };
+        let started = Instant::now();
+        let mut rerun_ticks = vec![false; records.len()];
+        let mut runner: Option<Runner<N>> = None;
+        let mut previous_tick = 0u64;
+        for (index, record) in records.iter().enumerate() {
+            if record.tick <= previous_tick || (runner.is_none() && record.tick == 1) {
+                // The process (re)started: a fresh node, as the live restart had.
+                runner = if record.tick == 1 {
+                    let (node, devices) = (self.build)()?;
+                    let mode_source = if record.without_operator == 1 {
+                        ModeSource::WithoutOperator
+                    } else {
+                        ModeSource::Executive
+                    };
+                    Some(Runner::new(
+                        node,
+                        devices,
+                        RunnerConfig {
+                            max_read_failures: self.max_read_failures,
+                            mode_source,
+                        },
+                    ))
+                } else {
+                    None
+                };
+            } else if record.tick > previous_tick + 1 && runner.is_some() {
+                check.ticks_lost += record.tick - previous_tick - 1;
+            }
+            previous_tick = record.tick;
+            let Some(live) = runner.as_mut() else {
+                check.ticks_before_start += 1;
+                continue;
+            };
+            live.devices_mut()
+                .answer(record)
+                .map_err(|error| CheckError::Node(format!("{name}: {error}")))?;
+            check.inputs_incomplete_ticks += u64::from(record.inputs_complete == 0);
+            comparison.tick = index;
+            comparison.tick_log_ns = log_times.get(index).copied().unwrap_or(start_ns);
+            let mut transport = RecordedTick {
+                record,
+                inputs: &recorded.inputs,
+                missing: &mut check.inputs_missing,
+                comparison: &mut comparison,
+            };
+            let ended = live.tick(&mut transport, record.header.capture_ns).is_err();
+            check.ticks_rerun += 1;
+            rerun_ticks[index] = true;
+            if let Some(error) = comparison.undecodable.take() {
+                return Err(error);
+            }
+            if ended {
+                // The live process ended here too (or the re-run differs): wait for its restart.
+                runner = None;
+            }
+        }
+        check.rerun_wall_s = started.elapsed().as_secs_f64();
+        let mut channels = comparison.checks;
+        for channel in &mut channels {
+            let (recorded_count, rerun_count) = comparison
+                .totals
+                .get(channel.topic)
+                .copied()
+                .unwrap_or_default();
+            if recorded_count != rerun_count {
+                channel.count_mismatch = Some((recorded_count, rerun_count));
+            }
+            let outside = comparison.recorded.get(channel.topic).map_or(0, |list| {
+                list.iter()
+                    .filter(|(tick, _)| tick.is_none_or(|index| !rerun_ticks[index]))
+                    .count()
+            });
+            if outside > 0 {
+                channel.not_rerun = outside as u64;
+                channel.not_rerun_reason = Some(
+                    "sent outside the ticks re-run (before the recording holds the process's start, or its last messages at exit)"
+                        .to_owned(),
+                );
+            }
+        }
+        check.channels = channels;
+        Ok(Some(check))
+    }
+}
