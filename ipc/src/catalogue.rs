@@ -582,10 +582,6 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     visitor.visit(VALVE_REQUEST);
     visitor.visit(VALVE_GRANT);
     visitor.visit(VACUUM_STATE);
-    for arm in ArmId::ALL {
-        visitor.visit(ARM_TICKS[arm.index()]);
-    }
-    visitor.visit(VACUUM_TICKS);
     visitor.visit(EMERGENCY_STOP);
     visitor.visit(SAFETY_VIOLATION);
     visitor.visit(HARVEST_EVENTS);
@@ -613,6 +609,13 @@ pub fn visit_all(visitor: &mut impl ChannelVisitor) {
     for arm in ArmId::ALL {
         visitor.visit(ARM_MANUAL[arm.index()]);
     }
+    // Last: the recorder opens its taps in this order, so once it hears a node's tick records
+    // it already hears every channel the node reads and writes (`harvest replay --check`
+    // compares a tick's outputs only from then on).
+    for arm in ArmId::ALL {
+        visitor.visit(ARM_TICKS[arm.index()]);
+    }
+    visitor.visit(VACUUM_TICKS);
 }
 
 /// Every channel's spec, in catalogue order.

@@ -738,7 +738,7 @@ fn run_check(command: &ReplayCommand) -> anyhow::Result<ExitCode> {
     print!("{report}");
     eprintln!(
         "re-ran {:.3} s of recording in {:.3} s ({:.2}x real time)",
-        report.perception.recorded_span_ns as f64 * 1e-9,
+        report.recorded_span_s(),
         report.rerun_wall_s(),
         report.speed_factor()
     );

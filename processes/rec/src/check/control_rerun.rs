@@ -61,6 +61,9 @@ pub struct ControlCheck {
     /// started before the recorder): not re-run.
     pub ticks_rerun: u64,
     pub ticks_before_start: u64,
+    /// Ticks re-run (to build the node's state) whose outputs are not compared: they began
+    /// before the recorder heard the node's channels.
+    pub ticks_before_recorder: u64,
     /// Ticks missing between two recorded ones (the recorder lost their records).
     pub ticks_lost: u64,
     /// Messages a tick read that the recording does not hold, and ticks that read more than a
@@ -91,6 +94,13 @@ impl std::fmt::Display for ControlCheck {
                 f,
                 "    {} tick(s) not re-run: recorded before the recording holds the process's first tick",
                 self.ticks_before_start
+            )?;
+        }
+        if self.ticks_before_recorder > 0 {
+            writeln!(
+                f,
+                "    {} tick(s) re-run but not compared: they began before the recorder heard the node's channels",
+                self.ticks_before_recorder
             )?;
         }
         if self.ticks_lost > 0 {
@@ -143,6 +153,9 @@ pub struct Recorded {
     ticks: HashMap<&'static str, Vec<NodeTickRecord>>,
     /// The log time of each of those records.
     tick_log_times: HashMap<&'static str, Vec<u64>>,
+    /// When the recorder received the first record of each ticks topic, on the stack clock
+    /// (its publish stamp plus the delay between the message's publish and log times).
+    first_heard_ns: HashMap<&'static str, u64>,
     /// Input messages per topic, by (msg_seq, publish_ns).
     inputs: HashMap<&'static str, HashMap<(u64, u64), Vec<u8>>>,
     /// Output messages per (ticks topic, output topic), the node's own only.
@@ -181,6 +194,14 @@ pub fn read_recording(
             let mut record = NodeTickRecord::default();
             NodeTickRecord::decode_into(message.data, &mut record)
                 .map_err(|_| undecodable(topic, log_time_ns))?;
+            if records.is_empty()
+                && let Some((&key, _)) = recorded.tick_log_times.get_key_value(topic)
+            {
+                let delay_ns = log_time_ns.saturating_sub(message.publish_time);
+                recorded
+                    .first_heard_ns
+                    .insert(key, record.header.publish_ns.saturating_add(delay_ns));
+            }
             records.push(record);
             if let Some(log_times) = recorded.tick_log_times.get_mut(topic) {
                 log_times.push(log_time_ns);
@@ -295,6 +316,8 @@ struct Comparison<'a> {
     /// The tick being re-run (index of its record) and its record's log time.
     tick: usize,
     tick_log_ns: u64,
+    /// Whether the recorder heard the tick's outputs (false before it heard the node at all).
+    heard: bool,
     undecodable: Option<CheckError>,
 }
 
@@ -332,6 +355,9 @@ impl Comparison<'_> {
 
     fn compare<T: Payload + Copy>(&mut self, topic: &'static str, sent: &[T]) {
         let recorded = self.take_recorded(topic);
+        if !self.heard {
+            return;
+        }
         let totals = self.totals.entry(topic).or_insert((0, 0));
         totals.0 += recorded.len() as u64;
         totals.1 += sent.len() as u64;
@@ -596,6 +622,13 @@ where
             .tick_log_times
             .get(self.ticks_topic())
             .map_or(&[][..], Vec::as_slice);
+        // The recorder opens the tick channels' taps after every other (catalogue order):
+        // a tick that began after it heard the first record had its outputs heard too.
+        let heard_from_ns = recorded
+            .first_heard_ns
+            .get(self.ticks_topic())
+            .copied()
+            .unwrap_or(u64::MAX);
         let start_ns = recorded.first_log_time_ns.unwrap_or_default();
         let output_topics = self.output_topics()?;
         // Each recorded output with the tick whose window holds its publish stamp.
@@ -633,12 +666,14 @@ where
             start_ns,
             tick: 0,
             tick_log_ns: 0,
+            heard: false,
             undecodable: None,
         };
         let mut check = ControlCheck {
             name,
             ticks_rerun: 0,
             ticks_before_start: 0,
+            ticks_before_recorder: 0,
             ticks_lost: 0,
             inputs_missing: 0,
             inputs_incomplete_ticks: 0,
@@ -647,6 +682,7 @@ where
             rerun_wall_s: 0.0,
         };
         let started = Instant::now();
+        // Ticks re-run with their outputs compared.
         let mut rerun_ticks = vec![false; records.len()];
         let mut runner: Option<Runner<N>> = None;
         let mut previous_tick = 0u64;
@@ -684,6 +720,8 @@ where
                 .map_err(|error| CheckError::Node(format!("{name}: {error}")))?;
             check.inputs_incomplete_ticks += u64::from(record.inputs_complete == 0);
             comparison.tick = index;
+            comparison.heard = record.header.capture_ns >= heard_from_ns;
+            check.ticks_before_recorder += u64::from(!comparison.heard);
             comparison.tick_log_ns = log_times.get(index).copied().unwrap_or(start_ns);
             let mut transport = RecordedTick {
                 record,
@@ -693,7 +731,7 @@ where
             };
             let ended = live.tick(&mut transport, record.header.capture_ns).is_err();
             check.ticks_rerun += 1;
-            rerun_ticks[index] = true;
+            rerun_ticks[index] = comparison.heard;
             if let Some(error) = comparison.undecodable.take() {
                 return Err(error);
             }
@@ -721,7 +759,7 @@ where
             if outside > 0 {
                 channel.not_rerun = outside as u64;
                 channel.not_rerun_reason = Some(
-                    "sent outside the ticks re-run (before the recording holds the process's start, or its last messages at exit)"
+                    "sent outside the ticks re-run and compared (before the recorder heard the node, or the process's last messages at exit)"
                         .to_owned(),
                 );
             }

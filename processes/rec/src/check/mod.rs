@@ -25,7 +25,9 @@ pub use report::{ChannelCheck, CheckError};
 
 /// What `harvest replay --check` re-ran and found.
 pub struct CheckReport {
-    pub perception: PerceptionCheck,
+    /// Perception's re-run, or why the recording does not allow one (e.g. the camera recorded
+    /// as H.264 video).
+    pub perception: Result<PerceptionCheck, String>,
     /// The control nodes whose tick records the recording holds.
     pub controls: Vec<ControlCheck>,
     /// The control nodes it does not hold records of.
@@ -36,8 +38,9 @@ pub struct CheckReport {
 
 impl CheckReport {
     pub fn channels(&self) -> impl Iterator<Item = &ChannelCheck> {
-        [&self.perception.detections, &self.perception.scan_requests]
-            .into_iter()
+        self.perception
+            .iter()
+            .flat_map(|perception| [&perception.detections, &perception.scan_requests])
             .chain(self.controls.iter().flat_map(|control| &control.channels))
     }
 
@@ -48,7 +51,9 @@ impl CheckReport {
 
     /// The wall time every re-run took (the control nodes' reading pass included).
     pub fn rerun_wall_s(&self) -> f64 {
-        self.perception.rerun_wall_s
+        self.perception
+            .as_ref()
+            .map_or(0.0, |perception| perception.rerun_wall_s)
             + self.controls_read_wall_s
             + self
                 .controls
@@ -57,19 +62,37 @@ impl CheckReport {
                 .sum::<f64>()
     }
 
+    /// The recorded time covered, s.
+    pub fn recorded_span_s(&self) -> f64 {
+        let perception = self
+            .perception
+            .as_ref()
+            .map_or(0, |perception| perception.recorded_span_ns);
+        let controls = self.controls.iter().map(|control| control.recorded_span_ns);
+        controls.fold(perception, u64::max) as f64 * 1e-9
+    }
+
     /// Recorded time re-run per second of wall time (every node re-run in turn).
     pub fn speed_factor(&self) -> f64 {
-        let span_s = self.perception.recorded_span_ns as f64 * 1e-9;
         let wall_s = self.rerun_wall_s();
-        if wall_s > 0.0 { span_s / wall_s } else { 0.0 }
+        if wall_s > 0.0 {
+            self.recorded_span_s() / wall_s
+        } else {
+            0.0
+        }
     }
 }
 
 impl std::fmt::Display for CheckReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(f, "check: perception re-run on the recorded frames")?;
-        write!(f, "{}", self.perception.detections)?;
-        write!(f, "{}", self.perception.scan_requests)?;
+        match &self.perception {
+            Ok(perception) => {
+                writeln!(f, "check: perception re-run on the recorded frames")?;
+                write!(f, "{}", perception.detections)?;
+                write!(f, "{}", perception.scan_requests)?;
+            }
+            Err(reason) => writeln!(f, "check: perception not re-run: {reason}")?,
+        }
         for control in &self.controls {
             write!(f, "{control}")?;
         }
@@ -89,14 +112,19 @@ impl std::fmt::Display for CheckReport {
 
 /// Re-runs `perception` (built from the live process's arguments) and the control nodes on
 /// `files`, segments of one recording in order; `tolerance`: absolute, for floats (exact
-/// when `None`).
+/// when `None`). A node the recording does not allow re-running is reported as such; a
+/// recording that allows none is an error.
 pub fn run_check(
     files: &[PathBuf],
     perception: PerceptionTask,
     controls: &[Box<dyn ControlRerun>],
     tolerance: Option<f64>,
 ) -> Result<CheckReport, CheckError> {
-    let perception = perception_rerun::check_perception(files, perception, tolerance)?;
+    let perception = match perception_rerun::check_perception(files, perception, tolerance) {
+        Ok(check) => Ok(check),
+        Err(CheckError::NothingToCheck(reason)) => Err(reason),
+        Err(error) => return Err(error),
+    };
     let reading = std::time::Instant::now();
     let recorded = control_rerun::read_recording(files, controls)?;
     let mut report = CheckReport {
@@ -111,8 +139,13 @@ pub fn run_check(
             None => report.controls_absent.push(control.name()),
         }
     }
+    if let (Err(reason), true) = (&report.perception, report.controls.is_empty()) {
+        return Err(CheckError::NothingToCheck(format!(
+            "{reason}; and no control node's tick records"
+        )));
+    }
     tracing::info!(
-        recorded_s = report.perception.recorded_span_ns as f64 * 1e-9,
+        recorded_s = report.recorded_span_s(),
         wall_s = report.rerun_wall_s(),
         speed = report.speed_factor(),
         "check done"
