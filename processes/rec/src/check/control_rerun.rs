@@ -62,8 +62,10 @@ pub struct ControlCheck {
     pub ticks_rerun: u64,
     pub ticks_before_start: u64,
     /// Ticks re-run (to build the node's state) whose outputs are not compared: they began
-    /// before the recorder heard the node's channels.
+    /// before the recorder heard the node's channels, or after the last message of the node
+    /// it recorded (it stopped first).
     pub ticks_before_recorder: u64,
+    pub ticks_after_recorder: u64,
     /// Ticks missing between two recorded ones (the recorder lost their records).
     pub ticks_lost: u64,
     /// Messages a tick read that the recording does not hold, and ticks that read more than a
@@ -101,6 +103,13 @@ impl std::fmt::Display for ControlCheck {
                 f,
                 "    {} tick(s) re-run but not compared: they began before the recorder heard the node's channels",
                 self.ticks_before_recorder
+            )?;
+        }
+        if self.ticks_after_recorder > 0 {
+            writeln!(
+                f,
+                "    {} tick(s) at the end re-run but not compared: after the last message of the node the recorder kept",
+                self.ticks_after_recorder
             )?;
         }
         if self.ticks_lost > 0 {
@@ -654,6 +663,15 @@ where
             entries.sort_by_key(|(tick, output)| (tick.unwrap_or(usize::MAX), output.publish_ns));
             attributed.insert(topic, entries);
         }
+        // The recorder may stop between a tick's outputs and its record: ticks that began after
+        // the last output it kept are not compared.
+        let heard_until_ns = attributed
+            .values()
+            .flatten()
+            .filter(|(tick, _)| tick.is_some())
+            .map(|(_, output)| output.publish_ns)
+            .max()
+            .unwrap_or(0);
         let mut comparison = Comparison {
             recorded: attributed,
             cursors: HashMap::new(),
@@ -674,6 +692,7 @@ where
             ticks_rerun: 0,
             ticks_before_start: 0,
             ticks_before_recorder: 0,
+            ticks_after_recorder: 0,
             ticks_lost: 0,
             inputs_missing: 0,
             inputs_incomplete_ticks: 0,
@@ -720,8 +739,13 @@ where
                 .map_err(|error| CheckError::Node(format!("{name}: {error}")))?;
             check.inputs_incomplete_ticks += u64::from(record.inputs_complete == 0);
             comparison.tick = index;
-            comparison.heard = record.header.capture_ns >= heard_from_ns;
-            check.ticks_before_recorder += u64::from(!comparison.heard);
+            let (before, after) = (
+                record.header.capture_ns < heard_from_ns,
+                record.header.capture_ns > heard_until_ns,
+            );
+            comparison.heard = !before && !after;
+            check.ticks_before_recorder += u64::from(before);
+            check.ticks_after_recorder += u64::from(after && !before);
             comparison.tick_log_ns = log_times.get(index).copied().unwrap_or(start_ns);
             let mut transport = RecordedTick {
                 record,
