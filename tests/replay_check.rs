@@ -31,18 +31,13 @@ fn check(recording: &Path, extra: &[&str]) -> (Option<i32>, String, String) {
     (status.code(), stdout, stderr)
 }
 
-/// The figure after `label` in the report's line of `topic` ("  perception/apples  12 compared").
+/// The figure before `label` in the report's line of `topic` ("  perception/apples  12 compared").
 fn report_count(stdout: &str, topic: &str, label: &str) -> u64 {
     let line = stdout
         .lines()
         .find(|line| line.trim_start().starts_with(topic))
         .unwrap_or_else(|| panic!("no line for {topic}: {stdout}"));
-    let words: Vec<&str> = line.split_whitespace().collect();
-    let at = words
-        .iter()
-        .position(|word| word.trim_end_matches(',') == label)
-        .unwrap_or_else(|| panic!("no {label:?} in {line:?}"));
-    words[at - 1].parse().expect("a count")
+    count_before(line, label)
 }
 
 /// The report's section of a control node: its lines from "check: NAME re-run" to the next

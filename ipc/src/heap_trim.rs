@@ -54,12 +54,7 @@ mod tests {
     use super::*;
 
     fn rss_anon_kib() -> u64 {
-        let status = std::fs::read_to_string("/proc/self/status").expect("status");
-        status
-            .lines()
-            .find_map(|line| line.strip_prefix("RssAnon:"))
-            .and_then(|rest| rest.trim().trim_end_matches("kB").trim().parse().ok())
-            .expect("RssAnon")
+        crate::proc_status::process_status_field(std::process::id(), "RssAnon:").expect("RssAnon")
     }
 
     #[cfg(all(target_os = "linux", target_env = "gnu"))]

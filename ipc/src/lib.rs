@@ -44,6 +44,7 @@ pub mod payload;
 pub mod payloads;
 pub mod period_stats;
 pub mod periodic_timer;
+pub mod proc_status;
 pub mod publisher;
 pub mod schema;
 pub mod scratch_domain;

@@ -74,11 +74,7 @@ pub fn lock_if_requested() -> MemoryLock {
 
 /// `VmLck` of process `pid` (KiB), from `/proc/<pid>/status`; None if unreadable.
 pub fn locked_kib(pid: u32) -> Option<u64> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    status
-        .lines()
-        .find_map(|line| line.strip_prefix("VmLck:"))
-        .and_then(|rest| rest.trim().trim_end_matches("kB").trim().parse().ok())
+    crate::proc_status::process_status_field(pid, "VmLck:")
 }
 
 /// Touches [`STACK_PREFAULT_BYTES`] of stack below the caller, so that under `MCL_FUTURE` those

@@ -80,19 +80,7 @@ restart = "never"
 
 /// Private memory of a process (`RssAnon`: heap, stacks), bytes.
 pub fn rss_anon_bytes(pid: u32) -> u64 {
-    std::fs::read_to_string(format!("/proc/{pid}/status"))
-        .expect("status")
-        .lines()
-        .find_map(|line| line.strip_prefix("RssAnon:"))
-        .and_then(|rest| {
-            rest.trim()
-                .trim_end_matches("kB")
-                .trim()
-                .parse::<u64>()
-                .ok()
-        })
-        .expect("RssAnon")
-        * 1024
+    harvest_ipc::proc_status::process_status_field(pid, "RssAnon:").expect("RssAnon") * 1024
 }
 
 /// The `.mcap` files in `dir`, sorted by name (none when `dir` does not exist).

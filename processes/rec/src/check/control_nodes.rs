@@ -2,35 +2,30 @@
 //! devices, with which recorded messages on a shared channel are theirs.
 
 use harvest_arm::task::{ArmDevices, ArmTask};
+use harvest_ipc::ArmId;
 use harvest_ipc::catalogue::{ARM_TICKS, HARVEST_EVENTS, VACUUM_TICKS, VALVE_REQUEST};
 use harvest_ipc::payloads::{HarvestEvent, HarvestEventSource, ValveRequest};
-use harvest_ipc::{ArmId, Payload};
 use harvest_vacuum::task::{BoardDevices, VacuumTask};
 
-use crate::check::control_rerun::{ControlNode, ControlRerun};
+use crate::check::control_rerun::{ControlNode, ControlRerun, decode};
 use crate::check::recorded_devices::{RecordedBoard, RecordedServos};
 use crate::check::report::CheckError;
 
 /// Builds a node for the check (the live process's arguments applied).
 pub type Build<T> = Box<dyn Fn() -> Result<T, String>>;
 
-fn decoded<T: Payload + Default>(bytes: &[u8]) -> Option<T> {
-    let mut value = T::default();
-    T::decode_into(bytes, &mut value).ok().map(|()| value)
-}
-
 /// Whether a recorded message on a shared channel was written by `source`; messages of
 /// single-writer channels are always the node's.
 fn written_by(source: HarvestEventSource, topic: &str, bytes: &[u8]) -> bool {
     if topic == HARVEST_EVENTS.spec.topic {
-        decoded::<HarvestEvent>(bytes).is_some_and(|event| event.source.get() == Ok(source))
+        decode::<HarvestEvent>(bytes).is_some_and(|event| event.source.get() == Ok(source))
     } else if topic == VALVE_REQUEST.spec.topic {
         let arm = match source {
             HarvestEventSource::Arm1 => 1,
             HarvestEventSource::Arm2 => 2,
             _ => 0,
         };
-        decoded::<ValveRequest>(bytes).is_some_and(|request| request.arm_id == arm)
+        decode::<ValveRequest>(bytes).is_some_and(|request| request.arm_id == arm)
     } else {
         true
     }

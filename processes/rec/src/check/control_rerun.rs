@@ -27,6 +27,7 @@ use harvest_robot_model::ModeSource;
 
 use crate::check::json_diff::{FieldDifference, first_difference};
 use crate::check::recorded_devices::RecordedDevices;
+use crate::check::recorded_inputs::NoFailure;
 use crate::check::report::{ChannelCheck, CheckError, Difference};
 use crate::check::scan_recording::{scan, undecodable};
 
@@ -306,7 +307,7 @@ impl OutputVisitor for Topics {
 }
 
 /// A recorded message decoded as `T`.
-fn decode<T: Payload + Copy>(bytes: &[u8]) -> Option<T> {
+pub(crate) fn decode<T: Payload + Copy>(bytes: &[u8]) -> Option<T> {
     let mut value = boxed_zeroed::<T>();
     T::decode_into(bytes, &mut value).ok()?;
     Some(*value)
@@ -436,11 +437,6 @@ struct RecordedTick<'a, 'b> {
     missing: &'b mut u64,
     comparison: &'b mut Comparison<'a>,
 }
-
-/// The check's transport cannot fail.
-#[derive(Debug, thiserror::Error)]
-#[error("recorded tick")]
-pub enum NoFailure {}
 
 impl RecordedTick<'_, '_> {
     fn refs(&self, slot: u8) -> impl Iterator<Item = &TickInput> {

@@ -30,7 +30,7 @@ pub struct RecordedInputs<'a> {
     pub sent: &'a mut RerunOutputs,
 }
 
-/// The check's transport cannot fail.
+/// The check's transports cannot fail.
 #[derive(Debug, thiserror::Error)]
 #[error("recorded inputs")]
 pub enum NoFailure {}

@@ -6,6 +6,8 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use harvest_ipc::proc_status::status_field;
+
 /// One process's figures at one instant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct ProcessFigures {
@@ -86,15 +88,6 @@ pub fn figures(pid: u32) -> Option<ProcessFigures> {
     })
 }
 
-/// The first number after `key` on its line of `/proc/<pid>/status`.
-fn status_field(status: &str, key: &str) -> Option<u64> {
-    status
-        .lines()
-        .find_map(|line| line.strip_prefix(key))
-        .and_then(|rest| rest.split_whitespace().next())
-        .and_then(|value| value.parse().ok())
-}
-
 /// Whether `pid` still exists (not yet reaped counts as existing).
 pub fn exists(pid: u32) -> bool {
     Path::new(&format!("/proc/{pid}")).exists()
@@ -121,13 +114,5 @@ mod tests {
             Some(std::os::unix::process::parent_id())
         );
         assert!(exists(std::process::id()));
-    }
-
-    #[test]
-    fn status_fields_are_read_by_key() {
-        let status = "Name:\tharvest\nVmRSS:\t   12345 kB\nThreads:\t7\n";
-        assert_eq!(status_field(status, "VmRSS:"), Some(12345));
-        assert_eq!(status_field(status, "Threads:"), Some(7));
-        assert_eq!(status_field(status, "VmLck:"), None);
     }
 }
