@@ -138,6 +138,17 @@ fn perception_arms_and_vacuum_rerun_on_their_recording_decide_the_same_and_a_cha
             assert_eq!(count_before(line, "identical"), compared, "{first}");
         }
     }
+    // This build's safety monitor, re-judging the recording, finds what the live stack
+    // published (no monitor ran live, and the re-judged rules find nothing either).
+    assert!(
+        first.contains("check: the safety monitor's rules re-judged on the recording"),
+        "{first}"
+    );
+    assert_eq!(
+        report_count(&first, "safety/violation", "identical"),
+        report_count(&first, "safety/violation", "compared"),
+        "{first}"
+    );
     // The vacuum supervisor assigned apples and the arms worked on them: the check covered
     // decisions, not only idle ticks.
     let events = control_section(&first, "vacuum")

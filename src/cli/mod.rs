@@ -675,6 +675,11 @@ struct ControlCheckArgs {
     /// `harvest vacuum --config`.
     #[arg(long, requires = "check")]
     vacuum_config: Option<std::path::PathBuf>,
+    /// `harvest monitor --on-violation` (the default launch file's `stop`); `print`: the live
+    /// monitor published nothing, so its findings are not compared. Its thresholds are the
+    /// monitor's defaults, as the launch files run it.
+    #[arg(long, value_enum, default_value = "stop", requires = "check")]
+    monitor_on_violation: harvest_monitor::violation_message::OnViolation,
 }
 
 impl ControlCheckArgs {
@@ -733,8 +738,33 @@ fn run_check(command: &ReplayCommand) -> anyhow::Result<ExitCode> {
     let task = harvest_perception_process::build_task(&command.perception, None)
         .context("perception for --check")?;
     let controls = command.control.nodes();
-    let report = harvest_rec::run_check(&command.replay.files, task, &controls, command.tolerance)
-        .context("replay --check")?;
+    let rejudging = std::time::Instant::now();
+    let monitor = match command.control.monitor_on_violation.action() {
+        Some(action) => {
+            let (mapping, checks) = harvest_monitor::MonitorArgs::default()
+                .configs()
+                .context("the monitor's settings")?;
+            Some(
+                harvest_monitor::recording::violation_messages(
+                    &command.replay.files,
+                    mapping,
+                    checks,
+                    action,
+                )
+                .context("re-judging the safety monitor's rules")?,
+            )
+        }
+        None => None,
+    };
+    let monitor_wall_s = rejudging.elapsed().as_secs_f64();
+    let report = harvest_rec::run_check(
+        &command.replay.files,
+        task,
+        &controls,
+        monitor.as_deref(),
+        command.tolerance,
+    )
+    .context("replay --check")?;
     print!("{report}");
     eprintln!(
         "re-ran {:.3} s of recording in {:.3} s ({:.2}x real time)",
@@ -748,6 +778,9 @@ fn run_check(command: &ReplayCommand) -> anyhow::Result<ExitCode> {
             .iter()
             .map(|control| control.rerun_wall_s)
             .sum::<f64>();
+    if monitor.is_some() {
+        eprintln!("  the safety monitor: re-judged in {monitor_wall_s:.3} s");
+    }
     if let Some(first) = report.controls.first() {
         eprintln!(
             "  the control nodes: {:.3} s reading their records and inputs, then {} ({:.1}x real time in all)",

@@ -59,7 +59,8 @@ impl Default for MonitorArgs {
 }
 
 impl MonitorArgs {
-    fn configs(&self) -> Result<(MappingConfig, MonitorConfig), MonitorError> {
+    /// The rules' settings these arguments give.
+    pub fn configs(&self) -> Result<(MappingConfig, MonitorConfig), MonitorError> {
         if self.reaction_ms == 0 {
             return Err(MonitorError::InvalidArgument {
                 arg: "--reaction-ms",

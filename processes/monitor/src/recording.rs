@@ -116,3 +116,24 @@ pub fn check_recording(
     report.violations[before..].iter().for_each(on_violation);
     Ok(report)
 }
+
+/// The `safety/violation` messages a monitor with `mapping`, `checks` and `action` would have
+/// published on the recording `files` (segments in order, each judged from a fresh monitor;
+/// headers left to a publisher): what `harvest replay --check` compares with the recorded
+/// ones.
+pub fn violation_messages(
+    files: &[std::path::PathBuf],
+    mapping: MappingConfig,
+    checks: MonitorConfig,
+    action: harvest_ipc::payloads::ViolationAction,
+) -> Result<Vec<harvest_ipc::payloads::SafetyViolation>, MonitorError> {
+    let mut messages = Vec::new();
+    for file in files {
+        check_recording(file, mapping, checks, |violation| {
+            let mut message = harvest_ipc::payloads::SafetyViolation::default();
+            crate::violation_message::fill_message(&mut message, violation, action);
+            messages.push(message);
+        })?;
+    }
+    Ok(messages)
+}

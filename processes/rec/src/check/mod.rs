@@ -7,6 +7,7 @@ pub mod control_nodes;
 pub mod control_rerun;
 pub mod held_sample;
 pub mod json_diff;
+pub mod monitor_rejudge;
 pub mod perception_rerun;
 pub mod recorded_devices;
 pub mod recorded_inputs;
@@ -34,6 +35,9 @@ pub struct CheckReport {
     pub controls_absent: Vec<&'static str>,
     /// The wall time of the pass that read the control nodes' records and messages.
     pub controls_read_wall_s: f64,
+    /// The safety monitor's findings re-judged (`None`: the live monitor published none, as
+    /// with `--on-violation print`).
+    pub monitor: Option<ChannelCheck>,
 }
 
 impl CheckReport {
@@ -42,6 +46,7 @@ impl CheckReport {
             .iter()
             .flat_map(|perception| [&perception.detections, &perception.scan_requests])
             .chain(self.controls.iter().flat_map(|control| &control.channels))
+            .chain(self.monitor.iter())
     }
 
     /// Whether any re-run output differs from the recording.
@@ -96,6 +101,19 @@ impl std::fmt::Display for CheckReport {
         for control in &self.controls {
             write!(f, "{control}")?;
         }
+        match &self.monitor {
+            Some(monitor) => {
+                writeln!(
+                    f,
+                    "check: the safety monitor's rules re-judged on the recording"
+                )?;
+                write!(f, "{monitor}")?;
+            }
+            None => writeln!(
+                f,
+                "check: the safety monitor not re-judged (it published nothing live: --monitor-on-violation print)"
+            )?,
+        }
         for name in &self.controls_absent {
             writeln!(
                 f,
@@ -111,13 +129,16 @@ impl std::fmt::Display for CheckReport {
 }
 
 /// Re-runs `perception` (built from the live process's arguments) and the control nodes on
-/// `files`, segments of one recording in order; `tolerance`: absolute, for floats (exact
+/// `files`, segments of one recording in order, and compares the safety monitor's findings
+/// re-judged on them (`monitor`: the messages this build's monitor would have published;
+/// `None` when the live monitor published none); `tolerance`: absolute, for floats (exact
 /// when `None`). A node the recording does not allow re-running is reported as such; a
 /// recording that allows none is an error.
 pub fn run_check(
     files: &[PathBuf],
     perception: PerceptionTask,
     controls: &[Box<dyn ControlRerun>],
+    monitor: Option<&[harvest_ipc::payloads::SafetyViolation]>,
     tolerance: Option<f64>,
 ) -> Result<CheckReport, CheckError> {
     let perception = match perception_rerun::check_perception(files, perception, tolerance) {
@@ -132,6 +153,9 @@ pub fn run_check(
         controls: Vec::new(),
         controls_absent: Vec::new(),
         controls_read_wall_s: reading.elapsed().as_secs_f64(),
+        monitor: monitor
+            .map(|rejudged| monitor_rejudge::check_violations(files, rejudged, tolerance))
+            .transpose()?,
     };
     for control in controls {
         match control.rerun(&recorded, tolerance)? {

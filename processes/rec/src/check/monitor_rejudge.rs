@@ -1,0 +1,97 @@
+//! The safety monitor re-judged: this build's monitor rules, run on the recording's monitored
+//! channels (`harvest monitor --recording`, given by the caller as the messages it would have
+//! published), compared with the `safety/violation` messages the live monitor published. The
+//! live monitor repeats an unanswered stop request every 100 ms of its own clock, so copies of
+//! one finding (same rule, arm and violation time) count once on both sides.
+
+use std::path::PathBuf;
+
+use harvest_ipc::Payload;
+use harvest_ipc::catalogue::SAFETY_VIOLATION;
+use harvest_ipc::payloads::SafetyViolation;
+use harvest_recording::payload_codec::decode_scanned;
+
+use crate::check::json_diff::{FieldDifference, first_difference};
+use crate::check::report::{ChannelCheck, CheckError, Difference};
+use crate::check::scan_recording::{scan, undecodable};
+
+/// Set by the publisher, not by the rules: never compared.
+const STAMPS: [&str; 3] = ["header.msg_seq", "header.capture_ns", "header.publish_ns"];
+
+/// Keeps the first of each run of copies of one finding.
+fn findings(
+    messages: impl IntoIterator<Item = (u64, SafetyViolation)>,
+) -> Vec<(u64, SafetyViolation)> {
+    let mut kept: Vec<(u64, SafetyViolation)> = Vec::new();
+    for (at, message) in messages {
+        if !kept.iter().any(|(_, seen)| seen.same_finding(&message)) {
+            kept.push((at, message));
+        }
+    }
+    kept
+}
+
+/// Compares `rejudged` (the re-run monitor's messages, in order) with the recording's
+/// `safety/violation` findings.
+pub fn check_violations(
+    files: &[PathBuf],
+    rejudged: &[SafetyViolation],
+    tolerance: Option<f64>,
+) -> Result<ChannelCheck, CheckError> {
+    let topic = SAFETY_VIOLATION.spec.topic;
+    let mut recorded = Vec::new();
+    let mut start_ns = None;
+    scan(files, |message| {
+        start_ns.get_or_insert(message.log_time);
+        if message.channel.topic == topic {
+            let value = decode_scanned(SAFETY_VIOLATION, message)
+                .ok_or_else(|| undecodable(topic, message.log_time))?;
+            recorded.push((message.log_time, value));
+        }
+        Ok(())
+    })?;
+    let start_ns = start_ns.unwrap_or_default();
+    let recorded = findings(recorded);
+    let rejudged = findings(rejudged.iter().map(|message| (0, *message)));
+    let mut check = ChannelCheck::new(topic);
+    for index in 0..recorded.len().max(rejudged.len()) {
+        let (old, new) = (recorded.get(index), rejudged.get(index));
+        let difference = match (old, new) {
+            (Some((_, old)), Some((_, new))) => {
+                check.compared += 1;
+                let found = first_difference(&old.to_json(), &new.to_json(), &STAMPS, tolerance);
+                check.identical += u64::from(found.is_none());
+                found
+            }
+            (Some((_, old)), None) => {
+                check.compared += 1;
+                check.missing_in_rerun += 1;
+                Some(FieldDifference {
+                    field: "(the message)".to_owned(),
+                    recorded: old.to_json(),
+                    rerun: serde_json::Value::Null,
+                })
+            }
+            (None, Some((_, new))) => Some(FieldDifference {
+                field: "(the message)".to_owned(),
+                recorded: serde_json::Value::Null,
+                rerun: new.to_json(),
+            }),
+            (None, None) => None,
+        };
+        if let Some(field) = difference
+            && check.first_difference.is_none()
+        {
+            let at_ns = old.map_or(start_ns, |(at, _)| *at);
+            check.first_difference = Some(Difference {
+                at_s: at_ns.saturating_sub(start_ns) as f64 * 1e-9,
+                message_index: index as u64,
+                field,
+            });
+        }
+    }
+    if recorded.len() != rejudged.len() {
+        check.count_mismatch = Some((recorded.len() as u64, rejudged.len() as u64));
+    }
+    Ok(check)
+}
