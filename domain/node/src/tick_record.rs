@@ -67,8 +67,8 @@ impl<R> TickRecorder<R> {
         .into();
     }
 
-    /// The device read's outcome; readings that do not fit the record are noted as a failed
-    /// read of kind `Other` (a re-run then says the tick cannot be repeated).
+    /// The device read's outcome; readings that do not fit the record are noted as such
+    /// ([`DeviceRead::TooLarge`]: a re-run stops there, saying so).
     pub(crate) fn read(&mut self, outcome: Result<Option<&R>, ErrorKind>) {
         let (read, error) = match outcome {
             Ok(Some(readings)) => {
@@ -82,7 +82,7 @@ impl<R> TickRecorder<R> {
                     (DeviceRead::Readings, DeviceErrorCode::None)
                 } else {
                     self.record.readings.clear();
-                    (DeviceRead::Failed, DeviceErrorCode::Other)
+                    (DeviceRead::TooLarge, DeviceErrorCode::None)
                 }
             }
             Ok(None) => (DeviceRead::Nothing, DeviceErrorCode::None),

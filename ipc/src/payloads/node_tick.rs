@@ -40,6 +40,9 @@ pub enum DeviceRead {
     Nothing = 1,
     /// The read failed ([`NodeTickRecord::read_error`] says how).
     Failed = 2,
+    /// The device answered with readings that do not fit the record (more than
+    /// [`TICK_READINGS_BYTES`] encoded): the tick cannot be re-run.
+    TooLarge = 3,
 }
 
 /// One message a node read at a tick: which input slot (in the order the node visits them;

@@ -67,8 +67,13 @@ pub struct ControlCheck {
     /// it recorded (it stopped first).
     pub ticks_before_recorder: u64,
     pub ticks_after_recorder: u64,
-    /// Ticks missing between two recorded ones (the recorder lost their records).
+    /// Ticks missing between two recorded ones (the recorder lost their records): the
+    /// re-run steps over them, so a difference after a gap may come from it.
     pub ticks_lost: u64,
+    /// The re-run node ended its run at a tick after which the live one went on (a
+    /// difference: tick number and error), and the ticks not re-run after it.
+    pub rerun_failure: Option<String>,
+    pub ticks_after_failure: u64,
     /// Messages a tick read that the recording does not hold, and ticks that read more than a
     /// record names.
     pub inputs_missing: u64,
@@ -81,7 +86,7 @@ pub struct ControlCheck {
 
 impl ControlCheck {
     pub fn differs(&self) -> bool {
-        self.channels.iter().any(ChannelCheck::differs)
+        self.rerun_failure.is_some() || self.channels.iter().any(ChannelCheck::differs)
     }
 }
 
@@ -116,8 +121,15 @@ impl std::fmt::Display for ControlCheck {
         if self.ticks_lost > 0 {
             writeln!(
                 f,
-                "    {} tick record(s) missing from the recording",
+                "    {} tick record(s) missing from the recording (stepped over: a difference after a gap may come from it)",
                 self.ticks_lost
+            )?;
+        }
+        if let Some(failure) = &self.rerun_failure {
+            writeln!(
+                f,
+                "    the re-run node stopped where the live one went on: {failure}; {} later tick(s) not re-run",
+                self.ticks_after_failure
             )?;
         }
         if self.inputs_missing > 0 || self.inputs_incomplete_ticks > 0 {
@@ -204,6 +216,9 @@ pub fn read_recording(
             let mut record = NodeTickRecord::default();
             NodeTickRecord::decode_into(message.data, &mut record)
                 .map_err(|_| undecodable(topic, log_time_ns))?;
+            if record.emergency_stop_heard.get().is_err() || record.device_read.get().is_err() {
+                return Err(undecodable(topic, log_time_ns));
+            }
             if records.is_empty()
                 && let Some((&key, _)) = recorded.tick_log_times.get_key_value(topic)
             {
@@ -555,6 +570,7 @@ impl Transport for RecordedTick<'_, '_> {
         Ok(match self.record.emergency_stop_heard.get() {
             Ok(StopHeard::Engaged) => Some(true),
             Ok(StopHeard::Released) => Some(false),
+            // Unknown codes are refused when the recording is read.
             Ok(StopHeard::Nothing) | Err(_) => None,
         })
     }
@@ -659,15 +675,14 @@ where
             entries.sort_by_key(|(tick, output)| (tick.unwrap_or(usize::MAX), output.publish_ns));
             attributed.insert(topic, entries);
         }
-        // The recorder may stop between a tick's outputs and its record: ticks that began after
-        // the last output it kept are not compared.
+        // The recorder may stop between a tick's outputs and its record, or part-way through
+        // them: the tick of the last output it kept, and those after it, are not compared.
         let heard_until_ns = attributed
             .values()
             .flatten()
-            .filter(|(tick, _)| tick.is_some())
-            .map(|(_, output)| output.publish_ns)
+            .filter_map(|(tick, _)| *tick)
             .max()
-            .unwrap_or(0);
+            .map_or(0, |last| records[last].header.capture_ns);
         let mut comparison = Comparison {
             recorded: attributed,
             cursors: HashMap::new(),
@@ -690,6 +705,8 @@ where
             ticks_before_recorder: 0,
             ticks_after_recorder: 0,
             ticks_lost: 0,
+            rerun_failure: None,
+            ticks_after_failure: 0,
             inputs_missing: 0,
             inputs_incomplete_ticks: 0,
             channels: Vec::new(),
@@ -701,9 +718,12 @@ where
         let mut rerun_ticks = vec![false; records.len()];
         let mut runner: Option<Runner<N>> = None;
         let mut previous_tick = 0u64;
+        // The re-run failed where the live node went on: no re-run until the next restart.
+        let mut failed = false;
         for (index, record) in records.iter().enumerate() {
             if record.tick <= previous_tick || (runner.is_none() && record.tick == 1) {
                 // The process (re)started: a fresh node, as the live restart had.
+                failed = false;
                 runner = if record.tick == 1 {
                     let (node, devices) = (self.build)()?;
                     let mode_source = if record.without_operator == 1 {
@@ -727,7 +747,11 @@ where
             }
             previous_tick = record.tick;
             let Some(live) = runner.as_mut() else {
-                check.ticks_before_start += 1;
+                if failed {
+                    check.ticks_after_failure += 1;
+                } else {
+                    check.ticks_before_start += 1;
+                }
                 continue;
             };
             live.devices_mut()
@@ -737,7 +761,7 @@ where
             comparison.tick = index;
             let (before, after) = (
                 record.header.capture_ns < heard_from_ns,
-                record.header.capture_ns > heard_until_ns,
+                record.header.capture_ns >= heard_until_ns,
             );
             comparison.heard = !before && !after;
             check.ticks_before_recorder += u64::from(before);
@@ -749,14 +773,22 @@ where
                 missing: &mut check.inputs_missing,
                 comparison: &mut comparison,
             };
-            let ended = live.tick(&mut transport, record.header.capture_ns).is_err();
+            let outcome = live.tick(&mut transport, record.header.capture_ns);
             check.ticks_rerun += 1;
             rerun_ticks[index] = comparison.heard;
             if let Some(error) = comparison.undecodable.take() {
                 return Err(error);
             }
-            if ended {
-                // The live process ended here too (or the re-run differs): wait for its restart.
+            if let Err(error) = outcome {
+                // The live process published this record and ended here too when no later
+                // tick of the same run follows; otherwise the re-run differs.
+                let live_went_on = records
+                    .get(index + 1)
+                    .is_some_and(|next| next.tick > record.tick);
+                if live_went_on && check.rerun_failure.is_none() {
+                    check.rerun_failure = Some(format!("tick {}: {error}", record.tick));
+                }
+                failed = live_went_on;
                 runner = None;
             }
         }
@@ -779,7 +811,7 @@ where
             if outside > 0 {
                 channel.not_rerun = outside as u64;
                 channel.not_rerun_reason = Some(
-                    "sent outside the ticks re-run and compared (before the recorder heard the node, or the process's last messages at exit)"
+                    "sent outside the ticks re-run and compared (before the recorder heard the node or after it stopped, the process's last messages at exit, or after the re-run stopped)"
                         .to_owned(),
                 );
             }

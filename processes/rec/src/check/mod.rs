@@ -31,8 +31,8 @@ pub struct CheckReport {
     pub perception: Result<PerceptionCheck, String>,
     /// The control nodes whose tick records the recording holds.
     pub controls: Vec<ControlCheck>,
-    /// The control nodes it does not hold records of.
-    pub controls_absent: Vec<&'static str>,
+    /// The control nodes not re-run, and why (no tick records; none from the process's start).
+    pub controls_absent: Vec<(&'static str, String)>,
     /// The wall time of the pass that read the control nodes' records and messages.
     pub controls_read_wall_s: f64,
     /// The safety monitor's findings re-judged (`None`: the live monitor published none, as
@@ -114,11 +114,8 @@ impl std::fmt::Display for CheckReport {
                 "check: the safety monitor not re-judged (it published nothing live: --monitor-on-violation print)"
             )?,
         }
-        for name in &self.controls_absent {
-            writeln!(
-                f,
-                "check: {name} not re-run: the recording holds none of its tick records"
-            )?;
+        for (name, reason) in &self.controls_absent {
+            writeln!(f, "check: {name} not re-run: {reason}")?;
         }
         if self.differs() {
             writeln!(f, "check: DIFFERENT")
@@ -159,8 +156,18 @@ pub fn run_check(
     };
     for control in controls {
         match control.rerun(&recorded, tolerance)? {
-            Some(check) => report.controls.push(check),
-            None => report.controls_absent.push(control.name()),
+            Some(check) if check.ticks_rerun > 0 => report.controls.push(check),
+            Some(check) => report.controls_absent.push((
+                control.name(),
+                format!(
+                    "none of its {} recorded ticks follows a start of the process (tick 1): record from the start",
+                    check.ticks_before_start
+                ),
+            )),
+            None => report.controls_absent.push((
+                control.name(),
+                "the recording holds none of its tick records".to_owned(),
+            )),
         }
     }
     if let (Err(reason), true) = (&report.perception, report.controls.is_empty()) {

@@ -18,7 +18,7 @@ use crate::check::scan_recording::{scan, undecodable};
 /// Set by the publisher, not by the rules: never compared.
 const STAMPS: [&str; 3] = ["header.msg_seq", "header.capture_ns", "header.publish_ns"];
 
-/// Keeps the first of each run of copies of one finding.
+/// Keeps the first copy of each finding (same rule, arm and violation time).
 fn findings(
     messages: impl IntoIterator<Item = (u64, SafetyViolation)>,
 ) -> Vec<(u64, SafetyViolation)> {

@@ -75,6 +75,12 @@ impl<R: serde::de::DeserializeOwned> Answers<R> {
                 })?,
             )),
             Some(DeviceRead::Nothing) => Ok(None),
+            Some(DeviceRead::TooLarge) => {
+                return Err(UnreadableReadings {
+                    tick: record.tick,
+                    reason: "the live readings did not fit the record".to_owned(),
+                });
+            }
             Some(DeviceRead::Failed) | None => Err(kind_of(record.read_error.get().ok())),
         };
         let write_refused = match record.write_error.get().ok() {
@@ -139,9 +145,12 @@ impl RecordedDevices for ArmDevices<RecordedServos> {
     }
 }
 
-/// The valve board answering from the recording. A refused tick fails its first exchange
-/// only (the live board may have refused more of them; the node sees the same either way:
-/// the refusal, and the readings of the next tick).
+/// The valve board answering from the recording. A tick whose commands the live board refused
+/// fails its first command exchange only (the live board may have refused more of them, and a
+/// refused safe-state exchange is not recorded): the devices' own cache of what was sent may
+/// then differ from the live one's, and with it which later exchanges are made; the vacuum
+/// supervisor's outputs do not depend on it (a refusal is only logged), and each tick's reads
+/// are the recorded ones.
 #[derive(Debug, Default)]
 pub struct RecordedBoard {
     answers: Answers<BoardReadings>,
