@@ -693,11 +693,7 @@ impl ControlCheckArgs {
                 config: config.clone(),
                 without_operator: false,
             };
-            let arm_id = if id == 1 {
-                harvest_ipc::ArmId::Arm1
-            } else {
-                harvest_ipc::ArmId::Arm2
-            };
+            let arm_id = harvest_ipc::ArmId::from_number(id).unwrap_or(harvest_ipc::ArmId::Arm2);
             arm_rerun(
                 arm_id,
                 Box::new(move || {
@@ -773,12 +769,6 @@ fn run_check(command: &ReplayCommand) -> anyhow::Result<ExitCode> {
         report.recorded_span_s(),
         report.recorded_span_s() / wall_s.max(1e-9)
     );
-    let controls_wall_s = report.controls_read_wall_s
-        + report
-            .controls
-            .iter()
-            .map(|control| control.rerun_wall_s)
-            .sum::<f64>();
     if monitor.is_some() {
         eprintln!("  the safety monitor: re-judged in {monitor_wall_s:.3} s");
     }
@@ -795,7 +785,7 @@ fn run_check(command: &ReplayCommand) -> anyhow::Result<ExitCode> {
                 ))
                 .collect::<Vec<_>>()
                 .join(", "),
-            first.recorded_span_ns as f64 * 1e-9 / controls_wall_s.max(1e-9)
+            first.recorded_span_ns as f64 * 1e-9 / report.controls_wall_s().max(1e-9)
         );
     }
     Ok(if report.differs() {

@@ -1,6 +1,7 @@
 //! `harvest arm --id 1|2`: one arm's 200 Hz control loop over the channels: [`ArmTask`]
 //! (`harvest_arm::task`: `ArmNode` between its channels and its servos) under the node runtime
-//! ([`run_node_recording_ticks`]: each tick's record on `armN/ticks`), every [`ArmProcessConfig::control_period_us`] on a kernel periodic timer.
+//! ([`run_node_recording_ticks`]: each tick's record on `armN/ticks`), every
+//! [`ArmProcessConfig::control_period_us`] on a kernel periodic timer.
 //!
 //! The tick is the runtime's (`harvest_node::Runner::tick`, the one `harvest eval harvest` runs
 //! in process): `safety/emergency_stop` first
@@ -241,7 +242,8 @@ pub fn run(
 }
 
 /// The control loop of [`run`] on the given servos (a test drives it with a servo double):
-/// [`ArmTask`] under the node runtime ([`run_node_recording_ticks`]) until SIGINT/SIGTERM or an error.
+/// [`ArmTask`] under the node runtime ([`run_node_recording_ticks`]) until SIGINT/SIGTERM or
+/// an error.
 pub fn control_loop<S: ArmServos>(
     context: &Context,
     servos: S,

@@ -1,7 +1,8 @@
 //! `harvest vacuum`: the vacuum supervisor's 200 Hz loop over the channels (valves, pressure
 //! inference, coordination policy, apple assignment): [`VacuumTask`] (`harvest_vacuum::task`:
 //! `VacuumNode` between its channels and the valve board) under the node runtime
-//! ([`run_node_recording_ticks`]: each tick's record on `vacuum/ticks`), every [`VacuumProcessConfig::control_period_us`] on a kernel periodic timer.
+//! ([`run_node_recording_ticks`]: each tick's record on `vacuum/ticks`), every
+//! [`VacuumProcessConfig::control_period_us`] on a kernel periodic timer.
 //!
 //! The tick is the runtime's (`harvest_node::Runner::tick`, the one `harvest eval harvest` runs
 //! in process): `safety/emergency_stop` first

@@ -6,10 +6,10 @@
 //! 95, wait in a small carry buffer for the next cloud) and consecutive clouds tile the scan
 //! without overlap. `meta.integration_ns` is the scan time the cloud holds (firings received x
 //! 10 us: lost packets leave it short), `header.capture_ns` the end of the window mapped to the
-//! stack's clock ([`ClockMapping`]), no later than the newest packet's arrival. Firings without a return (reported at the origin) are not
-//! written. A dual-return packet gives two returns per firing: a one-second window would hold
-//! 200,000, twice a cloud's capacity, so dual-return windows of more than 0.5 s come truncated
-//! (`PointCloudMeta::FLAG_TRUNCATED`).
+//! stack's clock ([`ClockMapping`]), no later than the newest packet's arrival. Firings without
+//! a return (reported at the origin) are not written. A dual-return packet gives two returns
+//! per firing: a one-second window would hold 200,000, twice a cloud's capacity, so dual-return
+//! windows of more than 0.5 s come truncated (`PointCloudMeta::FLAG_TRUNCATED`).
 //!
 //! Lost packets: the firings are 10 us apart, so each packet's first firing should follow the
 //! previous packet's last by 10 us; a later start counts the packets that fit in the gap. A

@@ -13,15 +13,19 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use harvest_ipc::Payload;
-use harvest_ipc::catalogue::{Channel, OPERATOR_MODE};
+use harvest_ipc::catalogue::{Channel, OPERATOR_MODE, SAFETY_VIOLATION};
+use harvest_ipc::codec::decode_prefix;
 use harvest_ipc::payload::boxed_zeroed;
-use harvest_ipc::payloads::{MODE_SLOT, NodeTickRecord, OperatorModeState, StopHeard, TickInput};
+use harvest_ipc::payloads::{
+    MODE_SLOT, NodeTickRecord, OperatorModeState, SafetyViolation, StopHeard,
+};
+use harvest_ipc::{Header, Payload};
 use harvest_node::{
     InputVisitor, Inputs, LatestInPlace, Loaned, Node, OutputVisitor, Outputs, Runner,
     RunnerConfig, Transport,
     ports::{Drain, Latest, Out},
 };
+use harvest_recording::payload_codec::decode_scanned;
 use harvest_recording::scan::ScannedMessage;
 use harvest_robot_model::ModeSource;
 
@@ -150,8 +154,8 @@ impl std::fmt::Display for ControlCheck {
 pub trait ControlRerun {
     fn name(&self) -> &'static str;
     fn ticks_topic(&self) -> &'static str;
-    fn input_topics(&self) -> Result<Vec<&'static str>, CheckError>;
-    fn output_topics(&self) -> Result<Vec<&'static str>, CheckError>;
+    /// The topics the node reads and those it writes, in its visiting order.
+    fn topics(&self) -> Result<(Vec<&'static str>, Vec<&'static str>), CheckError>;
     fn owns(&self) -> Owns;
     /// `None` when the recording holds none of the node's tick records.
     fn rerun(
@@ -168,25 +172,34 @@ struct RecordedOutput {
     bytes: Vec<u8>,
 }
 
-/// What the control check reads from a recording, for every node at once (one pass).
+/// One node's tick records as recorded, and the topics it writes.
+#[derive(Default)]
+struct NodeRecords {
+    /// In recorded order, with the log time of each.
+    records: Vec<NodeTickRecord>,
+    log_times_ns: Vec<u64>,
+    /// When the recorder received the first record, on the stack clock (its publish stamp
+    /// plus the delay between the message's publish and log times).
+    first_heard_ns: Option<u64>,
+    output_topics: Vec<&'static str>,
+}
+
+/// What the check reads from a recording for the control nodes and the monitor, in one pass.
 #[derive(Default)]
 pub struct Recorded {
-    /// Tick records per ticks topic, in recorded order, with their log time.
-    ticks: HashMap<&'static str, Vec<NodeTickRecord>>,
-    /// The log time of each of those records.
-    tick_log_times: HashMap<&'static str, Vec<u64>>,
-    /// When the recorder received the first record of each ticks topic, on the stack clock
-    /// (its publish stamp plus the delay between the message's publish and log times).
-    first_heard_ns: HashMap<&'static str, u64>,
+    /// Per node, by its ticks topic.
+    nodes: HashMap<&'static str, NodeRecords>,
     /// Input messages per topic, by (msg_seq, publish_ns).
     inputs: HashMap<&'static str, HashMap<(u64, u64), Vec<u8>>>,
     /// Output messages per (ticks topic, output topic), the node's own only.
     outputs: HashMap<(&'static str, &'static str), Vec<RecordedOutput>>,
-    first_log_time_ns: Option<u64>,
+    /// The recorded `safety/violation` messages, with their log times.
+    pub violations: Vec<(u64, SafetyViolation)>,
+    pub first_log_time_ns: Option<u64>,
     last_log_time_ns: u64,
 }
 
-/// Reads `files` once for every node in `nodes`.
+/// Reads `files` once for every node in `nodes` and the monitor's recorded findings.
 pub fn read_recording(
     files: &[PathBuf],
     nodes: &[Box<dyn ControlRerun>],
@@ -195,14 +208,18 @@ pub fn read_recording(
     let mut input_topics: Vec<&'static str> = vec![OPERATOR_MODE.spec.topic];
     let mut output_topics: Vec<(&'static str, &'static str, Owns)> = Vec::new();
     for node in nodes {
-        recorded.ticks.insert(node.ticks_topic(), Vec::new());
-        recorded
-            .tick_log_times
-            .insert(node.ticks_topic(), Vec::new());
-        input_topics.extend(node.input_topics()?);
-        for topic in node.output_topics()? {
+        let (inputs, outputs) = node.topics()?;
+        input_topics.extend(inputs);
+        for &topic in &outputs {
             output_topics.push((node.ticks_topic(), topic, node.owns()));
         }
+        recorded.nodes.insert(
+            node.ticks_topic(),
+            NodeRecords {
+                output_topics: outputs,
+                ..NodeRecords::default()
+            },
+        );
     }
     for topic in &input_topics {
         recorded.inputs.entry(topic).or_default();
@@ -212,25 +229,23 @@ pub fn read_recording(
         let log_time_ns = message.log_time;
         recorded.first_log_time_ns.get_or_insert(log_time_ns);
         recorded.last_log_time_ns = recorded.last_log_time_ns.max(log_time_ns);
-        if let Some(records) = recorded.ticks.get_mut(topic) {
+        if let Some(node) = recorded.nodes.get_mut(topic) {
             let mut record = NodeTickRecord::default();
             NodeTickRecord::decode_into(message.data, &mut record)
                 .map_err(|_| undecodable(topic, log_time_ns))?;
             if record.emergency_stop_heard.get().is_err() || record.device_read.get().is_err() {
                 return Err(undecodable(topic, log_time_ns));
             }
-            if records.is_empty()
-                && let Some((&key, _)) = recorded.tick_log_times.get_key_value(topic)
-            {
-                let delay_ns = log_time_ns.saturating_sub(message.publish_time);
-                recorded
-                    .first_heard_ns
-                    .insert(key, record.header.publish_ns.saturating_add(delay_ns));
-            }
-            records.push(record);
-            if let Some(log_times) = recorded.tick_log_times.get_mut(topic) {
-                log_times.push(log_time_ns);
-            }
+            let delay_ns = log_time_ns.saturating_sub(message.publish_time);
+            node.first_heard_ns
+                .get_or_insert(record.header.publish_ns.saturating_add(delay_ns));
+            node.records.push(record);
+            node.log_times_ns.push(log_time_ns);
+        }
+        if topic == SAFETY_VIOLATION.spec.topic {
+            let value = decode_scanned(SAFETY_VIOLATION, message)
+                .ok_or_else(|| undecodable(topic, log_time_ns))?;
+            recorded.violations.push((log_time_ns, value));
         }
         if let Some(messages) = recorded.inputs.get_mut(topic) {
             let header = header_of(message.data).ok_or_else(|| undecodable(topic, log_time_ns))?;
@@ -256,18 +271,11 @@ pub fn read_recording(
     Ok(recorded)
 }
 
-/// The header every payload starts with, encoded first (three u64, fixed-width little endian).
-fn header_of(bytes: &[u8]) -> Option<harvest_ipc::Header> {
-    let field = |k: usize| -> Option<u64> {
-        Some(u64::from_le_bytes(
-            bytes.get(k * 8..k * 8 + 8)?.try_into().ok()?,
-        ))
-    };
-    Some(harvest_ipc::Header {
-        msg_seq: field(0)?,
-        capture_ns: field(1)?,
-        publish_ns: field(2)?,
-    })
+/// The header every payload's encoding starts with.
+fn header_of(bytes: &[u8]) -> Option<Header> {
+    decode_prefix::<Header>(bytes)
+        .ok()
+        .map(|(header, _)| header)
 }
 
 /// Visits a node's slots and lists their topics.
@@ -328,14 +336,37 @@ pub(crate) fn decode<T: Payload + Copy>(bytes: &[u8]) -> Option<T> {
     Some(*value)
 }
 
+/// One output topic of a node: its recorded messages, each with the index of its tick record
+/// (`None`: outside every recorded tick), sorted by tick; how far the re-run has come; what it
+/// found.
+struct TopicComparison<'a> {
+    recorded: Vec<(Option<usize>, &'a RecordedOutput)>,
+    cursor: usize,
+    check: ChannelCheck,
+    /// Messages compared in total: recorded, and sent by the re-run.
+    totals: (u64, u64),
+}
+
+impl TopicComparison<'_> {
+    /// Where the recorded messages of tick `tick` are (skipping earlier ones, of ticks not
+    /// re-run).
+    fn take(&mut self, tick: usize) -> std::ops::Range<usize> {
+        let list = &self.recorded;
+        while self.cursor < list.len() && list[self.cursor].0.is_none_or(|index| index < tick) {
+            self.cursor += 1;
+        }
+        let start = self.cursor;
+        while self.cursor < list.len() && list[self.cursor].0 == Some(tick) {
+            self.cursor += 1;
+        }
+        start..self.cursor
+    }
+}
+
 /// The comparison of one node's outputs, tick by tick.
 struct Comparison<'a> {
-    /// The node's recorded outputs per output topic, each with the index of its tick record
-    /// (`None`: outside every recorded tick).
-    recorded: HashMap<&'static str, Vec<(Option<usize>, &'a RecordedOutput)>>,
-    cursors: HashMap<&'static str, usize>,
-    checks: Vec<ChannelCheck>,
-    totals: HashMap<&'static str, (u64, u64)>,
+    /// One per output topic, in the node's order.
+    topics: Vec<TopicComparison<'a>>,
     tolerance: Option<f64>,
     start_ns: u64,
     /// The tick being re-run (index of its record) and its record's log time.
@@ -347,71 +378,41 @@ struct Comparison<'a> {
 }
 
 impl Comparison<'_> {
-    fn check_mut(&mut self, topic: &'static str) -> &mut ChannelCheck {
-        let index = match self.checks.iter().position(|check| check.topic == topic) {
-            Some(index) => index,
-            None => {
-                self.checks.push(ChannelCheck::new(topic));
-                self.checks.len() - 1
-            }
-        };
-        &mut self.checks[index]
-    }
-
-    /// The recorded messages of the current tick on `topic` (advancing past earlier ones,
-    /// which belong to ticks not re-run).
-    fn take_recorded(&mut self, topic: &'static str) -> Vec<(u64, Vec<u8>)> {
-        let tick = self.tick;
-        let Some(list) = self.recorded.get(topic) else {
-            return Vec::new();
-        };
-        let cursor = self.cursors.entry(topic).or_insert(0);
-        while *cursor < list.len() && list[*cursor].0.is_none_or(|index| index < tick) {
-            *cursor += 1;
-        }
-        let mut taken = Vec::new();
-        while *cursor < list.len() && list[*cursor].0 == Some(tick) {
-            let output = list[*cursor].1;
-            taken.push((output.log_time_ns, output.bytes.clone()));
-            *cursor += 1;
-        }
-        taken
-    }
-
     fn compare<T: Payload + Copy>(&mut self, topic: &'static str, sent: &[T]) {
-        let recorded = self.take_recorded(topic);
+        let (tick, tolerance, start_ns, tick_log_ns) =
+            (self.tick, self.tolerance, self.start_ns, self.tick_log_ns);
+        let Some(this) = self.topics.iter_mut().find(|t| t.check.topic == topic) else {
+            return;
+        };
+        let taken = this.take(tick);
         if !self.heard {
             return;
         }
-        let totals = self.totals.entry(topic).or_insert((0, 0));
-        totals.0 += recorded.len() as u64;
-        totals.1 += sent.len() as u64;
-        let (tolerance, start_ns, tick_log_ns) = (self.tolerance, self.start_ns, self.tick_log_ns);
-        let mut failure = None;
-        let check = self.check_mut(topic);
+        let recorded = &this.recorded[taken];
+        this.totals.0 += recorded.len() as u64;
+        this.totals.1 += sent.len() as u64;
+        let check = &mut this.check;
         for index in 0..recorded.len().max(sent.len()) {
-            let recorded_message = recorded.get(index);
+            let recorded_message = recorded.get(index).map(|(_, output)| *output);
             let difference = match (recorded_message, sent.get(index)) {
-                (Some((_, bytes)), Some(rerun)) => {
-                    let Some(value) = decode::<T>(bytes) else {
-                        let at_ns = recorded_message.map_or(0, |(at, _)| *at);
-                        failure = Some(undecodable(topic, at_ns));
-                        break;
+                (Some(output), Some(rerun)) => {
+                    let Some(value) = decode::<T>(&output.bytes) else {
+                        self.undecodable
+                            .get_or_insert(undecodable(topic, output.log_time_ns));
+                        return;
                     };
                     check.compared += 1;
                     let found =
                         first_difference(&value.to_json(), &rerun.to_json(), &STAMPS, tolerance);
-                    if found.is_none() {
-                        check.identical += 1;
-                    }
+                    check.identical += u64::from(found.is_none());
                     found
                 }
-                (Some((_, bytes)), None) => {
+                (Some(output), None) => {
                     check.compared += 1;
                     check.missing_in_rerun += 1;
                     Some(FieldDifference {
                         field: "(the message)".to_owned(),
-                        recorded: decode::<T>(bytes)
+                        recorded: decode::<T>(&output.bytes)
                             .map_or(serde_json::Value::Null, |v| v.to_json()),
                         rerun: serde_json::Value::Null,
                     })
@@ -428,7 +429,7 @@ impl Comparison<'_> {
             {
                 // A message only the re-run sent: at its tick, after those compared.
                 let (at_ns, message_index) = match recorded_message {
-                    Some((at, _)) => (*at, check.compared.saturating_sub(1)),
+                    Some(output) => (output.log_time_ns, check.compared.saturating_sub(1)),
                     None => (tick_log_ns, check.compared),
                 };
                 check.first_difference = Some(Difference {
@@ -437,9 +438,6 @@ impl Comparison<'_> {
                     field,
                 });
             }
-        }
-        if failure.is_some() && self.undecodable.is_none() {
-            self.undecodable = failure;
         }
     }
 }
@@ -453,25 +451,29 @@ struct RecordedTick<'a, 'b> {
     comparison: &'b mut Comparison<'a>,
 }
 
-impl RecordedTick<'_, '_> {
-    fn refs(&self, slot: u8) -> impl Iterator<Item = &TickInput> {
-        self.record
+impl<'a> RecordedTick<'a, '_> {
+    /// The messages the live tick read into `slot`, from the recording (a message the
+    /// recording lacks is counted and left out).
+    fn messages<T: Payload + Copy>(
+        &mut self,
+        slot: u8,
+        topic: &'static str,
+    ) -> impl Iterator<Item = T> + use<'a, '_, T> {
+        let (record, inputs) = (self.record, self.inputs);
+        let missing = &mut *self.missing;
+        record
             .inputs
             .as_slice()
             .iter()
             .filter(move |input| input.slot == slot)
-    }
-
-    fn message<T: Payload + Copy>(&mut self, topic: &str, input: &TickInput) -> Option<T> {
-        let found = self
-            .inputs
-            .get(topic)
-            .and_then(|messages| messages.get(&(input.msg_seq, input.publish_ns)))
-            .and_then(|bytes| decode::<T>(bytes));
-        if found.is_none() {
-            *self.missing += 1;
-        }
-        found
+            .filter_map(move |input| {
+                let found = inputs
+                    .get(topic)
+                    .and_then(|messages| messages.get(&(input.msg_seq, input.publish_ns)))
+                    .and_then(|bytes| decode::<T>(bytes));
+                *missing += u64::from(found.is_none());
+                found
+            })
     }
 }
 
@@ -486,13 +488,6 @@ impl Fill<'_, '_, '_> {
         self.slot = self.slot.saturating_add(1);
         slot
     }
-
-    fn messages<T: Payload + Copy>(&mut self, slot: u8, topic: &str) -> Vec<T> {
-        let refs: Vec<TickInput> = self.tick.refs(slot).copied().collect();
-        refs.iter()
-            .filter_map(|input| self.tick.message::<T>(topic, input))
-            .collect()
-    }
 }
 
 impl InputVisitor for Fill<'_, '_, '_> {
@@ -505,7 +500,7 @@ impl InputVisitor for Fill<'_, '_, '_> {
     ) -> Result<(), NoFailure> {
         let index = self.next_slot();
         slot.begin();
-        for message in self.messages::<T>(index, channel.spec.topic) {
+        for message in self.tick.messages::<T>(index, channel.spec.topic) {
             slot.set(message);
         }
         Ok(())
@@ -518,7 +513,7 @@ impl InputVisitor for Fill<'_, '_, '_> {
     ) -> Result<(), NoFailure> {
         let index = self.next_slot();
         slot.begin();
-        for message in self.messages::<T>(index, channel.spec.topic) {
+        for message in self.tick.messages::<T>(index, channel.spec.topic) {
             slot.push(message);
         }
         Ok(())
@@ -576,10 +571,8 @@ impl Transport for RecordedTick<'_, '_> {
     }
 
     fn operator_mode(&mut self) -> Result<Option<OperatorModeState>, NoFailure> {
-        let refs: Vec<TickInput> = self.refs(MODE_SLOT).copied().collect();
-        Ok(refs
-            .iter()
-            .filter_map(|input| self.message::<OperatorModeState>(OPERATOR_MODE.spec.topic, input))
+        Ok(self
+            .messages::<OperatorModeState>(MODE_SLOT, OPERATOR_MODE.spec.topic)
             .last())
     }
 
@@ -608,18 +601,12 @@ where
         self.ticks.spec.topic
     }
 
-    fn input_topics(&self) -> Result<Vec<&'static str>, CheckError> {
+    fn topics(&self) -> Result<(Vec<&'static str>, Vec<&'static str>), CheckError> {
         let (node, _) = (self.build)()?;
-        let mut topics = Topics(Vec::new());
-        let Ok(()) = Inputs::visit(&mut node.inputs(), &mut topics);
-        Ok(topics.0)
-    }
-
-    fn output_topics(&self) -> Result<Vec<&'static str>, CheckError> {
-        let (node, _) = (self.build)()?;
-        let mut topics = Topics(Vec::new());
-        let Ok(()) = Outputs::visit(&mut node.outputs(), &mut topics);
-        Ok(topics.0)
+        let (mut inputs, mut outputs) = (Topics(Vec::new()), Topics(Vec::new()));
+        let Ok(()) = Inputs::visit(&mut node.inputs(), &mut inputs);
+        let Ok(()) = Outputs::visit(&mut node.outputs(), &mut outputs);
+        Ok((inputs.0, outputs.0))
     }
 
     fn owns(&self) -> Owns {
@@ -631,66 +618,59 @@ where
         recorded: &Recorded,
         tolerance: Option<f64>,
     ) -> Result<Option<ControlCheck>, CheckError> {
-        let records = recorded
-            .ticks
-            .get(self.ticks_topic())
-            .map_or(&[][..], Vec::as_slice);
+        let Some(node) = recorded.nodes.get(self.ticks_topic()) else {
+            return Ok(None);
+        };
+        let (records, log_times) = (&node.records, &node.log_times_ns);
         let name = self.name;
         if records.is_empty() {
             return Ok(None);
         }
-        let log_times = recorded
-            .tick_log_times
-            .get(self.ticks_topic())
-            .map_or(&[][..], Vec::as_slice);
         // The recorder opens the tick channels' taps after every other (catalogue order):
         // a tick that began after it heard the first record had its outputs heard too.
-        let heard_from_ns = recorded
-            .first_heard_ns
-            .get(self.ticks_topic())
-            .copied()
-            .unwrap_or(u64::MAX);
+        let heard_from_ns = node.first_heard_ns.unwrap_or(u64::MAX);
         let start_ns = recorded.first_log_time_ns.unwrap_or_default();
-        let output_topics = self.output_topics()?;
         // Each recorded output with the tick whose window holds its publish stamp.
-        let mut attributed: HashMap<&'static str, Vec<(Option<usize>, &RecordedOutput)>> =
-            HashMap::new();
-        for topic in &output_topics {
-            let list = recorded
-                .outputs
-                .get(&(self.ticks_topic(), *topic))
-                .map_or(&[][..], Vec::as_slice);
-            let mut entries: Vec<(Option<usize>, &RecordedOutput)> = list
-                .iter()
-                .map(|output| {
-                    let index =
-                        records.partition_point(|r| r.header.publish_ns < output.publish_ns);
-                    let tick = records
-                        .get(index)
-                        .filter(|record| record.header.capture_ns <= output.publish_ns)
-                        .map(|_| index);
-                    (tick, output)
-                })
-                .collect();
-            entries.sort_by_key(|(tick, output)| (tick.unwrap_or(usize::MAX), output.publish_ns));
-            attributed.insert(topic, entries);
-        }
+        let topics: Vec<TopicComparison> = node
+            .output_topics
+            .iter()
+            .map(|&topic| {
+                let list = recorded
+                    .outputs
+                    .get(&(self.ticks_topic(), topic))
+                    .map_or(&[][..], Vec::as_slice);
+                let mut entries: Vec<(Option<usize>, &RecordedOutput)> = list
+                    .iter()
+                    .map(|output| {
+                        let index =
+                            records.partition_point(|r| r.header.publish_ns < output.publish_ns);
+                        let tick = records
+                            .get(index)
+                            .filter(|record| record.header.capture_ns <= output.publish_ns)
+                            .map(|_| index);
+                        (tick, output)
+                    })
+                    .collect();
+                entries
+                    .sort_by_key(|(tick, output)| (tick.unwrap_or(usize::MAX), output.publish_ns));
+                TopicComparison {
+                    recorded: entries,
+                    cursor: 0,
+                    check: ChannelCheck::new(topic),
+                    totals: (0, 0),
+                }
+            })
+            .collect();
         // The recorder may stop between a tick's outputs and its record, or part-way through
         // them: the tick of the last output it kept, and those after it, are not compared.
-        let heard_until_ns = attributed
-            .values()
-            .flatten()
+        let heard_until_ns = topics
+            .iter()
+            .flat_map(|topic| &topic.recorded)
             .filter_map(|(tick, _)| *tick)
             .max()
             .map_or(0, |last| records[last].header.capture_ns);
         let mut comparison = Comparison {
-            recorded: attributed,
-            cursors: HashMap::new(),
-            checks: output_topics
-                .iter()
-                .map(|topic| ChannelCheck::new(topic))
-                .collect(),
-            totals: HashMap::new(),
+            topics,
             tolerance,
             start_ns,
             tick: 0,
@@ -793,21 +773,18 @@ where
             }
         }
         check.rerun_wall_s = started.elapsed().as_secs_f64();
-        let mut channels = comparison.checks;
-        for channel in &mut channels {
-            let (recorded_count, rerun_count) = comparison
-                .totals
-                .get(channel.topic)
-                .copied()
-                .unwrap_or_default();
+        let mut channels = Vec::with_capacity(comparison.topics.len());
+        for topic in comparison.topics {
+            let mut channel = topic.check;
+            let (recorded_count, rerun_count) = topic.totals;
             if recorded_count != rerun_count {
                 channel.count_mismatch = Some((recorded_count, rerun_count));
             }
-            let outside = comparison.recorded.get(channel.topic).map_or(0, |list| {
-                list.iter()
-                    .filter(|(tick, _)| tick.is_none_or(|index| !rerun_ticks[index]))
-                    .count()
-            });
+            let outside = topic
+                .recorded
+                .iter()
+                .filter(|(tick, _)| tick.is_none_or(|index| !rerun_ticks[index]))
+                .count();
             if outside > 0 {
                 channel.not_rerun = outside as u64;
                 channel.not_rerun_reason = Some(
@@ -815,6 +792,7 @@ where
                         .to_owned(),
                 );
             }
+            channels.push(channel);
         }
         check.channels = channels;
         Ok(Some(check))

@@ -59,12 +59,7 @@ impl CheckReport {
         self.perception
             .as_ref()
             .map_or(0.0, |perception| perception.rerun_wall_s)
-            + self.controls_read_wall_s
-            + self
-                .controls
-                .iter()
-                .map(|control| control.rerun_wall_s)
-                .sum::<f64>()
+            + self.controls_wall_s()
     }
 
     /// The recorded time covered, s.
@@ -77,14 +72,14 @@ impl CheckReport {
         controls.fold(perception, u64::max) as f64 * 1e-9
     }
 
-    /// Recorded time re-run per second of wall time (every node re-run in turn).
-    pub fn speed_factor(&self) -> f64 {
-        let wall_s = self.rerun_wall_s();
-        if wall_s > 0.0 {
-            self.recorded_span_s() / wall_s
-        } else {
-            0.0
-        }
+    /// The wall time of the control nodes' pass: reading the recording, then every re-run.
+    pub fn controls_wall_s(&self) -> f64 {
+        self.controls_read_wall_s
+            + self
+                .controls
+                .iter()
+                .map(|control| control.rerun_wall_s)
+                .sum::<f64>()
     }
 }
 
@@ -150,9 +145,14 @@ pub fn run_check(
         controls: Vec::new(),
         controls_absent: Vec::new(),
         controls_read_wall_s: reading.elapsed().as_secs_f64(),
-        monitor: monitor
-            .map(|rejudged| monitor_rejudge::check_violations(files, rejudged, tolerance))
-            .transpose()?,
+        monitor: monitor.map(|rejudged| {
+            monitor_rejudge::check_violations(
+                &recorded.violations,
+                recorded.first_log_time_ns.unwrap_or_default(),
+                rejudged,
+                tolerance,
+            )
+        }),
     };
     for control in controls {
         match control.rerun(&recorded, tolerance)? {
@@ -175,11 +175,5 @@ pub fn run_check(
             "{reason}; and no control node's tick records"
         )));
     }
-    tracing::info!(
-        recorded_s = report.recorded_span_s(),
-        wall_s = report.rerun_wall_s(),
-        speed = report.speed_factor(),
-        "check done"
-    );
     Ok(report)
 }

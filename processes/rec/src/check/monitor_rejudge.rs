@@ -1,19 +1,16 @@
 //! The safety monitor re-judged: this build's monitor rules, run on the recording's monitored
 //! channels (`harvest monitor --recording`, given by the caller as the messages it would have
-//! published), compared with the `safety/violation` messages the live monitor published. The
+//! published), compared with the `safety/violation` messages the live monitor published (read
+//! in the control nodes' pass, [`crate::check::control_rerun::read_recording`]). The
 //! live monitor repeats an unanswered stop request every 100 ms of its own clock, so copies of
 //! one finding (same rule, arm and violation time) count once on both sides.
-
-use std::path::PathBuf;
 
 use harvest_ipc::Payload;
 use harvest_ipc::catalogue::SAFETY_VIOLATION;
 use harvest_ipc::payloads::SafetyViolation;
-use harvest_recording::payload_codec::decode_scanned;
 
 use crate::check::json_diff::{FieldDifference, first_difference};
-use crate::check::report::{ChannelCheck, CheckError, Difference};
-use crate::check::scan_recording::{scan, undecodable};
+use crate::check::report::{ChannelCheck, Difference};
 
 /// Set by the publisher, not by the rules: never compared.
 const STAMPS: [&str; 3] = ["header.msg_seq", "header.capture_ns", "header.publish_ns"];
@@ -31,27 +28,17 @@ fn findings(
     kept
 }
 
-/// Compares `rejudged` (the re-run monitor's messages, in order) with the recording's
-/// `safety/violation` findings.
+/// Compares `rejudged` (the re-run monitor's messages, in order) with `recorded` (the
+/// recording's `safety/violation` messages with their log times; `start_ns`: the recording's
+/// first log time).
 pub fn check_violations(
-    files: &[PathBuf],
+    recorded: &[(u64, SafetyViolation)],
+    start_ns: u64,
     rejudged: &[SafetyViolation],
     tolerance: Option<f64>,
-) -> Result<ChannelCheck, CheckError> {
+) -> ChannelCheck {
     let topic = SAFETY_VIOLATION.spec.topic;
-    let mut recorded = Vec::new();
-    let mut start_ns = None;
-    scan(files, |message| {
-        start_ns.get_or_insert(message.log_time);
-        if message.channel.topic == topic {
-            let value = decode_scanned(SAFETY_VIOLATION, message)
-                .ok_or_else(|| undecodable(topic, message.log_time))?;
-            recorded.push((message.log_time, value));
-        }
-        Ok(())
-    })?;
-    let start_ns = start_ns.unwrap_or_default();
-    let recorded = findings(recorded);
+    let recorded = findings(recorded.iter().copied());
     let rejudged = findings(rejudged.iter().map(|message| (0, *message)));
     let mut check = ChannelCheck::new(topic);
     for index in 0..recorded.len().max(rejudged.len()) {
@@ -93,5 +80,5 @@ pub fn check_violations(
     if recorded.len() != rejudged.len() {
         check.count_mismatch = Some((recorded.len() as u64, rejudged.len() as u64));
     }
-    Ok(check)
+    check
 }
