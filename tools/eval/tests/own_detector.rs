@@ -2,8 +2,8 @@
 //! the simulator's renders) in the perception evaluation, through the real ONNX Runtime (PyPI's
 //! `onnxruntime` wheel, found as in production): on worlds it was not trained on (evaluation
 //! seeds; training used seeds from 100000), it finds most apples that are at least half
-//! visible, reports (almost) nothing on frames without apples, and its boxes localize within the
-//! 3D gate.
+//! visible, reports (almost) nothing on frames without apples, and its masks (the segment head's)
+//! localize the apples within the 3D error target.
 //! The full figures are `harvest eval perception --detector onnx --model ...`
 //! (docs/evaluation.md); this test checks a small run with margins below them.
 
@@ -40,16 +40,26 @@ fn the_committed_model_finds_apples_on_unseen_worlds() {
     let precision = detection.precision.expect("detections");
     assert!(recall >= MIN_RECALL, "recall (>= 50 % visible) {recall:.3}");
     assert!(precision >= MIN_PRECISION, "precision {precision:.3}");
-    // The full evaluation reports nothing on its 30 empty frames; on these two the model puts
-    // one box on the canopy, which this check tolerates and no more.
+    // The full evaluation reports one box on 1 of its 60 empty frames; this check tolerates one
+    // and no more.
     assert!(
         detection.empty_frame_detections <= MAX_EMPTY_FRAME_DETECTIONS,
         "{} apples reported on frames without apples",
         detection.empty_frame_detections
     );
+    // The segment head's masks keep the leaves and neighbours in front of an apple out of its
+    // sphere fit: the earlier detect-only model, which fitted the ellipse inscribed in each box,
+    // had 28 mm here.
+    let p95_mm = report.scenarios[0].estimators[0]
+        .error_mm
+        .p95
+        .expect("matched apples");
+    assert!(p95_mm <= MAX_P95_ERROR_MM, "p95 3D error {p95_mm:.1} mm");
 }
 
 /// Margins below the model's figures over 30 worlds (docs/evaluation.md).
 const MIN_RECALL: f64 = 0.8;
 const MIN_PRECISION: f64 = 0.85;
 const MAX_EMPTY_FRAME_DETECTIONS: usize = 1;
+/// The target (the run gives 9.0 mm, the full evaluation 8.9).
+const MAX_P95_ERROR_MM: f64 = 15.0;

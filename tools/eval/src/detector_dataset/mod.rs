@@ -13,6 +13,10 @@
 //! - `images/NNNNN.png`: the resampled colour frame;
 //! - `labels/NNNNN.txt`: YOLO labels (`0 cx cy w h`, normalised) of the apples at least
 //!   `--min-visible` visible, for any YOLO trainer;
+//! - `masks/NNNNN.png`: the apples' visible pixels at the written image's size, 16-bit grey:
+//!   0 where no apple is seen, else the apple's `mask_value` in the index (a segmentation
+//!   trainer's instance masks; each pixel is the label of the full-resolution pixel under its
+//!   centre);
 //! - `index.jsonl`: one line per image: its seed, what was drawn, and every apple with any
 //!   visible pixel (box in image pixels, visible fraction, conditions), so a trainer can ignore
 //!   the barely visible ones instead of calling them background.
@@ -104,6 +108,8 @@ struct LabelledApple {
     clustered: bool,
     occluded: bool,
     labelled: bool,
+    /// This apple's pixels in `masks/NNNNN.png` hold this value (1 + its place in the line).
+    mask_value: u16,
 }
 
 /// One line of `index.jsonl`.
@@ -143,7 +149,7 @@ pub fn write_dataset(args: &DetectorDatasetArgs) -> Result<DatasetSummary, Datas
             source: Box::new(source),
         }
     })?;
-    for dir in ["images", "labels"] {
+    for dir in ["images", "labels", "masks"] {
         let path = args.out.join(dir);
         std::fs::create_dir_all(&path).map_err(write_error(&path))?;
     }
@@ -209,6 +215,22 @@ pub fn write_dataset(args: &DetectorDatasetArgs) -> Result<DatasetSummary, Datas
 
         let boxes = visible_boxes(&labels, width as usize, truth.len());
         let apples = label_apples(&letterbox, &truth, &boxes, args.min_visible);
+        let mask = instance_mask(&labels, &letterbox, &boxes);
+        let mask_path = args.out.join("masks").join(format!("{name}.png"));
+        image::ImageBuffer::<image::Luma<u16>, _>::from_raw(
+            letterbox.resized_width_px,
+            letterbox.resized_height_px,
+            mask,
+        )
+        .ok_or_else(|| DatasetError::Write {
+            path: mask_path.clone(),
+            source: std::io::Error::other("mask size differs from the image's"),
+        })?
+        .save(&mask_path)
+        .map_err(|source| DatasetError::Image {
+            path: mask_path.clone(),
+            source,
+        })?;
         let label_path = args.out.join("labels").join(format!("{name}.txt"));
         let mut yolo = String::new();
         let (w, h) = (
@@ -301,6 +323,51 @@ fn visible_boxes(labels: &[u32], width_px: usize, apples: usize) -> Vec<Option<[
     boxes
 }
 
+/// Per apple id, the value its pixels get in the mask image: 1 + its place among the visible
+/// apples (the order of [`label_apples`]), 0 for an apple with no visible pixel.
+fn mask_values(boxes: &[Option<[u32; 4]>]) -> Vec<u16> {
+    let mut next = 0u16;
+    boxes
+        .iter()
+        .map(|pixel_box| match pixel_box {
+            Some(_) => {
+                next = next.saturating_add(1);
+                next
+            }
+            None => 0,
+        })
+        .collect()
+}
+
+/// The instance mask at the written image's size: each pixel is the mask value of the apple
+/// whose label lies under its centre in the full-resolution label image, else 0.
+fn instance_mask(labels: &[u32], letterbox: &Letterbox, boxes: &[Option<[u32; 4]>]) -> Vec<u16> {
+    let values = mask_values(boxes);
+    let (width, height) = (
+        letterbox.image_width_px as usize,
+        letterbox.image_height_px as usize,
+    );
+    let (out_w, out_h) = (
+        letterbox.resized_width_px as usize,
+        letterbox.resized_height_px as usize,
+    );
+    let source = |out: usize, limit: usize| {
+        (((out as f64 + 0.5) / letterbox.scale) as usize).min(limit.saturating_sub(1))
+    };
+    let mut mask = Vec::with_capacity(out_w * out_h);
+    for y in 0..out_h {
+        let row = source(y, height) * width;
+        for x in 0..out_w {
+            let label = labels.get(row + source(x, width)).copied().unwrap_or(0);
+            let value = apple_from_label(label)
+                .and_then(|id| values.get(id.0 as usize).copied())
+                .unwrap_or(0);
+            mask.push(value);
+        }
+    }
+    mask
+}
+
 /// The index entries of every visible apple, boxes in the written image's pixels.
 fn label_apples(
     letterbox: &Letterbox,
@@ -311,7 +378,8 @@ fn label_apples(
     truth
         .iter()
         .zip(boxes)
-        .filter_map(|(apple, pixel_box)| {
+        .zip(mask_values(boxes))
+        .filter_map(|((apple, pixel_box), mask_value)| {
             let [u0, v0, u1, v1] = (*pixel_box)?;
             let (x0, y0) = (
                 f64::from(u0) * letterbox.scale,
@@ -330,6 +398,7 @@ fn label_apples(
                 clustered: apple.conditions.clustered,
                 occluded: apple.conditions.occluded,
                 labelled: visible_fraction >= min_visible,
+                mask_value,
             })
         })
         .collect()
@@ -354,6 +423,28 @@ mod tests {
     }
 
     #[test]
+    fn the_mask_samples_the_label_under_each_pixels_centre() {
+        let a0 = harvest_sim::render_rgbd::label::APPLE_BASE;
+        let leaf = harvest_sim::render_rgbd::label::LEAF;
+        // Apple 0 has no visible pixel, so apple 1 is the first in the index (value 1), apple 2
+        // the second; a 4x2 image halved (input 4 -> 2x1 resized).
+        #[rustfmt::skip]
+        let labels = [
+            leaf,   a0 + 1, leaf, leaf,
+            a0 + 1, a0 + 1, leaf, a0 + 2,
+        ];
+        let boxes = visible_boxes(&labels, 4, 3);
+        assert_eq!(mask_values(&boxes), vec![0, 1, 2]);
+        let letterbox = Letterbox::new(4, 2, 2);
+        assert_eq!(
+            (letterbox.resized_width_px, letterbox.resized_height_px),
+            (2, 1)
+        );
+        // Centres (0.5, 0.5) and (1.5, 0.5) of the output fall on source pixels (1, 1) and (3, 1).
+        assert_eq!(instance_mask(&labels, &letterbox, &boxes), vec![1, 2]);
+    }
+
+    #[test]
     fn a_small_data_set_is_written_with_labels_inside_the_image() {
         let dir = std::env::temp_dir().join(format!("harvest-dataset-{}", std::process::id()));
         let args = DetectorDatasetArgs {
@@ -372,6 +463,40 @@ mod tests {
         assert_eq!((image.width(), image.height()), (320, 180));
         let index = std::fs::read_to_string(dir.join("index.jsonl")).expect("index");
         assert_eq!(index.lines().count(), 2);
+        // Every labelled apple has pixels of its own in the mask, inside its box.
+        let mask = image::open(dir.join("masks/00000.png"))
+            .expect("mask png")
+            .into_luma16();
+        assert_eq!((mask.width(), mask.height()), (320, 180));
+        let line: serde_json::Value =
+            serde_json::from_str(index.lines().next().expect("line")).expect("json");
+        let mut checked = 0;
+        for apple in line["apples"].as_array().expect("apples") {
+            let value = apple["mask_value"].as_u64().expect("mask_value") as u16;
+            let b: Vec<f64> = apple["box_px"]
+                .as_array()
+                .expect("box")
+                .iter()
+                .map(|v| v.as_f64().expect("number"))
+                .collect();
+            let pixels: Vec<(u32, u32)> = mask
+                .enumerate_pixels()
+                .filter(|(_, _, p)| p.0[0] == value)
+                .map(|(x, y, _)| (x, y))
+                .collect();
+            if apple["labelled"].as_bool() == Some(true) {
+                assert!(!pixels.is_empty(), "{apple}");
+                checked += 1;
+            }
+            for (x, y) in pixels {
+                let (x, y) = (f64::from(x), f64::from(y));
+                assert!(
+                    x + 1.0 >= b[0] && x <= b[2] && y + 1.0 >= b[1] && y <= b[3],
+                    "{apple}"
+                );
+            }
+        }
+        assert!(checked > 5, "{checked} labelled apples checked");
         let labels = std::fs::read_to_string(dir.join("labels/00000.txt")).expect("labels");
         for line in labels.lines() {
             let values: Vec<f64> = line
