@@ -275,14 +275,19 @@ pub fn write_dataset(args: &DetectorDatasetArgs) -> Result<DatasetSummary, Datas
     Ok(summary)
 }
 
+/// Width and height of the written image (the resized image inside the input), pixels.
+fn resized_size(letterbox: &Letterbox) -> (usize, usize) {
+    (
+        letterbox.resized_width_px as usize,
+        letterbox.resized_height_px as usize,
+    )
+}
+
 /// The resized image inside the letterboxed `[1, 3, S, S]` input, as RGB8 rows.
 fn resized_region(letterbox: &Letterbox, input: &[f32]) -> Vec<u8> {
     let size = letterbox.input_size_px as usize;
     let plane = size * size;
-    let (w, h) = (
-        letterbox.resized_width_px as usize,
-        letterbox.resized_height_px as usize,
-    );
+    let (w, h) = resized_size(letterbox);
     let (left, top) = (
         letterbox.pad_left_px as usize,
         letterbox.pad_top_px as usize,
@@ -347,10 +352,7 @@ fn instance_mask(labels: &[u32], letterbox: &Letterbox, boxes: &[Option<[u32; 4]
         letterbox.image_width_px as usize,
         letterbox.image_height_px as usize,
     );
-    let (out_w, out_h) = (
-        letterbox.resized_width_px as usize,
-        letterbox.resized_height_px as usize,
-    );
+    let (out_w, out_h) = resized_size(letterbox);
     let source = |out: usize, limit: usize| {
         (((out as f64 + 0.5) / letterbox.scale) as usize).min(limit.saturating_sub(1))
     };
@@ -407,16 +409,15 @@ fn label_apples(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use harvest_sim::render_rgbd::label::{APPLE_BASE as A0, LEAF as L};
 
     #[test]
     fn boxes_bound_each_apples_labelled_pixels() {
-        let a0 = harvest_sim::render_rgbd::label::APPLE_BASE;
-        let leaf = harvest_sim::render_rgbd::label::LEAF;
         #[rustfmt::skip]
         let labels = [
-            leaf, a0, leaf, leaf,
-            a0, a0, leaf, a0 + 1,
-            leaf, leaf, leaf, leaf,
+            L,  A0, L, L,
+            A0, A0, L, A0 + 1,
+            L,  L,  L, L,
         ];
         let boxes = visible_boxes(&labels, 4, 3);
         assert_eq!(boxes, vec![Some([0, 0, 2, 2]), Some([3, 1, 4, 2]), None]);
@@ -424,14 +425,12 @@ mod tests {
 
     #[test]
     fn the_mask_samples_the_label_under_each_pixels_centre() {
-        let a0 = harvest_sim::render_rgbd::label::APPLE_BASE;
-        let leaf = harvest_sim::render_rgbd::label::LEAF;
         // Apple 0 has no visible pixel, so apple 1 is the first in the index (value 1), apple 2
         // the second; a 4x2 image halved (input 4 -> 2x1 resized).
         #[rustfmt::skip]
         let labels = [
-            leaf,   a0 + 1, leaf, leaf,
-            a0 + 1, a0 + 1, leaf, a0 + 2,
+            L,      A0 + 1, L, L,
+            A0 + 1, A0 + 1, L, A0 + 2,
         ];
         let boxes = visible_boxes(&labels, 4, 3);
         assert_eq!(mask_values(&boxes), vec![0, 1, 2]);
