@@ -194,6 +194,10 @@ def load_dataset(data_dirs, limit):
                     entry = json.loads(line)
                 except json.JSONDecodeError:
                     break  # a data set still being written: its complete lines only
+                if max(entry["width_px"], entry["height_px"]) != INPUT:
+                    raise SystemExit(f"{data_dir}: image {entry['image']} is {entry['width_px']}x"
+                                     f"{entry['height_px']}; this network's input is {INPUT} "
+                                     f"(render with --input-size {INPUT})")
                 entry["image"] = os.path.join(data_dir, entry["image"])
                 entries.append(entry)
     if limit:
@@ -202,7 +206,8 @@ def load_dataset(data_dirs, limit):
     for entry in entries:
         with Image.open(entry["image"]) as im:
             images.append(np.asarray(im.convert("RGB"), dtype=np.uint8))
-        mask_path = entry["image"].replace(os.sep + "images" + os.sep, os.sep + "masks" + os.sep)
+        mask_path = os.path.join(os.path.dirname(os.path.dirname(entry["image"])), "masks",
+                                 os.path.basename(entry["image"]))
         if not os.path.exists(mask_path):
             raise SystemExit(f"{mask_path}: missing (data sets need masks/: render them again "
                              "with this build's `harvest dataset detector`)")
@@ -477,11 +482,15 @@ def check_export(params, path, image):
     grid = INPUT // STRIDE
     n8 = grid * grid
     score_jax = 1 / (1 + np.exp(-raw[..., 4].ravel()))
-    cx = ((boxes[..., 0] + boxes[..., 2]) / 2).ravel()
-    w = (boxes[..., 2] - boxes[..., 0]).ravel()
+    centre_size = [
+        (boxes[..., 0] + boxes[..., 2]) / 2,
+        (boxes[..., 1] + boxes[..., 3]) / 2,
+        boxes[..., 2] - boxes[..., 0],
+        boxes[..., 3] - boxes[..., 1],
+    ]
     errors = {
         "score": np.abs(out[4, :n8] - score_jax).max(),
-        "box": max(np.abs(out[0, :n8] - cx).max(), np.abs(out[2, :n8] - w).max()),
+        "box": max(np.abs(out[i, :n8] - v.ravel()).max() for i, v in enumerate(centre_size)),
         "coefficient": np.abs(out[5:, :n8] - coefficients.reshape(n8, MASKS).T).max(),
         "prototype": np.abs(out_protos - np.transpose(protos, (2, 0, 1))).max(),
     }
@@ -508,6 +517,10 @@ def load_weights(params, path):
         else:
             kept.append(name)
     print(f"weights from {path}: {', '.join(loaded)}; initial: {', '.join(kept) or 'none'}", flush=True)
+    backbone = [layer[0] for layer in LAYERS]
+    if not all(name in loaded for name in backbone):
+        raise SystemExit(f"{path}: no weights of this network's backbone ({', '.join(backbone)}) "
+                         "with matching shapes")
     return params
 
 
