@@ -426,7 +426,7 @@ mod tests {
     #[test]
     fn the_mask_samples_the_label_under_each_pixels_centre() {
         // Apple 0 has no visible pixel, so apple 1 is the first in the index (value 1), apple 2
-        // the second; a 4x2 image halved (input 4 -> 2x1 resized).
+        // the second; a 4x2 image halved (input 2 -> 2x1 resized).
         #[rustfmt::skip]
         let labels = [
             L,      A0 + 1, L, L,
