@@ -1,19 +1,18 @@
-//! One rendered frame of a scenario (world seed 1): the colour image and the depth image the
-//! simulator's camera would give, for the benchmarks that need realistic pixels (a detector, an
-//! encoder, a JPEG over the remote link) rather than blank frames.
+//! One rendered frame of a scenario (world seed 1): the colour image (and, for the benchmarks
+//! that send it, the depth image) the simulator's camera would give, for the benchmarks that
+//! need realistic pixels (a detector, an encoder, a JPEG over the remote link) rather than blank
+//! frames.
 
 use harvest_ipc::payloads::rgbd_frame::DEPTH_PIXELS;
 use harvest_sim::process::load_scenario;
 use harvest_sim::{RgbdRenderer, World};
 
-/// A scenario's first world, rendered once.
+/// A scenario's first world's colour image, rendered once.
 pub struct SceneFrame {
     pub width_px: usize,
     pub height_px: usize,
     /// Interleaved RGB, `width_px * height_px * 3` bytes.
     pub rgb: Vec<u8>,
-    /// The ToF depth image, millimetres.
-    pub depth_mm: Vec<u16>,
 }
 
 /// Why the frame could not be rendered.
@@ -26,8 +25,19 @@ pub enum SceneFrameError {
 }
 
 impl SceneFrame {
-    /// Renders `scenario` (a preset name or a file) as its camera sees world seed 1.
+    /// Renders `scenario` (a preset name or a file) as its camera's colour sensor sees world
+    /// seed 1.
     pub fn render(scenario: &str) -> Result<Self, SceneFrameError> {
+        Ok(Self::render_scene(scenario, false)?.0)
+    }
+
+    /// The same, with the ToF depth image (millimetres) of the same world.
+    pub fn render_with_depth(scenario: &str) -> Result<(Self, Vec<u16>), SceneFrameError> {
+        Self::render_scene(scenario, true)
+    }
+
+    /// The colour frame, and the depth image when `with_depth` (else empty).
+    fn render_scene(scenario: &str, with_depth: bool) -> Result<(Self, Vec<u16>), SceneFrameError> {
         let scenario =
             load_scenario(scenario).map_err(|e| SceneFrameError::Scenario(e.to_string()))?;
         let render = |e: &dyn std::fmt::Display| SceneFrameError::Render(e.to_string());
@@ -39,15 +49,18 @@ impl SceneFrame {
         renderer
             .render_color(&world, &mut rgb)
             .map_err(|e| render(&e))?;
-        let mut depth_mm = vec![0u16; DEPTH_PIXELS];
-        renderer
-            .render_depth(&world, 1, &mut depth_mm)
-            .map_err(|e| render(&e))?;
-        Ok(Self {
+        let mut depth_mm = Vec::new();
+        if with_depth {
+            depth_mm.resize(DEPTH_PIXELS, 0);
+            renderer
+                .render_depth(&world, 1, &mut depth_mm)
+                .map_err(|e| render(&e))?;
+        }
+        let frame = Self {
             width_px,
             height_px,
             rgb,
-            depth_mm,
-        })
+        };
+        Ok((frame, depth_mm))
     }
 }

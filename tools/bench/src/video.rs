@@ -88,12 +88,14 @@ fn noise(index: usize, frame: u32, amplitude: u8) -> i16 {
 
 /// Runs the benchmark and prints its table.
 pub fn run_bench_video(args: &BenchVideoArgs) -> Result<VideoBenchReport, BenchVideoError> {
-    let SceneFrame {
-        width_px: width,
-        height_px: height,
-        rgb: scene,
+    let (
+        SceneFrame {
+            width_px: width,
+            height_px: height,
+            rgb: scene,
+        },
         depth_mm,
-    } = SceneFrame::render(&args.scenario)?;
+    ) = SceneFrame::render_with_depth(&args.scenario)?;
     let _pinned = AffinityRestore::pin(args.cpu)?;
 
     let settings = VideoSettings::at_rate(args.rate, args.bitrate);
