@@ -686,14 +686,14 @@ impl ControlCheckArgs {
     /// The arms and the vacuum supervisor, built as these arguments say, on recorded devices.
     fn nodes(&self) -> Vec<Box<dyn harvest_rec::check::ControlRerun>> {
         use harvest_rec::check::{RecordedBoard, RecordedServos, arm_rerun, vacuum_rerun};
-        let arm = |id: u8, config: &Option<std::path::PathBuf>| {
+        let arm = |arm_id: harvest_ipc::ArmId, config: &Option<std::path::PathBuf>| {
+            let id = arm_id.number();
             let args = harvest_arm_process::ArmArgs {
                 id,
                 device: self.arm_device,
                 config: config.clone(),
                 without_operator: false,
             };
-            let arm_id = harvest_ipc::ArmId::from_number(id).unwrap_or(harvest_ipc::ArmId::Arm2);
             arm_rerun(
                 arm_id,
                 Box::new(move || {
@@ -712,8 +712,8 @@ impl ControlCheckArgs {
             without_operator: false,
         };
         vec![
-            arm(1, &self.arm1_config),
-            arm(2, &self.arm2_config),
+            arm(harvest_ipc::ArmId::Arm1, &self.arm1_config),
+            arm(harvest_ipc::ArmId::Arm2, &self.arm2_config),
             vacuum_rerun(
                 Box::new(move || {
                     harvest_vacuum_process::process::task::<RecordedBoard>(&vacuum_args)

@@ -28,39 +28,40 @@ impl SceneFrame {
     /// Renders `scenario` (a preset name or a file) as its camera's colour sensor sees world
     /// seed 1.
     pub fn render(scenario: &str) -> Result<Self, SceneFrameError> {
-        Ok(Self::render_scene(scenario, false)?.0)
+        Ok(Self::render_colour(scenario)?.0)
     }
 
     /// The same, with the ToF depth image (millimetres) of the same world.
     pub fn render_with_depth(scenario: &str) -> Result<(Self, Vec<u16>), SceneFrameError> {
-        Self::render_scene(scenario, true)
+        let (frame, world, mut renderer) = Self::render_colour(scenario)?;
+        let mut depth_mm = vec![0u16; DEPTH_PIXELS];
+        renderer
+            .render_depth(&world, 1, &mut depth_mm)
+            .map_err(|e| render_error(&e))?;
+        Ok((frame, depth_mm))
     }
 
-    /// The colour frame, and the depth image when `with_depth` (else empty).
-    fn render_scene(scenario: &str, with_depth: bool) -> Result<(Self, Vec<u16>), SceneFrameError> {
+    /// The colour frame, with the world and the renderer that made it.
+    fn render_colour(scenario: &str) -> Result<(Self, World, RgbdRenderer), SceneFrameError> {
         let scenario =
             load_scenario(scenario).map_err(|e| SceneFrameError::Scenario(e.to_string()))?;
-        let render = |e: &dyn std::fmt::Display| SceneFrameError::Render(e.to_string());
-        let world = World::generate(&scenario, 1).map_err(|e| render(&e))?;
-        let mut renderer = RgbdRenderer::new(&scenario.camera).map_err(|e| render(&e))?;
+        let world = World::generate(&scenario, 1).map_err(|e| render_error(&e))?;
+        let mut renderer = RgbdRenderer::new(&scenario.camera).map_err(|e| render_error(&e))?;
         let intrinsics = *renderer.color_intrinsics();
         let (width_px, height_px) = (intrinsics.width_px as usize, intrinsics.height_px as usize);
         let mut rgb = vec![0u8; width_px * height_px * 3];
         renderer
             .render_color(&world, &mut rgb)
-            .map_err(|e| render(&e))?;
-        let mut depth_mm = Vec::new();
-        if with_depth {
-            depth_mm.resize(DEPTH_PIXELS, 0);
-            renderer
-                .render_depth(&world, 1, &mut depth_mm)
-                .map_err(|e| render(&e))?;
-        }
+            .map_err(|e| render_error(&e))?;
         let frame = Self {
             width_px,
             height_px,
             rgb,
         };
-        Ok((frame, depth_mm))
+        Ok((frame, world, renderer))
     }
+}
+
+fn render_error(error: &dyn std::fmt::Display) -> SceneFrameError {
+    SceneFrameError::Render(error.to_string())
 }

@@ -29,14 +29,11 @@ use harvest_recording::payload_codec::decode_scanned;
 use harvest_recording::scan::ScannedMessage;
 use harvest_robot_model::ModeSource;
 
-use crate::check::json_diff::{FieldDifference, first_difference};
+use crate::check::json_diff::PUBLISHER_STAMPS;
 use crate::check::recorded_devices::RecordedDevices;
 use crate::check::recorded_inputs::NoFailure;
-use crate::check::report::{ChannelCheck, CheckError, Difference};
+use crate::check::report::{ChannelCheck, CheckError};
 use crate::check::scan_recording::{scan, undecodable};
-
-/// Fields set by the transport, not decided by the node: never compared.
-const STAMPS: [&str; 2] = ["header.msg_seq", "header.publish_ns"];
 
 /// Whether a recorded message (topic, encoded payload) on one of a node's output channels was
 /// written by that node (channels with several writers: `harvest/events`,
@@ -391,53 +388,28 @@ impl Comparison<'_> {
         let recorded = &this.recorded[taken];
         this.totals.0 += recorded.len() as u64;
         this.totals.1 += sent.len() as u64;
-        let check = &mut this.check;
         for index in 0..recorded.len().max(sent.len()) {
-            let recorded_message = recorded.get(index).map(|(_, output)| *output);
-            let difference = match (recorded_message, sent.get(index)) {
-                (Some(output), Some(rerun)) => {
-                    let Some(value) = decode::<T>(&output.bytes) else {
+            let recorded_message = match recorded.get(index) {
+                Some((_, output)) => match decode::<T>(&output.bytes) {
+                    Some(value) => Some((output.log_time_ns, value.to_json())),
+                    None if index < sent.len() => {
                         self.undecodable
                             .get_or_insert(undecodable(topic, output.log_time_ns));
                         return;
-                    };
-                    check.compared += 1;
-                    let found =
-                        first_difference(&value.to_json(), &rerun.to_json(), &STAMPS, tolerance);
-                    check.identical += u64::from(found.is_none());
-                    found
-                }
-                (Some(output), None) => {
-                    check.compared += 1;
-                    check.missing_in_rerun += 1;
-                    Some(FieldDifference {
-                        field: "(the message)".to_owned(),
-                        recorded: decode::<T>(&output.bytes)
-                            .map_or(serde_json::Value::Null, |v| v.to_json()),
-                        rerun: serde_json::Value::Null,
-                    })
-                }
-                (None, Some(rerun)) => Some(FieldDifference {
-                    field: "(the message)".to_owned(),
-                    recorded: serde_json::Value::Null,
-                    rerun: rerun.to_json(),
-                }),
-                (None, None) => None,
+                    }
+                    None => Some((output.log_time_ns, serde_json::Value::Null)),
+                },
+                None => None,
             };
-            if let Some(field) = difference
-                && check.first_difference.is_none()
-            {
-                // A message only the re-run sent: at its tick, after those compared.
-                let (at_ns, message_index) = match recorded_message {
-                    Some(output) => (output.log_time_ns, check.compared.saturating_sub(1)),
-                    None => (tick_log_ns, check.compared),
-                };
-                check.first_difference = Some(Difference {
-                    at_s: at_ns.saturating_sub(start_ns) as f64 * 1e-9,
-                    message_index,
-                    field,
-                });
-            }
+            // A message only the re-run sent is placed at its tick, after those compared.
+            this.check.compare_message(
+                recorded_message,
+                sent.get(index).map(Payload::to_json),
+                &PUBLISHER_STAMPS,
+                tolerance,
+                start_ns,
+                tick_log_ns,
+            );
         }
     }
 }

@@ -12,6 +12,23 @@ pub struct FieldDifference {
     pub rerun: Value,
 }
 
+/// Header fields the publisher sets, not the node's decisions: never compared.
+pub const PUBLISHER_STAMPS: [&str; 2] = ["header.msg_seq", "header.publish_ns"];
+
+/// What stands for a whole message's path in a [`FieldDifference`].
+const WHOLE_MESSAGE: &str = "(the message)";
+
+impl FieldDifference {
+    /// A difference of the whole message (one side missing).
+    pub fn whole_message(recorded: Value, rerun: Value) -> Self {
+        Self {
+            field: WHOLE_MESSAGE.to_owned(),
+            recorded,
+            rerun,
+        }
+    }
+}
+
 /// The first field where `recorded` and `rerun` differ, leaving out the fields `ignored` names
 /// (paths from the root, e.g. `header.publish_ns`). Numbers within `tolerance` (absolute) are
 /// equal; `None` compares them exactly.
@@ -37,7 +54,7 @@ fn walk(
     }
     let differs = |path: &str| FieldDifference {
         field: if path.is_empty() {
-            "(the message)".to_owned()
+            WHOLE_MESSAGE.to_owned()
         } else {
             path.to_owned()
         },

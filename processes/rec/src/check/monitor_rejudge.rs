@@ -9,8 +9,7 @@ use harvest_ipc::Payload;
 use harvest_ipc::catalogue::SAFETY_VIOLATION;
 use harvest_ipc::payloads::SafetyViolation;
 
-use crate::check::json_diff::{FieldDifference, first_difference};
-use crate::check::report::{ChannelCheck, Difference};
+use crate::check::report::ChannelCheck;
 
 /// Set by the publisher, not by the rules: never compared.
 const STAMPS: [&str; 3] = ["header.msg_seq", "header.capture_ns", "header.publish_ns"];
@@ -42,40 +41,16 @@ pub fn check_violations(
     let rejudged = findings(rejudged.iter().map(|message| (0, *message)));
     let mut check = ChannelCheck::new(topic);
     for index in 0..recorded.len().max(rejudged.len()) {
-        let (old, new) = (recorded.get(index), rejudged.get(index));
-        let difference = match (old, new) {
-            (Some((_, old)), Some((_, new))) => {
-                check.compared += 1;
-                let found = first_difference(&old.to_json(), &new.to_json(), &STAMPS, tolerance);
-                check.identical += u64::from(found.is_none());
-                found
-            }
-            (Some((_, old)), None) => {
-                check.compared += 1;
-                check.missing_in_rerun += 1;
-                Some(FieldDifference {
-                    field: "(the message)".to_owned(),
-                    recorded: old.to_json(),
-                    rerun: serde_json::Value::Null,
-                })
-            }
-            (None, Some((_, new))) => Some(FieldDifference {
-                field: "(the message)".to_owned(),
-                recorded: serde_json::Value::Null,
-                rerun: new.to_json(),
-            }),
-            (None, None) => None,
-        };
-        if let Some(field) = difference
-            && check.first_difference.is_none()
-        {
-            let at_ns = old.map_or(start_ns, |(at, _)| *at);
-            check.first_difference = Some(Difference {
-                at_s: at_ns.saturating_sub(start_ns) as f64 * 1e-9,
-                message_index: index as u64,
-                field,
-            });
-        }
+        check.compare_message(
+            recorded
+                .get(index)
+                .map(|(at_ns, old)| (*at_ns, old.to_json())),
+            rejudged.get(index).map(|(_, new)| new.to_json()),
+            &STAMPS,
+            tolerance,
+            start_ns,
+            start_ns,
+        );
     }
     if recorded.len() != rejudged.len() {
         check.count_mismatch = Some((recorded.len() as u64, rejudged.len() as u64));

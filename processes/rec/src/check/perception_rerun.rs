@@ -24,14 +24,12 @@ use harvest_recording::payload_codec::{decode_scanned, decode_scanned_into, zero
 use harvest_robot_model::ModeSource;
 
 use crate::check::held_sample::AttachHeld;
-use crate::check::json_diff::first_difference;
+use crate::check::json_diff::PUBLISHER_STAMPS;
 use crate::check::recorded_inputs::{RecordedInputs, RerunOutputs};
-use crate::check::report::{ChannelCheck, CheckError, Difference};
+use crate::check::report::{ChannelCheck, CheckError};
 use crate::check::scan_recording::{scan, undecodable};
 
-/// Fields set by the transport or measured, not decided by the node: never compared.
-const STAMPS: [&str; 2] = ["header.msg_seq", "header.publish_ns"];
-/// The detections' own measured field, besides the stamps.
+/// The detections' own measured field, besides the publisher's stamps: never compared.
 const DETECTION_TIMING: &str = "processing_ns";
 
 /// A recorded message with its log time.
@@ -102,24 +100,14 @@ fn compare<T: Payload>(
     tolerance: Option<f64>,
     start_ns: u64,
 ) {
-    check.compared += 1;
-    match first_difference(
-        &recorded.value.to_json(),
-        &rerun.to_json(),
+    check.compare_message(
+        Some((recorded.log_time_ns, recorded.value.to_json())),
+        Some(rerun.to_json()),
         ignored,
         tolerance,
-    ) {
-        None => check.identical += 1,
-        Some(field) => {
-            if check.first_difference.is_none() {
-                check.first_difference = Some(Difference {
-                    at_s: recorded.log_time_ns.saturating_sub(start_ns) as f64 * 1e-9,
-                    message_index: check.compared - 1,
-                    field,
-                });
-            }
-        }
-    }
+        start_ns,
+        start_ns,
+    );
 }
 
 /// Re-runs `task` on the recording's frames and compares (module documentation).
@@ -218,7 +206,7 @@ pub fn check_perception(
             .tick(&mut transport, tick_ns)
             .map_err(|error| CheckError::Node(error.to_string()))?;
         frames_rerun += 1;
-        let ignored = [STAMPS[0], STAMPS[1], DETECTION_TIMING];
+        let ignored = [PUBLISHER_STAMPS[0], PUBLISHER_STAMPS[1], DETECTION_TIMING];
         match sent.detections.pop() {
             Some(rerun) => compare(
                 &mut detections,
@@ -249,7 +237,7 @@ pub fn check_perception(
             &mut scan_requests,
             recorded_request,
             rerun,
-            &STAMPS,
+            &PUBLISHER_STAMPS,
             tolerance,
             start_ns,
         );

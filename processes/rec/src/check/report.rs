@@ -2,7 +2,9 @@
 
 use std::path::PathBuf;
 
-use crate::check::json_diff::FieldDifference;
+use serde_json::Value;
+
+use crate::check::json_diff::{FieldDifference, first_difference};
 
 /// Where a channel's re-run output first differs from the recording.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,6 +45,51 @@ impl ChannelCheck {
             not_rerun_reason: None,
             count_mismatch: None,
             first_difference: None,
+        }
+    }
+
+    /// Compares the next recorded message (its log time and JSON view) with the re-run's
+    /// message at the same place; either may be missing. A recorded message counts as
+    /// compared (and as not sent when the re-run lacks it); the first difference is kept, at
+    /// the recorded message's log time or, for a message only the re-run sent,
+    /// `rerun_only_at_ns` (`start_ns`: the recording's first log time). Fields `ignored` names
+    /// are left out; numbers within `tolerance` are equal.
+    pub fn compare_message(
+        &mut self,
+        recorded: Option<(u64, Value)>,
+        rerun: Option<Value>,
+        ignored: &[&str],
+        tolerance: Option<f64>,
+        start_ns: u64,
+        rerun_only_at_ns: u64,
+    ) {
+        let message_index = self.compared;
+        let at_ns = recorded
+            .as_ref()
+            .map_or(rerun_only_at_ns, |(at_ns, _)| *at_ns);
+        let difference = match (recorded, rerun) {
+            (Some((_, recorded)), Some(rerun)) => {
+                self.compared += 1;
+                let found = first_difference(&recorded, &rerun, ignored, tolerance);
+                self.identical += u64::from(found.is_none());
+                found
+            }
+            (Some((_, recorded)), None) => {
+                self.compared += 1;
+                self.missing_in_rerun += 1;
+                Some(FieldDifference::whole_message(recorded, Value::Null))
+            }
+            (None, Some(rerun)) => Some(FieldDifference::whole_message(Value::Null, rerun)),
+            (None, None) => None,
+        };
+        if let Some(field) = difference
+            && self.first_difference.is_none()
+        {
+            self.first_difference = Some(Difference {
+                at_s: at_ns.saturating_sub(start_ns) as f64 * 1e-9,
+                message_index,
+                field,
+            });
         }
     }
 

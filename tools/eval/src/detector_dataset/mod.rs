@@ -214,8 +214,9 @@ pub fn write_dataset(args: &DetectorDatasetArgs) -> Result<DatasetSummary, Datas
         })?;
 
         let boxes = visible_boxes(&labels, width as usize, truth.len());
-        let apples = label_apples(&letterbox, &truth, &boxes, args.min_visible);
-        let mask = instance_mask(&labels, &letterbox, &boxes);
+        let mask_values = mask_values(&boxes);
+        let apples = label_apples(&letterbox, &truth, &boxes, &mask_values, args.min_visible);
+        let mask = instance_mask(&labels, &letterbox, &mask_values);
         let mask_path = args.out.join("masks").join(format!("{name}.png"));
         image::ImageBuffer::<image::Luma<u16>, _>::from_raw(
             letterbox.resized_width_px,
@@ -344,10 +345,10 @@ fn mask_values(boxes: &[Option<[u32; 4]>]) -> Vec<u16> {
         .collect()
 }
 
-/// The instance mask at the written image's size: each pixel is the mask value of the apple
-/// whose label lies under its centre in the full-resolution label image, else 0.
-fn instance_mask(labels: &[u32], letterbox: &Letterbox, boxes: &[Option<[u32; 4]>]) -> Vec<u16> {
-    let values = mask_values(boxes);
+/// The instance mask at the written image's size: each pixel is the mask value (`values`, per
+/// apple id) of the apple whose label lies under its centre in the full-resolution label
+/// image, else 0.
+fn instance_mask(labels: &[u32], letterbox: &Letterbox, values: &[u16]) -> Vec<u16> {
     let (width, height) = (
         letterbox.image_width_px as usize,
         letterbox.image_height_px as usize,
@@ -375,13 +376,14 @@ fn label_apples(
     letterbox: &Letterbox,
     truth: &[FrameApple],
     boxes: &[Option<[u32; 4]>],
+    mask_values: &[u16],
     min_visible: f64,
 ) -> Vec<LabelledApple> {
     truth
         .iter()
         .zip(boxes)
-        .zip(mask_values(boxes))
-        .filter_map(|((apple, pixel_box), mask_value)| {
+        .zip(mask_values)
+        .filter_map(|((apple, pixel_box), &mask_value)| {
             let [u0, v0, u1, v1] = (*pixel_box)?;
             let (x0, y0) = (
                 f64::from(u0) * letterbox.scale,
@@ -440,7 +442,10 @@ mod tests {
             (2, 1)
         );
         // Centres (0.5, 0.5) and (1.5, 0.5) of the output fall on source pixels (1, 1) and (3, 1).
-        assert_eq!(instance_mask(&labels, &letterbox, &boxes), vec![1, 2]);
+        assert_eq!(
+            instance_mask(&labels, &letterbox, &mask_values(&boxes)),
+            vec![1, 2]
+        );
     }
 
     #[test]
